@@ -1,0 +1,47 @@
+"""jaxclear: a differentiable JAX engine for planar mechanisms with revolute clearance joints.
+
+Importing jaxclear switches JAX to double precision (contact penetrations are micrometres).
+"""
+
+import jax
+
+jax.config.update("jax_enable_x64", True)
+
+from .clearance import ClearanceJoint, ContactKinematics, ContactMemory, kinematics  # noqa: E402
+from .contact.friction import Friction  # noqa: E402
+from .contact.laws import STEEL, ContactLaw, Material, law_names, make_law  # noqa: E402
+from .dynamics import Baumgarte, State, accelerations, energy, vector_field  # noqa: E402
+from .errors import (  # noqa: E402
+    InitialConditionError,
+    JaxclearError,
+    MechanismError,
+    ParameterError,
+    SolverError,
+)
+from .mechanism import (  # noqa: E402
+    GROUND,
+    AngleDriver,
+    Body,
+    Fixed,
+    FunctionDriver,
+    Mechanism,
+    PointForce,
+    Revolute,
+    Torque,
+    Translational,
+)
+from .presets import preset, preset_names  # noqa: E402
+from .solve import (  # noqa: E402
+    SOLVERS,
+    STATUS,
+    ImpactMemorySolver,
+    Settings,
+    Solution,
+    assemble,
+    crank_period,
+    initial_state,
+    settings,
+    simulate,
+)
+
+__version__ = "0.1.0"
