@@ -53,6 +53,8 @@ class ClearanceJoint(eqx.Module):
         impact_velocity_floor: lower bound [m/s] > 0 of the impact speed used by the law, so
             that grazing contact cannot divide by zero.
         initial_offset: eccentricity vector [m] at the start (default centred).
+        initial_velocity: velocity [m/s] of the journal centre relative to the bearing centre at
+            the start (default 0: the journal moves with its bearing, the ideal kinematics).
         name: label (static).
     """
 
@@ -67,6 +69,7 @@ class ClearanceJoint(eqx.Module):
     friction: Friction
     impact_velocity_floor: Scalar
     initial_offset: Vec2
+    initial_velocity: Vec2
     name: str = eqx.field(static=True)
 
     def __init__(
@@ -82,6 +85,7 @@ class ClearanceJoint(eqx.Module):
         friction: Friction | None = None,
         impact_velocity_floor: ArrayLike = 1e-4,
         initial_offset: ArrayLike = (0.0, 0.0),
+        initial_velocity: ArrayLike = (0.0, 0.0),
         name: str = "clearance",
     ):
         check_range("bearing_radius", bearing_radius, low=0.0, low_open=True, unit="m")
@@ -109,6 +113,7 @@ class ClearanceJoint(eqx.Module):
         self.friction = Friction() if friction is None else friction
         self.impact_velocity_floor = jnp.asarray(impact_velocity_floor, dtype=float)
         self.initial_offset = offset
+        self.initial_velocity = jnp.asarray(initial_velocity, dtype=float).reshape(2)
         self.name = name
 
     @property

@@ -145,8 +145,9 @@ def assemble(mech: Mechanism, t0=0.0) -> Assembly:
     Positions: Newton iterations :math:`q \leftarrow q - D^+\Phi` (minimum-norm steps, so
     coordinates the constraints leave free stay at their guesses) on the joints, the drivers
     and every clearance joint held at its ``initial_offset`` (centred by default).
-    Velocities: the guess corrected to :math:`D\dot q = -\Phi_t` (minimum-norm), i.e. the
-    ideal-joint kinematics with the journal moving with its bearing.
+    Velocities: the guess corrected (minimum-norm) to :math:`D\dot q = -\Phi_t` on joints and
+    drivers and to the prescribed relative velocity ``initial_velocity`` on every clearance
+    joint (zero by default: the ideal-joint kinematics, journal moving with its bearing).
     """
     q, qd = mech.guess()
     t0 = jnp.asarray(t0, q.dtype)
@@ -163,7 +164,9 @@ def assemble(mech: Mechanism, t0=0.0) -> Assembly:
     r = constraints.phi(mech, q, t0, extra)
     d = constraints.jacobian(mech, q, t0, extra)
     phit = constraints.time_derivative(mech, q, t0, extra)
-    qd = qd - jnp.linalg.pinv(d) @ (d @ qd + phit)
+    # clearance joints: prescribed relative journal velocity (zero by default)
+    target = jnp.concatenate([jnp.zeros(mech.n_constraints, q.dtype)] + [c.initial_velocity for c in extra])
+    qd = qd - jnp.linalg.pinv(d) @ (d @ qd + phit - target)
     sv = jnp.linalg.svd(d, compute_uv=False)
     return Assembly(q, qd, jnp.linalg.norm(r), sv)
 

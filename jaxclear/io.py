@@ -1,0 +1,253 @@
+"""Files in and out: time series CSV, JSON, and measured data (spec section 8).
+
+Output CSV columns (:func:`timeseries_columns`), units in the names:
+
+``time_s, crank_angle_rad, slider_pos_m, slider_vel_m_s, slider_acc_m_s2, ecc_x_m, ecc_y_m,
+penetration_m, contact_force_n, friction_force_n``
+
+The crank column appears only for a mechanism with a ``crank`` role, the slider columns only
+with a ``slider`` role (its global x coordinate and derivatives), the contact columns only
+with clearance joints; with several joints they get the suffixes ``_1``, ``_2``...
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import ParameterError
+from .mechanism import Mechanism
+from .solve import Solution
+
+CONTACT_COLUMNS = ("ecc_x_m", "ecc_y_m", "penetration_m", "contact_force_n", "friction_force_n")
+SLIDER_COLUMNS = ("slider_pos_m", "slider_vel_m_s", "slider_acc_m_s2")
+
+
+def timeseries_table(mech: Mechanism, sol: Solution) -> dict[str, np.ndarray]:
+    """Column name -> 1-D array, in CSV order (see the module docstring)."""
+    cols: dict[str, np.ndarray] = {"time_s": np.asarray(sol.ts, dtype=float)}
+    crank = mech.role("crank")
+    if crank is not None:
+        cols["crank_angle_rad"] = np.asarray(sol.coordinate(mech, crank, "phi"), dtype=float)
+    slider = mech.role("slider")
+    if slider is not None:
+        for d, name in enumerate(SLIDER_COLUMNS):
+            cols[name] = np.asarray(sol.coordinate(mech, slider, "x", derivative=d), dtype=float)
+    k = len(mech.clearance_joints)
+    ecc = np.asarray(sol.ecc, dtype=float)
+    per_joint = {
+        "penetration_m": np.asarray(sol.penetration, dtype=float),
+        "contact_force_n": np.asarray(sol.normal_force, dtype=float),
+        "friction_force_n": np.asarray(sol.friction_force, dtype=float),
+    }
+    for j in range(k):
+        suffix = f"_{j + 1}" if k > 1 else ""
+        cols["ecc_x_m" + suffix] = ecc[:, j, 0]
+        cols["ecc_y_m" + suffix] = ecc[:, j, 1]
+        for name, arr in per_joint.items():
+            cols[name + suffix] = arr[:, j]
+    return cols
+
+
+def timeseries_columns(mech: Mechanism) -> list[str]:
+    """Header of :func:`write_timeseries_csv` for ``mech`` (no simulation needed)."""
+    cols = ["time_s"]
+    if mech.role("crank") is not None:
+        cols.append("crank_angle_rad")
+    if mech.role("slider") is not None:
+        cols.extend(SLIDER_COLUMNS)
+    k = len(mech.clearance_joints)
+    for j in range(k):
+        suffix = f"_{j + 1}" if k > 1 else ""
+        cols.extend(c + suffix for c in CONTACT_COLUMNS)
+    return cols
+
+
+def write_timeseries_csv(path, mech: Mechanism, sol: Solution) -> str:
+    """Write the sampled solution as CSV (header row, then one row per sample, 12 significant
+    digits). Returns the path."""
+    cols = timeseries_table(mech, sol)
+    data = np.column_stack(list(cols.values()))
+    path = os.fspath(path)
+    np.savetxt(path, data, delimiter=",", header=",".join(cols), comments="", fmt="%.12g")
+    return path
+
+
+def _jsonable(obj):
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if hasattr(obj, "shape") and hasattr(obj, "dtype"):  # numpy / jax arrays and scalars
+        arr = np.asarray(obj)
+        return _jsonable(arr.tolist()) if arr.ndim else _jsonable(arr.item())
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None  # JSON has no NaN/inf
+    return obj
+
+
+def write_json(path, obj) -> str:
+    """Write ``obj`` as indented JSON (arrays become lists, NaN/inf become null). Returns the path."""
+    path = os.fspath(path)
+    with open(path, "w", encoding="utf-8") as f:
+        json.dump(_jsonable(obj), f, indent=2)
+        f.write("\n")
+    return path
+
+
+# --------------------------------------------------------------------------------------
+# Measured data (spec section 8)
+# --------------------------------------------------------------------------------------
+
+REQUIRED_MEASUREMENT_COLUMNS = ("time_s", "slider_acc_m_s2")
+OPTIONAL_MEASUREMENT_COLUMNS = ("crank_angle_rad", "slider_pos_m", "slider_vel_m_s")
+
+
+@dataclass
+class Measurements:
+    """Measured time series (SI units, 1-D float arrays of equal length).
+
+    Attributes:
+        time_s: sample times [s], strictly increasing.
+        slider_acc_m_s2: slider acceleration [m/s^2].
+        crank_angle_rad, slider_pos_m, slider_vel_m_s: optional columns (None if absent).
+        metadata: ``key: value`` (or ``key = value``) pairs of the leading ``#`` lines; a
+            comment line without a separator is kept under ``"comments"``.
+        path: the file read.
+    """
+
+    time_s: np.ndarray
+    slider_acc_m_s2: np.ndarray
+    crank_angle_rad: np.ndarray | None = None
+    slider_pos_m: np.ndarray | None = None
+    slider_vel_m_s: np.ndarray | None = None
+    metadata: dict = field(default_factory=dict)
+    path: str = ""
+
+    def __len__(self) -> int:
+        return int(self.time_s.shape[0])
+
+    @property
+    def columns(self) -> list[str]:
+        """Names of the columns present."""
+        names = REQUIRED_MEASUREMENT_COLUMNS + OPTIONAL_MEASUREMENT_COLUMNS
+        return [n for n in names if getattr(self, n) is not None]
+
+
+def _parse_metadata(text: str, metadata: dict):
+    for sep in (":", "="):
+        if sep in text:
+            key, value = text.split(sep, 1)
+            if key.strip():
+                metadata[key.strip()] = value.strip()
+                return
+    if text:
+        metadata.setdefault("comments", []).append(text)
+
+
+def read_measurements(path) -> Measurements:
+    """Read a measured-data CSV (spec section 8).
+
+    Format: optional leading ``#`` metadata lines, one header row with units in the column
+    names, then numeric rows. Required columns ``time_s`` [s] and ``slider_acc_m_s2``
+    [m/s^2]; optional ``crank_angle_rad``, ``slider_pos_m``, ``slider_vel_m_s``. Unknown
+    columns are ignored with a warning; blank lines and later ``#`` lines are skipped.
+
+    Raises:
+        ParameterError: missing file or header, missing required or duplicate column, wrong
+            number of fields, non-numeric or non-finite value, time not strictly increasing, or
+            fewer than 2 samples; the message names the file, line number and column.
+    """
+    path = os.fspath(path)
+    try:
+        with open(path, encoding="utf-8-sig", newline="") as f:
+            lines = f.read().splitlines()
+    except OSError as err:
+        raise ParameterError(f"cannot read measurements file {path!r}: {err.strerror or err}") from None
+    metadata: dict = {}
+    header: list[str] | None = None
+    header_line = 0
+    rows: list[tuple[int, list[str]]] = []
+    for lineno, line in enumerate(lines, start=1):
+        stripped = line.strip()
+        if not stripped:
+            continue
+        if stripped.startswith("#"):
+            if header is None:
+                _parse_metadata(stripped.lstrip("#").strip(), metadata)
+            continue
+        fields = [c.strip() for c in next(csv.reader([line]))]
+        if header is None:
+            header, header_line = fields, lineno
+        else:
+            rows.append((lineno, fields))
+    if header is None:
+        raise ParameterError(f"{path}: no header row found (expected columns {list(REQUIRED_MEASUREMENT_COLUMNS)})")
+    seen = set()
+    for name in header:
+        if name in seen:
+            raise ParameterError(f"{path}, line {header_line}: column {name!r} appears twice in the header")
+        seen.add(name)
+    missing = [c for c in REQUIRED_MEASUREMENT_COLUMNS if c not in header]
+    if missing:
+        raise ParameterError(
+            f"{path}, line {header_line}: missing required column(s) {missing} in header {header}; "
+            f"required: {list(REQUIRED_MEASUREMENT_COLUMNS)}, optional: {list(OPTIONAL_MEASUREMENT_COLUMNS)}"
+        )
+    known = REQUIRED_MEASUREMENT_COLUMNS + OPTIONAL_MEASUREMENT_COLUMNS
+    unknown = [c for c in header if c not in known]
+    if unknown:
+        warnings.warn(f"{path}: ignoring unknown column(s) {unknown} (known: {list(known)})", stacklevel=2)
+    used = {name: header.index(name) for name in known if name in header}
+    values = {name: np.empty(len(rows)) for name in used}
+    for r, (lineno, fields) in enumerate(rows):
+        if len(fields) != len(header):
+            raise ParameterError(
+                f"{path}, line {lineno}: {len(fields)} fields but the header (line {header_line}) has {len(header)}"
+            )
+        for name, col in used.items():
+            text = fields[col]
+            try:
+                v = float(text)
+            except ValueError:
+                raise ParameterError(
+                    f"{path}, line {lineno}, column {name!r}: non-numeric value {text!r}"
+                ) from None
+            if not math.isfinite(v):
+                raise ParameterError(f"{path}, line {lineno}, column {name!r}: non-finite value {text!r}")
+            values[name][r] = v
+    if len(rows) < 2:
+        raise ParameterError(f"{path}: {len(rows)} data row(s); at least 2 samples are needed")
+    t = values["time_s"]
+    bad = np.nonzero(np.diff(t) <= 0.0)[0]
+    if bad.size:
+        r = int(bad[0]) + 1
+        raise ParameterError(
+            f"{path}, line {rows[r][0]}, column 'time_s': time {t[r]:g} s is not greater than the previous "
+            f"sample's {t[r - 1]:g} s (line {rows[r - 1][0]}); time must be strictly increasing"
+        )
+    return Measurements(
+        time_s=t,
+        slider_acc_m_s2=values["slider_acc_m_s2"],
+        crank_angle_rad=values.get("crank_angle_rad"),
+        slider_pos_m=values.get("slider_pos_m"),
+        slider_vel_m_s=values.get("slider_vel_m_s"),
+        metadata=metadata,
+        path=path,
+    )
+
+
+__all__ = [
+    "write_timeseries_csv",
+    "timeseries_table",
+    "timeseries_columns",
+    "write_json",
+    "read_measurements",
+    "Measurements",
+]

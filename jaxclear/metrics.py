@@ -1,0 +1,146 @@
+"""Scalar summaries of a simulation (the one place these formulas live).
+
+:func:`summary` turns a :class:`~jaxclear.solve.Solution` into a flat dictionary of plain
+Python numbers (JSON-serializable) that the command line writes to ``summary.json`` and
+prints, and that sweeps and reports can tabulate. Quantities that do not apply to a
+mechanism (contact quantities without a clearance joint, slider quantities without a slider)
+are ``None``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .mechanism import Mechanism
+from .solve import STATUS, Solution
+
+#: Keys of :func:`summary`, in output order, with their units (``-`` for dimensionless).
+SUMMARY_KEYS: dict[str, str] = {
+    "mechanism": "-",
+    "t_end_s": "s",
+    "n_samples": "-",
+    "clearance_joints": "-",
+    "peak_contact_force_n": "N",
+    "peak_contact_force_per_joint_n": "N",
+    "peak_friction_force_n": "N",
+    "max_penetration_m": "m",
+    "max_penetration_per_joint_m": "m",
+    "impacts": "-",
+    "impacts_per_joint": "-",
+    "peak_slider_acc_m_s2": "m/s^2",
+    "max_constraint_drift": "m or rad",
+    "fraction_free_flight": "-",
+    "fraction_impact": "-",
+    "fraction_continuous_contact": "-",
+    "energy_dissipated_j": "J",
+    "num_steps": "-",
+    "num_accepted_steps": "-",
+    "num_rejected_steps": "-",
+    "status": "-",
+    "status_message": "-",
+    "wall_time_s": "s",
+}
+
+
+def _np(x) -> np.ndarray:
+    return np.asarray(x, dtype=float)
+
+
+def _float(x) -> float:
+    return float(np.asarray(x))
+
+
+def peak_slider_acceleration(mech: Mechanism, sol: Solution) -> float | None:
+    """Largest ``|x''|`` of the slider body [m/s^2] over the samples, or None without a slider."""
+    slider = mech.role("slider")
+    if slider is None:
+        return None
+    acc = _np(sol.coordinate(mech, slider, "x", derivative=2))
+    return _float(np.max(np.abs(acc)))
+
+
+def mode_fractions(sol: Solution) -> tuple[float, float, float] | None:
+    """Fractions of samples (over all joints and times) in free flight, impact and continuous
+    contact (``Solution.mode`` 0, 1, 2); None without clearance joints."""
+    mode = np.asarray(sol.mode)
+    if mode.size == 0:
+        return None
+    n = mode.size
+    return tuple(float(np.count_nonzero(mode == m)) / n for m in (0, 1, 2))  # type: ignore[return-value]
+
+
+def summary(mech: Mechanism, sol: Solution, wall_time_s: float | None = None) -> dict:
+    """Scalar results of one simulation as plain Python values (see :data:`SUMMARY_KEYS`).
+
+    * ``peak_contact_force_n``: largest normal contact force over the samples and joints [N];
+      ``peak_friction_force_n``: largest ``|F_T|`` [N].
+    * ``max_penetration_m``: largest penetration ``e - c`` over the samples [m], 0 if the
+      journal never touched its bearing at a sample.
+    * ``impacts``: number of contact onsets over the run (counted at every solver step, so
+      exact even for impacts shorter than the output spacing), total and per joint.
+    * ``peak_slider_acc_m_s2``: largest ``|x''|`` of the slider [m/s^2].
+    * ``max_constraint_drift``: largest ``|Phi(q, t)|`` of the ideal joints and drivers
+      (mixed units: m for position constraints, rad for angles).
+    * ``fraction_*``: share of samples (joints x times) in free flight, impact (contact shorter
+      than ``Settings.continuous_contact_after``) and continuous contact.
+    * ``energy_dissipated_j``: minus the work of the contact forces over the run [J] (if the
+      run ends during a contact, this includes the elastic energy then stored in it).
+    * solver statistics, ``status`` (0 ok) and ``status_message`` (:data:`jaxclear.STATUS`).
+    * ``wall_time_s``: as given (the command line includes JIT compilation).
+    """
+    ts = _np(sol.ts)
+    k = len(mech.clearance_joints)
+    status = int(np.asarray(sol.status))
+    out: dict = {
+        "mechanism": mech.name,
+        "t_end_s": _float(ts[-1]),
+        "n_samples": int(ts.shape[0]),
+        "clearance_joints": [c.name for c in mech.clearance_joints],
+    }
+    if k:
+        fn = _np(sol.normal_force)
+        ft = _np(sol.friction_force)
+        pen = _np(sol.penetration)
+        impacts = np.asarray(sol.memory.impacts)[-1]
+        work = _np(sol.memory.work)[-1]
+        peak_fn = np.max(fn, axis=0)
+        max_pen = np.maximum(np.max(pen, axis=0), 0.0)
+        out.update(
+            peak_contact_force_n=_float(np.max(peak_fn)),
+            peak_contact_force_per_joint_n=[float(v) for v in peak_fn],
+            peak_friction_force_n=_float(np.max(np.abs(ft))),
+            max_penetration_m=_float(np.max(max_pen)),
+            max_penetration_per_joint_m=[float(v) for v in max_pen],
+            impacts=int(round(float(np.sum(impacts)))),
+            impacts_per_joint=[int(round(float(v))) for v in impacts],
+        )
+    else:
+        out.update(
+            peak_contact_force_n=None,
+            peak_contact_force_per_joint_n=[],
+            peak_friction_force_n=None,
+            max_penetration_m=None,
+            max_penetration_per_joint_m=[],
+            impacts=None,
+            impacts_per_joint=[],
+        )
+    out["peak_slider_acc_m_s2"] = peak_slider_acceleration(mech, sol)
+    drift = _np(sol.drift)
+    out["max_constraint_drift"] = _float(np.max(drift)) if drift.size else 0.0
+    fractions = mode_fractions(sol)
+    out["fraction_free_flight"], out["fraction_impact"], out["fraction_continuous_contact"] = (
+        fractions if fractions is not None else (None, None, None)
+    )
+    out["energy_dissipated_j"] = -_float(np.sum(work)) if k else None
+    out.update(
+        num_steps=int(np.asarray(sol.num_steps)),
+        num_accepted_steps=int(np.asarray(sol.num_accepted_steps)),
+        num_rejected_steps=int(np.asarray(sol.num_rejected_steps)),
+        status=status,
+        status_message=STATUS.get(status, f"unknown status {status}"),
+        wall_time_s=None if wall_time_s is None else float(wall_time_s),
+    )
+    return {key: out[key] for key in SUMMARY_KEYS}
+
+
+__all__ = ["summary", "SUMMARY_KEYS", "peak_slider_acceleration", "mode_fractions"]

@@ -1,0 +1,56 @@
+"""Shared builders for tests. Importing jaxclear turns on float64."""
+
+import math
+import sys
+from pathlib import Path
+
+import jaxclear as jc
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+
+def free_journal(restitution=0.9, law="lankarani-nikravesh", speed=1.0, clearance=0.5e-3, mass=1.0,
+                 friction=None, offset=(0.0, 0.0), stiffness=None, floor=1e-4):
+    """A free body whose centre is a journal inside a ground bearing at the origin; no gravity.
+    It starts at ``offset`` moving along +x at ``speed`` m/s: one central impact."""
+    body = jc.Body("pin", mass, 1e-3, {"c": (0.0, 0.0)}, position=(*offset, 0.0), velocity=(speed, 0.0, 0.0))
+    joint = jc.ClearanceJoint(
+        jc.GROUND, "hole", "pin", "c",
+        bearing_radius=0.010, journal_radius=0.010 - clearance,
+        law=jc.make_law(law, restitution=restitution, stiffness=stiffness),
+        friction=friction, impact_velocity_floor=floor,
+        initial_offset=offset, initial_velocity=(speed, 0.0),
+    )
+    return jc.Mechanism([body], clearance_joints=[joint], gravity=(0.0, 0.0), ground_points={"hole": (0, 0)},
+                        name="free-journal")
+
+
+def clearance_pendulum(restitution=1.0, friction=0.0, length=0.2, mass=1.0, clearance=0.5e-3):
+    """A bar hanging from a ground bearing through a clearance joint at its top end (no ideal
+    joints, no drivers): a free mechanism with 3 degrees of freedom. Starts tilted 30 degrees,
+    journal centred, at rest."""
+    th = math.radians(30)
+    # centroid below the pivot along the bar; bar axis from top end (journal) to centroid
+    cx, cy = 0.5 * length * math.sin(th), -0.5 * length * math.cos(th)
+    phi = th - math.pi / 2  # body x axis points from the journal towards the free end
+    body = jc.Body("bar", mass, mass * length**2 / 12, {"top": (-length / 2, 0.0)}, position=(cx, cy, phi))
+    joint = jc.ClearanceJoint(
+        jc.GROUND, "pivot", "bar", "top", bearing_radius=0.010, journal_radius=0.010 - clearance,
+        law=jc.make_law("lankarani-nikravesh", restitution=restitution),
+        friction=jc.Friction(friction),
+    )
+    return jc.Mechanism([body], clearance_joints=[joint], ground_points={"pivot": (0, 0)}, name="pendulum")
+
+
+def slider_crank_exact(phi, omega, r=0.05, l=0.12):
+    """Exact slider position, velocity and acceleration of the ideal slider-crank at crank angle
+    phi = omega t (closed form of x = r cos phi + sqrt(l^2 - r^2 sin^2 phi))."""
+    import numpy as np
+
+    s, c = np.sin(phi), np.cos(phi)
+    root = np.sqrt(l**2 - r**2 * s**2)
+    x = r * c + root
+    dx = -r * s - r**2 * s * c / root
+    ddx = -r * c - r**2 * (c**2 - s**2) / root - r**4 * s**2 * c**2 / root**3
+    return x, dx * omega, ddx * omega**2
