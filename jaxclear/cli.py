@@ -253,7 +253,7 @@ def _run_simulate(args) -> int:
     if args.n_out is not None:
         n_out = args.n_out
     elif revolutions is not None:
-        n_out = max(int(math.ceil(SAMPLES_PER_REVOLUTION * revolutions)), 100) + 1
+        n_out = max(int(round(SAMPLES_PER_REVOLUTION * revolutions)), 100) + 1
     else:
         n_out = DEFAULT_SAMPLES
     s = settings(t_end, n_out=n_out, solver=args.solver, rtol=args.rtol, atol=args.atol,

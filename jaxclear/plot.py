@@ -90,7 +90,7 @@ def plot_orbit(path, mech: Mechanism, sol: Solution) -> Figure:
     k = len(mech.clearance_joints)
     if k == 0:
         raise ValueError(f"mechanism {mech.name!r} has no clearance joint: no orbit to plot")
-    fig = Figure(figsize=(5.2 * k, 5.4))
+    fig = Figure(figsize=(5.2 * k, 6.0))
     ecc = 1e3 * np.asarray(sol.ecc, dtype=float)
     theta = np.linspace(0.0, 2.0 * np.pi, 361)
     for j, joint in enumerate(mech.clearance_joints):
@@ -109,7 +109,7 @@ def plot_orbit(path, mech: Mechanism, sol: Solution) -> Figure:
         ax.set_xlabel("eccentricity x [mm]")
         ax.set_ylabel("eccentricity y [mm]")
         ax.set_title(f"{mech.name}: journal orbit, joint {joint.name}", fontsize=10)
-        ax.legend(loc="lower left", fontsize=8, framealpha=0.85)
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, fontsize=8, frameon=False)
         ax.grid(True, alpha=0.3)
     fig.tight_layout()
     return _save(fig, path)
