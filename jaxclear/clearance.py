@@ -99,6 +99,8 @@ class ClearanceJoint(eqx.Module):
                     f"journal_radius = {float(rj):g} m must be smaller than bearing_radius = "
                     f"{float(rb):g} m (clearance c = R_B - R_J must be > 0; got {float(rb - rj):g} m)"
                 )
+            if hasattr(law, "check_geometry"):
+                law.check_geometry(float(rb), float(rj))
         offset = jnp.asarray(initial_offset, dtype=float).reshape(2)
         if not isinstance(offset, jax.core.Tracer) and float(jnp.linalg.norm(offset)) >= float(rb - rj):
             raise ParameterError(
@@ -241,11 +243,14 @@ def joint_forces(mech: Mechanism, joint: ClearanceJoint, q, qdot, impact_velocit
     """Generalized contact force (n,) of one joint and its :class:`ContactOutput`."""
     kin = kinematics(mech, joint, q, qdot)
     speed0 = jnp.maximum(impact_velocity, joint.impact_velocity_floor)
-    f_n = joint.law.normal_force(kin, speed0)
+    if hasattr(joint.law, "contact_force"):  # laws that set their own direction (profiles)
+        f_n, n = joint.law.contact_force(kin, speed0)
+    else:
+        f_n, n = joint.law.normal_force(kin, speed0), kin.normal
     f_t = joint.friction(kin.slip, f_n)
-    f_journal = -f_n * kin.normal + f_t * kin.tangent
-    q_i = kin.bearing_centre + joint.bearing_radius * kin.normal
-    q_j = kin.journal_centre + joint.journal_radius * kin.normal
+    f_journal = -f_n * n + f_t * perp(n)
+    q_i = kin.bearing_centre + joint.bearing_radius * n
+    q_j = kin.journal_centre + joint.journal_radius * n
     gen = point_load(mech, q, joint.journal_body, q_j, f_journal) + point_load(
         mech, q, joint.bearing_body, q_i, -f_journal
     )

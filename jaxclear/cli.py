@@ -75,7 +75,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(args.run(args) or 0)
     except JaxclearError as err:
-        print(f"error: {err}", file=sys.stderr)
+        text = str(err)
+        text = text[len("jaxclear: "):] if text.startswith("jaxclear: ") else text
+        print(f"error: {text}", file=sys.stderr)
         return 2
     except OSError as err:
         where = f" {err.filename!r}" if getattr(err, "filename", None) else ""
@@ -159,9 +161,7 @@ def _positive_int(text: str) -> int:
 
 @subcommand("simulate", "simulate a preset mechanism (CSV, JSON, PNG)", SIMULATE_DESCRIPTION)
 def _configure_simulate(p: argparse.ArgumentParser):
-    from .contact.laws import law_names
-    from .presets import preset_names
-    from .solve import SOLVERS
+    from . import SOLVERS, law_names, preset_names
 
     mech = p.add_argument_group("mechanism")
     mech.add_argument("--preset", default="flores-slider-crank", metavar="NAME",
@@ -181,8 +181,9 @@ def _configure_simulate(p: argparse.ArgumentParser):
                       help=f"normal contact force law [-], one of {', '.join(law_names())} "
                       "(default: lankarani-nikravesh)")
     mech.add_argument("--stiffness", type=float, metavar="K",
-                      help="contact stiffness K [N/m^1.5], > 0 (default: from steel, E = 207 GPa, "
-                      "nu = 0.3, and the radii: 6.61e10 for R_B = 10 mm, c = 0.5 mm)")
+                      help="contact stiffness, > 0: K [N/m^n] of the Hertz-family laws (n = 1.5), the "
+                      "stiffness parameter of the others (default: from steel, E = 207 GPa, nu = 0.3, and "
+                      "the radii; K = 6.61e10 N/m^1.5 for R_B = 10 mm, c = 0.5 mm)")
     mech.add_argument("--ideal", action="store_true",
                       help="replace the clearance joint by an ideal revolute joint (default: off)")
 
@@ -231,7 +232,7 @@ def _timed_simulate(mech, s):
 
 def _run_simulate(args) -> int:
     from . import io, metrics, plot
-    from .errors import check_range
+    from .errors import JaxclearError, check_range
     from .presets import preset
     from .solve import crank_period, settings
 
@@ -243,7 +244,7 @@ def _run_simulate(args) -> int:
         t_end = float(args.t_end)
         try:
             period = crank_period(mech)
-        except Exception:
+        except JaxclearError:  # no constant-speed crank: revolutions undefined, t_end suffices
             period = None
     else:
         check_range("--revolutions", args.revolutions, low=0.0, low_open=True)
@@ -262,9 +263,8 @@ def _run_simulate(args) -> int:
 
     joint = mech.clearance_joints[0] if mech.clearance_joints else None
     what = "ideal joints" if joint is None else (
-        f"clearance {float(joint.clearance) * 1e3:g} mm, {joint.law.model}, c_r = {float(joint.law.restitution):g}, "
-        f"mu = {float(joint.friction.coefficient):g}")
-    revs = f" ({revolutions:g} revolutions)" if revolutions is not None else ""
+        f"{plot.joint_label(joint)}, mu = {float(joint.friction.coefficient):g}")
+    revs = f" ({revolutions:g} crank revolution(s))" if revolutions is not None else ""
     print(f"jaxclear: {mech.name}, {what}; t_end = {t_end:.6g} s{revs}, {n_out} samples, "
           f"{args.solver} rtol={args.rtol:g} atol={args.atol:g}", flush=True)
     print("compiling and integrating (the first run includes JIT compilation)...", flush=True)

@@ -41,16 +41,38 @@ def _abscissa(mech: Mechanism, sol: Solution):
 
 def _angle_ticks(ax, x):
     span = float(np.max(x) - np.min(x)) if x.size else 0.0
-    step = 360.0 if span > 1080 else 90.0 if span > 180 else 30.0
+    step = 360.0 if span > 1440.5 else 90.0 if span > 270.5 else 30.0
     ax.xaxis.set_major_locator(MultipleLocator(step))
     ax.set_xlim(float(np.min(x)), float(np.max(x)))
 
 
+def law_label(law) -> str:
+    """Registered name of a contact law object (``law.model``, else looked up by its class)."""
+    name = getattr(law, "model", None)
+    if isinstance(name, str):
+        return name
+    try:
+        from .contact.registry import LAWS
+
+        for key, (cls, _) in LAWS.items():
+            if type(law) is cls:
+                return key
+    except Exception:  # pragma: no cover - registry layout changed
+        pass
+    return type(law).__name__
+
+
+def joint_label(joint) -> str:
+    """``clearance 0.5 mm, lankarani-nikravesh, c_r = 0.9`` for a clearance joint."""
+    parts = [f"clearance {1e3 * float(joint.clearance):g} mm", law_label(joint.law)]
+    restitution = getattr(joint.law, "restitution", None)
+    if restitution is not None:
+        parts.append(f"c_r = {float(restitution):g}")
+    return ", ".join(parts)
+
+
 def _title(mech: Mechanism, what: str) -> str:
-    extra = ""
-    if mech.clearance_joints:
-        c = mech.clearance_joints[0]
-        extra = f" (clearance {1e3 * float(c.clearance):g} mm, {c.law.model}, c_r = {float(c.law.restitution):g})"
+    extra = f" ({joint_label(mech.clearance_joints[0])})" if mech.clearance_joints else ""
     return f"{mech.name}: {what}{extra}"
 
 
@@ -65,7 +87,7 @@ def plot_slider_acceleration(path, mech: Mechanism, sol: Solution, ideal_sol: So
     ax = fig.add_subplot()
     x, xlabel, is_angle = _abscissa(mech, sol)
     acc = np.asarray(sol.coordinate(mech, slider, "x", derivative=2), dtype=float)
-    label = "clearance joint" if mech.clearance_joints else "simulation"
+    label = "clearance joint" if mech.clearance_joints else "ideal joint"
     ax.plot(x, acc, color=COLORS[0], lw=0.8, label=label)
     if ideal_sol is not None:
         im = mech if ideal_mech is None else ideal_mech
@@ -79,7 +101,7 @@ def plot_slider_acceleration(path, mech: Mechanism, sol: Solution, ideal_sol: So
     ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4))
     ax.set_title(_title(mech, "slider acceleration"), fontsize=10)
     ax.grid(True, alpha=0.3)
-    ax.legend(loc="upper right")
+    ax.legend(loc="upper right" if mech.clearance_joints else "best")
     fig.tight_layout()
     return _save(fig, path)
 

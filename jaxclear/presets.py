@@ -10,7 +10,7 @@ import numpy as np
 
 from .clearance import ClearanceJoint
 from .contact.friction import Friction
-from .contact.laws import make_law
+from .contact.registry import make_law
 from .errors import ParameterError, check_range, rpm_to_rad_s
 from .mechanism import GROUND, AngleDriver, Body, Mechanism, Revolute, Translational
 

@@ -11,14 +11,14 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 
 def free_journal(restitution=0.9, law="lankarani-nikravesh", speed=1.0, clearance=0.5e-3, mass=1.0,
-                 friction=None, offset=(0.0, 0.0), stiffness=None, floor=1e-4):
+                 friction=None, offset=(0.0, 0.0), stiffness=None, floor=1e-4, **law_options):
     """A free body whose centre is a journal inside a ground bearing at the origin; no gravity.
     It starts at ``offset`` moving along +x at ``speed`` m/s: one central impact."""
     body = jc.Body("pin", mass, 1e-3, {"c": (0.0, 0.0)}, position=(*offset, 0.0), velocity=(speed, 0.0, 0.0))
     joint = jc.ClearanceJoint(
         jc.GROUND, "hole", "pin", "c",
         bearing_radius=0.010, journal_radius=0.010 - clearance,
-        law=jc.make_law(law, restitution=restitution, stiffness=stiffness),
+        law=jc.make_law(law, restitution=restitution, stiffness=stiffness, **law_options),
         friction=friction, impact_velocity_floor=floor,
         initial_offset=offset, initial_velocity=(speed, 0.0),
     )

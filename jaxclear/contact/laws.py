@@ -214,6 +214,8 @@ class ContactLaw(eqx.Module):
         self.bearing_material = bearing_material
         self.journal_material = journal_material
 
+    stiffness_field = "stiffness"
+
     def stiffness_for(self, radius_bearing, radius_journal):
         """K [N/m^n]: the given one, or the cylindrical formula from the materials and radii."""
         if self.stiffness is not None:
@@ -240,19 +242,177 @@ class ContactLaw(eqx.Module):
         return dissipative_hertz(kin.delta, kin.deltadot, deltadot0, stiffness, self.hysteresis, self.exponent)
 
 
+def effective_modulus(bearing: Material, journal: Material):
+    r""":math:`E^* = 1/(\sigma_i + \sigma_j)` [Pa]."""
+    return 1.0 / (bearing.compliance + journal.compliance)
+
+
+def _hysteresis_model(name: str):
+    if name not in HYSTERESIS_FACTORS:
+        raise ParameterError(f"unknown hysteresis model {name!r}; valid: {sorted(HYSTERESIS_FACTORS)}")
+    return name
+
+
 # --------------------------------------------------------------------------------------
-# Registry: every normal law selectable by name
+# Kelvin-Voigt
 # --------------------------------------------------------------------------------------
 
 
-def law_names() -> list[str]:
-    """Names accepted by :func:`make_law`."""
-    return sorted(HYSTERESIS_FACTORS)
+def kelvin_voigt_damping(stiffness, restitution, effective_mass):
+    r"""Damping d [N s/m] of the linear law from :math:`c_r = \exp(-\pi\zeta/\sqrt{1-\zeta^2})`:
+    :math:`\zeta = -\ln c_r/\sqrt{\pi^2 + \ln^2 c_r}`, :math:`d = 2\zeta\sqrt{k\,m_{eff}}`
+    (the unclipped half-period of a damped linear oscillator; Machado et al. 2012, sec. 3)."""
+    log_cr = jnp.log(restitution)
+    zeta = -log_cr / jnp.sqrt(jnp.pi**2 + log_cr**2)
+    return 2.0 * zeta * jnp.sqrt(stiffness * effective_mass)
 
 
-def make_law(name: str, **kwargs):
-    """Build a normal contact law by name (see :func:`law_names`); keyword arguments are the
-    law's parameters (``restitution``, ``stiffness``...)."""
-    if name in HYSTERESIS_FACTORS:
-        return ContactLaw(model=name, **kwargs)
-    raise ParameterError(f"unknown contact law {name!r}; valid laws: {law_names()}")
+def kelvin_voigt(delta, deltadot, stiffness, damping):
+    r"""Kelvin-Voigt linear spring-damper :math:`F_N = \max(k\delta + d\dot\delta, 0)` for
+    :math:`\delta > 0` (Goldsmith, *Impact*, 1960; Machado et al. 2012). The clip (no pulling)
+    ends the contact when the force vanishes, so the effective restitution of a single impact
+    is somewhat lower than the nominal :math:`c_r` used to compute ``d``."""
+    force = stiffness * delta + damping * deltadot
+    return jnp.where(delta > 0.0, jnp.maximum(force, 0.0), 0.0)
+
+
+class KelvinVoigtLaw(eqx.Module):
+    """Kelvin-Voigt law (see :func:`kelvin_voigt`).
+
+    Attributes:
+        stiffness: k [N/m] > 0.
+        restitution: nominal :math:`c_r \\in (0, 1]` giving the damping through
+            :func:`kelvin_voigt_damping`.
+        effective_mass: :math:`m_{eff}` [kg] > 0 of the contact (e.g. the journal-side mass).
+    """
+
+    stiffness: Scalar
+    restitution: Scalar
+    effective_mass: Scalar
+
+    stiffness_field = "stiffness"
+
+    def __init__(self, stiffness: ArrayLike = 1e8, restitution: ArrayLike = 0.9, effective_mass: ArrayLike = 0.1):
+        check_range("stiffness", stiffness, low=0.0, low_open=True, unit="N/m")
+        check_range("restitution", restitution, low=0.0, high=1.0, low_open=True)
+        check_range("effective_mass", effective_mass, low=0.0, low_open=True, unit="kg")
+        self.stiffness = jnp.asarray(stiffness, dtype=float)
+        self.restitution = jnp.asarray(restitution, dtype=float)
+        self.effective_mass = jnp.asarray(effective_mass, dtype=float)
+
+    def penetration(self, kin):
+        return kin.delta
+
+    def normal_force(self, kin, deltadot0):
+        d = kelvin_voigt_damping(self.stiffness, self.restitution, self.effective_mass)
+        return kelvin_voigt(kin.delta, kin.deltadot, self.stiffness, d)
+
+
+# --------------------------------------------------------------------------------------
+# Cylindrical (conformal) laws: Liu et al. and Bai-Zhao
+# --------------------------------------------------------------------------------------
+
+
+def liu_force(delta, clearance, modulus, length):
+    r"""Liu, Zhang, Wang improved elastic foundation model for a pin in a hole (C.S. Liu,
+    K. Zhang, R. Yang, "The FEM analysis and approximate model for cylindrical joints with
+    clearances", Mech. Mach. Theory 42 (2007) 183-197):
+
+    .. math:: F = \tfrac12\pi E^*\delta\sqrt{\frac{\delta}{2(c+\delta)}}\,L \quad [\mathrm N].
+    """
+    pos = jnp.maximum(delta, 0.0)
+    inside = delta > 0.0
+    ratio = jnp.where(inside, pos / (2.0 * (clearance + pos)), 1.0)
+    return jnp.where(inside, 0.5 * jnp.pi * modulus * pos * jnp.sqrt(ratio) * length, 0.0)
+
+
+def bai_zhao_stiffness(delta, clearance, modulus):
+    r"""Bai & Zhao improved-EFM stiffness (Z.F. Bai, Y. Zhao, "Dynamic behaviour analysis of
+    planar mechanical systems with clearance in revolute joints using a new hybrid contact force
+    model", Int. J. Mech. Sci. 54 (2012) 190-205):
+
+    .. math:: K_n(\delta) = \frac{\pi E^*}{8}\sqrt{\frac{2\delta(3c+2\delta)^2}{(c+\delta)^3}}
+
+    (:math:`dF_{Liu}/d\delta` per unit length), used as published in
+    :math:`F_N = K_n\delta^{1.5}(\ldots)`, i.e. with :math:`K_n` read as N/m^1.5.
+    """
+    pos = jnp.maximum(delta, 0.0)
+    inside = delta > 0.0
+    arg = jnp.where(inside, 2.0 * pos * (3.0 * clearance + 2.0 * pos) ** 2 / (clearance + pos) ** 3, 1.0)
+    return jnp.where(inside, jnp.pi * modulus / 8.0 * jnp.sqrt(arg), 0.0)
+
+
+class LiuLaw(eqx.Module):
+    r"""Liu et al. elastic foundation force (:func:`liu_force`) with hysteresis damping
+    :math:`F_N = F_{Liu}(\delta)(1 + \hat\chi(c_r)\dot\delta/\dot\delta^{(-)})` (default
+    :math:`\hat\chi` of Lankarani-Nikravesh; any name of :data:`HYSTERESIS_FACTORS`).
+
+    Attributes:
+        restitution: :math:`c_r \in (0, 1]`.
+        modulus: :math:`E^*` [Pa] or ``None`` (from the materials).
+        hysteresis: name of the damping factor (static).
+    """
+
+    restitution: Scalar
+    modulus: Scalar | None
+    bearing_material: Material
+    journal_material: Material
+    hysteresis: str = eqx.field(static=True)
+
+    stiffness_field = "modulus"
+
+    def __init__(self, restitution=0.9, modulus=None, hysteresis="lankarani-nikravesh",
+                 bearing_material: Material = STEEL, journal_material: Material = STEEL):
+        check_range("restitution", restitution, low=0.0, high=1.0, low_open=True)
+        check_range("modulus (E*)", modulus, low=0.0, low_open=True, unit="Pa")
+        self.restitution = jnp.asarray(restitution, dtype=float)
+        self.modulus = None if modulus is None else jnp.asarray(modulus, dtype=float)
+        self.hysteresis = _hysteresis_model(hysteresis)
+        self.bearing_material, self.journal_material = bearing_material, journal_material
+
+    def modulus_value(self):
+        return effective_modulus(self.bearing_material, self.journal_material) if self.modulus is None else self.modulus
+
+    def penetration(self, kin):
+        return kin.delta
+
+    def normal_force(self, kin, deltadot0):
+        c = kin.radius_bearing - kin.radius_journal
+        elastic = liu_force(kin.delta, c, self.modulus_value(), kin.length)
+        chi = HYSTERESIS_FACTORS[self.hysteresis](self.restitution)
+        return jnp.maximum(elastic * (1.0 + chi * kin.deltadot / deltadot0), 0.0)
+
+
+class BaiZhaoLaw(eqx.Module):
+    r"""Bai-Zhao law :math:`F_N = K_n(\delta)\,\delta^{1.5}(1 + \hat\chi_{QinLu}(c_r)\dot\delta/
+    \dot\delta^{(-)})` with :func:`bai_zhao_stiffness` (Bai & Zhao 2012).
+
+    Attributes:
+        restitution: :math:`c_r \in (0, 1]`; modulus: :math:`E^*` [Pa] or ``None``.
+    """
+
+    restitution: Scalar
+    modulus: Scalar | None
+    bearing_material: Material
+    journal_material: Material
+
+    stiffness_field = "modulus"
+
+    def __init__(self, restitution=0.9, modulus=None, bearing_material: Material = STEEL,
+                 journal_material: Material = STEEL):
+        check_range("restitution", restitution, low=0.0, high=1.0, low_open=True)
+        check_range("modulus (E*)", modulus, low=0.0, low_open=True, unit="Pa")
+        self.restitution = jnp.asarray(restitution, dtype=float)
+        self.modulus = None if modulus is None else jnp.asarray(modulus, dtype=float)
+        self.bearing_material, self.journal_material = bearing_material, journal_material
+
+    def modulus_value(self):
+        return effective_modulus(self.bearing_material, self.journal_material) if self.modulus is None else self.modulus
+
+    def penetration(self, kin):
+        return kin.delta
+
+    def normal_force(self, kin, deltadot0):
+        c = kin.radius_bearing - kin.radius_journal
+        k = bai_zhao_stiffness(kin.delta, c, self.modulus_value())
+        return dissipative_hertz(kin.delta, kin.deltadot, deltadot0, k, chi_qin_lu(self.restitution), 1.5)

@@ -1,0 +1,297 @@
+r"""The hybrid contact model of the seed paper (spec section 4): Lankarani-Nikravesh framework,
+elastic-foundation (Winkler) stiffness, Qin-Lu damping, the pin surface cut into elements with
+Gauss-Legendre points, a penetration computed at every point and the force integrated over the
+contact area.
+
+Point :math:`k` (body-fixed angle :math:`\theta_k` on the journal) sits at
+:math:`p_k = P_j + R_J(\theta_k)\,u(\theta_k + \phi_j)`; its penetration is
+:math:`\delta_k = |p_k - P_i| - R_B(\alpha_k)` (``geometry="exact"``) or the small-gap
+:math:`\delta_k = e\cos(\theta_k + \phi_j - \theta_n) - c` (``geometry="small-gap"``, the
+profile of the closed-form check). The foundation pressure is
+:math:`p_k = K_f\delta_k/h`, :math:`K_f = E(1-\nu)/((1+\nu)(1-2\nu))` for one compliant
+layer of thickness :math:`h` (for two layers the overlaps add at equal pressure:
+:math:`p = \delta/(h/K_{f,J} + h/K_{f,B})`). The elastic force on the journal is
+:math:`F_{el} = -\sum_k w_k J_k p_k R_J L u_k`.
+
+Damping (``damping="joint"``, default): :math:`F_N = |F_{el}|(1 + \hat\chi_{QinLu}(c_r)
+\dot\delta/\dot\delta^{(-)})`. ``damping="point"``: every point is damped with its own
+penetration rate :math:`\dot\delta_k` and the joint's impact speed :math:`\dot\delta^{(-)}`
+(all points of one contact start with the same approach speed to first order), the
+point forces clipped at zero before they are summed.
+
+Placement of the points (both legitimate, spec section 4):
+
+* ``fixed``: ``n_elements`` equal elements over the whole journal circumference, body-fixed
+  (what the paper describes); needs hundreds of points because the contact arc spans only a
+  few degrees;
+* ``arc``: the elements cover the current contact arc :math:`[\theta_n - \theta_c, \theta_n +
+  \theta_c]` of the two circles (exact geometry:
+  :math:`\cos\theta_c = (R_B^2 - R_J^2 - e^2)/(2eR_J)`; small-gap: :math:`\cos\theta_c = c/e`),
+  where the integrand is smooth, so a few points are exact. Circular profiles only.
+
+Profiles (:class:`FourierProfile`, e.g. :func:`oval`) give the radial deviation [m] of the
+journal (body-fixed angle) and/or the bearing (angle in the bearing body): only the point
+model can integrate such contacts. The force then acts along the resultant of the point
+forces, which for a circle is :math:`-n`.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, ArrayLike, Float
+
+from ..errors import ParameterError, check_range
+from .laws import STEEL, Material, chi_qin_lu
+
+Scalar = Float[Array, ""]
+
+
+def foundation_modulus(material: Material):
+    r"""Elastic-foundation (Winkler) modulus of a thin layer :math:`K_f = E(1-\nu)/((1+\nu)
+    (1-2\nu))` [Pa] (Johnson, *Contact Mechanics*, 1985, sec. 5.9); 2.787e11 Pa for steel."""
+    e, nu = material.young, material.poisson
+    return e * (1.0 - nu) / ((1.0 + nu) * (1.0 - 2.0 * nu))
+
+
+def small_gap_force(e, clearance, modulus, thickness, radius_journal, length):
+    r"""Closed form of the foundation force on the small-gap profile
+    :math:`\delta(\theta) = e\cos\theta - c`: :math:`F = (K_f R_J L/h)(e\theta_c - c\sin\theta_c)`,
+    :math:`\theta_c = \arccos(c/e)` (spec section 4; grows like :math:`\delta^{1.5}`)."""
+    inside = e > clearance
+    ratio = jnp.where(inside, clearance / e, 0.5)
+    theta_c = jnp.arccos(ratio)
+    return jnp.where(inside, modulus * radius_journal * length / thickness * (e * theta_c - clearance * jnp.sin(theta_c)), 0.0)
+
+
+class FourierProfile(eqx.Module):
+    r"""Radial deviation from the nominal circle, :math:`\Delta R(\theta) = \sum_m a_m\cos m\theta
+    + b_m\sin m\theta` [m] (``m = 1..M``; the mean is the nominal radius). ``cos`` and ``sin``
+    are arrays of shape (M,), so the profile is differentiable and sweepable."""
+
+    cos: Float[Array, " M"]
+    sin: Float[Array, " M"]
+
+    def __init__(self, cos: ArrayLike = (), sin: ArrayLike | None = None):
+        cos = jnp.atleast_1d(jnp.asarray(cos, dtype=float))
+        sin = jnp.zeros_like(cos) if sin is None else jnp.atleast_1d(jnp.asarray(sin, dtype=float))
+        if cos.shape != sin.shape:
+            raise ParameterError(f"profile cos and sin coefficients must have the same length, got {cos.shape} and {sin.shape}")
+        self.cos, self.sin = cos, sin
+
+    def __call__(self, theta):
+        m = jnp.arange(1, self.cos.shape[0] + 1, dtype=float)
+        return jnp.sum(self.cos * jnp.cos(m * theta) + self.sin * jnp.sin(m * theta))
+
+    def extremes(self, n: int = 2048):
+        """(min, max) of the deviation on a fine grid [m] (for validation)."""
+        th = jnp.linspace(0.0, 2 * jnp.pi, n, endpoint=False)
+        dev = jax.vmap(self)(th)
+        return float(dev.min()), float(dev.max())
+
+
+def oval(amplitude: float, orientation: float = 0.0) -> FourierProfile:
+    r"""An oval (elliptic to first order) profile: :math:`\Delta R = a\cos 2(\theta - \theta_0)`,
+    i.e. semi-axes :math:`R + a` along :math:`\theta_0` and :math:`R - a` across [m]."""
+    return FourierProfile(cos=[0.0, amplitude * np.cos(2 * orientation)], sin=[0.0, amplitude * np.sin(2 * orientation)])
+
+
+class HybridLaw(eqx.Module):
+    """The seed paper's hybrid Gauss-point model (see module docstring).
+
+    Attributes:
+        restitution: :math:`c_r \\in (0, 1]` (Qin-Lu damping factor).
+        foundation_modulus: :math:`K_f` [Pa] of the journal layer, or ``None`` (from its material).
+        thickness: compliant layer thickness h [m] > 0 (``None``: the clearance c; the paper's
+            value is unknown).
+        n_elements, n_gauss: elements and Gauss points per element (static, >= 1).
+        placement: ``"fixed"`` or ``"arc"`` (static).
+        damping: ``"joint"`` or ``"point"`` (static).
+        geometry: ``"exact"`` or ``"small-gap"`` (static).
+        layers: 1 (journal layer) or 2 (journal and bearing layers, overlaps add) (static).
+        journal_profile, bearing_profile: :class:`FourierProfile` or ``None`` (circles).
+    """
+
+    restitution: Scalar
+    foundation_modulus: Scalar | None
+    thickness: Scalar | None
+    journal_material: Material
+    bearing_material: Material
+    journal_profile: FourierProfile | None
+    bearing_profile: FourierProfile | None
+    n_elements: int = eqx.field(static=True)
+    n_gauss: int = eqx.field(static=True)
+    placement: str = eqx.field(static=True)
+    damping: str = eqx.field(static=True)
+    geometry: str = eqx.field(static=True)
+    layers: int = eqx.field(static=True)
+
+    stiffness_field = "foundation_modulus"
+
+    def __init__(
+        self,
+        restitution: ArrayLike = 0.9,
+        foundation_modulus: ArrayLike | None = None,
+        thickness: ArrayLike | None = None,
+        n_elements: int | None = None,
+        n_gauss: int = 4,
+        placement: str = "arc",
+        damping: str = "joint",
+        geometry: str = "exact",
+        layers: int = 1,
+        journal_profile: FourierProfile | None = None,
+        bearing_profile: FourierProfile | None = None,
+        journal_material: Material = STEEL,
+        bearing_material: Material = STEEL,
+    ):
+        if placement not in ("fixed", "arc"):
+            raise ParameterError(f"placement must be 'fixed' or 'arc', got {placement!r}")
+        if damping not in ("joint", "point"):
+            raise ParameterError(f"damping must be 'joint' or 'point', got {damping!r}")
+        if geometry not in ("exact", "small-gap"):
+            raise ParameterError(f"geometry must be 'exact' or 'small-gap', got {geometry!r}")
+        if layers not in (1, 2):
+            raise ParameterError(f"layers must be 1 or 2, got {layers!r}")
+        if n_elements is None:
+            n_elements = 2 if placement == "arc" else 180
+        if int(n_elements) < 1:
+            raise ParameterError(f"n_elements = {n_elements} is outside the allowed range [1, inf)")
+        if int(n_gauss) < 1:
+            raise ParameterError(f"n_gauss = {n_gauss} is outside the allowed range [1, inf)")
+        if placement == "arc" and (journal_profile is not None or bearing_profile is not None):
+            raise ParameterError("profiles need placement='fixed' (the contact arc of a non-circular profile is not known in closed form)")
+        check_range("restitution", restitution, low=0.0, high=1.0, low_open=True)
+        check_range("foundation_modulus", foundation_modulus, low=0.0, low_open=True, unit="Pa")
+        check_range("thickness (h)", thickness, low=0.0, low_open=True, unit="m")
+        self.restitution = jnp.asarray(restitution, dtype=float)
+        self.foundation_modulus = None if foundation_modulus is None else jnp.asarray(foundation_modulus, dtype=float)
+        self.thickness = None if thickness is None else jnp.asarray(thickness, dtype=float)
+        self.journal_material, self.bearing_material = journal_material, bearing_material
+        self.journal_profile, self.bearing_profile = journal_profile, bearing_profile
+        self.n_elements, self.n_gauss = int(n_elements), int(n_gauss)
+        self.placement, self.damping, self.geometry, self.layers = placement, damping, geometry, layers
+
+    # ---- parameters -----------------------------------------------------------------
+    def modulus(self):
+        """Effective pressure-per-overlap modulus [Pa] (two layers in series if ``layers == 2``)."""
+        k_j = foundation_modulus(self.journal_material) if self.foundation_modulus is None else self.foundation_modulus
+        if self.layers == 1:
+            return k_j
+        return 1.0 / (1.0 / k_j + 1.0 / foundation_modulus(self.bearing_material))
+
+    def layer_thickness(self, kin):
+        return kin.radius_bearing - kin.radius_journal if self.thickness is None else self.thickness
+
+    def check_geometry(self, radius_bearing: float, radius_journal: float):
+        """Raise :class:`ParameterError` if a profile makes the journal reach the bearing radius."""
+        j_max = self.journal_profile.extremes()[1] if self.journal_profile is not None else 0.0
+        b_min = self.bearing_profile.extremes()[0] if self.bearing_profile is not None else 0.0
+        if radius_journal + j_max >= radius_bearing + b_min:
+            raise ParameterError(
+                f"the profiles make the journal larger than the bearing: largest journal radius "
+                f"{radius_journal + j_max:g} m >= smallest bearing radius {radius_bearing + b_min:g} m "
+                "(profile deviations must leave a positive clearance everywhere)"
+            )
+
+    # ---- quadrature -----------------------------------------------------------------
+    def _nodes(self):
+        xi, w = np.polynomial.legendre.leggauss(self.n_gauss)
+        # elements of equal width on [-1, 1]: node positions and weights on the unit interval
+        edges = np.linspace(-1.0, 1.0, self.n_elements + 1)
+        half = 0.5 * (edges[1:] - edges[:-1])
+        mid = 0.5 * (edges[1:] + edges[:-1])
+        s = (mid[:, None] + half[:, None] * xi[None, :]).ravel()
+        ws = (half[:, None] * w[None, :]).ravel()
+        return jnp.asarray(s), jnp.asarray(ws)
+
+    def _contact_arc(self, kin):
+        """Half-angle of the contact arc of the two circles, 0 when apart."""
+        e, c = kin.e, kin.radius_bearing - kin.radius_journal
+        inside = e > c
+        e_safe = jnp.where(inside, e, 2.0 * c)
+        if self.geometry == "small-gap":
+            x = c / e_safe
+        else:
+            rb, rj = kin.radius_bearing, kin.radius_journal
+            x = (rb**2 - rj**2 - e_safe**2) / (2.0 * e_safe * rj)
+        x = jnp.where(inside, jnp.clip(x, -1.0, 1.0), 0.5)
+        return jnp.where(inside, jnp.arccos(x), 0.0)
+
+    def points(self, kin):
+        """Global angles (N,) and integration weights [rad] (N,) of the points."""
+        s, ws = self._nodes()
+        theta_n = jnp.arctan2(kin.normal[1], kin.normal[0])
+        if self.placement == "arc":
+            half = self._contact_arc(kin)
+            return theta_n + half * s, half * ws
+        # fixed: body-fixed angles over [0, 2 pi), rotating with the journal
+        return kin.journal_angle + jnp.pi * (s + 1.0), jnp.pi * ws
+
+    # ---- one point, then all points -------------------------------------------------
+    def _point(self, kin, angle, weight, deltadot0, modulus, thickness):
+        """Force vector on the journal (2,) from one point, elastic and damped (per point)."""
+        u = jnp.stack([jnp.cos(angle), jnp.sin(angle)])
+        r_j = kin.radius_journal
+        if self.journal_profile is not None:
+            r_j = r_j + self.journal_profile(angle - kin.journal_angle)
+        p = kin.journal_centre + r_j * u
+        rel = p - kin.bearing_centre
+        v_p = kin.journal_velocity + kin.journal_omega * r_j * jnp.stack([-u[1], u[0]])
+        if self.geometry == "small-gap":
+            c = kin.radius_bearing - kin.radius_journal
+            delta = kin.ecc @ u - c
+            rate = (kin.journal_velocity - kin.bearing_velocity) @ u
+        else:
+            dist2 = rel @ rel
+            dist = jnp.sqrt(jnp.where(dist2 > 0, dist2, 1.0))
+            r_b = kin.radius_bearing
+            if self.bearing_profile is not None:
+                r_b = r_b + self.bearing_profile(jnp.arctan2(rel[1], rel[0]) - kin.bearing_angle)
+            delta = dist - r_b
+            rel_dir = rel / dist
+            v_b = kin.bearing_velocity + kin.bearing_omega * jnp.stack([-rel[1], rel[0]])
+            rate = (v_p - v_b) @ rel_dir
+        pressure = modulus * jnp.maximum(delta, 0.0) / thickness
+        elastic = weight * pressure * kin.radius_journal * kin.length
+        if self.damping == "point":
+            elastic = jnp.maximum(elastic * (1.0 + chi_qin_lu(self.restitution) * rate / deltadot0), 0.0)
+            elastic = jnp.where(delta > 0.0, elastic, 0.0)
+        return -elastic * u, delta
+
+    def _resultant(self, kin, deltadot0):
+        angles, weights = self.points(kin)
+        modulus, thickness = self.modulus(), self.layer_thickness(kin)
+        forces, deltas = jax.vmap(lambda a, w: self._point(kin, a, w, deltadot0, modulus, thickness))(angles, weights)
+        return jnp.sum(forces, axis=0), deltas
+
+    def elastic_force(self, kin):
+        """Elastic resultant on the journal (2,) [N] (no damping)."""
+        law = self if self.damping == "joint" else eqx.tree_at(lambda m: m.restitution, self, jnp.ones(()))
+        return law._resultant(kin, jnp.ones(()))[0]
+
+    def penetration(self, kin):
+        """Deepest overlap [m]: ``e - c`` for circles; the largest point overlap with profiles."""
+        if self.journal_profile is None and self.bearing_profile is None:
+            return kin.delta
+        _, deltas = self._resultant(kin, jnp.ones(()))
+        return jnp.max(deltas)
+
+    def contact_force(self, kin, deltadot0):
+        """``(F_N, direction)``: normal force magnitude [N] and the unit vector from the bearing
+        towards the journal along which it pushes the bearing (``n`` for circles)."""
+        vec, _ = self._resultant(kin, deltadot0)
+        mag2 = vec @ vec
+        nonzero = mag2 > 0.0
+        mag = jnp.sqrt(jnp.where(nonzero, mag2, 1.0))
+        direction = jnp.where(nonzero, -vec / mag, kin.normal)
+        mag = jnp.where(nonzero, mag, 0.0)
+        if self.damping == "joint":
+            mag = jnp.maximum(mag * (1.0 + chi_qin_lu(self.restitution) * kin.deltadot / deltadot0), 0.0)
+        if self.journal_profile is None and self.bearing_profile is None:
+            direction = kin.normal
+        return mag, direction
+
+    def normal_force(self, kin, deltadot0):
+        return self.contact_force(kin, deltadot0)[0]

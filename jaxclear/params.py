@@ -1,0 +1,214 @@
+"""Named numeric parameters of a mechanism: read, replace (pytree-functionally, so the value may
+be a tracer under ``vmap``/``grad``), validate and transform. Fits and sweeps address parameters
+by these names; this module is the one place that maps a name to a leaf of the mechanism.
+
+Names (``J`` = clearance-joint index, default 0, written ``name@J`` e.g. ``clearance@1``):
+
+==================  =======================================================  ============
+name                leaf                                                     unit, range
+==================  =======================================================  ============
+``clearance``       ``R_B - R_J`` (sets the journal radius, bearing kept)    m, (0, R_B)
+``restitution``     ``law.restitution``                                      -, (0, 1]
+``stiffness``       the law's stiffness leaf (``law.stiffness_field``)       law's unit, (0, inf)
+``exponent``        ``law.exponent``                                         -, (0, inf)
+``friction``        ``friction.coefficient``                                 -, [0, inf)
+``length``          joint axial length L                                     m, (0, inf)
+``speed``           first ``AngleDriver.speed``                              rad/s
+``speed_rpm``       the same in rev/min                                      rpm
+``mass:BODY``       body mass                                                kg, (0, inf)
+``inertia:BODY``    body centroidal inertia                                  kg m^2, (0, inf)
+==================  =======================================================  ============
+
+``stiffness`` of a law whose stiffness is derived from materials (``None``) reads the derived
+value and, when set, becomes explicit.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from .errors import ParameterError, check_range
+from .mechanism import AngleDriver, Mechanism
+
+
+@dataclass(frozen=True)
+class ParameterInfo:
+    """What a parameter name means: its unit, its allowed open/closed interval, and the
+    unconstrained transform a fit uses (``log``: (0, inf); ``logit``: (0, 1); ``none``)."""
+
+    name: str
+    unit: str
+    low: float | None
+    high: float | None
+    low_open: bool
+    high_open: bool
+    transform: str
+    doc: str
+
+
+INFO = {
+    "clearance": ParameterInfo("clearance", "m", 0.0, None, True, False, "log", "radial clearance R_B - R_J"),
+    "restitution": ParameterInfo("restitution", "", 0.0, 1.0, True, False, "logit", "nominal coefficient of restitution"),
+    "stiffness": ParameterInfo("stiffness", "law unit", 0.0, None, True, False, "log", "contact stiffness of the law"),
+    "exponent": ParameterInfo("exponent", "", 0.0, None, True, False, "log", "force exponent n"),
+    "friction": ParameterInfo("friction", "", 0.0, None, False, False, "log", "friction coefficient mu"),
+    "length": ParameterInfo("length", "m", 0.0, None, True, False, "log", "axial length of the joint"),
+    "speed": ParameterInfo("speed", "rad/s", None, None, False, False, "none", "crank speed"),
+    "speed_rpm": ParameterInfo("speed_rpm", "rpm", None, None, False, False, "none", "crank speed"),
+    "mass": ParameterInfo("mass", "kg", 0.0, None, True, False, "log", "body mass (mass:BODY)"),
+    "inertia": ParameterInfo("inertia", "kg m^2", 0.0, None, True, False, "log", "body inertia (inertia:BODY)"),
+}
+
+
+def parameter_names() -> list[str]:
+    """Base names accepted by :func:`get`/:func:`replace` (see module docstring for suffixes)."""
+    return sorted(INFO)
+
+
+def _split(name: str):
+    base, joint = name, 0
+    body = None
+    if "@" in base:
+        base, j = base.split("@", 1)
+        try:
+            joint = int(j)
+        except ValueError:
+            raise ParameterError(f"parameter {name!r}: joint index after '@' must be an integer") from None
+    if ":" in base:
+        base, body = base.split(":", 1)
+    if base not in INFO:
+        raise ParameterError(f"unknown parameter {name!r}; valid names: {parameter_names()} "
+                             "(mass:BODY, inertia:BODY, and NAME@J for clearance joint J)")
+    if base in ("mass", "inertia") and body is None:
+        raise ParameterError(f"parameter {name!r} needs a body: {base}:BODY")
+    return base, joint, body
+
+
+def info(name: str) -> ParameterInfo:
+    """:class:`ParameterInfo` of a (possibly suffixed) parameter name."""
+    return INFO[_split(name)[0]]
+
+
+def _joint(mech: Mechanism, name: str, k: int):
+    if not mech.clearance_joints:
+        raise ParameterError(f"parameter {name!r} needs a clearance joint; mechanism {mech.name!r} has none")
+    if not 0 <= k < len(mech.clearance_joints):
+        raise ParameterError(f"parameter {name!r}: joint index {k} outside [0, {len(mech.clearance_joints) - 1}]")
+    return mech.clearance_joints[k]
+
+
+def _driver_index(mech: Mechanism, name: str) -> int:
+    for i, d in enumerate(mech.drivers):
+        if isinstance(d, AngleDriver):
+            return i
+    raise ParameterError(f"parameter {name!r} needs an AngleDriver; mechanism {mech.name!r} has none")
+
+
+def _accessor(mech: Mechanism, name: str) -> tuple[Callable, Callable]:
+    """(get, where) for a name; ``where(m)`` selects the leaf for ``eqx.tree_at``."""
+    base, k, body = _split(name)
+    if base in ("mass", "inertia"):
+        i = mech.body_index(body)
+        if i < 0:
+            raise ParameterError(f"parameter {name!r}: the ground has no {base}")
+        where = (lambda m: m.bodies[i].mass) if base == "mass" else (lambda m: m.bodies[i].inertia)
+        return where, where
+    if base in ("speed", "speed_rpm"):
+        i = _driver_index(mech, name)
+        return (lambda m: m.drivers[i].speed), (lambda m: m.drivers[i].speed)
+    joint = _joint(mech, name, k)
+    if base == "clearance":
+        return (lambda m: m.clearance_joints[k].clearance), (lambda m: m.clearance_joints[k].journal_radius)
+    if base == "friction":
+        w = lambda m: m.clearance_joints[k].friction.coefficient  # noqa: E731
+        return w, w
+    if base == "length":
+        w = lambda m: m.clearance_joints[k].length  # noqa: E731
+        return w, w
+    field = {"restitution": "restitution", "exponent": "exponent"}.get(base) or getattr(
+        joint.law, "stiffness_field", "stiffness"
+    )
+    if not hasattr(joint.law, field):
+        raise ParameterError(f"parameter {name!r}: contact law {type(joint.law).__name__} has no {field!r}")
+    w = lambda m: getattr(m.clearance_joints[k].law, field)  # noqa: E731
+    if base == "stiffness" and field == "stiffness":
+        def get(m):
+            j = m.clearance_joints[k]
+            return j.law.stiffness_for(j.bearing_radius, j.journal_radius)
+        return get, w
+    return w, w
+
+
+def get(mech: Mechanism, name: str):
+    """Current value of a named parameter (SI; ``speed_rpm`` in rpm)."""
+    getter, _ = _accessor(mech, name)
+    value = getter(mech)
+    if _split(name)[0] == "speed_rpm":
+        value = value * 60.0 / (2.0 * math.pi)
+    return value
+
+
+def replace(mech: Mechanism, name: str, value) -> Mechanism:
+    """A new mechanism with parameter ``name`` set to ``value`` (a float, array or tracer).
+    No validation here (``value`` may be traced): see :func:`validate`."""
+    base, k, _ = _split(name)
+    _, where = _accessor(mech, name)
+    value = jnp.asarray(value, dtype=float)
+    if base == "clearance":
+        value = mech.clearance_joints[k].bearing_radius - value
+    elif base == "speed_rpm":
+        value = value * (2.0 * math.pi / 60.0)
+    return eqx.tree_at(where, mech, value, is_leaf=lambda x: x is None)
+
+
+def replace_many(mech: Mechanism, values: dict) -> Mechanism:
+    """Apply :func:`replace` for every ``name: value``."""
+    for name, value in values.items():
+        mech = replace(mech, name, value)
+    return mech
+
+
+def validate(mech: Mechanism, name: str, values) -> np.ndarray:
+    """Check concrete ``values`` of parameter ``name`` against its range (and, for
+    ``clearance``, against the bearing radius). Returns them as a float array."""
+    base, k, _ = _split(name)
+    _accessor(mech, name)  # name exists on this mechanism
+    arr = np.asarray(values, dtype=float)
+    p = INFO[base]
+    check_range(name, arr, low=p.low, high=p.high, low_open=p.low_open, high_open=p.high_open,
+                unit="" if p.unit in ("", "law unit") else p.unit)
+    if base == "clearance":
+        rb = float(mech.clearance_joints[k].bearing_radius)
+        if np.any(arr >= rb):
+            raise ParameterError(f"{name} = {arr.max():g} m must be smaller than the bearing radius {rb:g} m")
+    return arr
+
+
+# ---- unconstrained transforms for optimisation --------------------------------------
+
+
+def to_unconstrained(name: str, value):
+    """Map a value in the parameter's range to the real line (``log`` or ``logit``)."""
+    t = info(name).transform
+    value = jnp.asarray(value, dtype=float)
+    if t == "log":
+        return jnp.log(value)
+    if t == "logit":
+        return jnp.log(value) - jnp.log1p(-value)
+    return value
+
+
+def from_unconstrained(name: str, z):
+    """Inverse of :func:`to_unconstrained`."""
+    t = info(name).transform
+    if t == "log":
+        return jnp.exp(z)
+    if t == "logit":
+        return 1.0 / (1.0 + jnp.exp(-z))
+    return z

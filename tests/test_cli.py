@@ -1,0 +1,258 @@
+"""The command line, the summary metrics, and the file formats (CSV/JSON out, measurements in)."""
+
+import jaxclear  # noqa: F401  (switches on float64 first)
+
+import csv
+import json
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+import jaxclear as jc
+from jaxclear import io, metrics
+from jaxclear.cli import main
+from jaxclear.errors import ParameterError
+
+HEADER = [
+    "time_s", "crank_angle_rad", "slider_pos_m", "slider_vel_m_s", "slider_acc_m_s2",
+    "ecc_x_m", "ecc_y_m", "penetration_m", "contact_force_n", "friction_force_n",
+]
+
+
+@pytest.fixture(scope="module")
+def simulated(tmp_path_factory):
+    """One short default run (a quarter crank revolution at 5000 rpm, with plots)."""
+    out = tmp_path_factory.mktemp("sim")
+    code = main(["simulate", "--revolutions", "0.25", "--no-progress", "--out", str(out)])
+    return code, out
+
+
+def test_simulate_writes_files(simulated):
+    code, out = simulated
+    assert code == 0
+    for name in ("timeseries.csv", "summary.json", "slider_acceleration.png", "orbit.png", "contact_force.png"):
+        assert (out / name).is_file() and (out / name).stat().st_size > 0, name
+    for name in ("slider_acceleration.png", "orbit.png", "contact_force.png"):
+        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_timeseries_csv(simulated):
+    _, out = simulated
+    with open(out / "timeseries.csv", newline="") as f:
+        rows = list(csv.reader(f))
+    assert rows[0] == HEADER
+    data = np.array(rows[1:], dtype=float)
+    assert data.shape == (501, len(HEADER))  # 2000 samples per revolution + 1
+    assert np.all(np.isfinite(data))
+    assert data[0, 0] == 0.0 and math.isclose(data[-1, 0], 0.25 * 60 / 5000, rel_tol=1e-9)
+    assert np.all(np.diff(data[:, 0]) > 0)
+    # crank driven at 5000 rpm from 0
+    assert np.allclose(data[:, 1], 5000 * 2 * math.pi / 60 * data[:, 0], atol=1e-9)
+    assert np.max(data[:, HEADER.index("contact_force_n")]) > 0
+
+
+def test_summary(simulated):
+    _, out = simulated
+    s = json.loads((out / "summary.json").read_text())
+    for key in metrics.SUMMARY_KEYS:
+        assert key in s, key
+    numeric = [
+        "t_end_s", "peak_contact_force_n", "peak_friction_force_n", "max_penetration_m", "peak_slider_acc_m_s2",
+        "max_constraint_drift", "fraction_free_flight", "fraction_impact", "fraction_continuous_contact",
+        "energy_dissipated_j", "wall_time_s",
+    ]
+    for key in numeric:
+        assert isinstance(s[key], (int, float)) and math.isfinite(s[key]), (key, s[key])
+    assert s["status"] == 0 and s["status_message"] == "ok"
+    assert s["impacts"] >= 1 and s["impacts_per_joint"] == [s["impacts"]]
+    assert s["peak_contact_force_n"] > 0 and s["max_penetration_m"] > 0
+    assert s["energy_dissipated_j"] > 0  # c_r = 0.9 < 1 dissipates
+    fractions = s["fraction_free_flight"] + s["fraction_impact"] + s["fraction_continuous_contact"]
+    assert math.isclose(fractions, 1.0, rel_tol=1e-12)
+    assert s["num_steps"] == s["num_accepted_steps"] + s["num_rejected_steps"]
+    assert s["wall_time_s"] > 0
+    # the clearance joint raises the slider's peak acceleration above the ideal joint's
+    assert s["peak_slider_acc_m_s2"] > s["ideal_peak_slider_acc_m_s2"] > 0
+
+
+@pytest.mark.parametrize(
+    "args, name",
+    [
+        (["--clearance", "-1"], "clearance"),
+        (["--restitution", "1.5"], "restitution"),
+        (["--preset", "nope"], "preset"),
+        (["--model", "nope"], "contact law"),
+        (["--solver", "nope"], "solver"),
+        (["--rtol", "2"], "rtol"),
+        (["--revolutions", "0"], "--revolutions"),
+        (["--t-end", "-1"], "--t-end"),
+        (["--friction", "-0.1"], "friction"),
+    ],
+)
+def test_bad_input_exits_2(args, name, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["simulate", *args, "--no-progress", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and name in err
+    assert "Traceback" not in err
+    assert not out.exists()  # nothing written on bad input
+
+
+def test_usage_errors_exit_2(capsys):
+    assert main(["simulate", "--clearance", "abc"]) == 2
+    assert "--clearance" in capsys.readouterr().err
+    assert main(["no-such-command"]) == 2
+    assert main([]) == 2
+
+
+def test_help(capsys):
+    assert main(["--help"]) == 0
+    text = capsys.readouterr().out
+    assert "simulate" in text and "presets" in text
+    assert main(["simulate", "--help"]) == 0
+    text = capsys.readouterr().out
+    for option, unit in [("--clearance", "[m]"), ("--speed-rpm", "[rev/min]"), ("--t-end", "[s]"),
+                         ("--rtol", "1e-6"), ("--atol", "1e-9"), ("--revolutions", "default: 3"),
+                         ("--out", "./jaxclear-out"), ("--model", "lankarani-nikravesh")]:
+        assert option in text and unit in text, option
+
+
+def test_presets_command(capsys):
+    assert main(["presets"]) == 0
+    text = capsys.readouterr().out
+    for name in jc.preset_names():
+        assert name in text
+
+
+# --------------------------------------------------------------------------------------
+# metrics and io without the command line
+# --------------------------------------------------------------------------------------
+
+
+def _fake_solution(mech, n=5):
+    """A Solution with the right shapes for a mechanism (values arbitrary but finite)."""
+    k = len(mech.clearance_joints)
+    nq = mech.n_coordinates
+    t = np.linspace(0.0, 1e-3, n)
+    z = np.zeros((n, k))
+    from jaxclear.clearance import ContactMemory
+
+    mem = ContactMemory(z, np.full((n, k), -np.inf), np.cumsum(np.ones((n, k)), axis=0), -np.ones((n, k)))
+    return jc.Solution(
+        ts=t, q=np.tile(np.arange(nq, dtype=float), (n, 1)), qdot=np.zeros((n, nq)),
+        qddot=np.outer(np.sin(np.arange(n)), np.ones(nq)), reactions=np.zeros((n, mech.n_constraints)),
+        drift=np.full(n, 1e-9), ecc=np.zeros((n, k, 2)), penetration=z - 1e-4, normal_force=z,
+        friction_force=z, mode=np.zeros((n, k), int), memory=mem, num_steps=np.asarray(7),
+        num_accepted_steps=np.asarray(5), num_rejected_steps=np.asarray(2), status=np.asarray(0),
+    )
+
+
+def test_summary_ideal_mechanism_is_json():
+    mech = jc.preset("flores-slider-crank", ideal=True)
+    s = metrics.summary(mech, _fake_solution(mech))
+    assert list(s) == list(metrics.SUMMARY_KEYS)
+    assert s["impacts"] is None and s["peak_contact_force_n"] is None and s["fraction_impact"] is None
+    assert s["peak_slider_acc_m_s2"] == pytest.approx(np.max(np.abs(np.sin(np.arange(5)))))
+    json.dumps(s)
+
+
+def test_summary_no_contact():
+    mech = jc.preset("four-bar")
+    s = metrics.summary(mech, _fake_solution(mech), wall_time_s=1.5)
+    assert s["peak_slider_acc_m_s2"] is None  # no slider
+    assert s["max_penetration_m"] == 0.0  # gap everywhere
+    assert s["impacts"] == 5 and s["energy_dissipated_j"] == 1.0 and s["fraction_free_flight"] == 1.0
+    assert s["wall_time_s"] == 1.5
+    json.dumps(s)
+
+
+def test_csv_columns_depend_on_roles():
+    assert io.timeseries_columns(jc.preset("flores-slider-crank")) == HEADER
+    assert io.timeseries_columns(jc.preset("flores-slider-crank", ideal=True)) == HEADER[:5]
+    assert io.timeseries_columns(jc.preset("four-bar")) == ["time_s", "crank_angle_rad"] + HEADER[5:]
+
+
+def test_write_timeseries_matches_columns(tmp_path):
+    mech = jc.preset("four-bar")
+    io.write_timeseries_csv(tmp_path / "t.csv", mech, _fake_solution(mech))
+    with open(tmp_path / "t.csv") as f:
+        assert f.readline().strip().split(",") == io.timeseries_columns(mech)
+
+
+def test_write_json_nonfinite(tmp_path):
+    io.write_json(tmp_path / "a.json", {"a": float("nan"), "b": np.arange(3), "c": np.float64(2.5)})
+    assert json.loads((tmp_path / "a.json").read_text()) == {"a": None, "b": [0, 1, 2], "c": 2.5}
+
+
+# --------------------------------------------------------------------------------------
+# read_measurements (spec section 8)
+# --------------------------------------------------------------------------------------
+
+
+def _write(tmp_path, text, name="m.csv"):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_read_measurements_good(tmp_path):
+    path = _write(
+        tmp_path,
+        "# rig: flores-2011\n# speed_rpm = 200\n# a free comment\n"
+        "time_s,slider_acc_m_s2,crank_angle_rad,slider_pos_m\n"
+        "0.0,1.5,0.0,0.35\n0.001,-2.0,0.02,0.349\n\n0.002,3e1,0.04,0.348\n",
+    )
+    m = io.read_measurements(path)
+    assert len(m) == 3
+    np.testing.assert_array_equal(m.time_s, [0.0, 0.001, 0.002])
+    np.testing.assert_array_equal(m.slider_acc_m_s2, [1.5, -2.0, 30.0])
+    np.testing.assert_array_equal(m.crank_angle_rad, [0.0, 0.02, 0.04])
+    assert m.slider_vel_m_s is None
+    assert m.metadata["rig"] == "flores-2011" and m.metadata["speed_rpm"] == "200"
+    assert m.metadata["comments"] == ["a free comment"]
+    assert m.columns == ["time_s", "slider_acc_m_s2", "crank_angle_rad", "slider_pos_m"]
+
+
+def test_read_measurements_minimal_and_unknown_column(tmp_path):
+    path = _write(tmp_path, "slider_acc_m_s2, temperature_c ,time_s\n1,20,0\n2,21,0.5\n")
+    with pytest.warns(UserWarning, match="temperature_c"):
+        m = io.read_measurements(path)
+    np.testing.assert_array_equal(m.time_s, [0.0, 0.5])
+    np.testing.assert_array_equal(m.slider_acc_m_s2, [1.0, 2.0])
+    assert m.crank_angle_rad is None and m.metadata == {}
+
+
+@pytest.mark.parametrize(
+    "text, fragments",
+    [
+        ("# meta\ntime_s,slider_pos_m\n0,1\n1,2\n", ["line 2", "slider_acc_m_s2"]),
+        ("time_s,slider_acc_m_s2\n0,1\n0.1,abc\n", ["line 3", "'slider_acc_m_s2'", "abc"]),
+        ("time_s,slider_acc_m_s2\n0,1\nx,2\n", ["line 3", "'time_s'", "non-numeric"]),
+        ("time_s,slider_acc_m_s2\n0,1\n0.1,\n", ["line 3", "'slider_acc_m_s2'"]),
+        ("time_s,slider_acc_m_s2\n0,1\nnan,2\n", ["line 3", "'time_s'", "non-finite"]),
+        ("time_s,slider_acc_m_s2\n0,1\n0.1,inf\n", ["line 3", "'slider_acc_m_s2'", "non-finite"]),
+        ("#c\ntime_s,slider_acc_m_s2\n0,1\n0.2,2\n0.1,3\n", ["line 5", "'time_s'", "increasing"]),
+        ("time_s,slider_acc_m_s2\n0,1\n0,2\n", ["line 3", "'time_s'", "increasing"]),
+        ("time_s,slider_acc_m_s2\n0,1\n0.1,2,3\n", ["line 3", "3 fields"]),
+        ("time_s,slider_acc_m_s2,time_s\n0,1,0\n", ["line 1", "twice"]),
+        ("# only comments\n", ["no header"]),
+        ("time_s,slider_acc_m_s2\n0,1\n", ["at least 2"]),
+    ],
+)
+def test_read_measurements_bad(tmp_path, text, fragments):
+    path = _write(tmp_path, text)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ParameterError) as info:
+            io.read_measurements(path)
+    msg = str(info.value)
+    assert str(path) in msg
+    for fragment in fragments:
+        assert fragment in msg, (fragment, msg)
+
+
+def test_read_measurements_missing_file(tmp_path):
+    with pytest.raises(ParameterError, match="cannot read"):
+        io.read_measurements(tmp_path / "absent.csv")
