@@ -216,17 +216,26 @@ class ContactMemory(eqx.Module):
         impacts: number of contact onsets so far.
         work: work done on the mechanism by the contact forces since the start [J]
             (its decrease over a closed contact is the energy the contact dissipated).
+        peak_force: largest normal force [N] at any accepted step's end so far (steps are
+            short during contact, so this resolves peaks that an output grid misses).
+        peak_penetration: largest penetration [m] at any accepted step's end so far.
     """
 
     impact_velocity: Float[Array, " k"]
     contact_start: Float[Array, " k"]
     impacts: Float[Array, " k"]
     work: Float[Array, " k"]
+    peak_force: Float[Array, " k"]
+    peak_penetration: Float[Array, " k"]
 
     @staticmethod
     def initial(n_joints: int, dtype=float):
         z = jnp.zeros((n_joints,), dtype)
-        return ContactMemory(z, jnp.full((n_joints,), -jnp.inf, dtype), z, z)
+        return ContactMemory(z, jnp.full((n_joints,), -1e9, dtype), z, z, z, jnp.full((n_joints,), -jnp.inf, dtype))
+
+    def zeros_like(self):
+        z = jnp.zeros_like(self.impacts)
+        return ContactMemory(z, z, z, z, z, z)
 
 
 class ContactOutput(eqx.Module):
@@ -295,13 +304,15 @@ def update_memory(mech: Mechanism, t0, q0, qd0, t1, q1, qd1, memory: ContactMemo
       :math:`\delta` (exact to the step's third order), onset time :math:`t_c`, impacts + 1;
     * in contact at both ends: unchanged.
 
+    The running peaks of normal force and penetration are updated at the step's end too.
+
     Returns the new memory and whether any joint crossed (the solver then re-evaluates its
     first stage, since the force law changed).
     """
     if not mech.clearance_joints:
         return memory, jnp.zeros((), bool)
     h = t1 - t0
-    new_v, new_start, crossed_all = [], [], []
+    new_v, new_start, crossed_all, forces, pens = [], [], [], [], []
     for k, joint in enumerate(mech.clearance_joints):
         kin0 = kinematics(mech, joint, q0, qd0)
         kin1 = kinematics(mech, joint, q1, qd1)
@@ -312,11 +323,16 @@ def update_memory(mech: Mechanism, t0, q0, qd0, t1, q1, qd1, memory: ContactMemo
         new_v.append(v)
         new_start.append(jnp.where(crossed, t0 + s * h, memory.contact_start[k]))
         crossed_all.append(crossed)
+        _, out = joint_forces(mech, joint, q1, qd1, v)
+        forces.append(out.normal_force)
+        pens.append(p1)
     crossed_all = jnp.stack(crossed_all)
     new = ContactMemory(
         impact_velocity=jnp.stack(new_v),
         contact_start=jnp.stack(new_start),
         impacts=memory.impacts + crossed_all.astype(memory.impacts.dtype),
         work=memory.work,
+        peak_force=jnp.maximum(memory.peak_force, jnp.stack(forces)),
+        peak_penetration=jnp.maximum(memory.peak_penetration, jnp.stack(pens)),
     )
     return new, jnp.any(crossed_all)

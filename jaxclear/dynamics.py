@@ -95,9 +95,9 @@ def vector_field(t, y: State, args) -> State:
     between steps except the contact work, whose rate is the contact power."""
     mech, baumgarte = args
     qdd, _, _, contact = accelerations(mech, t, y.q, y.qdot, y.memory, baumgarte)
-    zeros = jnp.zeros_like(y.memory.impacts)
-    power = zeros if contact is None else contact.power
-    dmem = ContactMemory(zeros, zeros, zeros, power)
+    dmem = y.memory.zeros_like()
+    if contact is not None:
+        dmem = eqx.tree_at(lambda m: m.work, dmem, contact.power)
     return State(y.qdot, qdd, dmem)
 
 

@@ -136,7 +136,7 @@ class Assembly(eqx.Module):
     q: Float[Array, " n"]
     qdot: Float[Array, " n"]
     residual: Float[Array, ""]
-    singular_values: Float[Array, " r"]
+    jacobian: Float[Array, "m n"]
 
 
 def assemble(mech: Mechanism, t0=0.0) -> Assembly:
@@ -159,7 +159,7 @@ def assemble(mech: Mechanism, t0=0.0) -> Assembly:
         return q - jnp.linalg.pinv(d) @ r
 
     if mech.n_constraints + 2 * len(extra) == 0:
-        return Assembly(q, qd, jnp.zeros((), q.dtype), jnp.ones((1,), q.dtype))
+        return Assembly(q, qd, jnp.zeros((), q.dtype), jnp.zeros((0, q.shape[0]), q.dtype))
     q = jax.lax.fori_loop(0, NEWTON_ITERATIONS, newton, q)
     r = constraints.phi(mech, q, t0, extra)
     d = constraints.jacobian(mech, q, t0, extra)
@@ -167,8 +167,7 @@ def assemble(mech: Mechanism, t0=0.0) -> Assembly:
     # clearance joints: prescribed relative journal velocity (zero by default)
     target = jnp.concatenate([jnp.zeros(mech.n_constraints, q.dtype)] + [c.initial_velocity for c in extra])
     qd = qd - jnp.linalg.pinv(d) @ (d @ qd + phit - target)
-    sv = jnp.linalg.svd(d, compute_uv=False)
-    return Assembly(q, qd, jnp.linalg.norm(r), sv)
+    return Assembly(q, qd, jnp.linalg.norm(r), d)
 
 
 def _dependent_rows(d: np.ndarray, tol: float) -> list[int]:
@@ -194,7 +193,7 @@ def check_assembly(mech: Mechanism, s: Settings) -> Assembly:
             "bodies' position guesses; improve Body.position (or check that the links can be assembled)"
         )
     extra = mech.clearance_joints
-    d = np.asarray(constraints.jacobian(mech, asm.q, jnp.asarray(s.t_start), extra))
+    d = np.asarray(asm.jacobian)
     m, n = d.shape
     dependent = _dependent_rows(d, RANK_TOL) if m else []
     if dependent:
@@ -335,6 +334,16 @@ class Solution(eqx.Module):
     def impacts(self):
         """Number of contact onsets per joint over the run (counted at every solver step)."""
         return self.memory.impacts[..., -1, :]
+
+    @property
+    def peak_force(self):
+        """Largest normal force per joint [N] over all accepted steps (not only output samples)."""
+        return self.memory.peak_force[..., -1, :]
+
+    @property
+    def peak_penetration(self):
+        """Largest penetration per joint [m] over all accepted steps."""
+        return self.memory.peak_penetration[..., -1, :]
 
     def coordinate(self, mech: Mechanism, body: str, which: str, derivative: int = 0):
         """Time series of one coordinate (``x``, ``y`` or ``phi``) of a body."""
