@@ -231,7 +231,8 @@ class ContactMemory(eqx.Module):
     @staticmethod
     def initial(n_joints: int, dtype=float):
         z = jnp.zeros((n_joints,), dtype)
-        return ContactMemory(z, jnp.full((n_joints,), -1e9, dtype), z, z, z, jnp.full((n_joints,), -jnp.inf, dtype))
+        # finite sentinels (not -inf): dense interpolation of the state may difference two samples
+        return ContactMemory(z, jnp.full((n_joints,), -1e9, dtype), z, z, z, jnp.full((n_joints,), -1.0, dtype))
 
     def zeros_like(self):
         z = jnp.zeros_like(self.impacts)
