@@ -186,6 +186,7 @@ def _configure_simulate(p: argparse.ArgumentParser):
                       "the radii; K = 6.61e10 N/m^1.5 for R_B = 10 mm, c = 0.5 mm)")
     mech.add_argument("--ideal", action="store_true",
                       help="replace the clearance joint by an ideal revolute joint (default: off)")
+    _add_hybrid_options(p)
 
     run_ = p.add_argument_group("integration")
     run_.add_argument("--revolutions", type=float, default=3.0, metavar="N",
@@ -212,12 +213,76 @@ def _configure_simulate(p: argparse.ArgumentParser):
     return _run_simulate
 
 
+def _add_hybrid_options(p: argparse.ArgumentParser):
+    """Options of the hybrid Gauss-point model (``--model hybrid``), shared by simulate and fit."""
+    h = p.add_argument_group("hybrid model (--model hybrid)")
+    h.add_argument("--placement", choices=("arc", "fixed"), default=None,
+                   help="where the Gauss points sit: 'arc' (on the current contact arc, exact with few "
+                   "points) or 'fixed' (body-fixed over the whole pin circumference, as in the paper) "
+                   "(default: arc)")
+    h.add_argument("--elements", type=_positive_int, metavar="N_E",
+                   help="number of elements N_e [-], >= 1 (default: 2 for arc, 180 for fixed)")
+    h.add_argument("--gauss-points", type=_positive_int, metavar="N_G",
+                   help="Gauss-Legendre points per element N_g [-], >= 1 (default: 4)")
+    h.add_argument("--layer-thickness", type=float, metavar="H",
+                   help="compliant layer thickness h [m], > 0 (default: the clearance c)")
+    h.add_argument("--damping", choices=("joint", "point"), default=None,
+                   help="Qin-Lu damping applied to the joint resultant or to every point (default: joint)")
+    h.add_argument("--geometry", choices=("exact", "small-gap"), default=None,
+                   help="point penetration from the exact circles or the small-gap profile e cos(theta) - c "
+                   "(default: exact)")
+
+
+def _hybrid_options(args) -> dict:
+    keys = {"placement": "placement", "elements": "n_elements", "gauss_points": "n_gauss",
+            "layer_thickness": "thickness", "damping": "damping", "geometry": "geometry"}
+    opts = {key: getattr(args, attr) for attr, key in keys.items() if getattr(args, attr, None) is not None}
+    if opts and args.model != "hybrid":
+        from .errors import ParameterError
+
+        raise ParameterError(f"--{', --'.join(k.replace('_', '-') for k in opts)} apply only to --model hybrid "
+                             f"(got --model {args.model})")
+    return opts
+
+
 def _overrides(args) -> dict:
     names = {"clearance": "clearance", "restitution": "restitution", "friction": "friction",
              "speed_rpm": "speed_rpm", "stiffness": "stiffness"}
     out = {key: getattr(args, attr) for attr, key in names.items() if getattr(args, attr) is not None}
     out["law"] = args.model
+    opts = _hybrid_options(args)
+    if opts:
+        out["law_options"] = opts
     return out
+
+
+@subcommand("models", "list the contact force laws", "List every normal contact force law that --model "
+            "accepts, with its parameters (defaults) and reference, and the friction laws.")
+def _configure_models(p: argparse.ArgumentParser):
+    p.add_argument("--json", action="store_true", help="print JSON instead of text (default: text)")
+
+    def run(args) -> int:
+        import json
+
+        from .contact.friction import FRICTION_MODELS
+        from .contact.registry import describe_laws
+
+        laws = describe_laws()
+        if args.json:
+            print(json.dumps({"laws": laws, "friction": list(FRICTION_MODELS)}, indent=2))
+            return 0
+        for law in laws:
+            print(f"{law['name']}")
+            print(f"    {law['formula']}")
+            print(f"    reference: {law['reference']}")
+            params = ", ".join(f"{k}={v}" for k, v in law["parameters"].items())
+            print(f"    parameters: {params}")
+            print(f"    --stiffness sets: {law['stiffness_parameter']}")
+        print("friction laws (per joint): " + ", ".join(FRICTION_MODELS)
+              + " (ambrosio: Ambrosio 2003 modified Coulomb; smooth: mu F_N tanh(v_T / v_s))")
+        return 0
+
+    return run
 
 
 def _timed_simulate(mech, s):

@@ -7,23 +7,42 @@ import inspect
 
 from ..errors import ParameterError
 from .hybrid import HybridLaw
-from .laws import HYSTERESIS_FACTORS, BaiZhaoLaw, ContactLaw, KelvinVoigtLaw, LiuLaw
+from .laws import BaiZhaoLaw, ContactLaw, KelvinVoigtLaw, LiuLaw
 
-#: name -> (constructor, one-line reference)
+_HERTZ = "F_N = K delta^n (1 + chi(c_r) deltadot/deltadot0), F_N >= 0; K [N/m^n] from E, nu, radii if not given"
+
+#: name -> (constructor, reference, formula in plain text)
 LAWS = {
-    "hertz": (ContactLaw, "Hertz (1882), elastic, chi = 0"),
-    "hunt-crossley": (ContactLaw, "Hunt & Crossley, J. Appl. Mech. 42 (1975) 440"),
-    "herbert-mcwhannell": (ContactLaw, "Herbert & McWhannell, J. Eng. Ind. 99 (1977) 513"),
-    "lee-wang": (ContactLaw, "Lee & Wang, J. Eng. Ind. 105 (1983) 292"),
-    "lankarani-nikravesh": (ContactLaw, "Lankarani & Nikravesh, J. Mech. Des. 112 (1990) 369"),
-    "gonthier": (ContactLaw, "Gonthier et al., Multibody Syst. Dyn. 11 (2004) 209"),
-    "qin-lu": (ContactLaw, "Zhiying & Qishao, Sci. China Ser. E 49 (2006) 600"),
-    "flores": (ContactLaw, "Flores et al., Multibody Syst. Dyn. 25 (2011) 357"),
-    "kelvin-voigt": (KelvinVoigtLaw, "linear spring-damper; d from c_r (Machado et al. 2012)"),
-    "liu": (LiuLaw, "Liu, Zhang, Yang, Mech. Mach. Theory 42 (2007) 183, improved elastic foundation"),
-    "bai-zhao": (BaiZhaoLaw, "Bai & Zhao, Int. J. Mech. Sci. 54 (2012) 190"),
-    "hybrid": (HybridLaw, "the seed paper: LN framework, Winkler stiffness, Qin-Lu damping, Gauss points"),
+    "hertz": (ContactLaw, "Hertz (1882)", _HERTZ + "; chi = 0 (elastic)"),
+    "hunt-crossley": (ContactLaw, "Hunt & Crossley, J. Appl. Mech. 42 (1975) 440", _HERTZ + "; chi = 3(1 - c_r)/2"),
+    "herbert-mcwhannell": (ContactLaw, "Herbert & McWhannell, J. Eng. Ind. 99 (1977) 513",
+                           _HERTZ + "; chi = 6(1 - c_r)/((2 c_r - 1)^2 + 3)"),
+    "lee-wang": (ContactLaw, "Lee & Wang, J. Eng. Ind. 105 (1983) 292", _HERTZ + "; chi = 3(1 - c_r)/4"),
+    "lankarani-nikravesh": (ContactLaw, "Lankarani & Nikravesh, J. Mech. Des. 112 (1990) 369",
+                            _HERTZ + "; chi = 3(1 - c_r^2)/4"),
+    "gonthier": (ContactLaw, "Gonthier et al., Multibody Syst. Dyn. 11 (2004) 209", _HERTZ + "; chi = (1 - c_r^2)/c_r"),
+    "qin-lu": (ContactLaw, "Zhiying & Qishao, Sci. China Ser. E 49 (2006) 600",
+               _HERTZ + "; chi = 3(1 - c_r^2) exp(2(1 - c_r))/4"),
+    "flores": (ContactLaw, "Flores et al., Multibody Syst. Dyn. 25 (2011) 357", _HERTZ + "; chi = 8(1 - c_r)/(5 c_r)"),
+    "kelvin-voigt": (KelvinVoigtLaw, "Goldsmith, Impact (1960); Machado et al., Mech. Mach. Theory 53 (2012) 99",
+                     "F_N = max(k delta + d deltadot, 0), k [N/m], d = 2 zeta sqrt(k m_eff) from c_r"),
+    "liu": (LiuLaw, "Liu, Zhang, Yang, Mech. Mach. Theory 42 (2007) 183",
+            "F_N = (pi/2) E* delta sqrt(delta/(2(c + delta))) L (1 + chi(c_r) deltadot/deltadot0), E* [Pa]"),
+    "bai-zhao": (BaiZhaoLaw, "Bai & Zhao, Int. J. Mech. Sci. 54 (2012) 190",
+                 "F_N = K_n(delta) delta^1.5 (1 + chi_QinLu deltadot/deltadot0), "
+                 "K_n = (pi E*/8) sqrt(2 delta (3c + 2 delta)^2/(c + delta)^3)"),
+    "hybrid": (HybridLaw, "the seed paper (hybrid LN / elastic-foundation model); spec section 4",
+               "F_N = |sum_k w_k (K_f delta_k/h) R_J L u_k| (1 + chi_QinLu deltadot/deltadot0) over Gauss points "
+               "on the pin surface, K_f = E(1 - nu)/((1 + nu)(1 - 2 nu)) [Pa]"),
 }
+
+
+def _show(value):
+    if value is None or isinstance(value, (int, float, str)):
+        return repr(value)
+    if type(value).__name__ == "Material":
+        return f"Material(E={float(value.young):.4g} Pa, nu={float(value.poisson):.3g})"
+    return type(value).__name__
 
 
 def law_names() -> list[str]:
@@ -37,7 +56,7 @@ def make_law(name: str, **kwargs):
     ``k`` of Kelvin-Voigt, ``E*`` of Liu and Bai-Zhao, ``K_f`` of the hybrid model)."""
     if name not in LAWS:
         raise ParameterError(f"unknown contact law {name!r}; valid laws: {law_names()}")
-    cls, _ = LAWS[name]
+    cls = LAWS[name][0]
     if "stiffness" in kwargs and kwargs["stiffness"] is None:
         del kwargs["stiffness"]
     if "stiffness" in kwargs and getattr(cls, "stiffness_field", "stiffness") != "stiffness":
@@ -52,14 +71,12 @@ def make_law(name: str, **kwargs):
 
 
 def describe_laws() -> list[dict]:
-    """One record per law: name, parameters with defaults, reference, formula line."""
+    """One record per law: name, parameters with defaults, reference, formula (plain text)."""
     out = []
-    for name, (cls, ref) in sorted(LAWS.items()):
+    for name, (cls, ref, formula) in sorted(LAWS.items()):
         sig = inspect.signature(cls.__init__)
-        params = {k: (None if v.default is inspect._empty else v.default) for k, v in sig.parameters.items()
-                  if k not in ("self", "model")}
-        doc = (cls.__doc__ or "").strip().splitlines()[0]
-        if cls is ContactLaw:
-            doc = f"F_N = K delta^n (1 + chi(c_r) deltadot/deltadot0), chi: {HYSTERESIS_FACTORS[name].__doc__.split(':math:')[-1].strip()}"
-        out.append({"name": name, "parameters": {k: repr(v) for k, v in params.items()}, "reference": ref, "formula": doc})
+        params = {k: _show(v.default) for k, v in sig.parameters.items()
+                  if k not in ("self", "model") and v.default is not inspect._empty}
+        out.append({"name": name, "formula": formula, "reference": ref, "parameters": params,
+                    "stiffness_parameter": getattr(cls, "stiffness_field", "stiffness")})
     return out

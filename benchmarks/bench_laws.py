@@ -1,0 +1,107 @@
+"""Cost of every contact law on the benchmark run, relative to Lankarani-Nikravesh.
+
+For each law: the Flores slider-crank (c = 0.5 mm, 5000 rpm, c_r = 0.9, Ambrosio friction
+mu = 0) over N crank revolutions at rtol 1e-6 / atol 1e-9, compiled once, then timed as the
+median of R repeats. Reported: compile time (first call minus steady state), steady-state time
+per simulation, solver steps, time per step, and the ratios to LN per simulation and per step
+(laws change the contact dynamics and so the number of steps; the per-step ratio isolates the
+cost of evaluating the law). Hybrid variants: ``arc`` (2 x 4 Gauss points on the contact arc)
+and ``fixed`` with 720 points (360 elements x 2) over the whole pin.
+
+Usage: python benchmarks/bench_laws.py [--revolutions 1] [--repeats 3] [--json PATH]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import statistics
+import time
+from pathlib import Path
+
+import jax
+
+import jaxclear as jc
+
+VARIANTS = [
+    ("lankarani-nikravesh", {}),
+    ("hertz", {}),
+    ("hunt-crossley", {}),
+    ("herbert-mcwhannell", {}),
+    ("lee-wang", {}),
+    ("gonthier", {}),
+    ("qin-lu", {}),
+    ("flores", {}),
+    ("kelvin-voigt", {"stiffness": 1e8}),
+    ("liu", {}),
+    ("bai-zhao", {}),
+    ("hybrid", {"law_options": {"placement": "arc"}}),
+    ("hybrid", {"law_options": {"placement": "fixed", "n_elements": 360, "n_gauss": 2}}),
+]
+
+
+def label(name, opts):
+    lo = opts.get("law_options", {})
+    if name == "hybrid":
+        n = lo.get("n_elements", 2) * lo.get("n_gauss", 4)
+        return f"hybrid-{lo.get('placement', 'arc')} ({n} pts)"
+    return name
+
+
+def run(revolutions: float, repeats: int):
+    rows = []
+    for name, opts in VARIANTS:
+        mech = jc.preset("flores-slider-crank", law=name, **opts)
+        s = jc.settings(revolutions * jc.crank_period(mech), n_out=201)
+        t0 = time.perf_counter()
+        sol = jax.block_until_ready(jc.simulate(mech, s))
+        first = time.perf_counter() - t0
+        times = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            sol = jax.block_until_ready(jc.simulate(mech, s))
+            times.append(time.perf_counter() - t0)
+        steady = statistics.median(times)
+        steps = int(sol.num_steps)
+        rows.append(dict(law=label(name, opts), compile_s=first - steady, steady_s=steady, steps=steps,
+                         us_per_step=steady / steps * 1e6, impacts=int(sol.impacts[0]),
+                         peak_force_n=float(sol.peak_force[0]), status=int(sol.status)))
+        print(f"  {rows[-1]['law']:<28s} {steady:7.3f} s", flush=True)
+    ln = rows[0]
+    for r in rows:
+        r["ratio_per_simulation"] = r["steady_s"] / ln["steady_s"]
+        r["ratio_per_step"] = r["us_per_step"] / ln["us_per_step"]
+    return rows
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--revolutions", type=float, default=1.0, help="crank revolutions per run (default 1)")
+    ap.add_argument("--repeats", type=int, default=3, help="timed repeats after compilation (default 3)")
+    ap.add_argument("--json", default="benchmarks/results/laws.json", help="where to write the JSON results")
+    args = ap.parse_args(argv)
+    rows = run(args.revolutions, args.repeats)
+    head = f"{'law':<28s} {'compile s':>9s} {'steady s':>9s} {'steps':>6s} {'us/step':>8s} {'x LN/sim':>8s} {'x LN/step':>9s} {'impacts':>7s} {'peak F N':>10s}"
+    print()
+    print(head)
+    print("-" * len(head))
+    for r in rows:
+        print(f"{r['law']:<28s} {r['compile_s']:9.2f} {r['steady_s']:9.3f} {r['steps']:6d} {r['us_per_step']:8.1f} "
+              f"{r['ratio_per_simulation']:8.2f} {r['ratio_per_step']:9.2f} {r['impacts']:7d} {r['peak_force_n']:10.3g}")
+    out = {
+        "benchmark": "contact laws on the Flores slider-crank",
+        "revolutions": args.revolutions,
+        "repeats": args.repeats,
+        "machine": {"platform": platform.platform(), "cpu_count": os.cpu_count(), "jax": jax.__version__,
+                    "device": str(jax.devices()[0])},
+        "rows": rows,
+    }
+    Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+    Path(args.json).write_text(json.dumps(out, indent=2))
+    print(f"\nwrote {args.json}")
+
+
+if __name__ == "__main__":
+    main()
