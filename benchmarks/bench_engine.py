@@ -245,6 +245,91 @@ def scipy_bench(ref, p, t_end, ts, rtol, atol, method, ideal, repeats):
 
 
 # ----------------------------------------------------------------------------------------------
+# --profile: where the first call and the steady-state step go (in a fresh child process)
+# ----------------------------------------------------------------------------------------------
+def profile_child(revolutions, rtol, atol, solver, n_out, loops=5000):
+    """Split the first call of jc.simulate into its parts and time the pieces of one solver step.
+    Must run in a fresh process (nothing compiled yet). Returns a dict."""
+    import re
+
+    import diffrax
+    import jax
+    import jax.numpy as jnp
+
+    import jaxclear as jc
+    from jaxclear import solve as jsolve
+    from jaxclear.dynamics import vector_field
+
+    mech = jc.preset("flores-slider-crank")
+    s = jc.settings(revolutions * jc.crank_period(mech), n_out=n_out, rtol=rtol, atol=atol, solver=solver)
+    out = {}
+    t0 = time.perf_counter()
+    jsolve.check_assembly(mech, s)  # eager checks: compiles assemble() on its own
+    out["first_eager_checks_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    lowered = jsolve._simulate.lower(mech, s, None)
+    out["trace_and_lower_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    lowered.compile()
+    out["xla_compile_s"] = time.perf_counter() - t0
+
+    y0 = jc.initial_state(mech, s)
+    args = (mech, s.baumgarte)
+
+    def per_iteration(body, carry):
+        loop = jax.jit(lambda c: jax.lax.fori_loop(0, loops, body, c))
+        jax.block_until_ready(loop(carry))
+        t0 = time.perf_counter()
+        jax.block_until_ready(loop(carry))
+        return (time.perf_counter() - t0) / loops
+
+    def rhs_body(i, y):  # one vector-field evaluation per iteration, carried so it is not hoisted
+        d = vector_field(i * 1e-9, y, args)
+        return jax.tree_util.tree_map(lambda a, b: a + 1e-12 * b, y, d)
+
+    out["rhs_eval_s"] = per_iteration(rhs_body, y0)
+
+    n = y0.q.shape[0] + mech.n_constraints
+
+    def solve_body(i, y):  # the augmented (n + m) x (n + m) solve alone
+        a = jnp.eye(n) + 1e-3 * jnp.outer(jnp.arange(n, dtype=float), jnp.ones(n)) + 1e-9 * y.q.sum()
+        x = jnp.linalg.solve(a, jnp.ones(n))
+        return jc.State(y.q + 1e-12 * x[: y.q.shape[0]], y.qdot, y.memory)
+
+    out["augmented_solve_s"] = per_iteration(solve_body, y0)
+    out["augmented_size"] = n
+
+    wrapped = jc.ImpactMemorySolver(jc.SOLVERS[solver]())
+    term = diffrax.ODETerm(vector_field)
+    state0 = wrapped.init(term, 0.0, 1e-8, y0, args)
+
+    def step_body(i, carry):  # one solver step (all stages + memory update), tiny dt
+        y, st = carry
+        t = i * 1e-8
+        y1, _, _, st1, _ = wrapped.step(term, t, t + 1e-8, y, args, st, False)
+        return y1, st1
+
+    out["solver_step_s"] = per_iteration(step_body, (y0, state0))
+
+    hlo = jax.jit(lambda t, y: vector_field(t, y, args)).lower(0.0, y0).compile().as_text()
+    out["rhs_hlo_fusions"] = len(re.findall(r"= \S+ fusion\(", hlo))
+    out["rhs_hlo_custom_calls"] = len(re.findall(r"custom-call\(", hlo))
+    out["rhs_hlo_instructions"] = sum(1 for line in hlo.splitlines() if " = " in line)
+    return out
+
+
+def run_profile_subprocess(args):
+    import subprocess
+
+    cmd = [sys.executable, str(Path(__file__).resolve()), "--_profile-child", "--revolutions", str(args.revolutions),
+           "--rtol", str(args.rtol), "--atol", str(args.atol), "--solver", args.solver, "--n-out", str(args.n_out)]
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT)] + ([env["PYTHONPATH"]] if env.get("PYTHONPATH") else []))
+    r = subprocess.run(cmd, capture_output=True, text=True, env=env, check=True)
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+# ----------------------------------------------------------------------------------------------
 # table
 # ----------------------------------------------------------------------------------------------
 def _fmt(v, kind="g"):
@@ -265,6 +350,10 @@ def _fmt(v, kind="g"):
     if kind == "x":
         return f"{v:.1f}x"
     return f"{v:g}"
+
+
+def _approx(n):
+    return "-" if n is None else "~" + _fmt(n, "int")
 
 
 def table(title, header, rows):
@@ -310,7 +399,16 @@ def main(argv=None):
     ap.add_argument("--no-ideal", action="store_true", help="skip the ideal-mechanism rows")
     ap.add_argument("--json", default=str(HERE / "results" / "engine.json"),
                     help="where to write the JSON results (default benchmarks/results/engine.json)")
+    ap.add_argument("--profile", action="store_true",
+                    help="also split the first call and time one RHS evaluation / one solver step "
+                         "(fresh child process, ~20 s more)")
+    ap.add_argument("--_profile-child", dest="profile_child", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
+    if args.profile_child:
+        import jaxclear  # noqa: F401  (float64)
+        print(json.dumps(profile_child(args.revolutions, args.rtol, args.atol, args.solver, args.n_out)))
+        return None
+    load_start = os.getloadavg() if hasattr(os, "getloadavg") else None
 
     # --- imports (timed: part of what a user pays in a fresh process) -------------------------
     t0 = time.perf_counter()
@@ -394,7 +492,10 @@ def main(argv=None):
         cs = np.linspace(0.25e-3, 1.0e-3, n) if n > 1 else np.array([0.5e-3])
 
         def with_clearance(c):
-            return eqx.tree_at(lambda m: m.clearance_joints[0].journal_radius, mech, R_B - c)
+            # jnp.asarray: a Python float here would become a static leaf for filter_jit and
+            # recompile the serial runs once per clearance value
+            return eqx.tree_at(lambda m: m.clearance_joints[0].journal_radius, mech,
+                               jnp.asarray(R_B - c, dtype=float))
 
         batched = jax.jit(jax.vmap(lambda c: jc.simulate(with_clearance(c), s)))
         cs_j = jnp.asarray(cs)
@@ -443,6 +544,12 @@ def main(argv=None):
             "serial_s_per_step": s_med / int(sum(serial_steps)),
         }
 
+    prof = None
+    if args.profile:
+        progress("profile (fresh child process) ...")
+        prof = run_profile_subprocess(args)
+
+    load_end = os.getloadavg() if hasattr(os, "getloadavg") else None
     total_s = time.perf_counter() - _T_PROCESS_START
 
     # --- table ----------------------------------------------------------------------------------
@@ -465,7 +572,7 @@ def main(argv=None):
         ("step attempts", [_fmt(jx["steps"], "int")] + sp_cells("steps", "int")),
         ("  accepted", [_fmt(jx["accepted_steps"], "int")] + sp_cells("accepted_steps", "int")),
         ("  rejected", [_fmt(jx["rejected_steps"], "int")] + sp_cells("rejected_steps", "int")),
-        ("RHS evaluations", ["~" + _fmt(jx["rhs_evals_estimate"], "int")] + sp_cells("rhs_evals", "int")),
+        ("RHS evaluations", [_approx(jx["rhs_evals_estimate"])] + sp_cells("rhs_evals", "int")),
         ("wall per RHS evaluation",
          [_fmt(None if jx["rhs_evals_estimate"] is None else jx["steady_median_s"] / jx["rhs_evals_estimate"], "us")]
          + [_fmt(sp[m]["integration_median_s"] / sp[m]["rhs_evals"], "us") for m in methods]),
@@ -487,16 +594,17 @@ def main(argv=None):
             ("  steady-state", [_fmt(jx_ideal["steady_median_s"], "s")]
              + [_fmt(sp_ideal[m]["call_median_s"], "s") for m in methods]),
             ("  step attempts", [_fmt(jx_ideal["steps"], "int")] + [_fmt(sp_ideal[m]["steps"], "int") for m in methods]),
-            ("  RHS evaluations", ["~" + _fmt(jx_ideal["rhs_evals_estimate"], "int")]
+            ("  RHS evaluations", [_approx(jx_ideal["rhs_evals_estimate"])]
              + [_fmt(sp_ideal[m]["rhs_evals"], "int") for m in methods]),
         ]
     title = (f"jaxclear vs SciPy: flores-slider-crank (LN + Ambrosio, mu = {float(joint.friction.coefficient):g}), "
              f"{args.revolutions:g} rev (t_end = {t_end:.4f} s), rtol {args.rtol:g}, atol {args.atol:g}, "
              f"{args.n_out} output samples")
     text = [table(title, header, rows), ""]
-    text.append(f"speed-up after compilation (SciPy RK45 / jaxclear steady state):")
-    text.append(f"  whole call    {ratio_call:6.1f}x   (both calls return forces/penetrations on the grid)")
-    text.append(f"  vs SciPy integration only {ratio_integ:6.1f}x   (SciPy post-processing excluded)")
+    text.append("speed-up after compilation (SciPy RK45 steady state / jaxclear steady state):")
+    text.append(f"  SciPy whole call        {ratio_call:6.1f}x  (both calls return forces/penetrations on the grid)")
+    text.append(f"  SciPy integration only  {ratio_integ:6.1f}x  (SciPy output post-processing excluded; "
+                "used for the target)")
     met = lambda ok: "met" if ok else "NOT met"  # noqa: E731
     text.append(f"targets: >= 30x after compilation: {met(ratio_integ >= 30)};  "
                 f"compile < 10 s: {met(jx['compile_s'] < 10)} ({jx['compile_s']:.1f} s)")
@@ -520,7 +628,34 @@ def main(argv=None):
         text.append("steps per run, vmap  : " + " ".join(str(v) for v in batch["vmap_steps"]))
         text.append("steps per run, serial: " + " ".join(str(v) for v in batch["serial_steps"]))
         text.append("(a) vmap wall / (batch size x max steps): the batched loop runs until its slowest member is done")
+    if prof is not None:
+        k = NEW_STAGES_PER_STEP.get(args.solver)
+        per_step = jx["steady_median_s"] / jx["steps"]
+        prow = [
+            ("first call, split (fresh child process):", []),
+            ("  eager input checks (compile assemble + run)", [_fmt(prof["first_eager_checks_s"], "s")]),
+            ("  trace + lower _simulate to XLA", [_fmt(prof["trace_and_lower_s"], "s")]),
+            ("  XLA compile", [_fmt(prof["xla_compile_s"], "s")]),
+            ("steady state, per step attempt:", []),
+            ("  whole run: steady / step attempts", [_fmt(per_step, "us")]),
+            ("  one solver step in a fori_loop (stages + memory)", [_fmt(prof["solver_step_s"], "us")]),
+            (f"  {k} x one RHS evaluation" if k else "  one RHS evaluation",
+             [_fmt(prof["rhs_eval_s"] * (k or 1), "us")]),
+            ("  one RHS evaluation", [_fmt(prof["rhs_eval_s"], "us")]),
+            (f"  of which the {prof['augmented_size']}x{prof['augmented_size']} linear solve",
+             [_fmt(prof["augmented_solve_s"], "us")]),
+            ("  RHS as compiled: XLA fusions / LAPACK custom calls",
+             [f"{prof['rhs_hlo_fusions']} / {prof['rhs_hlo_custom_calls']}"]),
+        ]
+        prow = [r if r[1] else r[0] for r in prow]
+        text += ["", table("profile (jaxclear)", ["", "time"], prow)]
     text.append("")
+    if load_start is not None:
+        # at the start the 1-min load is other processes' (this one has barely begun); at the end
+        # it includes this script's own work
+        text.append(f"load average (1 min) at start / end: {load_start[0]:.2f} / {load_end[0]:.2f}"
+                    + ("  -- WARNING: the machine was busy when the benchmark started; times may be inflated"
+                       if load_start[0] > 0.5 * (info["cpus_usable"] or 1) else ""))
     text.append(f"machine: {info['platform']}, {info['cpu_model']}, {info['cpus_usable']} usable CPUs "
                 f"(cpu_count {info['cpu_count']}); jax {info['versions']['jax']} on {info['jax_devices']}; "
                 f"{info['date_utc']}; whole script {total_s:.0f} s")
@@ -546,6 +681,9 @@ def main(argv=None):
         "ratio_scipy_integration_over_jaxclear": ratio_integ,
         "targets": {"speedup_30x_met": bool(ratio_integ >= 30), "compile_under_10s_met": bool(jx["compile_s"] < 10)},
         "batch": batch,
+        "profile": prof,
+        "load_average_start": load_start,
+        "load_average_end": load_end,
         "script_total_s": total_s,
         "table": report,
     }
