@@ -51,7 +51,12 @@ class ClearanceJoint(eqx.Module):
         law: the normal contact law (default Lankarani-Nikravesh, steel, :math:`c_r = 0.9`).
         friction: the tangential law (default Ambrósio with :math:`\\mu = 0`).
         impact_velocity_floor: lower bound [m/s] > 0 of the impact speed used by the law, so
-            that grazing contact cannot divide by zero.
+            that grazing contact cannot divide by zero. Trade-off: a contact that begins with
+            an approach speed near the floor (grazing, re-entry into continuous contact) gets
+            a damping coefficient ~ chi K delta^n / floor, which is physically an overdamped
+            contact and numerically stiff for explicit solvers (many small steps). Raise the
+            floor (e.g. 1e-3 m/s) for faster runs dominated by continuous contact, or use
+            an implicit solver (``Settings(solver="kvaerno5")``).
         initial_offset: eccentricity vector [m] at the start (default centred).
         initial_velocity: velocity [m/s] of the journal centre relative to the bearing centre at
             the start (default 0: the journal moves with its bearing, the ideal kinematics).
