@@ -6,7 +6,9 @@ median of R repeats. Reported: compile time (first call minus steady state), ste
 per simulation, solver steps, time per step, and the ratios to LN per simulation and per step
 (laws change the contact dynamics and so the number of steps; the per-step ratio isolates the
 cost of evaluating the law). Hybrid variants: ``arc`` (2 x 4 Gauss points on the contact arc)
-and ``fixed`` with 720 points (360 elements x 2) over the whole pin.
+and ``fixed`` with 720 points (360 elements x 2) over the whole pin; the default hybrid (h = c)
+is ~70x stiffer than LN's cylindrical K and so needs more steps, hence an extra row with the layer
+thickness matched to LN's stiffness at 10 um (same contact dynamics scale, isolates the cost).
 
 Usage: python benchmarks/bench_laws.py [--revolutions 1] [--repeats 3] [--json PATH]
 """
@@ -38,6 +40,7 @@ VARIANTS = [
     ("liu", {}),
     ("bai-zhao", {}),
     ("hybrid", {"law_options": {"placement": "arc"}}),
+    ("hybrid", {"law_options": {"placement": "arc", "thickness": "matched"}}),
     ("hybrid", {"law_options": {"placement": "fixed", "n_elements": 360, "n_gauss": 2}}),
 ]
 
@@ -46,13 +49,26 @@ def label(name, opts):
     lo = opts.get("law_options", {})
     if name == "hybrid":
         n = lo.get("n_elements", 2) * lo.get("n_gauss", 4)
-        return f"hybrid-{lo.get('placement', 'arc')} ({n} pts)"
+        h = ", h matched to LN" if lo.get("thickness") == "matched" else ""
+        return f"hybrid-{lo.get('placement', 'arc')} ({n} pts{h})"
     return name
+
+
+def ln_matched_thickness():
+    """Layer thickness giving the hybrid LN's force at 10 um (see contact.hybrid.matched_thickness)."""
+    from jaxclear.contact.hybrid import matched_thickness
+
+    joint = jc.preset("flores-slider-crank").clearance_joints[0]
+    k = joint.law.stiffness_for(joint.bearing_radius, joint.journal_radius)
+    return float(matched_thickness(jc.HybridLaw(), joint.bearing_radius, joint.journal_radius, joint.length, k))
 
 
 def run(revolutions: float, repeats: int):
     rows = []
     for name, opts in VARIANTS:
+        name_label = label(name, opts)
+        if opts.get("law_options", {}).get("thickness") == "matched":
+            opts = {"law_options": {**opts["law_options"], "thickness": ln_matched_thickness()}}
         mech = jc.preset("flores-slider-crank", law=name, **opts)
         s = jc.settings(revolutions * jc.crank_period(mech), n_out=201)
         t0 = time.perf_counter()
@@ -65,7 +81,7 @@ def run(revolutions: float, repeats: int):
             times.append(time.perf_counter() - t0)
         steady = statistics.median(times)
         steps = int(sol.num_steps)
-        rows.append(dict(law=label(name, opts), compile_s=first - steady, steady_s=steady, steps=steps,
+        rows.append(dict(law=name_label, compile_s=first - steady, steady_s=steady, steps=steps,
                          us_per_step=steady / steps * 1e6, impacts=int(sol.impacts[0]),
                          peak_force_n=float(sol.peak_force[0]), status=int(sol.status)))
         print(f"  {rows[-1]['law']:<28s} {steady:7.3f} s", flush=True)

@@ -295,3 +295,28 @@ class HybridLaw(eqx.Module):
 
     def normal_force(self, kin, deltadot0):
         return self.contact_force(kin, deltadot0)[0]
+
+
+def matched_thickness(law: HybridLaw, radius_bearing, radius_journal, length, stiffness, exponent=1.5,
+                      delta_ref=1e-5):
+    r"""Layer thickness h [m] that makes ``law``'s elastic force equal a power law
+    :math:`K\delta^n` at the penetration ``delta_ref`` [m] (the hybrid force scales as 1/h).
+
+    Used to compare the hybrid model with a Hertz-family law at equal stiffness, so that the two
+    differ in damping and force shape only (the paper does not give its h).
+    """
+    from ..clearance import ContactKinematics  # local: contact laws do not depend on the joint module
+
+    c = radius_bearing - radius_journal
+    e = c + delta_ref
+    z2, z = jnp.zeros(2), jnp.zeros(())
+    kin = ContactKinematics(
+        ecc=jnp.array([e, 0.0]), e=jnp.asarray(e), normal=jnp.array([1.0, 0.0]), tangent=jnp.array([0.0, 1.0]),
+        delta=jnp.asarray(delta_ref), deltadot=z, slip=z, bearing_centre=z2, journal_centre=jnp.array([e, 0.0]),
+        bearing_velocity=z2, journal_velocity=z2, bearing_angle=z, journal_angle=z, bearing_omega=z,
+        journal_omega=z, radius_bearing=jnp.asarray(radius_bearing), radius_journal=jnp.asarray(radius_journal),
+        length=jnp.asarray(length),
+    )
+    unit = eqx.tree_at(lambda m: m.thickness, law, jnp.ones(()), is_leaf=lambda x: x is None)
+    force_h1 = jnp.linalg.norm(unit.elastic_force(kin))
+    return force_h1 / (stiffness * delta_ref**exponent)
