@@ -10,7 +10,7 @@ jax.config.update("jax_enable_x64", True)
 from .clearance import ClearanceJoint, ContactKinematics, ContactMemory, kinematics  # noqa: E402
 from .contact.friction import Friction  # noqa: E402
 from .contact.hybrid import FourierProfile, HybridLaw, oval  # noqa: E402
-from .contact.laws import STEEL, BaiZhaoLaw, ContactLaw, KelvinVoigtLaw, LiuLaw, Material  # noqa: E402
+from .contact.laws import STEEL, ContactLaw, CylindricalLaw, KelvinVoigtLaw, Material  # noqa: E402
 from .contact.registry import describe_laws, law_names, make_law  # noqa: E402
 from .dynamics import Baumgarte, State, accelerations, energy, vector_field  # noqa: E402
 from .errors import (  # noqa: E402

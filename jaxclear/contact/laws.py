@@ -342,17 +342,23 @@ def bai_zhao_stiffness(delta, clearance, modulus):
     return jnp.where(inside, jnp.pi * modulus / 8.0 * jnp.sqrt(arg), 0.0)
 
 
-class LiuLaw(eqx.Module):
-    r"""Liu et al. elastic foundation force (:func:`liu_force`) with hysteresis damping
-    :math:`F_N = F_{Liu}(\delta)(1 + \hat\chi(c_r)\dot\delta/\dot\delta^{(-)})` (default
-    :math:`\hat\chi` of Lankarani-Nikravesh; any name of :data:`HYSTERESIS_FACTORS`).
+class CylindricalLaw(eqx.Module):
+    r"""The conformal (pin-in-hole) laws, selected by ``model``:
+
+    * ``"liu"``: :math:`F_N = F_{Liu}(\delta)(1 + \hat\chi(c_r)\dot\delta/\dot\delta^{(-)})` with
+      :func:`liu_force` (Liu et al. 2007) and, by default, the Lankarani-Nikravesh factor;
+    * ``"bai-zhao"``: :math:`F_N = K_n(\delta)\delta^{1.5}(1 + \hat\chi(c_r)\dot\delta/
+      \dot\delta^{(-)})` with :func:`bai_zhao_stiffness` (Bai & Zhao 2012) and, by default, the
+      Qin-Lu factor.
 
     Attributes:
+        model: ``"liu"`` or ``"bai-zhao"`` (static).
         restitution: :math:`c_r \in (0, 1]`.
-        modulus: :math:`E^*` [Pa] or ``None`` (from the materials).
-        hysteresis: name of the damping factor (static).
+        modulus: :math:`E^*` [Pa] or ``None`` (from the materials: :func:`effective_modulus`).
+        hysteresis: name of the damping factor in :data:`HYSTERESIS_FACTORS` (static).
     """
 
+    model: str = eqx.field(static=True)
     restitution: Scalar
     modulus: Scalar | None
     bearing_material: Material
@@ -361,13 +367,17 @@ class LiuLaw(eqx.Module):
 
     stiffness_field = "modulus"
 
-    def __init__(self, restitution=0.9, modulus=None, hysteresis="lankarani-nikravesh",
+    def __init__(self, model="liu", restitution=0.9, modulus=None, hysteresis=None,
                  bearing_material: Material = STEEL, journal_material: Material = STEEL):
+        if model not in ("liu", "bai-zhao"):
+            raise ParameterError(f"cylindrical law model must be 'liu' or 'bai-zhao', got {model!r}")
         check_range("restitution", restitution, low=0.0, high=1.0, low_open=True)
         check_range("modulus (E*)", modulus, low=0.0, low_open=True, unit="Pa")
+        self.model = model
         self.restitution = jnp.asarray(restitution, dtype=float)
         self.modulus = None if modulus is None else jnp.asarray(modulus, dtype=float)
-        self.hysteresis = _hysteresis_model(hysteresis)
+        default = "lankarani-nikravesh" if model == "liu" else "qin-lu"
+        self.hysteresis = _hysteresis_model(default if hysteresis is None else hysteresis)
         self.bearing_material, self.journal_material = bearing_material, journal_material
 
     def modulus_value(self):
@@ -378,41 +388,9 @@ class LiuLaw(eqx.Module):
 
     def normal_force(self, kin, deltadot0):
         c = kin.radius_bearing - kin.radius_journal
-        elastic = liu_force(kin.delta, c, self.modulus_value(), kin.length)
         chi = HYSTERESIS_FACTORS[self.hysteresis](self.restitution)
-        return jnp.maximum(elastic * (1.0 + chi * kin.deltadot / deltadot0), 0.0)
-
-
-class BaiZhaoLaw(eqx.Module):
-    r"""Bai-Zhao law :math:`F_N = K_n(\delta)\,\delta^{1.5}(1 + \hat\chi_{QinLu}(c_r)\dot\delta/
-    \dot\delta^{(-)})` with :func:`bai_zhao_stiffness` (Bai & Zhao 2012).
-
-    Attributes:
-        restitution: :math:`c_r \in (0, 1]`; modulus: :math:`E^*` [Pa] or ``None``.
-    """
-
-    restitution: Scalar
-    modulus: Scalar | None
-    bearing_material: Material
-    journal_material: Material
-
-    stiffness_field = "modulus"
-
-    def __init__(self, restitution=0.9, modulus=None, bearing_material: Material = STEEL,
-                 journal_material: Material = STEEL):
-        check_range("restitution", restitution, low=0.0, high=1.0, low_open=True)
-        check_range("modulus (E*)", modulus, low=0.0, low_open=True, unit="Pa")
-        self.restitution = jnp.asarray(restitution, dtype=float)
-        self.modulus = None if modulus is None else jnp.asarray(modulus, dtype=float)
-        self.bearing_material, self.journal_material = bearing_material, journal_material
-
-    def modulus_value(self):
-        return effective_modulus(self.bearing_material, self.journal_material) if self.modulus is None else self.modulus
-
-    def penetration(self, kin):
-        return kin.delta
-
-    def normal_force(self, kin, deltadot0):
-        c = kin.radius_bearing - kin.radius_journal
+        if self.model == "liu":
+            elastic = liu_force(kin.delta, c, self.modulus_value(), kin.length)
+            return jnp.maximum(elastic * (1.0 + chi * kin.deltadot / deltadot0), 0.0)
         k = bai_zhao_stiffness(kin.delta, c, self.modulus_value())
-        return dissipative_hertz(kin.delta, kin.deltadot, deltadot0, k, chi_qin_lu(self.restitution), 1.5)
+        return dissipative_hertz(kin.delta, kin.deltadot, deltadot0, k, chi, 1.5)

@@ -7,7 +7,7 @@ import inspect
 
 from ..errors import ParameterError
 from .hybrid import HybridLaw
-from .laws import BaiZhaoLaw, ContactLaw, KelvinVoigtLaw, LiuLaw
+from .laws import ContactLaw, CylindricalLaw, KelvinVoigtLaw
 
 _HERTZ = "F_N = K delta^n (1 + chi(c_r) deltadot/deltadot0), F_N >= 0; K [N/m^n] from E, nu, radii if not given"
 
@@ -26,9 +26,9 @@ LAWS = {
     "flores": (ContactLaw, "Flores et al., Multibody Syst. Dyn. 25 (2011) 357", _HERTZ + "; chi = 8(1 - c_r)/(5 c_r)"),
     "kelvin-voigt": (KelvinVoigtLaw, "Goldsmith, Impact (1960); Machado et al., Mech. Mach. Theory 53 (2012) 99",
                      "F_N = max(k delta + d deltadot, 0), k [N/m], d = 2 zeta sqrt(k m_eff) from c_r"),
-    "liu": (LiuLaw, "Liu, Zhang, Yang, Mech. Mach. Theory 42 (2007) 183",
+    "liu": (CylindricalLaw, "Liu, Zhang, Yang, Mech. Mach. Theory 42 (2007) 183",
             "F_N = (pi/2) E* delta sqrt(delta/(2(c + delta))) L (1 + chi(c_r) deltadot/deltadot0), E* [Pa]"),
-    "bai-zhao": (BaiZhaoLaw, "Bai & Zhao, Int. J. Mech. Sci. 54 (2012) 190",
+    "bai-zhao": (CylindricalLaw, "Bai & Zhao, Int. J. Mech. Sci. 54 (2012) 190",
                  "F_N = K_n(delta) delta^1.5 (1 + chi_QinLu deltadot/deltadot0), "
                  "K_n = (pi E*/8) sqrt(2 delta (3c + 2 delta)^2/(c + delta)^3)"),
     "hybrid": (HybridLaw, "the seed paper (hybrid LN / elastic-foundation model); spec section 4",
@@ -61,8 +61,8 @@ def make_law(name: str, **kwargs):
         del kwargs["stiffness"]
     if "stiffness" in kwargs and getattr(cls, "stiffness_field", "stiffness") != "stiffness":
         kwargs[cls.stiffness_field] = kwargs.pop("stiffness")
-    if cls is ContactLaw:
-        return ContactLaw(model=name, **kwargs)
+    if cls in (ContactLaw, CylindricalLaw):
+        return cls(model=name, **kwargs)
     try:
         return cls(**kwargs)
     except TypeError as err:
