@@ -71,6 +71,34 @@ def contact_forces(mech: Mechanism, q, qdot, memory: ContactMemory):
     return total, jax.tree_util.tree_map(lambda *xs: jnp.stack(xs), *outs)
 
 
+UNROLL_LIMIT = 24  # constraint count up to which the Cholesky solve is unrolled
+
+
+def spd_solve(a, b):
+    """Solve ``a x = b`` for a small symmetric positive definite ``a`` (m, m) by Cholesky.
+
+    Up to :data:`UNROLL_LIMIT` equations the factorization is unrolled into plain XLA arithmetic:
+    for the few-equation systems of planar mechanisms this is faster than a LAPACK call, and it
+    avoids jaxlib's batched LAPACK path under ``vmap`` (which, in jaxlib 0.10, splits large
+    batches over the CPU thread pool and can deadlock when two such solves run concurrently).
+    """
+    m = a.shape[0]
+    if m > UNROLL_LIMIT:
+        return jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(a), b)
+    low = [[None] * m for _ in range(m)]
+    for j in range(m):
+        low[j][j] = jnp.sqrt(a[j, j] - sum((low[j][k] ** 2 for k in range(j)), 0.0))
+        for i in range(j + 1, m):
+            low[i][j] = (a[i, j] - sum((low[i][k] * low[j][k] for k in range(j)), 0.0)) / low[j][j]
+    y = [None] * m
+    for i in range(m):
+        y[i] = (b[i] - sum((low[i][k] * y[k] for k in range(i)), 0.0)) / low[i][i]
+    x = [None] * m
+    for i in reversed(range(m)):
+        x[i] = (y[i] - sum((low[k][i] * x[k] for k in range(i + 1, m)), 0.0)) / low[i][i]
+    return jnp.stack(x)
+
+
 def accelerations(mech: Mechanism, t, q, qdot, memory: ContactMemory, baumgarte: Baumgarte):
     """Solve the augmented system. Returns ``(qddot, lambda, Phi, contact)``."""
     t = jnp.asarray(t, q.dtype)
@@ -78,16 +106,18 @@ def accelerations(mech: Mechanism, t, q, qdot, memory: ContactMemory, baumgarte:
     f_c, contact = contact_forces(mech, q, qdot, memory)
     g = g + f_c
     m_diag = mech.mass_matrix_diagonal().astype(q.dtype)
-    n = q.shape[0]
     if mech.n_constraints == 0:
         return g / m_diag, jnp.zeros((0,), q.dtype), jnp.zeros((0,), q.dtype), contact
     d = constraints.jacobian(mech, q, t)
     value, rate, gamma = constraints.velocity_terms(mech, q, qdot, t)
     rhs_c = gamma - 2.0 * baumgarte.alpha * rate - baumgarte.beta**2 * value
-    m = d.shape[0]
-    a = jnp.block([[jnp.diag(m_diag), d.T], [d, jnp.zeros((m, m), q.dtype)]])
-    sol = jnp.linalg.solve(a, jnp.concatenate([g, rhs_c]))
-    return sol[:n], sol[n:], value, contact
+    # M is diagonal: eliminate qddot (Schur complement) and solve the symmetric positive definite
+    # system (D M^-1 D^T) lambda = D M^-1 g - rhs_c, then qddot = M^-1 (g - D^T lambda). This is
+    # the augmented system above, solved exactly; redundant constraints make it singular (NaN,
+    # reported as a non-finite state).
+    dm = d / m_diag
+    lam = spd_solve(dm @ d.T, dm @ g - rhs_c)
+    return (g - d.T @ lam) / m_diag, lam, value, contact
 
 
 def vector_field(t, y: State, args) -> State:
