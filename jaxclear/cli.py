@@ -2,6 +2,7 @@
 
     jaxclear simulate [options]     simulate a preset, write CSV, JSON and PNG plots
     jaxclear presets                list the preset mechanisms
+    jaxclear fit DATA.csv [options] fit contact parameters to a measured record
 
 Subcommands are registered with :func:`subcommand`: each is a function that adds its
 arguments to an :class:`argparse.ArgumentParser` and returns the function that runs it
@@ -389,6 +390,199 @@ def _print_summary(s: dict, files: list[str]):
         "wrote " + ", ".join(files),
     ]
     print("\n".join(lines))
+
+
+# --------------------------------------------------------------------------------------
+# sweep
+# --------------------------------------------------------------------------------------
+
+SWEEP_DESCRIPTION = """\
+Run a parameter sweep described by a TOML file (see examples/sweep.toml): a grid or a list
+over any numeric parameters, batched with jax.vmap over all local devices, compiled once,
+written chunk by chunk to the output folder:
+  runs.csv                one row per run: index, parameters, metrics, status, status message
+  manifest.json           the sweep's definition and hash (a re-run resumes the same sweep)
+  chunks/chunk_NNNNNN.npz Poincare points (and time series with --trajectories)
+  heatmap_METRIC.png      2-parameter grids: heat maps of the main metrics
+  bifurcation_NAME.png    1-parameter sweeps: bifurcation diagram (Poincare e_x per revolution)
+  poincare.png            Poincare sections of every run
+Running the same command again after an interruption resumes where it stopped."""
+
+SWEEP_PLOT_METRICS = ("peak_contact_force_n", "energy_dissipated_per_rev_j", "rms_acc_deviation_m_s2", "impacts")
+
+
+@subcommand("sweep", "run a parameter sweep from a TOML file (CSV, NPZ, PNG)", SWEEP_DESCRIPTION)
+def _configure_sweep(p: argparse.ArgumentParser):
+    p.add_argument("config", metavar="CONFIG.toml", help="sweep configuration file (TOML)")
+    p.add_argument("--out", metavar="DIR", help="output folder (default: the file's output.dir, else ./sweep-out)")
+    p.add_argument("--chunk-size", type=int, metavar="N",
+                   help="runs per chunk, >= 1, rounded up to a multiple of the devices (default: the file's, else auto)")
+    p.add_argument("--devices", type=int, metavar="N", help="number of local devices to use, >= 1 (default: all)")
+    p.add_argument("--trajectories", action="store_true", default=None,
+                   help="also store the time series in the chunk files (default: the file's, else off)")
+    p.add_argument("--restart", action="store_true", help="discard results already in the folder instead of resuming")
+    p.add_argument("--no-plots", action="store_true", help="write CSV/NPZ/JSON only, no PNG (default: off)")
+    p.add_argument("--no-progress", action="store_true", help="hide the progress bar (default: shown)")
+    return _run_sweep
+
+
+def _run_sweep(args) -> int:
+    from . import sweep
+
+    cfg = sweep.load_config(args.config, out=args.out, chunk_size=args.chunk_size, devices=args.devices,
+                            trajectories=args.trajectories, progress=False if args.no_progress else None)
+    mode = "grid" if cfg.grid is not None else "list"
+    print(f"jaxclear sweep: {cfg.n_runs} runs ({mode} over {', '.join(cfg.names)}), {cfg.revolutions:g} revolutions "
+          f"each, output {cfg.out}", flush=True)
+    res = sweep.run_sweep(cfg, restart=args.restart)
+    table = res.table
+    failed = int(sum(1 for s in table["status"] if s != 0))
+    files = [os.path.join(cfg.out, sweep.CSV_NAME), os.path.join(cfg.out, sweep.MANIFEST_NAME)]
+    if not args.no_plots and len(table["run"]):
+        if mode == "grid" and len(cfg.names) == 2:
+            for metric in SWEEP_PLOT_METRICS:
+                if metric in table:
+                    path = os.path.join(cfg.out, f"heatmap_{metric}.png")
+                    sweep.heatmap(res, metric, x=cfg.names[0], y=cfg.names[1], path=path)
+                    files.append(path)
+        if res.poincare.size:
+            if len(cfg.names) == 1:
+                path = os.path.join(cfg.out, f"bifurcation_{cfg.names[0].replace(':', '_')}.png")
+                sweep.bifurcation(res, cfg.names[0], path=path)
+                files.append(path)
+            path = os.path.join(cfg.out, "poincare.png")
+            sweep.poincare_plot(res, path=path)
+            files.append(path)
+    print(f"done: {len(table['run'])} of {cfg.n_runs} runs on disk ({res.computed} computed now), {failed} failed")
+    print("wrote " + ", ".join(files))
+    return 0
+
+
+# --------------------------------------------------------------------------------------
+# fit
+# --------------------------------------------------------------------------------------
+
+FIT_DESCRIPTION = """\
+Fit contact parameters of a preset to a measured slider acceleration (CSV of spec section 8:
+time_s, slider_acc_m_s2, optional crank_angle_rad, slider_pos_m, slider_vel_m_s) and write:
+  fit.json              estimates, std (Gauss-Newton), loss, iterations, wall time, diagnostics
+  fit.png               measured vs fitted acceleration and the residuals
+  fit_checkpoint.json   the fit's state after every iteration: the same command resumes it
+The first sample is the preset's start (crank angle 0, journal centred, velocities from the
+ideal kinematics). The loss is on short windows from that state (see jaxclear.fit).
+Example: jaxclear fit data.csv --free stiffness,restitution --start stiffness=2e11 \\
+         --start restitution=0.6 --sensor-cutoff-hz 20000 --out fit-out"""
+
+
+def _name_value(text: str) -> tuple[str, float]:
+    name, sep, value = text.partition("=")
+    if not sep or not name.strip():
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}")
+    try:
+        return name.strip(), float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{name.strip()}: value {value!r} is not a number") from None
+
+
+@subcommand("fit", "fit contact parameters to a measured record (JSON, PNG)", FIT_DESCRIPTION)
+def _configure_fit(p: argparse.ArgumentParser):
+    from . import law_names, preset_names
+
+    p.add_argument("data", metavar="DATA.csv", help="measured record (spec section 8)")
+    mech = p.add_argument_group("model (known values; free parameters start from them unless --start)")
+    mech.add_argument("--preset", default="flores-slider-crank", metavar="NAME",
+                      help=f"preset mechanism with a slider, one of {', '.join(preset_names())} "
+                      "(default: flores-slider-crank)")
+    mech.add_argument("--model", default="lankarani-nikravesh", metavar="LAW",
+                      help=f"contact law fitted, one of {', '.join(law_names())} (default: lankarani-nikravesh)")
+    mech.add_argument("--clearance", type=float, metavar="M", help="radial clearance [m] (default: the preset's)")
+    mech.add_argument("--friction", type=float, metavar="MU", help="friction coefficient [-] (default: the preset's)")
+    mech.add_argument("--speed-rpm", type=float, metavar="RPM", help="crank speed [rev/min] (default: the preset's)")
+    mech.add_argument("--restitution", type=float, metavar="CR", help="restitution c_r [-] (default: the preset's)")
+    mech.add_argument("--stiffness", type=float, metavar="K",
+                      help="stiffness [N/m^1.5 for the LN family] (default: from steel and the radii)")
+    _add_hybrid_options(p)
+    f = p.add_argument_group("fit")
+    f.add_argument("--free", default="stiffness,restitution", metavar="NAMES",
+                   help="comma-separated free parameters: stiffness [N/m^1.5 for the LN family], restitution, "
+                   "friction, clearance [m], mass:BODY, ..., sensor_gain, sensor_bias (default: stiffness,restitution)")
+    f.add_argument("--start", type=_name_value, action="append", default=[], metavar="NAME=VALUE",
+                   help="start value of a free parameter (SI), repeatable (default: the model's value)")
+    f.add_argument("--window", type=float, metavar="S",
+                   help="length of a fit window [s], > 0 (default: a quarter crank revolution)")
+    f.add_argument("--windows", type=int, default=1, metavar="N",
+                   help="back-to-back windows; windows after the first estimate their journal state (default: 1)")
+    f.add_argument("--starts", type=int, default=1, metavar="N", help="number of starts, >= 1 (default: 1)")
+    f.add_argument("--optimizer", default="levenberg-marquardt", metavar="NAME",
+                   help="levenberg-marquardt (optax transformation, default) or adam[:LR]")
+    f.add_argument("--max-iter", type=int, default=30, metavar="N",
+                   help="iterations of the last stage, >= 1; earlier stages get half (default: 30)")
+    f.add_argument("--align", choices=("time", "crank"), default="time",
+                   help="first sample = simulation start ('time') or simulation time from crank_angle_rad "
+                   "('crank') (default: time)")
+    f.add_argument("--rtol", type=float, default=1e-8, metavar="TOL",
+                   help="relative tolerance of the model's integration (default: 1e-8)")
+    f.add_argument("--atol", type=float, default=1e-11, metavar="TOL",
+                   help="absolute tolerance of the model's integration [m, rad, m/s] (default: 1e-11)")
+    s = p.add_argument_group("sensor model")
+    s.add_argument("--sensor-cutoff-hz", type=float, metavar="HZ",
+                   help="accelerometer low-pass cut-off (2nd-order Butterworth) [Hz] (default: none)")
+    s.add_argument("--sensor-gain", type=float, default=1.0, metavar="G", help="accelerometer gain [-] (default: 1)")
+    s.add_argument("--sensor-bias", type=float, default=0.0, metavar="B",
+                   help="accelerometer bias [m/s^2] (default: 0)")
+    s.add_argument("--oversample", type=int, default=4, metavar="N",
+                   help="model grid points per record sample, >= 1 (default: 4)")
+    out = p.add_argument_group("output")
+    out.add_argument("--out", default="./jaxclear-fit", metavar="DIR",
+                     help="output folder, created if missing (default: ./jaxclear-fit)")
+    out.add_argument("--restart", action="store_true", help="ignore a checkpoint in --out instead of resuming")
+    out.add_argument("--no-plots", action="store_true", help="write fit.json only (default: off)")
+    out.add_argument("--no-progress", action="store_true", help="hide the progress bar (default: shown)")
+    return _run_fit
+
+
+def _run_fit(args) -> int:
+    from . import fit as fitting
+    from .errors import ParameterError
+    from .presets import preset
+    from .sensor import Accelerometer
+
+    for name, value in (("--windows", args.windows), ("--starts", args.starts), ("--max-iter", args.max_iter),
+                        ("--oversample", args.oversample)):
+        if value < 1:
+            raise ParameterError(f"{name} = {value} must be >= 1")
+    mech = preset(args.preset, **_overrides(args))
+    free = [n.strip() for n in args.free.split(",") if n.strip()]
+    start = dict(args.start)
+    sensor = Accelerometer(args.sensor_cutoff_hz, gain=args.sensor_gain, bias=args.sensor_bias,
+                           oversample=args.oversample)
+    os.makedirs(args.out, exist_ok=True)
+    print(f"jaxclear fit: {args.data}, {mech.name} with {args.model}, free {', '.join(free)}; sensor: "
+          f"{sensor.describe()}", flush=True)
+    print("compiling the forward-mode model (about 20 to 40 s), then fitting...", flush=True)
+    import warnings
+
+    with warnings.catch_warnings():  # the fit's warnings are printed below, once
+        warnings.simplefilter("ignore", UserWarning)
+        res = fitting.fit(args.data, mech, free, start, sensor=sensor, window=args.window, windows=args.windows,
+                          starts=args.starts, optimizer=args.optimizer, max_iter=args.max_iter, rtol=args.rtol,
+                          atol=args.atol, align=args.align, out=args.out, resume=not args.restart,
+                          progress=not args.no_progress)
+    files = [res.write_json(os.path.join(args.out, "fit.json"))]
+    if not args.no_plots:
+        path = os.path.join(args.out, "fit.png")
+        res.plot(path)
+        files.append(path)
+    width = max(len(n) for n in res.estimates)
+    print(f"done in {res.wall_time_s:.1f} s wall, {res.iterations} iterations ({res.stop_reason}); "
+          f"loss {res.loss:.4g}, residual lag-1 autocorrelation {res.residual_autocorrelation:.2f}")
+    print(f"  {'parameter':<{width}}  {'start':>12}  {'estimate':>12}  {'std':>10}")
+    for name, value in res.estimates.items():
+        print(f"  {name:<{width}}  {res.start[name]:>12.6g}  {value:>12.6g}  {res.std[name]:>10.3g}")
+    for w in res.warnings:
+        print(f"warning: {w}")
+    print("wrote " + ", ".join(files))
+    return 0
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -145,4 +145,113 @@ def summary(mech: Mechanism, sol: Solution, wall_time_s: float | None = None) ->
     return {key: out[key] for key in SUMMARY_KEYS}
 
 
-__all__ = ["summary", "SUMMARY_KEYS", "peak_slider_acceleration", "mode_fractions"]
+# --------------------------------------------------------------------------------------
+# JAX-traceable per-run metrics (sweeps: vmapped over runs, one row per run)
+# --------------------------------------------------------------------------------------
+
+#: Keys of :func:`run_metrics`, in output order, with their units. Contact keys appear only for
+#: a mechanism with clearance joints, slider keys only with a ``slider`` role, the
+#: acceleration-deviation keys only when the ideal-joint acceleration is given, the per-revolution
+#: energy only with an :class:`~jaxclear.mechanism.AngleDriver`.
+RUN_METRIC_KEYS: dict[str, str] = {
+    "peak_contact_force_n": "N",
+    "rms_contact_force_n": "N",
+    "max_penetration_m": "m",
+    "impacts": "-",
+    "fraction_free_flight": "-",
+    "fraction_impact": "-",
+    "fraction_continuous_contact": "-",
+    "energy_dissipated_j": "J",
+    "energy_dissipated_per_rev_j": "J",
+    "peak_slider_acc_m_s2": "m/s^2",
+    "peak_acc_deviation_m_s2": "m/s^2",
+    "rms_acc_deviation_m_s2": "m/s^2",
+    "max_constraint_drift": "m or rad",
+    "num_steps": "-",
+    "num_accepted_steps": "-",
+    "num_rejected_steps": "-",
+    "status": "-",
+}
+
+
+def _window_peak(samples, running, start: int):
+    """Largest value over the window ``[start:]`` of a quantity known at the samples (T', k)
+    and as a running maximum over accepted solver steps (T, k): if the running maximum grew
+    inside the window, its final value was reached inside the window (to within the solver step
+    that contains sample ``start``); otherwise only the samples are known. Max over joints."""
+    import jax.numpy as jnp
+
+    grew = running[-1] > running[start]
+    step_peak = jnp.where(grew, running[-1], -jnp.inf)
+    return jnp.max(jnp.maximum(jnp.max(samples, axis=0), step_peak))
+
+
+def run_metrics(mech: Mechanism, sol: Solution, ideal_acc=None, start: int = 0) -> dict:
+    """Scalar metrics of one run as JAX arrays (traceable: ``jax.vmap`` it over a batch of
+    solutions). Keys and units: :data:`RUN_METRIC_KEYS`.
+
+    The *window* is the output samples ``sol.ts[start:]`` (``start`` static, e.g. the first
+    sample after a transient); ``start = 0`` is the whole run. Several clearance joints are
+    pooled (maxima over joints, sums of impacts and energies, fractions over joints x samples).
+
+    * ``peak_contact_force_n``, ``max_penetration_m``: largest normal force / penetration in the
+      window over the samples and the running peaks of every accepted solver step
+      (``memory.peak_force``, ``memory.peak_penetration``; see :func:`_window_peak`); penetration
+      floored at 0 (never touched: 0).
+    * ``rms_contact_force_n``: root mean square of the normal force over the window's samples
+      (free flight counts as 0).
+    * ``impacts``: contact onsets inside the window (``memory.impacts`` at the end minus at
+      sample ``start``; counted at every solver step).
+    * ``fraction_*``: share of the window's samples (x joints) in free flight, impact and
+      continuous contact (``Solution.mode`` 0, 1, 2).
+    * ``energy_dissipated_j``: minus the contact work over the window [J];
+      ``energy_dissipated_per_rev_j``: the same divided by the crank revolutions in the window,
+      ``(ts[-1] - ts[start]) |omega| / 2 pi`` of the first AngleDriver.
+    * ``peak_slider_acc_m_s2``: largest ``|x''|`` of the slider in the window;
+      ``peak_acc_deviation_m_s2``, ``rms_acc_deviation_m_s2``: peak and RMS over the window of
+      ``x'' - x''_ideal``, with ``ideal_acc`` (T,) the slider acceleration of the ideal-joint
+      mechanism sampled on the same grid ``sol.ts`` (e.g. ``ideal.coordinate(ideal_mech,
+      "slider", "x", 2)``).
+    * ``max_constraint_drift``: largest ``|Phi|`` over all samples; solver step counts; ``status``.
+    """
+    import jax.numpy as jnp
+
+    from .mechanism import AngleDriver
+
+    out: dict = {}
+    ts = sol.ts
+    k = len(mech.clearance_joints)
+    if k:
+        fn = sol.normal_force[start:]
+        pen = sol.penetration[start:]
+        mem = sol.memory
+        out["peak_contact_force_n"] = _window_peak(fn, mem.peak_force, start)
+        out["rms_contact_force_n"] = jnp.sqrt(jnp.mean(fn**2))
+        out["max_penetration_m"] = jnp.maximum(_window_peak(pen, mem.peak_penetration, start), 0.0)
+        out["impacts"] = jnp.sum(mem.impacts[-1] - mem.impacts[start])
+        mode = sol.mode[start:]
+        for key, m in (("fraction_free_flight", 0), ("fraction_impact", 1), ("fraction_continuous_contact", 2)):
+            out[key] = jnp.mean((mode == m).astype(ts.dtype))
+        dissipated = -(jnp.sum(mem.work[-1]) - jnp.sum(mem.work[start]))
+        out["energy_dissipated_j"] = dissipated
+        drivers = [d for d in mech.drivers if isinstance(d, AngleDriver)]
+        if drivers:
+            revs = (ts[-1] - ts[start]) * jnp.abs(drivers[0].speed) / (2.0 * jnp.pi)
+            out["energy_dissipated_per_rev_j"] = dissipated / revs
+    slider = mech.role("slider")
+    if slider is not None:
+        acc = sol.coordinate(mech, slider, "x", derivative=2)[start:]
+        out["peak_slider_acc_m_s2"] = jnp.max(jnp.abs(acc))
+        if ideal_acc is not None:
+            dev = acc - ideal_acc[start:]
+            out["peak_acc_deviation_m_s2"] = jnp.max(jnp.abs(dev))
+            out["rms_acc_deviation_m_s2"] = jnp.sqrt(jnp.mean(dev**2))
+    out["max_constraint_drift"] = jnp.max(sol.drift) if sol.drift.size else jnp.zeros((), ts.dtype)
+    out["num_steps"] = sol.num_steps
+    out["num_accepted_steps"] = sol.num_accepted_steps
+    out["num_rejected_steps"] = sol.num_rejected_steps
+    out["status"] = sol.status
+    return {key: out[key] for key in RUN_METRIC_KEYS if key in out}
+
+
+__all__ = ["summary", "SUMMARY_KEYS", "peak_slider_acceleration", "mode_fractions", "run_metrics", "RUN_METRIC_KEYS"]

@@ -15,7 +15,7 @@ import os
 
 import numpy as np
 from matplotlib.figure import Figure
-from matplotlib.ticker import MultipleLocator
+from matplotlib.ticker import MaxNLocator, MultipleLocator
 
 from .mechanism import Mechanism
 from .solve import Solution
@@ -164,4 +164,190 @@ def plot_contact_force(path, mech: Mechanism, sol: Solution) -> Figure:
     return _save(fig, path)
 
 
-__all__ = ["plot_slider_acceleration", "plot_orbit", "plot_contact_force"]
+# --------------------------------------------------------------------------------------
+# Sweeps: heat maps, bifurcation diagrams, Poincare sections
+# --------------------------------------------------------------------------------------
+
+
+def _edges(centres: np.ndarray, log: bool) -> np.ndarray:
+    """Cell edges around sorted cell centres (geometric midpoints on a log axis)."""
+    c = np.asarray(centres, dtype=float)
+    if c.size == 1:
+        return np.array([c[0] * 0.9, c[0] * 1.1]) if log else np.array([c[0] - 0.5, c[0] + 0.5])
+    if log:
+        m = np.sqrt(c[:-1] * c[1:])
+        return np.concatenate([[c[0] ** 2 / m[0]], m, [c[-1] ** 2 / m[-1]]])
+    m = 0.5 * (c[:-1] + c[1:])
+    return np.concatenate([[2 * c[0] - m[0]], m, [2 * c[-1] - m[-1]]])
+
+
+def plot_heatmap(path, x, y, z, xlabel: str = "x", ylabel: str = "y", zlabel: str = "", title: str = "",
+                 log: bool | None = None, annotate: bool | None = None) -> Figure:
+    """Heat map of ``z`` (len(y), len(x)) over the grid axes ``x``, ``y`` (cell centres; uneven
+    spacing is drawn as such). NaN cells (failed runs) are hatched grey. ``log``: logarithmic
+    colour scale (default: when the positive values span more than two decades).
+    ``annotate``: write the value in each cell (default: up to 144 cells)."""
+    from matplotlib.colors import LogNorm
+    from matplotlib.patches import Rectangle
+
+    x, y, z = np.asarray(x, float), np.asarray(y, float), np.asarray(z, float)
+    finite = z[np.isfinite(z)]
+    if log is None:
+        pos = finite[finite > 0]
+        log = bool(pos.size == finite.size and pos.size and pos.max() > 100 * pos.min())
+    fig = Figure(figsize=(7.2, 5.6))
+    ax = fig.add_subplot()
+    ax.set_facecolor("0.85")
+    xo, yo = np.argsort(x), np.argsort(y)
+    xs, ys, zs = x[xo], y[yo], z[np.ix_(yo, xo)]
+    logx = bool(xs.size > 2 and np.all(xs > 0) and np.ptp(np.diff(np.log(xs))) < 1e-6 * abs(np.log(xs[-1] / xs[0])))
+    logy = bool(ys.size > 2 and np.all(ys > 0) and np.ptp(np.diff(np.log(ys))) < 1e-6 * abs(np.log(ys[-1] / ys[0])))
+    norm = LogNorm(vmin=finite.min(), vmax=finite.max()) if (log and finite.size) else None
+    mesh = ax.pcolormesh(_edges(xs, logx), _edges(ys, logy), np.ma.masked_invalid(zs), cmap="viridis",
+                         norm=norm, shading="flat")
+    ax.add_patch(Rectangle((0, 0), 1, 1, transform=ax.transAxes, fill=False, hatch="//", edgecolor="0.6", lw=0,
+                           zorder=0))  # shows through the masked (failed) cells
+    if logx:
+        ax.set_xscale("log")
+    if logy:
+        ax.set_yscale("log")
+    cb = fig.colorbar(mesh, ax=ax)
+    cb.set_label(zlabel)
+    if annotate is None:
+        annotate = zs.size <= 144
+    if annotate and finite.size:
+        lo, hi = (np.log(finite.min()), np.log(finite.max())) if norm is not None else (finite.min(), finite.max())
+        for i, yv in enumerate(ys):
+            for j, xv in enumerate(xs):
+                v = zs[i, j]
+                if not np.isfinite(v):
+                    ax.text(xv, yv, "failed", ha="center", va="center", fontsize=7, color="black")
+                    continue
+                level = ((np.log(v) if norm is not None else v) - lo) / ((hi - lo) or 1.0)
+                ax.text(xv, yv, f"{v:.3g}", ha="center", va="center", fontsize=7,
+                        color="white" if level < 0.6 else "black")
+    ax.set_xticks(xs)
+    ax.set_yticks(ys)
+    ax.set_xticklabels([f"{v:g}" for v in xs], rotation=45 if xs.size > 6 else 0)
+    ax.set_yticklabels([f"{v:g}" for v in ys])
+    ax.minorticks_off()
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=10)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def plot_bifurcation(path, parameter, points, xlabel: str = "parameter", ylabel: str = "Poincare coordinate",
+                     title: str = "") -> Figure:
+    """Bifurcation diagram: for each run (value ``parameter[i]``) its Poincare points
+    ``points[i, :]`` (one per crank revolution after the transient) as dots above that value."""
+    p = np.asarray(parameter, dtype=float)
+    v = np.asarray(points, dtype=float).reshape(p.shape[0], -1)
+    fig = Figure(figsize=FIGSIZE)
+    ax = fig.add_subplot()
+    xs = np.repeat(p, v.shape[1])
+    ax.plot(xs, v.ravel(), ls="none", marker=".", ms=3.0, color="black", alpha=0.7)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=10)
+    ax.grid(True, alpha=0.3)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def plot_poincare(path, points, colors=None, color_label: str = "", clearance=None) -> Figure:
+    """Poincare sections of one or several runs: ``points`` (n_runs, n_section, 4) journal states
+    (e_x, e_y [m], v_x, v_y [m/s]) once per crank revolution. Left: the journal-centre position
+    [mm] inside the clearance circle(s) (``clearance`` [m], one per run or one value); right:
+    the (e_x, v_x) plane. Runs are coloured by ``colors`` (e.g. a swept parameter)."""
+    from matplotlib import colormaps
+    from matplotlib.colors import Normalize
+
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim == 2:
+        pts = pts[None]
+    n = pts.shape[0]
+    fig = Figure(figsize=(11.0, 5.0), layout="constrained")
+    ax1, ax2 = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)
+    cmap = colormaps["viridis"]
+    cvals = np.arange(n, dtype=float) if colors is None else np.asarray(colors, dtype=float)
+    norm = Normalize(vmin=float(np.nanmin(cvals)), vmax=float(np.nanmax(cvals)) if n > 1 else float(np.nanmin(cvals)) + 1)
+    for r in range(n):
+        color = cmap(norm(cvals[r]))
+        ax1.plot(1e3 * pts[r, :, 0], 1e3 * pts[r, :, 1], ls="none", marker="o", ms=3.0, color=color)
+        ax2.plot(1e3 * pts[r, :, 0], pts[r, :, 2], ls="none", marker="o", ms=3.0, color=color)
+    if clearance is not None:  # the clearance circle(s), the view kept on the points
+        theta = np.linspace(0.0, 2.0 * np.pi, 721)
+        xs, ys = 1e3 * pts[..., 0], 1e3 * pts[..., 1]
+        finite = np.isfinite(xs) & np.isfinite(ys)
+        cs = np.unique(np.atleast_1d(np.asarray(clearance, dtype=float)))
+        for c in cs:
+            ax1.plot(1e3 * c * np.cos(theta), 1e3 * c * np.sin(theta), color="0.5", lw=0.8)
+        if finite.any():
+            lo_x, hi_x, lo_y, hi_y = xs[finite].min(), xs[finite].max(), ys[finite].min(), ys[finite].max()
+            pad = max(0.03 * 1e3 * float(cs.max()), 0.1 * max(hi_x - lo_x, hi_y - lo_y))
+            ax1.set_xlim(lo_x - pad, hi_x + pad)
+            ax1.set_ylim(lo_y - pad, hi_y + pad)
+    ax1.set_aspect("equal", adjustable="box")
+    ax1.set_xlabel("journal e$_x$ [mm]")
+    ax1.set_ylabel("journal e$_y$ [mm]")
+    ax1.set_title("journal centre, once per crank revolution", fontsize=10)
+    ax2.set_xlabel("journal e$_x$ [mm]")
+    ax2.set_ylabel("journal v$_x$ relative to bearing [m/s]")
+    ax2.set_title("Poincare section (e$_x$, v$_x$)", fontsize=10)
+    for ax in (ax1, ax2):
+        ax.grid(True, alpha=0.3)
+        ax.xaxis.set_major_locator(MaxNLocator(5))
+    if n > 1:
+        from matplotlib.cm import ScalarMappable
+
+        cb = fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=[ax1, ax2])
+        cb.set_label(color_label)
+    return _save(fig, path)
+
+
+def plot_fit(path, result) -> Figure:
+    """The fit plot of a :class:`jaxclear.fit.FitResult`: measured and fitted sensor signal
+    [m/s^2] against time [ms] (the model at the start values dashed), window starts marked,
+    and the residual measured - fitted below it with its +-2 sigma band."""
+    t = 1e3 * np.asarray(result.t, dtype=float)
+    meas = np.asarray(result.measured, dtype=float)
+    fitted = np.asarray(result.fitted, dtype=float)
+    fig = Figure(figsize=(9.0, 6.4))
+    ax1 = fig.add_subplot(2, 1, 1)
+    ax2 = fig.add_subplot(2, 1, 2, sharex=ax1)
+    ax1.plot(t, meas, ".", color="0.55", ms=2.0, label="measured")
+    if result.initial is not None:
+        ax1.plot(t, np.asarray(result.initial, dtype=float), color="tab:orange", lw=0.8, ls="--",
+                 label="model at the start values")
+    ax1.plot(t, fitted, color=COLORS[0], lw=1.0, label="fitted")
+    for t0 in result.window_starts[1:]:
+        for ax in (ax1, ax2):
+            ax.axvline(1e3 * t0, color="black", lw=0.6, ls=":")
+    values = ", ".join(
+        f"{k} = {v:.4g} ± {result.std.get(k, float('nan')):.2g}" for k, v in result.estimates.items())
+    ax1.set_title(f"fit: {values}", fontsize=9)
+    ax1.set_ylabel("slider acceleration [m/s$^2$]")
+    ax1.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4))
+    ax1.legend(loc="upper right", fontsize=8)
+    res = meas - fitted
+    ax2.plot(t, res, color="tab:red", lw=0.6)
+    sigma = float(result.noise_sigma_m_s2)
+    if np.isfinite(sigma):
+        ax2.axhspan(-2 * sigma, 2 * sigma, color="tab:red", alpha=0.12, label="±2σ (residual std)")
+        ax2.legend(loc="upper right", fontsize=8)
+    ax2.axhline(0.0, color="black", lw=0.5)
+    ax2.set_xlabel("time [ms]")
+    ax2.set_ylabel("residual [m/s$^2$]")
+    ax2.set_title(f"residual: loss {result.loss:.4g} (normalised), lag-1 autocorrelation "
+                  f"{result.residual_autocorrelation:.2f}", fontsize=9)
+    ax2.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4))
+    for ax in (ax1, ax2):
+        ax.grid(True, alpha=0.3)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+__all__ = ["plot_slider_acceleration", "plot_orbit", "plot_contact_force", "plot_heatmap", "plot_bifurcation",
+           "plot_poincare", "plot_fit"]
