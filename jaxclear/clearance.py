@@ -281,7 +281,12 @@ def joint_forces(mech: Mechanism, joint: ClearanceJoint, q, qdot, impact_velocit
 
 def _hermite_crossing(p0, p1, r0, r1, h, crossed):
     """Root ``s`` in [0, 1] of the cubic Hermite interpolant of the penetration over a step
-    (values ``p0, p1``, rates ``r0, r1``, step ``h``) and the interpolated rate there."""
+    (values ``p0, p1``, rates ``r0, r1``, step ``h``) and the interpolated rate there.
+
+    ``h`` may be 0 (under ``vmap`` the members of a batch that have finished take empty steps
+    while the others go on): a safe step keeps the masked branch finite, so reverse mode gets no
+    NaN cotangents."""
+    h = jnp.where(h > 0, h, 1.0)
     denom = jnp.where(crossed, p0 - p1, 1.0)
     s = jnp.clip(jnp.where(crossed, p0 / denom, 0.5), 0.0, 1.0)
 

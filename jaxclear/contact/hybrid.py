@@ -216,8 +216,12 @@ class HybridLaw(eqx.Module):
         else:
             rb, rj = kin.radius_bearing, kin.radius_journal
             x = (rb**2 - rj**2 - e_safe**2) / (2.0 * e_safe * rj)
-        x = jnp.where(inside, jnp.clip(x, -1.0, 1.0), 0.5)
-        return jnp.where(inside, jnp.arccos(x), 0.0)
+        # arccos only strictly inside (-1, 1): at x = 1 its derivative is infinite, and a clipped
+        # value there would give 0 * inf = NaN cotangents in reverse mode
+        ok = inside & (x < 1.0) & (x > -1.0)
+        whole = inside & (x <= -1.0)  # the journal overlaps the bearing all round
+        x_safe = jnp.where(ok, x, 0.5)
+        return jnp.where(ok, jnp.arccos(x_safe), jnp.where(whole, jnp.pi, 0.0))
 
     def points(self, kin):
         """Global angles (N,) and integration weights [rad] (N,) of the points."""
