@@ -137,12 +137,24 @@ def _accessor(mech: Mechanism, name: str) -> tuple[Callable, Callable]:
     if not hasattr(joint.law, field):
         raise ParameterError(f"parameter {name!r}: contact law {type(joint.law).__name__} has no {field!r}")
     w = lambda m: getattr(m.clearance_joints[k].law, field)  # noqa: E731
-    if base == "stiffness" and field == "stiffness":
-        def get(m):
-            j = m.clearance_joints[k]
-            return j.law.stiffness_for(j.bearing_radius, j.journal_radius)
-        return get, w
+    if base == "stiffness":
+        return (lambda m: _stiffness_value(m.clearance_joints[k], field)), w
     return w, w
+
+
+def _stiffness_value(joint, field: str):
+    """The law's stiffness leaf, or the value derived from the materials when the leaf is None."""
+    law = joint.law
+    value = getattr(law, field)
+    if value is not None:
+        return value
+    if hasattr(law, "stiffness_for"):
+        return law.stiffness_for(joint.bearing_radius, joint.journal_radius)
+    if hasattr(law, "modulus_value"):
+        return law.modulus_value()
+    from .contact.hybrid import foundation_modulus
+
+    return foundation_modulus(law.journal_material)
 
 
 def get(mech: Mechanism, name: str):
