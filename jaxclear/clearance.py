@@ -165,10 +165,10 @@ class ContactKinematics(eqx.Module):
 
 def safe_normal(ecc):
     """``(|e|, e/|e|)`` with finite values and gradients at ``e = 0`` (normal ``[1, 0]`` there)."""
-    e2 = ecc @ ecc
+    e2 = ecc[0] ** 2 + ecc[1] ** 2
     nonzero = e2 > 1e-300
     safe = jnp.where(nonzero, ecc, jnp.array([1.0, 0.0], ecc.dtype))
-    norm = jnp.sqrt(safe @ safe)
+    norm = jnp.sqrt(safe[0] ** 2 + safe[1] ** 2)
     return jnp.where(nonzero, norm, 0.0), safe / norm
 
 
@@ -195,8 +195,8 @@ def kinematics(mech: Mechanism, joint: ClearanceJoint, q, qdot) -> ContactKinema
         normal=n,
         tangent=t,
         delta=e - joint.clearance,
-        deltadot=rel @ n,
-        slip=rel @ t,
+        deltadot=rel[0] * n[0] + rel[1] * n[1],
+        slip=rel[0] * t[0] + rel[1] * t[1],
         bearing_centre=p_i,
         journal_centre=p_j,
         bearing_velocity=v_i,
@@ -274,7 +274,7 @@ def joint_forces(mech: Mechanism, joint: ClearanceJoint, q, qdot, impact_velocit
         penetration=joint.law.penetration(kin),
         normal_force=f_n,
         friction_force=f_t,
-        power=gen @ qdot,
+        power=jnp.sum(gen * qdot),
     )
     return gen, out
 

@@ -25,7 +25,7 @@ from .mechanism import (
     Translational,
     perp,
     point_position,
-    rotation,
+    rotate,
 )
 
 _COORD = {"x": 0, "y": 1, "phi": 2}
@@ -44,9 +44,10 @@ def joint_equations(mech: Mechanism, joint, q, t):
     if isinstance(joint, Translational):
         p_i = point_position(mech, q, joint.body_i, joint.point_i)
         p_j = point_position(mech, q, joint.body_j, joint.point_j)
-        normal = rotation(_angle(mech, q, joint.body_i)) @ perp(joint.axis)
+        normal = rotate(_angle(mech, q, joint.body_i), perp(joint.axis))
         rel = _angle(mech, q, joint.body_j) - _angle(mech, q, joint.body_i) - joint.angle
-        return jnp.stack([rel, normal @ (p_j - p_i)])
+        d = p_j - p_i
+        return jnp.stack([rel, normal[0] * d[0] + normal[1] * d[1]])
     if isinstance(joint, Fixed):
         d = point_position(mech, q, joint.body_i, joint.point_i) - point_position(
             mech, q, joint.body_j, joint.point_j
