@@ -39,6 +39,7 @@ from .solve import (  # noqa: E402
     ImpactMemorySolver,
     Settings,
     Solution,
+    UnrolledExplicitRK,
     assemble,
     crank_period,
     initial_state,

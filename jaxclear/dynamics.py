@@ -29,6 +29,20 @@ class State(eqx.Module):
     qdot: Float[Array, " n"]
     memory: ContactMemory
 
+    def pack(self) -> Float[Array, " 2n+6k"]:
+        """One flat vector ``[q, qdot, memory fields (each (k,), in declaration order)]``.
+
+        The solver integrates this vector: a single array leaf keeps its per-step bookkeeping
+        (stage combinations, error norm, dense output) to one kernel per operation instead of
+        one per field."""
+        return jnp.concatenate([self.q, self.qdot, *jax.tree_util.tree_leaves(self.memory)])
+
+    @staticmethod
+    def unpack(v: Float[Array, " 2n+6k"], n: int, k: int) -> "State":
+        """Inverse of :meth:`pack` for ``n`` coordinates and ``k`` clearance joints."""
+        fields = [v[2 * n + i * k : 2 * n + (i + 1) * k] for i in range(len(ContactMemory.__dataclass_fields__))]
+        return State(v[:n], v[n : 2 * n], ContactMemory(*fields))
+
 
 class Baumgarte(eqx.Module):
     """Baumgarte stabilization gains alpha, beta [1/s] (5, 5 is usual for clearance joints)."""
@@ -71,32 +85,30 @@ def contact_forces(mech: Mechanism, q, qdot, memory: ContactMemory):
     return total, jax.tree_util.tree_map(lambda *xs: jnp.stack(xs), *outs)
 
 
-UNROLL_LIMIT = 24  # constraint count up to which the Cholesky solve is unrolled
+UNROLL_LIMIT = 24  # constraint count up to which the elimination is unrolled
 
 
 def spd_solve(a, b):
-    """Solve ``a x = b`` for a small symmetric positive definite ``a`` (m, m) by Cholesky.
+    r"""Solve ``a x = b`` for a small symmetric positive definite ``a`` (m, m).
 
-    Up to :data:`UNROLL_LIMIT` equations the factorization is unrolled into plain XLA arithmetic:
-    for the few-equation systems of planar mechanisms this is faster than a LAPACK call, and it
-    avoids jaxlib's batched LAPACK path under ``vmap`` (which, in jaxlib 0.10, splits large
-    batches over the CPU thread pool and can deadlock when two such solves run concurrently).
+    Up to :data:`UNROLL_LIMIT` equations: Gauss-Jordan elimination without pivoting, unrolled
+    (no pivoting is needed: every trailing Schur complement of an SPD matrix is SPD, so every
+    pivot is positive). Each pivot is a whole-matrix update
+    :math:`A \leftarrow A - (A_{:k} - e_k) A_{k:} / a_{kk}` that XLA compiles to one or two small
+    elementwise kernels; for the few-equation systems of planar mechanisms this is several times
+    faster than a LAPACK call, and it avoids jaxlib's batched LAPACK path under ``vmap`` (which,
+    in jaxlib 0.10, splits large batches over the CPU thread pool and can deadlock when two such
+    solves run concurrently). Larger systems use a Cholesky factorization (LAPACK).
     """
     m = a.shape[0]
     if m > UNROLL_LIMIT:
         return jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(a), b)
-    low = [[None] * m for _ in range(m)]
-    for j in range(m):
-        low[j][j] = jnp.sqrt(a[j, j] - sum((low[j][k] ** 2 for k in range(j)), 0.0))
-        for i in range(j + 1, m):
-            low[i][j] = (a[i, j] - sum((low[i][k] * low[j][k] for k in range(j)), 0.0)) / low[j][j]
-    y = [None] * m
-    for i in range(m):
-        y[i] = (b[i] - sum((low[i][k] * y[k] for k in range(i)), 0.0)) / low[i][i]
-    x = [None] * m
-    for i in reversed(range(m)):
-        x[i] = (y[i] - sum((low[k][i] * x[k] for k in range(i + 1, m)), 0.0)) / low[i][i]
-    return jnp.stack(x)
+    aug = jnp.concatenate([a, b[:, None]], axis=1)
+    unit = jnp.eye(m, dtype=aug.dtype)
+    for k in range(m):
+        # row k <- row k / a_kk; row i <- row i - a_ik row k / a_kk, as one update
+        aug = aug - (aug[:, k : k + 1] - unit[:, k : k + 1]) * (aug[k : k + 1, :] / aug[k, k])
+    return aug[:, m]
 
 
 def accelerations(mech: Mechanism, t, q, qdot, memory: ContactMemory, baumgarte: Baumgarte):
@@ -116,8 +128,9 @@ def accelerations(mech: Mechanism, t, q, qdot, memory: ContactMemory, baumgarte:
     # the augmented system above, solved exactly; redundant constraints make it singular (NaN,
     # reported as a non-finite state).
     dm = d / m_diag
-    lam = spd_solve(dm @ d.T, dm @ g - rhs_c)
-    return (g - d.T @ lam) / m_diag, lam, value, contact
+    # products written as broadcast-multiply-and-sum: XLA fuses them with their neighbours
+    lam = spd_solve(jnp.sum(dm[:, None, :] * d[None, :, :], axis=-1), jnp.sum(dm * g, axis=-1) - rhs_c)
+    return (g - jnp.sum(d * lam[:, None], axis=0)) / m_diag, lam, value, contact
 
 
 def vector_field(t, y: State, args) -> State:
@@ -131,6 +144,14 @@ def vector_field(t, y: State, args) -> State:
     return State(y.qdot, qdd, dmem)
 
 
+def flat_vector_field(t, v, args):
+    """:func:`vector_field` on the packed state (:meth:`State.pack`); ``args = (mechanism,
+    baumgarte)``."""
+    mech = args[0]
+    y = State.unpack(v, mech.n_coordinates, len(mech.clearance_joints))
+    return vector_field(t, y, args).pack()
+
+
 def energy(mech: Mechanism, q, qdot):
     """Kinetic plus gravitational potential energy [J] (contact elastic energy excluded)."""
     m = mech.mass_matrix_diagonal()
@@ -141,4 +162,4 @@ def energy(mech: Mechanism, q, qdot):
     return kinetic + potential
 
 
-__all__ = ["State", "Baumgarte", "accelerations", "vector_field", "energy", "ContactOutput"]
+__all__ = ["State", "Baumgarte", "accelerations", "vector_field", "flat_vector_field", "energy", "ContactOutput"]

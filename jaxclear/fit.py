@@ -132,7 +132,7 @@ from .clearance import kinematics
 from .errors import JaxclearError, ParameterError
 from .mechanism import AngleDriver, FunctionDriver, Mechanism
 from .sensor import Accelerometer, record_times, uniform_spacing
-from .solve import Settings, crank_period, settings as make_settings, simulate
+from .solve import Settings, crank_period, jit, settings as make_settings, simulate
 
 #: Free parameters by default.
 DEFAULT_FREE = ("stiffness", "restitution")
@@ -503,7 +503,7 @@ def _evaluate(model: WindowModel, theta_z, state_z, win: WindowInput):
     return r, jt, js, y, extra
 
 
-_evaluate_jit = eqx.filter_jit(_evaluate)
+_evaluate_jit = jit(_evaluate)
 
 
 def _state_to_z(state: np.ndarray, clearance: Sequence[float], velocity_scale: float) -> np.ndarray:
@@ -1261,9 +1261,9 @@ def parameter_grad(loss: Callable, mech: Mechanism, names: Sequence[str], s: Set
         return value, value
 
     if mode == "reverse":
-        g, value = eqx.filter_jit(jax.grad(f, has_aux=True))(x0)
+        g, value = jit(jax.grad(f, has_aux=True))(x0)
     else:
-        g, value = eqx.filter_jit(jax.jacfwd(f, has_aux=True))(x0)
+        g, value = jit(jax.jacfwd(f, has_aux=True))(x0)
     return float(value), {n: float(g[i]) for i, n in enumerate(names)}
 
 

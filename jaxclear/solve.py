@@ -6,11 +6,19 @@ The impact speed :math:`\dot\delta^{(-)}` of each clearance joint is a component
 solution with zero derivative; :class:`ImpactMemorySolver` wraps any diffrax solver and sets
 it after every step with :func:`jaxclear.clearance.update_memory` (spec section 6). A
 rejected step is discarded together with its update; gradients flow through the update.
+
+Speed (the benchmark slider-crank takes a few thousand steps of a vector field with only a few
+dozen flops per kernel, so per-kernel overhead dominates): the solver integrates one packed
+vector (:meth:`~jaxclear.dynamics.State.pack`) rather than a pytree, the explicit Runge-Kutta
+stages are unrolled (:class:`UnrolledExplicitRK`), and XLA compiles with
+:func:`compiler_options`. ``benchmarks/bench_engine.py --profile`` measures each part.
 """
 
 from __future__ import annotations
 
+import functools
 import math
+import re
 import time
 import diffrax
 import equinox as eqx
@@ -22,7 +30,7 @@ from jaxtyping import Array, Float
 
 from . import constraints
 from .clearance import ContactMemory, update_memory
-from .dynamics import Baumgarte, State, accelerations, vector_field
+from .dynamics import Baumgarte, State, accelerations, flat_vector_field
 from .errors import InitialConditionError, MechanismError, ParameterError, SolverError, _is_concrete
 from .mechanism import AngleDriver, FunctionDriver, Mechanism
 
@@ -122,6 +130,60 @@ def crank_period(mech: Mechanism) -> float:
 
 
 # --------------------------------------------------------------------------------------
+# Compilation
+# --------------------------------------------------------------------------------------
+
+#: XLA options for jaxclear's own compiled functions. ``xla_cpu_use_fusion_emitters=False``
+#: selects XLA:CPU's older elemental emitters for fused kernels; for the small scalar-heavy
+#: kernels of a planar mechanism they compile in about half the time (benchmark slider-crank:
+#: 7.3 s -> 4.2 s of XLA compilation) and run at least as fast. Other backends ignore it.
+PREFERRED_COMPILER_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
+
+
+@functools.cache
+def compiler_options() -> dict:
+    """:data:`PREFERRED_COMPILER_OPTIONS` if this jaxlib accepts them (probed once with a
+    trivial compilation), else ``{}``."""
+    try:
+        jax.jit(lambda x: x + 1, compiler_options=PREFERRED_COMPILER_OPTIONS)(jnp.zeros(()))
+    except Exception:  # an XLA that no longer knows the option: compile with its defaults
+        return {}
+    return dict(PREFERRED_COMPILER_OPTIONS)
+
+
+class jit:  # noqa: N801 (used like a decorator, as eqx.filter_jit)
+    """``eqx.filter_jit`` with :func:`compiler_options` at top level, created on the first call
+    (so that importing jaxclear compiles nothing). Inside another transformation (``jax.jit``,
+    ``vmap``, ``grad`` of a user's function) JAX accepts compiler options only on the outermost
+    jit, so there it is a plain ``eqx.filter_jit``, inlined like any nested jit."""
+
+    def __init__(self, fun):
+        functools.update_wrapper(self, fun)
+        self._fun = fun
+        self._plain = eqx.filter_jit(fun)
+        self._top = None
+
+    def _get(self):
+        if self._top is None:
+            options = compiler_options()
+            self._top = eqx.filter_jit(self._fun, compiler_options=options) if options else self._plain
+        return self._top
+
+    def __call__(self, *args, **kwargs):
+        if any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves((args, kwargs))):
+            return self._plain(*args, **kwargs)
+        try:
+            return self._get()(*args, **kwargs)
+        except ValueError as err:  # concrete arguments, but inside a user's jit
+            if "compiler_options" not in str(err):
+                raise
+            return self._plain(*args, **kwargs)
+
+    def lower(self, *args, **kwargs):
+        return self._get().lower(*args, **kwargs)
+
+
+# --------------------------------------------------------------------------------------
 # Consistent initial conditions
 # --------------------------------------------------------------------------------------
 
@@ -170,6 +232,9 @@ def assemble(mech: Mechanism, t0=0.0) -> Assembly:
     return Assembly(q, qd, jnp.linalg.norm(r), d)
 
 
+_assemble_jit = jit(assemble)
+
+
 def _dependent_rows(d: np.ndarray, tol: float) -> list[int]:
     rows, kept = [], []
     scale = max(np.abs(d).max(), 1.0)
@@ -185,7 +250,7 @@ def _dependent_rows(d: np.ndarray, tol: float) -> list[int]:
 def check_assembly(mech: Mechanism, s: Settings) -> Assembly:
     """Eager checks with detailed messages (concrete inputs only): Newton convergence,
     redundant constraints, too few constraints for the drivers. Returns the assembly."""
-    asm = eqx.filter_jit(assemble)(mech, s.t_start)
+    asm = _assemble_jit(mech, s.t_start)
     if not np.isfinite(float(asm.residual)) or float(asm.residual) > NEWTON_TOL:
         raise InitialConditionError(
             f"the Newton solve of Phi(q, {s.t_start:g}) = 0 did not converge: residual "
@@ -231,11 +296,105 @@ def initial_state(mech: Mechanism, s: Settings | None = None, assembly: Assembly
 # --------------------------------------------------------------------------------------
 
 
+class UnrolledExplicitRK(diffrax.AbstractWrappedSolver):
+    """An explicit Runge-Kutta solver of diffrax (Tsit5, Dopri5, Dopri8, Bosh3) with its stages
+    unrolled into straight-line code, for ODE terms.
+
+    It takes the wrapped solver's Butcher tableau and interpolation, so it computes the same
+    step, error estimate and dense output as diffrax (a test checks equality to rounding).
+    diffrax runs the stages in a ``while_loop`` (shorter compilation, one code path for every
+    Runge-Kutta family); for a vector field as small as a planar mechanism's, each stage
+    iteration then costs more loop bookkeeping (stage-buffer copies and dynamic slices, per
+    state leaf) than the vector field itself. Unrolled, XLA fuses the stage combinations into
+    the vector field's kernels; :mod:`benchmarks.bench_engine` measures the difference.
+
+    ``solver_state = (f0, first)``: the vector field at the step's start (first same as last)
+    and whether it must be evaluated afresh (first step, or after a jump in the vector field).
+    """
+
+    solver: diffrax.AbstractERK
+
+    def __check_init__(self):
+        tab = self.solver.tableau
+        if not isinstance(tab, diffrax.ButcherTableau) or tab.implicit:
+            raise ParameterError(f"{type(self.solver).__name__} is not an explicit Runge-Kutta solver")
+
+    @property
+    def term_structure(self):
+        return self.solver.term_structure
+
+    @property
+    def interpolation_cls(self):  # pyright: ignore
+        return self.solver.interpolation_cls
+
+    @property
+    def term_compatible_contr_kwargs(self):
+        return self.solver.term_compatible_contr_kwargs
+
+    @property
+    def scan_kind(self):
+        # diffrax's forward-mode and direct adjoints swap a Runge-Kutta solver's stage loop for
+        # a differentiable one when this is None; unrolled stages have no loop to swap.
+        return "bounded"
+
+    def order(self, terms):
+        return self.solver.order(terms)
+
+    def strong_order(self, terms):
+        return self.solver.strong_order(terms)
+
+    def error_order(self, terms):
+        return self.solver.error_order(terms)
+
+    def func(self, terms, t0, y0, args):
+        return terms.vf(t0, y0, args)
+
+    def init(self, terms, t0, t1, y0, args):
+        zeros = jax.tree_util.tree_map(jnp.zeros_like, y0)
+        return zeros, jnp.array(True)
+
+    def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
+        tab = self.solver.tableau
+        f0, first = solver_state
+        dt = t1 - t0
+        tmap = jax.tree_util.tree_map
+        if tab.fsal:
+            f0 = jax.lax.cond(first | made_jump, lambda: terms.vf(t0, y0, args), lambda: f0)
+        else:
+            f0 = terms.vf(t0, y0, args)
+
+        def combine(base, coeffs, ks):
+            pairs = [(float(a), k) for a, k in zip(coeffs, ks) if a != 0.0]
+            if not pairs:
+                return base if base is not None else tmap(jnp.zeros_like, ks[0])
+            def leaf(b, *kk):
+                acc = sum(a * x for (a, _), x in zip(pairs, kk))
+                return acc if b is None else b + acc
+            if base is None:
+                return tmap(lambda *kk: leaf(None, *kk), *[k for _, k in pairs])
+            return tmap(leaf, base, *[k for _, k in pairs])
+
+        ks = [tmap(lambda f: f * dt, f0)]
+        fi = f0
+        for a_row, c in zip(tab.a_lower, tab.c):
+            yi = combine(y0, a_row, ks)
+            fi = terms.vf(t0 + float(c) * dt, yi, args)
+            ks.append(tmap(lambda f: f * dt, fi))
+        y1 = yi if tab.ssal else combine(y0, tab.b_sol, ks)
+        y_error = combine(None, tab.b_error, ks)
+        k = tmap(lambda *xs: jnp.stack(xs), *ks)
+        dense_info = dict(y0=y0, y1=y1, k=k)
+        f1 = fi if tab.fsal else f0
+        return y1, y_error, dense_info, (f1, jnp.array(False)), diffrax.RESULTS.successful
+
+
 class ImpactMemorySolver(diffrax.AbstractWrappedSolver):
     """Wraps a diffrax solver; after each step sets the contact memory of the state with
     :func:`jaxclear.clearance.update_memory`. When a joint enters contact during a step the
     next step re-evaluates its first stage (the force law changed), so FSAL solvers stay exact.
-    ``args`` of the solve must be ``(mechanism, baumgarte)``."""
+    The state is the packed vector of :meth:`State.pack` and the term
+    :func:`~jaxclear.dynamics.flat_vector_field`; ``args`` of the solve must be
+    ``(mechanism, baumgarte)``."""
 
     solver: diffrax.AbstractSolver
 
@@ -274,17 +433,24 @@ class ImpactMemorySolver(diffrax.AbstractWrappedSolver):
             terms, t0, t1, y0, args, inner_state, made_jump | memory_changed
         )
         mech = args[0]
-        memory, crossed = update_memory(mech, t0, y0.q, y0.qdot, t1, y1.q, y1.qdot, y1.memory)
-        y1 = State(y1.q, y1.qdot, memory)
+        n, k = mech.n_coordinates, len(mech.clearance_joints)
+        a, b = State.unpack(y0, n, k), State.unpack(y1, n, k)
+        memory, crossed = update_memory(mech, t0, a.q, a.qdot, t1, b.q, b.qdot, b.memory)
+        y1 = State(b.q, b.qdot, memory).pack()
         return y1, y_error, dense_info, (inner_state, crossed), result
 
     def func(self, terms, t0, y0, args):
         return self.solver.func(terms, t0, y0, args)
 
 
-def _state_norm(y: State):
-    """Error norm on positions and velocities only (the memory is not error-controlled)."""
-    return optx.rms_norm((y.q, y.qdot))
+class _StateNorm(eqx.Module):
+    """Error norm of the packed state on positions and velocities only (the memory is not
+    error-controlled): RMS over the first ``2n`` entries."""
+
+    n: int = eqx.field(static=True)
+
+    def __call__(self, v):
+        return optx.rms_norm(v[: 2 * self.n])
 
 
 # --------------------------------------------------------------------------------------
@@ -352,9 +518,12 @@ class Solution(eqx.Module):
 
 
 def _inner_solver(s: Settings):
+    solver = SOLVERS[s.solver]()
+    if not solver.tableau.implicit:
+        return UnrolledExplicitRK(solver)
     if s.adjoint in ("forward", "direct"):
         return SOLVERS[s.solver](scan_kind="bounded")
-    return SOLVERS[s.solver]()
+    return solver
 
 
 def _adjoint(s: Settings):
@@ -385,15 +554,17 @@ def _solve(mech: Mechanism, s: Settings, y0: State, assembled_ok):
     t1 = jnp.asarray(s.t_end, y0.q.dtype)
     ts = t0 + (t1 - t0) * jnp.linspace(0.0, 1.0, s.n_out, dtype=y0.q.dtype)
     ts = ts.at[-1].set(t1)
-    controller = diffrax.PIDController(rtol=s.rtol, atol=s.atol, dtmax=s.dtmax, norm=_state_norm)
+    n, k = mech.n_coordinates, len(mech.clearance_joints)
+    norm = _StateNorm(n)
+    controller = diffrax.PIDController(rtol=s.rtol, atol=s.atol, dtmax=s.dtmax, norm=norm)
     meter = diffrax.TqdmProgressMeter(refresh_steps=200) if s.progress else diffrax.NoProgressMeter()
     sol = diffrax.diffeqsolve(
-        diffrax.ODETerm(vector_field),
+        diffrax.ODETerm(flat_vector_field),
         ImpactMemorySolver(_inner_solver(s)),
         t0,
         t1,
         s.dt0,
-        y0,
+        y0.pack(),
         args=(mech, s.baumgarte),
         saveat=diffrax.SaveAt(ts=ts),
         stepsize_controller=controller,
@@ -402,7 +573,7 @@ def _solve(mech: Mechanism, s: Settings, y0: State, assembled_ok):
         throw=False,
         progress_meter=meter,
     )
-    ys: State = sol.ys
+    ys: State = jax.vmap(lambda v: State.unpack(v, n, k))(sol.ys)
     qdd, lam, drift, ecc, pen, fn, ft, mode = _postprocess(mech, s, ts, ys)
     finite = jnp.all(jnp.isfinite(ys.q)) & jnp.all(jnp.isfinite(ys.qdot)) & jnp.all(jnp.isfinite(qdd))
     status = jnp.where(
@@ -443,7 +614,7 @@ def _solve(mech: Mechanism, s: Settings, y0: State, assembled_ok):
     return out
 
 
-@eqx.filter_jit
+@jit
 def _simulate(mech: Mechanism, s: Settings, y0: State | None) -> Solution:
     asm = assemble(mech, s.t_start)
     assembled_ok = jnp.isfinite(asm.residual) & (asm.residual <= NEWTON_TOL)
@@ -472,10 +643,10 @@ def simulate(mech: Mechanism, s: Settings, y0: State | None = None) -> Solution:
     try:
         return _simulate(mech, s, y0)
     except Exception as err:  # turn equinox's runtime errors into ours
-        msg = str(err)
-        if "jaxclear:" in msg:
-            text = msg[msg.index("jaxclear:") :].splitlines()[0]
-            raise SolverError(text) from None
+        # the message line, not a quoted source line of the stack equinox prints above it
+        found = re.search(r"^(?:\S*Error: )?(jaxclear: [^\n]*)$", str(err), flags=re.MULTILINE)
+        if found:
+            raise SolverError(found.group(1)) from None
         raise
 
 
@@ -497,6 +668,8 @@ __all__ = [
     "check_assembly",
     "initial_state",
     "ImpactMemorySolver",
+    "UnrolledExplicitRK",
+    "compiler_options",
     "SOLVERS",
     "STATUS",
     "crank_period",

@@ -72,7 +72,7 @@ from .clearance import kinematics
 from .errors import JaxclearError, ParameterError
 from .mechanism import AngleDriver, Mechanism
 from .metrics import RUN_METRIC_KEYS, run_metrics
-from .solve import SOLVERS, STATUS, Settings, simulate
+from .solve import SOLVERS, STATUS, Settings, jit, simulate
 
 #: Number of times the per-run function has been traced (compiled) in this process.
 TRACE_COUNT = 0
@@ -597,7 +597,7 @@ def _runs(plan: Plan, mech: Mechanism, ideal: Mechanism | None, rows):
     return jax.vmap(lambda r, s, a, st: _finish(plan, mech, r, s, a, st))(rows, sol, ideal_acc, ideal_status)
 
 
-@eqx.filter_jit
+@jit
 def _run_chunk(values, mech: Mechanism, ideal: Mechanism | None, plan: Plan):
     """``values`` (B, P) sharded over ``plan.mesh`` -> dict of (B, ...) outputs."""
     from jax.sharding import PartitionSpec as P
