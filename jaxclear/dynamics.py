@@ -144,9 +144,13 @@ def vector_field(t, y: State, args) -> State:
     return State(y.qdot, qdd, dmem)
 
 
+@eqx.filter_jit
 def flat_vector_field(t, v, args):
     """:func:`vector_field` on the packed state (:meth:`State.pack`); ``args = (mechanism,
-    baumgarte)``."""
+    baumgarte)``.
+
+    Jitted so that the several calls of one solver step (one per Runge-Kutta stage) are traced
+    and lowered once; XLA inlines the calls."""
     mech = args[0]
     y = State.unpack(v, mech.n_coordinates, len(mech.clearance_joints))
     return vector_field(t, y, args).pack()
