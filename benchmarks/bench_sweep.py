@@ -10,7 +10,12 @@ restitution 0.5 to 0.95 drawn from a fixed grid) are computed
   per-run function inside ``jax.shard_map``) in chunks of each ``--batch-sizes`` value, on one
   device;
 * by a serial Python loop over the *same* per-run function (``jaxclear.sweep._one_run``,
-  unbatched, jitted once with ``equinox.filter_jit``), one call per run;
+  unbatched, jitted once with ``equinox.filter_jit``), one call per run; this is the baseline of
+  the "vs serial" column and of the issue's target. The sweep integrates with diffrax's
+  ``while_loop`` over the Runge-Kutta stages (``Settings(stages="loop")``), the faster form
+  under ``vmap``;
+* by the same serial loop with the stages unrolled (``stages="unrolled"``, what
+  ``jc.simulate`` does by default for one run): the fastest serial path, reported alongside;
 * by the plain SciPy implementation (``benchmarks/scipy_reference.py``, RK45, same tolerances,
   same output grid) for the first ``--scipy-runs`` runs;
 * (``--two-devices``) in a child process with two host CPU devices forced
@@ -113,8 +118,12 @@ def time_batched(args, values, batch: int, devices: int = 1) -> dict:
             "failed": int(sum(1 for s in status if s != 0))}
 
 
-def time_serial(args, values) -> dict:
-    """A Python loop over the unbatched per-run function, jitted once."""
+def time_serial(args, values, stages="loop") -> dict:
+    """A Python loop over the unbatched per-run function, jitted once. ``stages="loop"`` is the
+    sweep's own per-run function; ``"unrolled"`` the same with the Runge-Kutta stages unrolled,
+    which is what ``jc.simulate`` does by default for a single run (the fastest serial path)."""
+    import dataclasses
+
     import equinox as eqx
     import jax
     import jax.numpy as jnp
@@ -123,20 +132,30 @@ def time_serial(args, values) -> dict:
 
     cfg = _config(args, values, 1)
     plan = _plan(cfg, None)
-    f = eqx.filter_jit(sweep._one_run)
-    mech = cfg.base_mechanism
-    t = time.perf_counter()
-    jax.block_until_ready(f(plan, mech, None, jnp.asarray(values[0])))
-    first = time.perf_counter() - t
-    steps, status = [], []
-    t = time.perf_counter()
-    for row in values:
-        out = jax.block_until_ready(f(plan, mech, None, jnp.asarray(row)))
-        steps.append(int(out["num_steps"]))
-        status.append(int(out["status"]))
-    wall = time.perf_counter() - t
+    original = sweep._settings
+    if stages != "loop":
+        sweep._settings = lambda plan, m: dataclasses.replace(original(plan, m), stages=stages)
+    try:
+        # a fresh function object per call: jit caches compilations by function, and the
+        # stages setting is read inside it
+        f = eqx.filter_jit(lambda *a: sweep._one_run(*a))
+        mech = cfg.base_mechanism
+        t = time.perf_counter()
+        jax.block_until_ready(f(plan, mech, None, jnp.asarray(values[0])))
+        first = time.perf_counter() - t
+        steps, status = [], []
+        t = time.perf_counter()
+        for row in values:
+            out = jax.block_until_ready(f(plan, mech, None, jnp.asarray(row)))
+            steps.append(int(out["num_steps"]))
+            status.append(int(out["status"]))
+        wall = time.perf_counter() - t
+    finally:
+        sweep._settings = original
     n = len(values)
-    return {"method": "serial loop (same function, jitted, unbatched)", "batch": 1, "devices": 1, "runs": n,
+    method = ("serial loop (same function, jitted, unbatched)" if stages == "loop"
+              else "serial loop, unrolled stages (jc.simulate default)")
+    return {"method": method, "batch": 1, "devices": 1, "runs": n,
             "first_call_s": first, "compile_s": max(first - wall / n, 0.0), "wall_s": wall, "sims_per_s": n / wall,
             "steps_total": int(sum(steps)), "steps_max": int(max(steps)), "lane_efficiency": 1.0,
             "failed": int(sum(1 for s in status if s != 0))}
@@ -182,7 +201,7 @@ def machine_info() -> dict:
 
 def table(rows: list[dict], serial_rate: float) -> str:
     head = (f"{'method':<52} {'batch':>5} {'dev':>3} {'compile s':>9} {'wall s':>8} {'sims/s':>7} "
-            f"{'vs serial':>9} {'steps max':>9} {'lane eff':>8}")
+            f"{'vs serial':>9} {'steps max':>9} {'steps tot':>9} {'us/step':>7} {'lane eff':>8}")
     lines = [head, "-" * len(head)]
     for r in rows:
         def f(v, spec):
@@ -190,7 +209,9 @@ def table(rows: list[dict], serial_rate: float) -> str:
         ratio = "        -" if r.get("child") else f"{r['sims_per_s'] / serial_rate:8.2f}x"
         lines.append(f"{r['method'][:52]:<52} {r['batch']:>5} {r['devices']:>3} {f(r['compile_s'], '9.1f')} "
                      f"{r['wall_s']:8.2f} {r['sims_per_s']:7.2f} {ratio} "
-                     f"{f(r['steps_max'], '9d')} {f(r['lane_efficiency'], '8.2f')}")
+                     f"{f(r['steps_max'], '9d')} {f(r.get('steps_total'), '9d')} "
+                     f"{f(1e6 * r['wall_s'] / r['steps_total'] if r.get('steps_total') else None, '7.1f')} "
+                     f"{f(r['lane_efficiency'], '8.2f')}")
     return "\n".join(lines)
 
 
@@ -238,6 +259,9 @@ def main(argv=None) -> int:
     print(f"serial loop of {args.runs} runs...", file=sys.stderr, flush=True)
     serial = time_serial(args, values)
     rows.append(serial)
+    print(f"serial loop of {args.runs} runs, unrolled stages...", file=sys.stderr, flush=True)
+    serial_unrolled = time_serial(args, values, stages="unrolled")
+    rows.append(serial_unrolled)
     for b in sizes:
         print(f"vmap chunks of {b}...", file=sys.stderr, flush=True)
         rows.append(time_batched(args, values, b))
@@ -260,7 +284,8 @@ def main(argv=None) -> int:
         rows.append(time_scipy(args, values[: args.scipy_runs]))
     load_end = os.getloadavg()
     info = machine_info()
-    best = max((r for r in rows if r["method"].startswith("vmap chunks") and r["devices"] == 1),
+    best = max((r for r in rows if r["method"].startswith("vmap chunks") and r["devices"] == 1
+                and not r.get("child")),
                key=lambda r: r["sims_per_s"])
     title = (f"sweep throughput: flores-slider-crank, {args.revolutions:g} revolution(s) per run at 5000 rpm, "
              f"tsit5 rtol 1e-6 atol 1e-9, {int(round(args.revolutions * args.samples)) + 1} samples, "
@@ -268,6 +293,12 @@ def main(argv=None) -> int:
     text = [title, "=" * len(title), table(rows, serial["sims_per_s"]), "",
             f"best single-device batching: {best['sims_per_s'] / serial['sims_per_s']:.2f}x the serial loop "
             f"(batch {best['batch']}); target >= 2x: {'met' if best['sims_per_s'] >= 2 * serial['sims_per_s'] else 'NOT met'}",
+            f"against the fastest serial path (unrolled stages): "
+            f"{best['sims_per_s'] / serial_unrolled['sims_per_s']:.2f}x",
+            "per solver step (wall / total steps; insensitive to which runs happen to take many steps): "
+            f"batch {best['batch']} {1e6 * best['wall_s'] / best['steps_total']:.1f} us, serial "
+            f"{1e6 * serial['wall_s'] / serial['steps_total']:.1f} us, serial unrolled "
+            f"{1e6 * serial_unrolled['wall_s'] / serial_unrolled['steps_total']:.1f} us",
             f"load average (1 min) at start / end: {load_start[0]:.2f} / {load_end[0]:.2f} "
             f"({info['cpus_usable']} usable CPUs; other processes share them: timings are noisy)",
             f"machine: {info['platform']}, {info['cpu_model']}, jax {info['jax']} on {info['devices']}; "

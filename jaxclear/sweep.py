@@ -494,8 +494,9 @@ def config_from_dict(doc: dict, source: str = "<dict>", **overrides) -> SweepCon
 def _settings(plan: Plan, m: Mechanism) -> Settings:
     speed = [d for d in m.drivers if isinstance(d, AngleDriver)][0].speed
     t_end = plan.revolutions * 2.0 * jnp.pi / jnp.abs(speed)
+    # stages="loop": under vmap one copy of the vector field serves every Runge-Kutta stage
     return Settings(t_end=t_end, n_out=plan.n_out, solver=plan.solver, rtol=plan.rtol, atol=plan.atol,
-                    max_steps=plan.max_steps, throw=False)
+                    max_steps=plan.max_steps, throw=False, stages="loop")
 
 
 def _clearance_run(plan: Plan, mech: Mechanism, row):

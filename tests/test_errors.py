@@ -123,6 +123,7 @@ def test_step_limit_reported_without_throw():
     (dict(atol=-1.0), r"atol = -1 outside the allowed range \(0, inf\)"),
     (dict(solver="euler9"), r"unknown solver 'euler9'; valid: \["),
     (dict(n_out=1), r"n_out = 1 outside the allowed range \[2, inf\)"),
+    (dict(stages="fused"), r"stages must be 'unrolled' or 'loop', got 'fused'"),
 ])
 def test_bad_settings(kwargs, match):
     with pytest.raises(jc.ParameterError, match=match):
