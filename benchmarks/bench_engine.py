@@ -15,8 +15,9 @@ Measured (all wall-clock, ``time.perf_counter``; JAX results are ``jax.block_unt
   ``--scipy-repeats`` calls of ``scipy_reference.simulate``;
 * steps, RHS evaluations, impacts, peak contact force and maximum penetration of both codes;
 * the ideal (no clearance) mechanism of both codes, for context;
-* a ``jax.vmap`` batch of ``--batch-size`` runs at different clearances against the same runs
-  made one after another.
+* a ``jax.vmap`` batch of ``--batch-size`` runs at different clearances (with
+  ``Settings(stages="loop")``, the faster form under vmap) against the same runs made one after
+  another with plain ``jc.simulate`` (unrolled stages, the fastest single-run path).
 
 Run from the repository root::
 
@@ -34,6 +35,7 @@ _T_PROCESS_START = time.perf_counter()  # before jax is imported
 
 import argparse  # noqa: E402
 import contextlib  # noqa: E402
+import dataclasses  # noqa: E402
 import datetime  # noqa: E402
 import json  # noqa: E402
 import os  # noqa: E402
@@ -258,7 +260,7 @@ def profile_child(revolutions, rtol, atol, solver, n_out, loops=5000):
 
     import jaxclear as jc
     from jaxclear import solve as jsolve
-    from jaxclear.dynamics import vector_field
+    from jaxclear.dynamics import flat_vector_field, spd_solve
 
     mech = jc.preset("flores-slider-crank")
     s = jc.settings(revolutions * jc.crank_period(mech), n_out=n_out, rtol=rtol, atol=atol, solver=solver)
@@ -273,45 +275,61 @@ def profile_child(revolutions, rtol, atol, solver, n_out, loops=5000):
     lowered.compile()
     out["xla_compile_s"] = time.perf_counter() - t0
 
-    y0 = jc.initial_state(mech, s)
+    y0 = jc.initial_state(mech, s).pack()  # the solver integrates the packed state vector
     args = (mech, s.baumgarte)
+    opts = jsolve.compiler_options()
 
     def per_iteration(body, carry):
-        loop = jax.jit(lambda c: jax.lax.fori_loop(0, loops, body, c))
-        jax.block_until_ready(loop(carry))
+        # the mechanism is an argument of the compiled loop, as in jc.simulate (a closed-over
+        # mechanism would be constant-folded into the kernels and flatter the numbers)
+        loop = jax.jit(lambda c, a: jax.lax.fori_loop(0, loops, lambda i, cc: body(i, cc, a), c),
+                       compiler_options=opts)
+        jax.block_until_ready(loop(carry, args))
         t0 = time.perf_counter()
-        jax.block_until_ready(loop(carry))
+        jax.block_until_ready(loop(carry, args))
         return (time.perf_counter() - t0) / loops
 
-    def rhs_body(i, y):  # one vector-field evaluation per iteration, carried so it is not hoisted
-        d = vector_field(i * 1e-9, y, args)
-        return jax.tree_util.tree_map(lambda a, b: a + 1e-12 * b, y, d)
+    def rhs_body(i, y, args):  # one vector-field evaluation per iteration, carried so it is not hoisted
+        return y + 1e-12 * flat_vector_field(i * 1e-9, y, args)
 
     out["rhs_eval_s"] = per_iteration(rhs_body, y0)
 
-    n = y0.q.shape[0] + mech.n_constraints
+    m = mech.n_constraints
 
-    def solve_body(i, y):  # the augmented (n + m) x (n + m) solve alone
-        a = jnp.eye(n) + 1e-3 * jnp.outer(jnp.arange(n, dtype=float), jnp.ones(n)) + 1e-9 * y.q.sum()
-        x = jnp.linalg.solve(a, jnp.ones(n))
-        return jc.State(y.q + 1e-12 * x[: y.q.shape[0]], y.qdot, y.memory)
+    def solve_body(i, y, args):  # the m x m Schur-complement solve of the constraint forces alone
+        a = jnp.eye(m) + 1e-3 * jnp.outer(jnp.arange(m, dtype=float), jnp.arange(m, dtype=float)) + 1e-9 * y[0]
+        return y + 1e-12 * spd_solve(a, jnp.ones(m)).sum()
 
-    out["augmented_solve_s"] = per_iteration(solve_body, y0)
-    out["augmented_size"] = n
+    out["constraint_solve_s"] = per_iteration(solve_body, y0)
+    out["constraint_solve_size"] = m
 
-    wrapped = jc.ImpactMemorySolver(jc.SOLVERS[solver]())
-    term = diffrax.ODETerm(vector_field)
-    state0 = wrapped.init(term, 0.0, 1e-8, y0, args)
+    term = diffrax.ODETerm(flat_vector_field)
 
-    def step_body(i, carry):  # one solver step (all stages + memory update), tiny dt
-        y, st = carry
-        t = i * 1e-8
-        y1, _, _, st1, _ = wrapped.step(term, t, t + 1e-8, y, args, st, False)
-        return y1, st1
+    def step_time(inner):  # one solver step (all stages + memory update), tiny dt
+        wrapped = jc.ImpactMemorySolver(inner)
+        state0 = wrapped.init(term, 0.0, 1e-8, y0, args)
 
-    out["solver_step_s"] = per_iteration(step_body, (y0, state0))
+        def step_body(i, carry, args):
+            y, st = carry
+            t = i * 1e-8
+            y1, _, _, st1, _ = wrapped.step(term, t, t + 1e-8, y, args, st, False)
+            return y1, st1
 
-    hlo = jax.jit(lambda t, y: vector_field(t, y, args)).lower(0.0, y0).compile().as_text()
+        return per_iteration(step_body, (y0, state0))
+
+    out["solver_step_s"] = step_time(jsolve._inner_solver(s))
+    if isinstance(jsolve._inner_solver(s), jsolve.UnrolledExplicitRK):
+        # the whole benchmark run with diffrax's own stage loop (Settings(stages="loop")), per step
+        s_loop = dataclasses.replace(s, stages="loop")
+        jax.block_until_ready(jc.simulate(mech, s_loop))
+        walls = []
+        for _ in range(3):
+            t0 = time.perf_counter()
+            sol = jax.block_until_ready(jc.simulate(mech, s_loop))
+            walls.append(time.perf_counter() - t0)
+        out["whole_run_loop_per_step_s"] = _median(walls) / int(sol.num_steps)
+
+    hlo = jax.jit(flat_vector_field, compiler_options=opts).lower(0.0, y0, args).compile().as_text()
     out["rhs_hlo_fusions"] = len(re.findall(r"= \S+ fusion\(", hlo))
     out["rhs_hlo_custom_calls"] = len(re.findall(r"custom-call\(", hlo))
     out["rhs_hlo_instructions"] = sum(1 for line in hlo.splitlines() if " = " in line)
@@ -497,7 +515,11 @@ def main(argv=None):
             return eqx.tree_at(lambda m: m.clearance_joints[0].journal_radius, mech,
                                jnp.asarray(R_B - c, dtype=float))
 
-        batched = jax.jit(jax.vmap(lambda c: jc.simulate(with_clearance(c), s)))
+        # batches integrate with diffrax's stage loop (faster under vmap, as sweeps do); the serial
+        # runs below are plain jc.simulate calls (unrolled stages, the fastest single-run path)
+        s_batch = dataclasses.replace(s, stages="loop")
+        batched = jax.jit(jax.vmap(lambda c: jc.simulate(with_clearance(c), s_batch)),
+                          compiler_options=jc.solve.compiler_options())
         cs_j = jnp.asarray(cs)
         progress(f"vmap batch of {n}: first call (compiles) ...")
         bsol, bfirst, btimes = time_jax(lambda: batched(cs_j), args.batch_repeats)
@@ -609,7 +631,7 @@ def main(argv=None):
     text.append(f"targets: >= 30x after compilation: {met(ratio_integ >= 30)};  "
                 f"compile < 10 s: {met(jx['compile_s'] < 10)} ({jx['compile_s']:.1f} s)")
     if batch is not None:
-        bh = ["", f"vmap batch of {batch['size']}", f"{batch['size']} serial runs"]
+        bh = ["", f"vmap batch of {batch['size']} (loop)", f"{batch['size']} serial runs"]
         brows = [
             ("first call", [_fmt(batch["vmap_first_call_s"], "s"), "- (compiled above)"]),
             ("compile = first - steady", [_fmt(batch["vmap_compile_s"], "s"), "-"]),
@@ -639,11 +661,13 @@ def main(argv=None):
             ("steady state, per step attempt:", []),
             ("  whole run: steady / step attempts", [_fmt(per_step, "us")]),
             ("  one solver step in a fori_loop (stages + memory)", [_fmt(prof["solver_step_s"], "us")]),
+            *([("  whole run with diffrax's stage loop (stages='loop')", [_fmt(prof["whole_run_loop_per_step_s"], "us")])]
+              if "whole_run_loop_per_step_s" in prof else []),
             (f"  {k} x one RHS evaluation" if k else "  one RHS evaluation",
              [_fmt(prof["rhs_eval_s"] * (k or 1), "us")]),
             ("  one RHS evaluation", [_fmt(prof["rhs_eval_s"], "us")]),
-            (f"  of which the {prof['augmented_size']}x{prof['augmented_size']} linear solve",
-             [_fmt(prof["augmented_solve_s"], "us")]),
+            (f"  of which the {prof['constraint_solve_size']}x{prof['constraint_solve_size']} constraint-force solve",
+             [_fmt(prof["constraint_solve_s"], "us")]),
             ("  RHS as compiled: XLA fusions / LAPACK custom calls",
              [f"{prof['rhs_hlo_fusions']} / {prof['rhs_hlo_custom_calls']}"]),
         ]

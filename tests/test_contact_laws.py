@@ -273,3 +273,25 @@ def test_profile_making_journal_larger_than_bearing():
     law = jc.HybridLaw(placement="fixed", journal_profile=jc.oval(0.6e-3))
     with pytest.raises(jc.ParameterError, match=r"the profiles make the journal larger than the bearing"):
         jc.ClearanceJoint(jc.GROUND, "hole", "pin", "c", RB, RJ, law=law)
+
+
+def test_fixed_placement_in_a_simulation():
+    """The fixed-placement hybrid law inside a jitted simulation: its body-fixed unit vectors
+    (from the angle-addition formulas) equal cos/sin of the node angles to 1e-13, and the run
+    has finite, positive contact forces whenever the journal penetrates."""
+    from jaxclear.clearance import kinematics
+
+    mech = jc.preset("flores-slider-crank", law="hybrid",
+                     law_options={"placement": "fixed", "n_elements": 90, "n_gauss": 2})
+    sol = jc.simulate(mech, jc.settings(1.0e-3, n_out=401))
+    joint = mech.clearance_joints[0]
+    inside = np.flatnonzero(np.asarray(sol.penetration[:, 0]) > 0)
+    assert inside.size >= 3
+    assert np.all(np.isfinite(np.asarray(sol.normal_force)))
+    assert np.all(np.asarray(sol.normal_force[inside, 0]) > 0)
+    kin = kinematics(mech, joint, sol.q[inside[0]], sol.qdot[inside[0]])
+    angles, weights = joint.law.points(kin)
+    cu, su, _, w = joint.law._directions(kin)
+    np.testing.assert_allclose(np.asarray(cu), np.cos(np.asarray(angles)), rtol=0, atol=1e-13)
+    np.testing.assert_allclose(np.asarray(su), np.sin(np.asarray(angles)), rtol=0, atol=1e-13)
+    np.testing.assert_allclose(np.asarray(w), np.asarray(weights), rtol=1e-15)

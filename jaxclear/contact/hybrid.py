@@ -196,7 +196,7 @@ class HybridLaw(eqx.Module):
             )
 
     # ---- quadrature -----------------------------------------------------------------
-    def _nodes(self):
+    def _nodes_numpy(self):
         xi, w = np.polynomial.legendre.leggauss(self.n_gauss)
         # elements of equal width on [-1, 1]: node positions and weights on the unit interval
         edges = np.linspace(-1.0, 1.0, self.n_elements + 1)
@@ -204,6 +204,10 @@ class HybridLaw(eqx.Module):
         mid = 0.5 * (edges[1:] + edges[:-1])
         s = (mid[:, None] + half[:, None] * xi[None, :]).ravel()
         ws = (half[:, None] * w[None, :]).ravel()
+        return s, ws
+
+    def _nodes(self):
+        s, ws = self._nodes_numpy()
         return jnp.asarray(s), jnp.asarray(ws)
 
     def _contact_arc(self, kin):
@@ -233,42 +237,61 @@ class HybridLaw(eqx.Module):
         # fixed: body-fixed angles over [0, 2 pi), rotating with the journal
         return kin.journal_angle + jnp.pi * (s + 1.0), jnp.pi * ws
 
+    def _directions(self, kin):
+        """``(cos, sin, local angle, weight)`` of every point (each (N,)); the local angle is
+        measured from the journal's body axis (for the journal profile).
+
+        Fixed placement: the nodes are body-fixed, so the unit vectors come from the constant
+        node angles by the angle-addition formulas (no sine or cosine per point)."""
+        if self.placement == "arc":
+            angles, weights = self.points(kin)
+            return jnp.cos(angles), jnp.sin(angles), angles - kin.journal_angle, weights
+        s, ws = self._nodes_numpy()
+        local = np.pi * (s + 1.0)
+        c0, s0 = jnp.asarray(np.cos(local)), jnp.asarray(np.sin(local))
+        cj, sj = jnp.cos(kin.journal_angle), jnp.sin(kin.journal_angle)
+        return cj * c0 - sj * s0, sj * c0 + cj * s0, jnp.asarray(local), jnp.asarray(np.pi * ws)
+
     # ---- one point, then all points -------------------------------------------------
-    def _point(self, kin, angle, weight, deltadot0, modulus, thickness):
-        """Force vector on the journal (2,) from one point, elastic and damped (per point)."""
-        u = jnp.stack([jnp.cos(angle), jnp.sin(angle)])
+    def _point(self, kin, cu, su, local, weight, deltadot0, modulus, thickness):
+        """Force components on the journal ``(f_x, f_y)`` from the point in direction
+        ``u = (cu, su)`` (elastic and damped), and its overlap. Written with scalar components
+        (no 2-vector dots), so that ``vmap`` over the points fuses into a few XLA kernels."""
         r_j = kin.radius_journal
         if self.journal_profile is not None:
-            r_j = r_j + self.journal_profile(angle - kin.journal_angle)
-        p = kin.journal_centre + r_j * u
-        rel = p - kin.bearing_centre
-        v_p = kin.journal_velocity + kin.journal_omega * r_j * jnp.stack([-u[1], u[0]])
+            r_j = r_j + self.journal_profile(local)
         if self.geometry == "small-gap":
             c = kin.radius_bearing - kin.radius_journal
-            delta = kin.ecc @ u - c
-            rate = (kin.journal_velocity - kin.bearing_velocity) @ u
+            delta = kin.ecc[0] * cu + kin.ecc[1] * su - c
+            dv = kin.journal_velocity - kin.bearing_velocity
+            rate = dv[0] * cu + dv[1] * su
         else:
-            dist2 = rel @ rel
+            rx = kin.journal_centre[0] + r_j * cu - kin.bearing_centre[0]
+            ry = kin.journal_centre[1] + r_j * su - kin.bearing_centre[1]
+            dist2 = rx * rx + ry * ry
             dist = jnp.sqrt(jnp.where(dist2 > 0, dist2, 1.0))
             r_b = kin.radius_bearing
             if self.bearing_profile is not None:
-                r_b = r_b + self.bearing_profile(jnp.arctan2(rel[1], rel[0]) - kin.bearing_angle)
+                r_b = r_b + self.bearing_profile(jnp.arctan2(ry, rx) - kin.bearing_angle)
             delta = dist - r_b
-            rel_dir = rel / dist
-            v_b = kin.bearing_velocity + kin.bearing_omega * jnp.stack([-rel[1], rel[0]])
-            rate = (v_p - v_b) @ rel_dir
+            # velocity of the journal's surface point minus the bearing's material point there
+            vx = (kin.journal_velocity[0] - kin.journal_omega * r_j * su) - (kin.bearing_velocity[0] - kin.bearing_omega * ry)
+            vy = (kin.journal_velocity[1] + kin.journal_omega * r_j * cu) - (kin.bearing_velocity[1] + kin.bearing_omega * rx)
+            rate = (vx * rx + vy * ry) / dist
         pressure = modulus * jnp.maximum(delta, 0.0) / thickness
         elastic = weight * pressure * kin.radius_journal * kin.length
         if self.damping == "point":
             elastic = jnp.maximum(elastic * (1.0 + chi_qin_lu(self.restitution) * rate / deltadot0), 0.0)
             elastic = jnp.where(delta > 0.0, elastic, 0.0)
-        return -elastic * u, delta
+        return -elastic * cu, -elastic * su, delta
 
     def _resultant(self, kin, deltadot0):
-        angles, weights = self.points(kin)
+        cu, su, local, weights = self._directions(kin)
         modulus, thickness = self.modulus(), self.layer_thickness(kin)
-        forces, deltas = jax.vmap(lambda a, w: self._point(kin, a, w, deltadot0, modulus, thickness))(angles, weights)
-        return jnp.sum(forces, axis=0), deltas
+        fx, fy, deltas = jax.vmap(
+            lambda c, s, a, w: self._point(kin, c, s, a, w, deltadot0, modulus, thickness)
+        )(cu, su, local, weights)
+        return jnp.stack([jnp.sum(fx), jnp.sum(fy)]), deltas
 
     def elastic_force(self, kin):
         """Elastic resultant on the journal (2,) [N] (no damping)."""
