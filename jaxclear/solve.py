@@ -305,7 +305,32 @@ def initial_state(mech: Mechanism, s: Settings | None = None, assembly: Assembly
 # --------------------------------------------------------------------------------------
 
 
-class UnrolledExplicitRK(diffrax.AbstractWrappedSolver):
+class _Forwarding(diffrax.AbstractWrappedSolver):
+    """A wrapper of a diffrax solver that forwards its structure, interpolation and orders."""
+
+    @property
+    def term_structure(self):
+        return self.solver.term_structure
+
+    @property
+    def interpolation_cls(self):  # pyright: ignore
+        return self.solver.interpolation_cls
+
+    @property
+    def term_compatible_contr_kwargs(self):
+        return self.solver.term_compatible_contr_kwargs
+
+    def order(self, terms):
+        return self.solver.order(terms)
+
+    def strong_order(self, terms):
+        return self.solver.strong_order(terms)
+
+    def error_order(self, terms):
+        return self.solver.error_order(terms)
+
+
+class UnrolledExplicitRK(_Forwarding):
     """An explicit Runge-Kutta solver of diffrax (Tsit5, Dopri5, Dopri8, Bosh3) with its stages
     unrolled into straight-line code, for ODE terms.
 
@@ -328,17 +353,6 @@ class UnrolledExplicitRK(diffrax.AbstractWrappedSolver):
         if not isinstance(tab, diffrax.ButcherTableau) or tab.implicit:
             raise ParameterError(f"{type(self.solver).__name__} is not an explicit Runge-Kutta solver")
 
-    @property
-    def term_structure(self):
-        return self.solver.term_structure
-
-    @property
-    def interpolation_cls(self):  # pyright: ignore
-        return self.solver.interpolation_cls
-
-    @property
-    def term_compatible_contr_kwargs(self):
-        return self.solver.term_compatible_contr_kwargs
 
     @property
     def scan_kind(self):
@@ -346,14 +360,6 @@ class UnrolledExplicitRK(diffrax.AbstractWrappedSolver):
         # a differentiable one when this is None; unrolled stages have no loop to swap.
         return "bounded"
 
-    def order(self, terms):
-        return self.solver.order(terms)
-
-    def strong_order(self, terms):
-        return self.solver.strong_order(terms)
-
-    def error_order(self, terms):
-        return self.solver.error_order(terms)
 
     def func(self, terms, t0, y0, args):
         return terms.vf(t0, y0, args)
@@ -400,7 +406,7 @@ class UnrolledExplicitRK(diffrax.AbstractWrappedSolver):
         return y1, y_error, dense_info, (f1, jnp.array(False)), diffrax.RESULTS.successful
 
 
-class ImpactMemorySolver(diffrax.AbstractWrappedSolver):
+class ImpactMemorySolver(_Forwarding):
     """Wraps a diffrax solver; after each step sets the contact memory of the state with
     :func:`jaxclear.clearance.update_memory`. When a joint enters contact during a step the
     next step re-evaluates its first stage (the force law changed), so FSAL solvers stay exact.
@@ -410,31 +416,12 @@ class ImpactMemorySolver(diffrax.AbstractWrappedSolver):
 
     solver: diffrax.AbstractSolver
 
-    @property
-    def term_structure(self):
-        return self.solver.term_structure
-
-    @property
-    def interpolation_cls(self):  # pyright: ignore
-        return self.solver.interpolation_cls
-
-    @property
-    def term_compatible_contr_kwargs(self):
-        return self.solver.term_compatible_contr_kwargs
 
     @property
     def scan_kind(self):
         # DirectAdjoint/ForwardMode want a "bounded" scan; _inner_solver sets it on the inner solver.
         return getattr(self.solver, "scan_kind", None)
 
-    def order(self, terms):
-        return self.solver.order(terms)
-
-    def strong_order(self, terms):
-        return self.solver.strong_order(terms)
-
-    def error_order(self, terms):
-        return self.solver.error_order(terms)
 
     def init(self, terms, t0, t1, y0, args):
         return self.solver.init(terms, t0, t1, y0, args), jnp.zeros((), bool)
