@@ -451,7 +451,7 @@ MULTI_DEVICE_SCRIPT = textwrap.dedent("""
     from jaxclear import sweep
     assert jax.device_count() == 2, jax.devices()
     out = sys.argv[1]
-    kw = dict(grid={"clearance": [0.25e-3, 0.5e-3, 1e-3], "restitution": [0.5, 0.9]}, revolutions=0.15,
+    kw = dict(grid={"clearance": [0.25e-3, 0.5e-3, 1e-3], "restitution": [0.5, 0.9]}, revolutions=0.5,
               samples_per_revolution=40, solver="bosh3", ideal_reference=False, progress=False)
     # sharded: chunks of 4 split over the 2 devices (2 runs each); single device: chunks of 2
     two = sweep.run_sweep(sweep.SweepConfig(devices=2, chunk_size=4, out=out + "/two", **kw))
@@ -460,27 +460,21 @@ MULTI_DEVICE_SCRIPT = textwrap.dedent("""
     plan_mesh = sweep.make_mesh(2)
     arr = sweep._put(cfg.values[:4], plan_mesh)
     manifest = json.load(open(out + "/two/manifest.json"))
-    def rel(a, b):
-        a, b = np.asarray(a, float), np.asarray(b, float)
-        return float(np.max(np.abs(a - b) / np.maximum(np.abs(b), 1e-300))) if a.size else 0.0
-    diff = {k: rel(two.table[k], one.table[k]) for k in two.table
-            if np.issubdtype(np.asarray(two.table[k]).dtype, np.number)}
-    print(json.dumps({"diff": diff, "input_devices": len(arr.sharding.device_set),
+    same = all(np.array_equal(two.table[k], one.table[k]) for k in two.table)
+    print(json.dumps({"same": bool(same), "input_devices": len(arr.sharding.device_set),
                       "shard_shape": list(arr.addressable_shards[0].data.shape),
                       "layout": manifest["layout"], "traces": sweep.TRACE_COUNT,
-                      "poincare_diff": rel(two.poincare, one.poincare)}))
+                      "poincare_same": bool(np.array_equal(two.poincare, one.poincare))}))
 """)
 
 
 def test_sharded_over_two_cpu_devices(tmp_path):
     """Two host CPU devices forced with XLA_FLAGS (before jax is imported, hence a subprocess):
     the batch is sharded over a Mesh of both with NamedSharding, and the results equal the
-    single-device sweep whose chunks are the per-device batches, to within the integration
-    tolerance. Not bit for bit: the partitioned program is compiled on its own, XLA may fuse
-    (and contract multiply-adds) differently, and a last-bit difference can move an adaptive
-    step and so a contact onset by ~rtol. Over the short window used here (0.15 revolutions,
-    before the chaotic divergence) that gives relative differences of ~1e-5 in the contact
-    statistics (measured), hence 1e-3; step counts within 2 %."""
+    single-device sweep whose chunks are the per-device batches (same batch layout: exact).
+    Exact because sweeps integrate with diffrax's stage loop (Settings(stages="loop")); with
+    unrolled stages the partitioned program is fused differently and rounds differently in the
+    last bits, which the chaotic runs amplify."""
     script = tmp_path / "multi.py"
     script.write_text(MULTI_DEVICE_SCRIPT)
     env = _env(XLA_FLAGS="--xla_force_host_platform_device_count=2")
@@ -491,11 +485,7 @@ def test_sharded_over_two_cpu_devices(tmp_path):
     assert info["input_devices"] == 2 and info["shard_shape"] == [2, 2]
     assert info["layout"]["devices"] == 2 and info["layout"]["chunk_size"] == 4
     assert info["traces"] == 2  # one compile per mesh (two devices, then one)
-    diff = info["diff"]
-    for key in ("num_steps", "num_accepted_steps", "num_rejected_steps"):
-        assert diff.pop(key) <= 0.02, key
-    assert max(diff.values()) <= 1e-3, diff
-    assert info["poincare_diff"] <= 1e-3
+    assert info["same"] and info["poincare_same"]
 
 
 DISTRIBUTED_SCRIPT = textwrap.dedent("""
