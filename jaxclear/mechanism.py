@@ -368,15 +368,10 @@ class Mechanism(eqx.Module):
 # --------------------------------------------------------------------------------------
 
 
-def rotation(phi):
-    """:math:`A(\\phi) = [[\\cos\\phi, -\\sin\\phi], [\\sin\\phi, \\cos\\phi]]`."""
-    c, s = jnp.cos(phi), jnp.sin(phi)
-    return jnp.array([[c, -s], [s, c]])
-
-
 def rotate(phi, v):
-    """:math:`A(\\phi) v` for a 2-vector ``v``, written elementwise: XLA on CPU fuses it with
-    its neighbours, while a 2x2 ``dot`` would be a kernel call of its own."""
+    """:math:`A(\\phi) v`, :math:`A(\\phi) = [[\\cos\\phi, -\\sin\\phi], [\\sin\\phi,
+    \\cos\\phi]]`, for a 2-vector ``v``, written elementwise: XLA on CPU fuses it with its
+    neighbours, while a 2x2 ``dot`` would be a kernel call of its own."""
     c, s = jnp.cos(phi), jnp.sin(phi)
     return jnp.stack([c * v[0] - s * v[1], s * v[0] + c * v[1]])
 
