@@ -211,6 +211,18 @@ def kinematics(mech: Mechanism, joint: ClearanceJoint, q, qdot) -> ContactKinema
     )
 
 
+def journal_state(mech: Mechanism, q, qdot) -> Float[Array, " 4k"]:
+    """Journal state relative to its bearing of every clearance joint, stacked
+    ``[e_x, e_y, v_x, v_y]`` per joint (``(4k,)``; [m, m, m/s, m/s]): the eccentricity and the
+    velocity of the journal centre relative to the bearing centre. Poincare sections and the
+    fit's window states use it."""
+    rows = [
+        jnp.concatenate([kin.ecc, kin.journal_velocity - kin.bearing_velocity])
+        for kin in (kinematics(mech, joint, q, qdot) for joint in mech.clearance_joints)
+    ]
+    return jnp.concatenate(rows) if rows else jnp.zeros((0,), q.dtype)
+
+
 class ContactMemory(eqx.Module):
     """History carried in the state, one entry per clearance joint (shape ``(n_joints,)``).
 

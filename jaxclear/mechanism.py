@@ -363,6 +363,16 @@ class Mechanism(eqx.Module):
         return jnp.concatenate([jnp.stack([b.mass, b.mass, b.inertia]) for b in self.bodies])
 
 
+def crank_driver(mech: "Mechanism") -> tuple[int, AngleDriver] | None:
+    """The mechanism's crank: ``(index in mech.drivers, driver)`` of its first
+    :class:`AngleDriver`, or ``None``. The one lookup that 'revolutions', 'speed' and the crank
+    angle of outputs go through."""
+    for i, d in enumerate(mech.drivers):
+        if isinstance(d, AngleDriver):
+            return i, d
+    return None
+
+
 # --------------------------------------------------------------------------------------
 # Kinematics of body points (the one place these formulas live)
 # --------------------------------------------------------------------------------------
