@@ -358,6 +358,19 @@ class Mechanism(eqx.Module):
         qd = jnp.concatenate([b.velocity for b in self.bodies])
         return q, qd
 
+    def ideal(self) -> "Mechanism":
+        """The same mechanism with every clearance joint replaced by an ideal :class:`Revolute`
+        between its bearing and journal points (appended after the other joints), named
+        ``NAME-ideal``: the reference whose response the clearance perturbs."""
+        if not self.clearance_joints:
+            return self
+        pins = [Revolute(c.journal_body, c.journal_point, c.bearing_body, c.bearing_point) for c in self.clearance_joints]
+        return Mechanism(
+            bodies=self.bodies, joints=(*self.joints, *pins), drivers=self.drivers, clearance_joints=(),
+            loads=self.loads, gravity=self.gravity, ground_points=self.ground_points, name=self.name + "-ideal",
+            roles=dict(self.roles),
+        )
+
     def mass_matrix_diagonal(self) -> Float[Array, " n"]:
         """Diagonal of :math:`M = \\mathrm{diag}(m_i, m_i, J_i)`."""
         return jnp.concatenate([jnp.stack([b.mass, b.mass, b.inertia]) for b in self.bodies])
