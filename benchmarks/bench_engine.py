@@ -259,14 +259,15 @@ def profile_child(revolutions, rtol, atol, solver, n_out, loops=5000):
     import jax.numpy as jnp
 
     import jaxclear as jc
-    from jaxclear import solve as jsolve
-    from jaxclear.dynamics import flat_vector_field, spd_solve
+    from jaxclear.integrate import simulate as jsolve
+    from jaxclear.integrate import check_assembly, compiler_options, UnrolledExplicitRK
+    from jaxclear.integrate import flat_vector_field, spd_solve
 
     mech = jc.preset("flores-slider-crank")
     s = jc.settings(revolutions * jc.crank_period(mech), n_out=n_out, rtol=rtol, atol=atol, solver=solver)
     out = {}
     t0 = time.perf_counter()
-    jsolve.check_assembly(mech, s)  # eager checks: compiles assemble() on its own
+    check_assembly(mech, s)  # eager checks: compiles assemble() on its own
     out["first_eager_checks_s"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     lowered = jsolve._simulate.lower(mech, s, None)
@@ -277,7 +278,7 @@ def profile_child(revolutions, rtol, atol, solver, n_out, loops=5000):
 
     y0 = jc.initial_state(mech, s).pack()  # the solver integrates the packed state vector
     args = (mech, s.baumgarte)
-    opts = jsolve.compiler_options()
+    opts = compiler_options()
 
     def per_iteration(body, carry):
         # the mechanism is an argument of the compiled loop, as in jc.simulate (a closed-over
@@ -318,7 +319,7 @@ def profile_child(revolutions, rtol, atol, solver, n_out, loops=5000):
         return per_iteration(step_body, (y0, state0))
 
     out["solver_step_s"] = step_time(jsolve._inner_solver(s))
-    if isinstance(jsolve._inner_solver(s), jsolve.UnrolledExplicitRK):
+    if isinstance(jsolve._inner_solver(s), UnrolledExplicitRK):
         # the whole benchmark run with diffrax's own stage loop (Settings(stages="loop")), per step
         s_loop = dataclasses.replace(s, stages="loop")
         jax.block_until_ready(jc.simulate(mech, s_loop))
@@ -435,7 +436,8 @@ def main(argv=None):
     import jax.numpy as jnp
 
     import jaxclear as jc
-    from jaxclear import solve as jsolve
+    from jaxclear.integrate import simulate as jsolve
+    from jaxclear.integrate import check_assembly, compiler_options, UnrolledExplicitRK
     import scipy_reference as ref
 
     import_s = time.perf_counter() - t0
@@ -478,7 +480,7 @@ def main(argv=None):
     chk = []
     for _ in range(max(args.repeats, 3)):
         t0 = time.perf_counter()
-        jsolve.check_assembly(mech, s)
+        check_assembly(mech, s)
         chk.append(time.perf_counter() - t0)
     jx["eager_checks_median_s"] = _median(chk)
 
@@ -519,7 +521,7 @@ def main(argv=None):
         # runs below are plain jc.simulate calls (unrolled stages, the fastest single-run path)
         s_batch = dataclasses.replace(s, stages="loop")
         batched = jax.jit(jax.vmap(lambda c: jc.simulate(with_clearance(c), s_batch)),
-                          compiler_options=jc.solve.compiler_options())
+                          compiler_options=jc.integrate.compiler_options())
         cs_j = jnp.asarray(cs)
         progress(f"vmap batch of {n}: first call (compiles) ...")
         bsol, bfirst, btimes = time_jax(lambda: batched(cs_j), args.batch_repeats)

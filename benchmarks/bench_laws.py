@@ -59,7 +59,7 @@ def ln_matched_thickness():
     from jaxclear.contact.hybrid import matched_thickness
 
     joint = jc.preset("flores-slider-crank").clearance_joints[0]
-    k = joint.law.stiffness_for(joint.bearing_radius, joint.journal_radius)
+    k = joint.law.stiffness_value(joint.bearing_radius, joint.journal_radius)
     return float(matched_thickness(jc.HybridLaw(), joint.bearing_radius, joint.journal_radius, joint.length, k))
 
 

@@ -1,27 +1,72 @@
-"""jaxclear: a differentiable JAX engine for planar mechanisms with revolute clearance joints.
+"""jaxclear: a differentiable JAX engine for planar mechanisms with clearance joints.
 
 Importing jaxclear switches JAX to double precision (contact penetrations are micrometres).
+This module only re-exports the public API; the implementation lives in subpackages by layer:
+``model`` (what a mechanism is) -> ``contact`` (force laws) -> ``elements`` (force elements
+with state) -> ``integrate`` (equations of motion, solvers, ``simulate``) -> ``analysis``,
+``io``, ``plot`` -> ``sweep``, ``fitting`` -> ``cli``. See docs/architecture.md.
 """
+
+from importlib.metadata import PackageNotFoundError as _PackageNotFoundError
+from importlib.metadata import version as _version
 
 import jax
 
 jax.config.update("jax_enable_x64", True)
 
-from .clearance import ClearanceJoint, ContactKinematics, ContactMemory, kinematics  # noqa: E402
-from .contact.friction import Friction  # noqa: E402
-from .contact.hybrid import FourierProfile, HybridLaw, oval  # noqa: E402
-from .contact.laws import STEEL, ContactLaw, CylindricalLaw, KelvinVoigtLaw, Material  # noqa: E402
-from .contact.registry import describe_laws, law_names, make_law  # noqa: E402
-from .dynamics import Baumgarte, State, accelerations, energy, vector_field  # noqa: E402
-from .errors import (  # noqa: E402
+from ._errors import (  # noqa: E402
+    RESULTS,
+    STATUS,
     InitialConditionError,
     JaxclearError,
     MechanismError,
     ParameterError,
     SolverError,
 )
-from .mechanism import (  # noqa: E402
+from .contact import (  # noqa: E402
+    STEEL,
+    AbstractFriction,
+    AbstractNormalLaw,
+    AmbrosioFriction,
+    ContactKinematics,
+    ContactLaw,
+    CoulombFriction,
+    CylindricalLaw,
+    FourierProfile,
+    Friction,
+    HybridLaw,
+    KelvinVoigtLaw,
+    Material,
+    NoFriction,
+    SmoothCoulombFriction,
+    describe_laws,
+    law_names,
+    make_law,
+    oval,
+)
+from .elements import AbstractForceElement, ClearanceJoint, ContactMemory, kinematics  # noqa: E402
+from .integrate import (  # noqa: E402
+    SOLVERS,
+    Baumgarte,
+    ImpactMemorySolver,
+    Settings,
+    Solution,
+    State,
+    UnrolledExplicitRK,
+    accelerations,
+    assemble,
+    energy,
+    initial_state,
+    settings,
+    simulate,
+    vector_field,
+)
+from .model import (  # noqa: E402
     GROUND,
+    AbstractConstraint,
+    AbstractDriver,
+    AbstractJoint,
+    AbstractLoad,
     AngleDriver,
     Body,
     Fixed,
@@ -31,25 +76,16 @@ from .mechanism import (  # noqa: E402
     Revolute,
     Torque,
     Translational,
+    crank_period,
 )
 from .presets import preset, preset_names  # noqa: E402
-from .solve import (  # noqa: E402
-    SOLVERS,
-    STATUS,
-    ImpactMemorySolver,
-    Settings,
-    Solution,
-    UnrolledExplicitRK,
-    assemble,
-    crank_period,
-    initial_state,
-    settings,
-    simulate,
-)
 from .sweep import SweepConfig, SweepResult, load_config, read_results, run_sweep  # noqa: E402
 from .io import Measurements, read_measurements  # noqa: E402
 from .sensor import Accelerometer  # noqa: E402
 from .fit import FitResult, levenberg_marquardt, parameter_grad, synthetic_record  # noqa: E402
 from . import fit  # noqa: E402  (a callable module: jc.fit(data, mech, ...) is jc.fit.fit(...))
 
-__version__ = "0.1.0"
+try:
+    __version__ = _version("jaxclear")
+except _PackageNotFoundError:  # pragma: no cover - running from a source tree without install
+    __version__ = "0+unknown"

@@ -63,7 +63,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``jaxclear`` console script; returns the exit code."""
-    from .errors import JaxclearError
+    from ._errors import JaxclearError
 
     parser = build_parser()
     try:
@@ -239,7 +239,7 @@ def _hybrid_options(args) -> dict:
             "layer_thickness": "thickness", "damping": "damping", "geometry": "geometry"}
     opts = {key: getattr(args, attr) for attr, key in keys.items() if getattr(args, attr, None) is not None}
     if opts and args.model != "hybrid":
-        from .errors import ParameterError
+        from ._errors import ParameterError
 
         raise ParameterError(f"--{', --'.join(k.replace('_', '-') for k in opts)} apply only to --model hybrid "
                              f"(got --model {args.model})")
@@ -289,7 +289,7 @@ def _configure_models(p: argparse.ArgumentParser):
 def _timed_simulate(mech, s):
     import jax
 
-    from .solve import simulate
+    from .integrate import simulate
 
     t = time.perf_counter()
     sol = jax.block_until_ready(simulate(mech, s))
@@ -298,9 +298,10 @@ def _timed_simulate(mech, s):
 
 def _run_simulate(args) -> int:
     from . import io, metrics, plot
-    from .errors import JaxclearError, check_range
+    from ._errors import JaxclearError, check_range
     from .presets import preset
-    from .solve import crank_period, settings
+    from .integrate import settings
+    from .model import crank_period
 
     overrides = _overrides(args)
     mech = preset(args.preset, ideal=args.ideal, **overrides)
@@ -543,7 +544,7 @@ def _configure_fit(p: argparse.ArgumentParser):
 
 def _run_fit(args) -> int:
     from . import fit as fitting
-    from .errors import ParameterError
+    from ._errors import ParameterError
     from .presets import preset
     from .sensor import Accelerometer
 

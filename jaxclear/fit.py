@@ -128,11 +128,12 @@ import numpy as np
 import optax
 
 from . import io, params
-from .clearance import kinematics
-from .errors import JaxclearError, ParameterError
-from .mechanism import AngleDriver, FunctionDriver, Mechanism
+from .elements import kinematics
+from ._errors import JaxclearError, ParameterError
+from .model import AngleDriver, FunctionDriver, Mechanism
 from .sensor import Accelerometer, record_times, uniform_spacing
-from .solve import Settings, crank_period, jit, settings as make_settings, simulate
+from .integrate import Settings, jit, settings as make_settings, simulate
+from .model import crank_period
 
 #: Free parameters by default.
 DEFAULT_FREE = ("stiffness", "restitution")

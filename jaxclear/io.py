@@ -21,9 +21,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import ParameterError
-from .mechanism import Mechanism
-from .solve import Solution
+from ._errors import ParameterError
+from .model import Mechanism
+from .integrate import Solution
 
 CONTACT_COLUMNS = ("ecc_x_m", "ecc_y_m", "penetration_m", "contact_force_n", "friction_force_n")
 SLIDER_COLUMNS = ("slider_pos_m", "slider_vel_m_s", "slider_acc_m_s2")

@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .mechanism import Mechanism
-from .solve import STATUS, Solution
+from .model import Mechanism
+from ._errors import STATUS
+from .integrate import Solution
 
 #: Keys of :func:`summary`, in output order, with their units (``-`` for dimensionless).
 SUMMARY_KEYS: dict[str, str] = {
@@ -216,7 +217,7 @@ def run_metrics(mech: Mechanism, sol: Solution, ideal_acc=None, start: int = 0) 
     """
     import jax.numpy as jnp
 
-    from .mechanism import AngleDriver
+    from .model import AngleDriver
 
     out: dict = {}
     ts = sol.ts

@@ -9,7 +9,7 @@ name                leaf                                                     uni
 ==================  =======================================================  ============
 ``clearance``       ``R_B - R_J`` (sets the journal radius, bearing kept)    m, (0, R_B)
 ``restitution``     ``law.restitution``                                      -, (0, 1]
-``stiffness``       the law's stiffness leaf (``law.stiffness_field``)       law's unit, (0, inf)
+``stiffness``       the law's stiffness leaf (``law.stiffness_parameter``)      law's unit, (0, inf)
 ``exponent``        ``law.exponent``                                         -, (0, inf)
 ``friction``        ``friction.coefficient``                                 -, [0, inf)
 ``length``          joint axial length L                                     m, (0, inf)
@@ -25,7 +25,6 @@ value and, when set, becomes explicit.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Callable
 
@@ -33,8 +32,9 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from .errors import ParameterError, check_range
-from .mechanism import AngleDriver, Mechanism
+from ._errors import ParameterError, check_range
+from ._units import rad_s_to_rpm, rpm_to_rad_s
+from .model import Mechanism, crank_driver
 
 
 @dataclass(frozen=True)
@@ -104,9 +104,9 @@ def _joint(mech: Mechanism, name: str, k: int):
 
 
 def _driver_index(mech: Mechanism, name: str) -> int:
-    for i, d in enumerate(mech.drivers):
-        if isinstance(d, AngleDriver):
-            return i
+    found = crank_driver(mech)
+    if found is not None:
+        return found[0]
     raise ParameterError(f"parameter {name!r} needs an AngleDriver; mechanism {mech.name!r} has none")
 
 
@@ -131,30 +131,14 @@ def _accessor(mech: Mechanism, name: str) -> tuple[Callable, Callable]:
     if base == "length":
         w = lambda m: m.clearance_joints[k].length  # noqa: E731
         return w, w
-    field = {"restitution": "restitution", "exponent": "exponent"}.get(base) or getattr(
-        joint.law, "stiffness_field", "stiffness"
-    )
-    if not hasattr(joint.law, field):
+    field = {"restitution": "restitution", "exponent": "exponent"}.get(base) or joint.law.stiffness_parameter
+    if field not in type(joint.law).__dataclass_fields__:
         raise ParameterError(f"parameter {name!r}: contact law {type(joint.law).__name__} has no {field!r}")
     w = lambda m: getattr(m.clearance_joints[k].law, field)  # noqa: E731
-    if base == "stiffness":
-        return (lambda m: _stiffness_value(m.clearance_joints[k], field)), w
+    if base == "stiffness":  # the leaf, or the value derived from the materials when it is None
+        return (lambda m: m.clearance_joints[k].law.stiffness_value(
+            m.clearance_joints[k].bearing_radius, m.clearance_joints[k].journal_radius)), w
     return w, w
-
-
-def _stiffness_value(joint, field: str):
-    """The law's stiffness leaf, or the value derived from the materials when the leaf is None."""
-    law = joint.law
-    value = getattr(law, field)
-    if value is not None:
-        return value
-    if hasattr(law, "stiffness_for"):
-        return law.stiffness_for(joint.bearing_radius, joint.journal_radius)
-    if hasattr(law, "modulus_value"):
-        return law.modulus_value()
-    from .contact.hybrid import foundation_modulus
-
-    return foundation_modulus(law.journal_material)
 
 
 def get(mech: Mechanism, name: str):
@@ -162,7 +146,7 @@ def get(mech: Mechanism, name: str):
     getter, _ = _accessor(mech, name)
     value = getter(mech)
     if _split(name)[0] == "speed_rpm":
-        value = value * 60.0 / (2.0 * math.pi)
+        value = rad_s_to_rpm(value)
     return value
 
 
@@ -175,7 +159,7 @@ def replace(mech: Mechanism, name: str, value) -> Mechanism:
     if base == "clearance":
         value = mech.clearance_joints[k].bearing_radius - value
     elif base == "speed_rpm":
-        value = value * (2.0 * math.pi / 60.0)
+        value = rpm_to_rad_s(value)
     return eqx.tree_at(where, mech, value, is_leaf=lambda x: x is None)
 
 

@@ -17,8 +17,8 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator, MultipleLocator
 
-from .mechanism import Mechanism
-from .solve import Solution
+from .model import Mechanism
+from .integrate import Solution
 
 DPI = 130
 FIGSIZE = (9.0, 4.8)

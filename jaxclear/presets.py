@@ -8,11 +8,12 @@ import math
 
 import numpy as np
 
-from .clearance import ClearanceJoint
-from .contact.friction import Friction
-from .contact.registry import make_law
-from .errors import ParameterError, check_range, rpm_to_rad_s
-from .mechanism import GROUND, AngleDriver, Body, Mechanism, Revolute, Translational
+from .elements import ClearanceJoint
+from .contact import Friction
+from .contact import make_law
+from ._errors import ParameterError, check_range
+from ._units import rpm_to_rad_s
+from .model import GROUND, AngleDriver, Body, Mechanism, Revolute, Translational
 
 
 def _clearance_joint(name, bearing, bearing_point, journal, journal_point, *, bearing_radius, clearance,

@@ -48,7 +48,7 @@ import jax.numpy as jnp
 import numpy as np
 import scipy.linalg
 
-from .errors import ParameterError, check_range
+from ._errors import ParameterError, check_range
 
 
 class Accelerometer(eqx.Module):

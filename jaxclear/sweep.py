@@ -68,11 +68,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import params
-from .clearance import kinematics
-from .errors import JaxclearError, ParameterError
-from .mechanism import AngleDriver, Mechanism
+from .elements import kinematics
+from ._errors import JaxclearError, ParameterError
+from .model import AngleDriver, Mechanism
 from .metrics import RUN_METRIC_KEYS, run_metrics
-from .solve import SOLVERS, STATUS, Settings, jit, simulate
+from ._errors import STATUS
+from .integrate import SOLVERS, Settings, jit, simulate
 
 #: Number of times the per-run function has been traced (compiled) in this process.
 TRACE_COUNT = 0

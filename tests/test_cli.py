@@ -13,7 +13,7 @@ import pytest
 import jaxclear as jc
 from jaxclear import io, metrics
 from jaxclear.cli import main
-from jaxclear.errors import ParameterError
+from jaxclear import ParameterError
 
 HEADER = [
     "time_s", "crank_angle_rad", "slider_pos_m", "slider_vel_m_s", "slider_acc_m_s2",
@@ -137,7 +137,7 @@ def _fake_solution(mech, n=5):
     nq = mech.n_coordinates
     t = np.linspace(0.0, 1e-3, n)
     z = np.zeros((n, k))
-    from jaxclear.clearance import ContactMemory
+    from jaxclear.elements import ContactMemory
 
     mem = ContactMemory(z, np.full((n, k), -1e9), np.cumsum(np.ones((n, k)), axis=0), -np.ones((n, k)), z, z)
     return jc.Solution(

@@ -14,10 +14,10 @@ from scipy.optimize import brentq
 from test_engine import C_R, SPEC_TABLE, effective_restitution_exact, simulated_restitution
 
 import jaxclear as jc
-from jaxclear.clearance import kinematics
+from jaxclear.elements import kinematics
 from jaxclear.contact import friction as fr
 from jaxclear.contact.hybrid import foundation_modulus, small_gap_force
-from jaxclear.contact.laws import HYSTERESIS_FACTORS
+from jaxclear.contact import HYSTERESIS_FACTORS
 
 RB, RJ, L = 0.010, 0.0095, 0.010
 C = RB - RJ
@@ -279,7 +279,7 @@ def test_fixed_placement_in_a_simulation():
     """The fixed-placement hybrid law inside a jitted simulation: its body-fixed unit vectors
     (from the angle-addition formulas) equal cos/sin of the node angles to 1e-13, and the run
     has finite, positive contact forces whenever the journal penetrates."""
-    from jaxclear.clearance import kinematics
+    from jaxclear.elements import kinematics
 
     mech = jc.preset("flores-slider-crank", law="hybrid",
                      law_options={"placement": "fixed", "n_elements": 90, "n_gauss": 2})

@@ -34,7 +34,7 @@ import pytest
 import jaxclear as jc
 from jaxclear import metrics, params, sweep
 from jaxclear.cli import main
-from jaxclear.errors import ParameterError
+from jaxclear import ParameterError
 
 ROOT = Path(__file__).resolve().parents[1]
 FAST_RUN = dict(samples_per_revolution=40, solver="bosh3", progress=False)

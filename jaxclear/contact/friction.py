@@ -1,6 +1,7 @@
 r"""Tangential (friction) force laws at the contact point of a clearance joint.
 
-Each law maps the tangential slip velocity :math:`v_T` [m/s] (journal relative to bearing,
+Each law is a pure function and a final :class:`~jaxclear.contact.base.AbstractFriction`
+subclass holding its parameters; :func:`Friction` builds one by name. Each law maps the tangential slip velocity :math:`v_T` [m/s] (journal relative to bearing,
 along the tangent :math:`t`) and the normal force :math:`F_N \ge 0` [N] to the tangential
 force :math:`F_T` [N] acting on the journal along :math:`t` (the bearing gets the opposite);
 :math:`F_T v_T \le 0` always, so friction never does positive work.
@@ -10,11 +11,10 @@ from __future__ import annotations
 
 import equinox as eqx
 import jax.numpy as jnp
-from jaxtyping import Array, ArrayLike, Float
 
-from ..errors import ParameterError, check_range
-
-Scalar = Float[Array, ""]
+from .._errors import ParameterError, check_range, is_concrete
+from .._types import ArrayLike, Scalar
+from .base import AbstractFriction
 
 
 def ambrosio(v_t, normal_force, mu, v0=1e-4, v1=1e-3):
@@ -45,56 +45,104 @@ def smooth_coulomb(v_t, normal_force, mu, v_s=1e-3):
     return -mu * normal_force * jnp.tanh(v_t / v_s)
 
 
-FRICTION_MODELS = ("ambrosio", "coulomb", "smooth", "none")
+def _coefficient(coefficient):
+    check_range("friction (coefficient mu)", coefficient, low=0.0)
+    return jnp.asarray(coefficient, dtype=float)
 
 
-class Friction(eqx.Module):
-    """A friction law selected by name: ``ambrosio`` (default), ``coulomb``, ``smooth``, ``none``.
+class AmbrosioFriction(AbstractFriction):
+    r"""Ambrósio's modified Coulomb law (:func:`ambrosio`): ``coefficient`` :math:`\mu \ge 0`,
+    velocity tolerances ``v0``, ``v1`` [m/s], :math:`0 \le v_0 < v_1`."""
 
-    Attributes:
-        model: law name (static).
-        coefficient: :math:`\\mu \\ge 0`.
-        v0, v1: Ambrósio's velocity tolerances [m/s], :math:`0 \\le v_0 < v_1`.
-        v_s: regularization speed of ``smooth`` [m/s], > 0.
-    """
-
-    model: str = eqx.field(static=True)
     coefficient: Scalar
     v0: Scalar
     v1: Scalar
-    v_s: Scalar
 
-    def __init__(
-        self,
-        coefficient: ArrayLike = 0.0,
-        model: str = "ambrosio",
-        v0: ArrayLike = 1e-4,
-        v1: ArrayLike = 1e-3,
-        v_s: ArrayLike = 1e-3,
-    ):
-        if model not in FRICTION_MODELS:
-            raise ParameterError(f"unknown friction model {model!r}; valid: {list(FRICTION_MODELS)}")
-        check_range("friction (coefficient mu)", coefficient, low=0.0)
+    def __init__(self, coefficient: ArrayLike = 0.0, v0: ArrayLike = 1e-4, v1: ArrayLike = 1e-3):
         check_range("v0 (Ambrosio lower slip speed)", v0, low=0.0, unit="m/s")
         check_range("v1 (Ambrosio upper slip speed)", v1, low=0.0, low_open=True, unit="m/s")
-        check_range("v_s (regularization speed)", v_s, low=0.0, low_open=True, unit="m/s")
-        try:
-            if float(v1) <= float(v0):
-                raise ParameterError(f"v1 = {float(v1):g} m/s must exceed v0 = {float(v0):g} m/s")
-        except TypeError:  # tracers
-            pass
-        self.model = model
-        self.coefficient = jnp.asarray(coefficient, dtype=float)
+        if is_concrete((v0, v1)) and float(v1) <= float(v0):
+            raise ParameterError(f"v1 = {float(v1):g} m/s must exceed v0 = {float(v0):g} m/s")
+        self.coefficient = _coefficient(coefficient)
         self.v0 = jnp.asarray(v0, dtype=float)
         self.v1 = jnp.asarray(v1, dtype=float)
+
+    def __call__(self, v_t, normal_force):
+        return ambrosio(v_t, normal_force, self.coefficient, self.v0, self.v1)
+
+
+class CoulombFriction(AbstractFriction):
+    r"""Plain Coulomb friction (:func:`coulomb`), ``coefficient`` :math:`\mu \ge 0`."""
+
+    coefficient: Scalar
+
+    def __init__(self, coefficient: ArrayLike = 0.0):
+        self.coefficient = _coefficient(coefficient)
+
+    def __call__(self, v_t, normal_force):
+        return coulomb(v_t, normal_force, self.coefficient)
+
+
+class SmoothCoulombFriction(AbstractFriction):
+    r"""Regularized Coulomb friction (:func:`smooth_coulomb`), ``coefficient`` :math:`\mu \ge 0`,
+    regularization speed ``v_s`` [m/s] > 0."""
+
+    coefficient: Scalar
+    v_s: Scalar
+
+    def __init__(self, coefficient: ArrayLike = 0.0, v_s: ArrayLike = 1e-3):
+        check_range("v_s (regularization speed)", v_s, low=0.0, low_open=True, unit="m/s")
+        self.coefficient = _coefficient(coefficient)
         self.v_s = jnp.asarray(v_s, dtype=float)
 
     def __call__(self, v_t, normal_force):
-        """Tangential force on the journal [N] for slip ``v_t`` [m/s] and normal force [N]."""
-        if self.model == "ambrosio":
-            return ambrosio(v_t, normal_force, self.coefficient, self.v0, self.v1)
-        if self.model == "coulomb":
-            return coulomb(v_t, normal_force, self.coefficient)
-        if self.model == "smooth":
-            return smooth_coulomb(v_t, normal_force, self.coefficient, self.v_s)
+        return smooth_coulomb(v_t, normal_force, self.coefficient, self.v_s)
+
+
+class NoFriction(AbstractFriction):
+    """No tangential force (``coefficient`` kept for a uniform parameter set)."""
+
+    coefficient: Scalar
+
+    def __init__(self, coefficient: ArrayLike = 0.0):
+        self.coefficient = _coefficient(coefficient)
+
+    def __call__(self, v_t, normal_force):
         return 0.0 * v_t
+
+
+#: name -> (class, the parameters of :func:`Friction` it takes)
+FRICTION_MODELS = {
+    "ambrosio": (AmbrosioFriction, ("v0", "v1")),
+    "coulomb": (CoulombFriction, ()),
+    "smooth": (SmoothCoulombFriction, ("v_s",)),
+    "none": (NoFriction, ()),
+}
+
+
+def Friction(  # noqa: N802 (the old class name, kept as the one factory)
+    coefficient: ArrayLike = 0.0,
+    model: str = "ambrosio",
+    v0: ArrayLike = 1e-4,
+    v1: ArrayLike = 1e-3,
+    v_s: ArrayLike = 1e-3,
+) -> AbstractFriction:
+    r"""A friction law by name: ``ambrosio`` (default), ``coulomb``, ``smooth`` or ``none``, with
+    coefficient :math:`\mu \ge 0`; ``v0``, ``v1`` [m/s] are Ambrósio's tolerances, ``v_s``
+    [m/s] the regularization speed of ``smooth`` (each used only by its law, validated always)."""
+    if model not in FRICTION_MODELS:
+        raise ParameterError(f"unknown friction model {model!r}; valid: {list(FRICTION_MODELS)}")
+    check_range("v0 (Ambrosio lower slip speed)", v0, low=0.0, unit="m/s")
+    check_range("v1 (Ambrosio upper slip speed)", v1, low=0.0, low_open=True, unit="m/s")
+    check_range("v_s (regularization speed)", v_s, low=0.0, low_open=True, unit="m/s")
+    cls, names = FRICTION_MODELS[model]
+    given = {"v0": v0, "v1": v1, "v_s": v_s}
+    return cls(coefficient, **{k: given[k] for k in names})
+
+
+def friction_name(law: AbstractFriction) -> str:
+    """The name :func:`Friction` knows ``law`` by."""
+    for name, (cls, _) in FRICTION_MODELS.items():
+        if type(law) is cls:
+            return name
+    return type(law).__name__

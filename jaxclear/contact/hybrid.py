@@ -1,4 +1,5 @@
-r"""The hybrid contact model of the seed paper (spec section 4): Lankarani-Nikravesh framework,
+r"""The hybrid contact model of "Dynamic analysis of mechanical systems with planar revolute
+joints with clearance" (the hybrid Gauss-point model): Lankarani-Nikravesh framework,
 elastic-foundation (Winkler) stiffness, Qin-Lu damping, the pin surface cut into elements with
 Gauss-Legendre points, a penetration computed at every point and the force integrated over the
 contact area.
@@ -19,7 +20,7 @@ penetration rate :math:`\dot\delta_k` and the joint's impact speed :math:`\dot\d
 (all points of one contact start with the same approach speed to first order), the
 point forces clipped at zero before they are summed.
 
-Placement of the points (both legitimate, spec section 4):
+Placement of the points (both legitimate readings of the model):
 
 * ``fixed``: ``n_elements`` equal elements over the whole journal circumference, body-fixed
   (what the paper describes); needs hundreds of points because the contact arc spans only a
@@ -41,12 +42,12 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, ArrayLike, Float
+from typing import ClassVar
 
-from ..errors import ParameterError, check_range
-from .laws import STEEL, Material, chi_qin_lu
-
-Scalar = Float[Array, ""]
+from .._errors import ParameterError, check_range
+from .._types import Array, ArrayLike, Float, Scalar
+from .base import STEEL, AbstractNormalLaw, ContactKinematics, Material
+from .hertz import chi_qin_lu
 
 
 def foundation_modulus(material: Material):
@@ -59,7 +60,7 @@ def foundation_modulus(material: Material):
 def small_gap_force(e, clearance, modulus, thickness, radius_journal, length):
     r"""Closed form of the foundation force on the small-gap profile
     :math:`\delta(\theta) = e\cos\theta - c`: :math:`F = (K_f R_J L/h)(e\theta_c - c\sin\theta_c)`,
-    :math:`\theta_c = \arccos(c/e)` (spec section 4; grows like :math:`\delta^{1.5}`)."""
+    :math:`\theta_c = \arccos(c/e)` (grows like :math:`\delta^{1.5}`)."""
     inside = e > clearance
     ratio = jnp.where(inside, clearance / e, 0.5)
     theta_c = jnp.arccos(ratio)
@@ -98,8 +99,8 @@ def oval(amplitude: float, orientation: float = 0.0) -> FourierProfile:
     return FourierProfile(cos=[0.0, amplitude * np.cos(2 * orientation)], sin=[0.0, amplitude * np.sin(2 * orientation)])
 
 
-class HybridLaw(eqx.Module):
-    """The seed paper's hybrid Gauss-point model (see module docstring).
+class HybridLaw(AbstractNormalLaw):
+    """The hybrid Gauss-point model (see module docstring).
 
     Attributes:
         restitution: :math:`c_r \\in (0, 1]` (Qin-Lu damping factor).
@@ -128,7 +129,8 @@ class HybridLaw(eqx.Module):
     geometry: str = eqx.field(static=True)
     layers: int = eqx.field(static=True)
 
-    stiffness_field = "foundation_modulus"
+    stiffness_parameter: ClassVar[str] = "foundation_modulus"
+    name: ClassVar[str] = "hybrid"
 
     def __init__(
         self,
@@ -176,10 +178,14 @@ class HybridLaw(eqx.Module):
     # ---- parameters -----------------------------------------------------------------
     def modulus(self):
         """Effective pressure-per-overlap modulus [Pa] (two layers in series if ``layers == 2``)."""
-        k_j = foundation_modulus(self.journal_material) if self.foundation_modulus is None else self.foundation_modulus
+        k_j = self.stiffness_value(None, None)
         if self.layers == 1:
             return k_j
         return 1.0 / (1.0 / k_j + 1.0 / foundation_modulus(self.bearing_material))
+
+    def stiffness_value(self, radius_bearing, radius_journal):
+        """:math:`K_f` [Pa] of the journal layer: the given one, or from its material."""
+        return foundation_modulus(self.journal_material) if self.foundation_modulus is None else self.foundation_modulus
 
     def layer_thickness(self, kin):
         return kin.radius_bearing - kin.radius_journal if self.thickness is None else self.thickness
@@ -332,8 +338,6 @@ def matched_thickness(law: HybridLaw, radius_bearing, radius_journal, length, st
     Used to compare the hybrid model with a Hertz-family law at equal stiffness, so that the two
     differ in damping and force shape only (the paper does not give its h).
     """
-    from ..clearance import ContactKinematics  # local: contact laws do not depend on the joint module
-
     c = radius_bearing - radius_journal
     e = c + delta_ref
     z2, z = jnp.zeros(2), jnp.zeros(())

@@ -5,9 +5,12 @@ from __future__ import annotations
 
 import inspect
 
-from ..errors import ParameterError
+from .._errors import ParameterError
+from .base import AbstractNormalLaw, Material
+from .cylindrical import CylindricalLaw
+from .hertz import ContactLaw
 from .hybrid import HybridLaw
-from .laws import ContactLaw, CylindricalLaw, KelvinVoigtLaw
+from .kelvin_voigt import KelvinVoigtLaw
 
 _HERTZ = "F_N = K delta^n (1 + chi(c_r) deltadot/deltadot0), F_N >= 0; K [N/m^n] from E, nu, radii if not given"
 
@@ -31,7 +34,8 @@ LAWS = {
     "bai-zhao": (CylindricalLaw, "Bai & Zhao, Int. J. Mech. Sci. 54 (2012) 190",
                  "F_N = K_n(delta) delta^1.5 (1 + chi_QinLu deltadot/deltadot0), "
                  "K_n = (pi E*/8) sqrt(2 delta (3c + 2 delta)^2/(c + delta)^3)"),
-    "hybrid": (HybridLaw, "the seed paper (hybrid LN / elastic-foundation model); spec section 4",
+    "hybrid": (HybridLaw, "Dynamic analysis of mechanical systems with planar revolute joints with clearance "
+               "(hybrid LN / elastic-foundation Gauss-point model)",
                "F_N = |sum_k w_k (K_f delta_k/h) R_J L u_k| (1 + chi_QinLu deltadot/deltadot0) over Gauss points "
                "on the pin surface, K_f = E(1 - nu)/((1 + nu)(1 - 2 nu)) [Pa]"),
 }
@@ -40,7 +44,7 @@ LAWS = {
 def _show(value):
     if value is None or isinstance(value, (int, float, str)):
         return repr(value)
-    if type(value).__name__ == "Material":
+    if isinstance(value, Material):
         return f"Material(E={float(value.young):.4g} Pa, nu={float(value.poisson):.3g})"
     return type(value).__name__
 
@@ -59,12 +63,10 @@ def make_law(name: str, **kwargs):
     cls = LAWS[name][0]
     if "stiffness" in kwargs and kwargs["stiffness"] is None:
         del kwargs["stiffness"]
-    if "stiffness" in kwargs and getattr(cls, "stiffness_field", "stiffness") != "stiffness":
-        kwargs[cls.stiffness_field] = kwargs.pop("stiffness")
-    if cls in (ContactLaw, CylindricalLaw):
-        return cls(model=name, **kwargs)
+    if "stiffness" in kwargs and cls.stiffness_parameter != "stiffness":
+        kwargs[cls.stiffness_parameter] = kwargs.pop("stiffness")
     try:
-        return cls(**kwargs)
+        return cls(model=name, **kwargs) if cls in (ContactLaw, CylindricalLaw) else cls(**kwargs)
     except TypeError as err:
         params = [p for p in inspect.signature(cls.__init__).parameters if p != "self"]
         raise ParameterError(f"contact law {name!r}: {err}; its parameters are {params}") from None
@@ -78,5 +80,5 @@ def describe_laws() -> list[dict]:
         params = {k: _show(v.default) for k, v in sig.parameters.items()
                   if k not in ("self", "model") and v.default is not inspect._empty}
         out.append({"name": name, "formula": formula, "reference": ref, "parameters": params,
-                    "stiffness_parameter": getattr(cls, "stiffness_field", "stiffness")})
+                    "stiffness_parameter": cls.stiffness_parameter})
     return out

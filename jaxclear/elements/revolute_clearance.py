@@ -1,6 +1,6 @@
 r"""Revolute joints with radial clearance, as force elements (Flores, Ambrósio, Claro,
 Lankarani, "Kinematics and Dynamics of Multibody Systems with Imperfect Joints", Springer
-2008, ch. 4; spec section 2).
+2008, ch. 4).
 
 A bearing (hole, radius :math:`R_B`) on body *i* and a journal (pin, radius :math:`R_J`) on
 body *j*; radial clearance :math:`c = R_B - R_J > 0`.
@@ -12,34 +12,36 @@ body *j*; radial clearance :math:`c = R_B - R_J > 0`.
 * force on the journal at :math:`Q_j`: :math:`f = -F_N n + F_T t`; on the bearing at
   :math:`Q_i`: :math:`-f`.
 
-Sign note: spec section 2 writes the bearing force as :math:`F_N n + F_T t` with
-:math:`F_T = -\mu c_d F_N \mathrm{sign}(v_T)`; with :math:`v_T` the slip of the *journal*
-relative to the bearing that friction term would do positive work. The friction force opposes
-the journal's slip on the journal and drags the bearing along; the energy test checks that
-friction only dissipates.
+Sign convention: :math:`v_T` is the slip of the *journal* relative to the bearing, so the
+friction force opposes it on the journal and drags the bearing along (written on the bearing
+as :math:`F_N n + F_T t`, as some texts do, with :math:`F_T = -\mu c_d F_N \mathrm{sign}(v_T)`
+it would do positive work); the energy tests check that friction only dissipates.
 
-The impact speed :math:`\dot\delta^{(-)}` of every joint is history, carried in
-:class:`ContactMemory` and updated after every accepted step by :func:`update_memory`
-(see :mod:`jaxclear.solve`).
+The impact speed :math:`\dot\delta^{(-)}` of the joint is history: the joint's state is a
+:class:`~jaxclear.elements.memory.ContactMemory`, updated after every accepted step by
+:meth:`ClearanceJoint.after_step` with the rule of :mod:`jaxclear.elements.memory`.
 """
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-from jaxtyping import Array, ArrayLike, Float
 
-from .contact.friction import Friction
-from .contact.laws import ContactLaw
-from .errors import ParameterError, check_range
-from .mechanism import Mechanism, perp, point_load, point_position, point_velocity
+from .._errors import ParameterError, check_range
+from .._types import Array, ArrayLike, Float, Scalar, Vec2
+from ..contact.base import AbstractFriction, AbstractNormalLaw, ContactKinematics
+from ..contact.friction import Friction
+from ..contact.hertz import ContactLaw
+from ..model.geometry import perp, safe_normal
+from ..model.mechanism import Mechanism, point_load, point_position, point_velocity
+from .base import AbstractForceElement, ContactOutput
+from .memory import N_FIELDS, ContactMemory, onset_update, with_peak_force
 
-Scalar = Float[Array, ""]
-Vec2 = Float[Array, "2"]
 
-
-class ClearanceJoint(eqx.Module):
+class ClearanceJoint(AbstractForceElement):
     """A revolute joint with radial clearance, modelled as a contact force element.
 
     Attributes:
@@ -70,8 +72,8 @@ class ClearanceJoint(eqx.Module):
     bearing_radius: Scalar
     journal_radius: Scalar
     length: Scalar
-    law: ContactLaw
-    friction: Friction
+    law: AbstractNormalLaw
+    friction: AbstractFriction
     impact_velocity_floor: Scalar
     initial_offset: Vec2
     initial_velocity: Vec2
@@ -87,7 +89,7 @@ class ClearanceJoint(eqx.Module):
         journal_radius: ArrayLike = 0.0095,
         length: ArrayLike = 0.010,
         law=None,
-        friction: Friction | None = None,
+        friction: AbstractFriction | None = None,
         impact_velocity_floor: ArrayLike = 1e-4,
         initial_offset: ArrayLike = (0.0, 0.0),
         initial_velocity: ArrayLike = (0.0, 0.0),
@@ -104,7 +106,7 @@ class ClearanceJoint(eqx.Module):
                     f"journal_radius = {float(rj):g} m must be smaller than bearing_radius = "
                     f"{float(rb):g} m (clearance c = R_B - R_J must be > 0; got {float(rb - rj):g} m)"
                 )
-            if hasattr(law, "check_geometry"):
+            if law is not None:
                 law.check_geometry(float(rb), float(rj))
         offset = jnp.asarray(initial_offset, dtype=float).reshape(2)
         if not isinstance(offset, jax.core.Tracer) and float(jnp.linalg.norm(offset)) >= float(rb - rj):
@@ -128,8 +130,48 @@ class ClearanceJoint(eqx.Module):
         """Radial clearance :math:`c = R_B - R_J` [m]."""
         return self.bearing_radius - self.journal_radius
 
-    # --- used by the initial-condition solve: hold the journal at its initial offset ---
-    n_equations = 2
+    # ---- structure ------------------------------------------------------------------
+    def bodies(self):
+        return (self.bearing_body, self.journal_body)
+
+    def points(self):
+        return ((self.bearing_body, self.bearing_point), (self.journal_body, self.journal_point))
+
+    @property
+    def label(self):
+        return f"clearance joint {self.name}"
+
+    # ---- state: one ContactMemory -----------------------------------------------------
+    state_size: ClassVar[int] = N_FIELDS
+
+    def state_init(self, dtype=float) -> ContactMemory:
+        return ContactMemory.initial((), dtype)
+
+    def state_to_vector(self, state: ContactMemory):
+        return jnp.stack(jax.tree_util.tree_leaves(state))
+
+    def state_from_vector(self, v) -> ContactMemory:
+        return ContactMemory(*(v[i] for i in range(N_FIELDS)))
+
+    # ---- physics ----------------------------------------------------------------------
+    def forces(self, mech: Mechanism, t, q, qdot, state: ContactMemory):
+        """Generalized contact force (n,), memory rate (the work's rate is the power) and the
+        joint's :class:`ContactOutput`."""
+        gen, out = joint_forces(mech, self, q, qdot, state.impact_velocity)
+        return gen, state.rate(out.power), out
+
+    def after_step(self, mech: Mechanism, t0, q0, qd0, t1, q1, qd1, state: ContactMemory):
+        """The impact-memory rule over the accepted step ``[t0, t1]``
+        (:func:`~jaxclear.elements.memory.onset_update`), then the running peak force at the
+        step's end."""
+        kin0, kin1 = kinematics(mech, self, q0, qd0), kinematics(mech, self, q1, qd1)
+        p0, p1 = self.law.penetration(kin0), self.law.penetration(kin1)
+        new, crossed = onset_update(state, t0, t1, p0, p1, kin0.deltadot, kin1.deltadot)
+        _, out = joint_forces(mech, self, q1, qd1, new.impact_velocity)
+        return with_peak_force(new, out.normal_force), crossed
+
+    # ---- initial assembly: hold the journal at its initial offset ---------------------
+    n_equations: ClassVar[int] = 2
 
     def equations(self, mech: Mechanism, q, t):
         """:math:`P_j - P_i - e_0 = 0` (2,), the joint treated as ideal at a fixed offset."""
@@ -139,37 +181,9 @@ class ClearanceJoint(eqx.Module):
             - self.initial_offset
         )
 
-
-class ContactKinematics(eqx.Module):
-    """Geometry and velocities of one clearance joint in one configuration (all global, SI)."""
-
-    ecc: Vec2  # eccentricity vector e = P_j - P_i [m]
-    e: Scalar  # |e| [m]
-    normal: Vec2  # n = e/|e| (arbitrary but finite at e = 0)
-    tangent: Vec2  # t = perp(n)
-    delta: Scalar  # e - c [m]
-    deltadot: Scalar  # penetration rate [m/s]
-    slip: Scalar  # tangential slip v_T [m/s]
-    bearing_centre: Vec2
-    journal_centre: Vec2
-    bearing_velocity: Vec2
-    journal_velocity: Vec2
-    bearing_angle: Scalar
-    journal_angle: Scalar
-    bearing_omega: Scalar
-    journal_omega: Scalar
-    radius_bearing: Scalar
-    radius_journal: Scalar
-    length: Scalar
-
-
-def safe_normal(ecc):
-    """``(|e|, e/|e|)`` with finite values and gradients at ``e = 0`` (normal ``[1, 0]`` there)."""
-    e2 = ecc[0] ** 2 + ecc[1] ** 2
-    nonzero = e2 > 1e-300
-    safe = jnp.where(nonzero, ecc, jnp.array([1.0, 0.0], ecc.dtype))
-    norm = jnp.sqrt(safe[0] ** 2 + safe[1] ** 2)
-    return jnp.where(nonzero, norm, 0.0), safe / norm
+    def assembly_velocity(self):
+        """Relative velocity of the journal centre at the start [m/s] (2,)."""
+        return self.initial_velocity
 
 
 def kinematics(mech: Mechanism, joint: ClearanceJoint, q, qdot) -> ContactKinematics:
@@ -223,57 +237,11 @@ def journal_state(mech: Mechanism, q, qdot) -> Float[Array, " 4k"]:
     return jnp.concatenate(rows) if rows else jnp.zeros((0,), q.dtype)
 
 
-class ContactMemory(eqx.Module):
-    """History carried in the state, one entry per clearance joint (shape ``(n_joints,)``).
-
-    Attributes:
-        impact_velocity: :math:`\\dot\\delta^{(-)}` [m/s], approach speed at the onset of the
-            current contact (out of contact it tracks the current :math:`\\dot\\delta`).
-        contact_start: time of the last contact onset [s] (``-inf`` before the first).
-        impacts: number of contact onsets so far.
-        work: work done on the mechanism by the contact forces since the start [J]
-            (its decrease over a closed contact is the energy the contact dissipated).
-        peak_force: largest normal force [N] at any accepted step's end so far (steps are
-            short during contact, so this resolves peaks that an output grid misses).
-        peak_penetration: largest penetration [m] at any accepted step's end so far.
-    """
-
-    impact_velocity: Float[Array, " k"]
-    contact_start: Float[Array, " k"]
-    impacts: Float[Array, " k"]
-    work: Float[Array, " k"]
-    peak_force: Float[Array, " k"]
-    peak_penetration: Float[Array, " k"]
-
-    @staticmethod
-    def initial(n_joints: int, dtype=float):
-        z = jnp.zeros((n_joints,), dtype)
-        # finite sentinels (not -inf): dense interpolation of the state may difference two samples
-        return ContactMemory(z, jnp.full((n_joints,), -1e9, dtype), z, z, z, jnp.full((n_joints,), -1.0, dtype))
-
-    def zeros_like(self):
-        z = jnp.zeros_like(self.impacts)
-        return ContactMemory(z, z, z, z, z, z)
-
-
-class ContactOutput(eqx.Module):
-    """Contact quantities of one joint at one instant (SI)."""
-
-    ecc: Vec2
-    penetration: Scalar
-    normal_force: Scalar
-    friction_force: Scalar
-    power: Scalar  # power of the contact forces on the mechanism [W]
-
-
 def joint_forces(mech: Mechanism, joint: ClearanceJoint, q, qdot, impact_velocity):
     """Generalized contact force (n,) of one joint and its :class:`ContactOutput`."""
     kin = kinematics(mech, joint, q, qdot)
     speed0 = jnp.maximum(impact_velocity, joint.impact_velocity_floor)
-    if hasattr(joint.law, "contact_force"):  # laws that set their own direction (profiles)
-        f_n, n = joint.law.contact_force(kin, speed0)
-    else:
-        f_n, n = joint.law.normal_force(kin, speed0), kin.normal
+    f_n, n = joint.law.contact_force(kin, speed0)
     f_t = joint.friction(kin.slip, f_n)
     f_journal = -f_n * n + f_t * perp(n)
     q_i = kin.bearing_centre + joint.bearing_radius * n
@@ -289,73 +257,3 @@ def joint_forces(mech: Mechanism, joint: ClearanceJoint, q, qdot, impact_velocit
         power=jnp.sum(gen * qdot),
     )
     return gen, out
-
-
-def _hermite_crossing(p0, p1, r0, r1, h, crossed):
-    """Root ``s`` in [0, 1] of the cubic Hermite interpolant of the penetration over a step
-    (values ``p0, p1``, rates ``r0, r1``, step ``h``) and the interpolated rate there.
-
-    ``h`` may be 0 (under ``vmap`` the members of a batch that have finished take empty steps
-    while the others go on): a safe step keeps the masked branch finite, so reverse mode gets no
-    NaN cotangents."""
-    h = jnp.where(h > 0, h, 1.0)
-    denom = jnp.where(crossed, p0 - p1, 1.0)
-    s = jnp.clip(jnp.where(crossed, p0 / denom, 0.5), 0.0, 1.0)
-
-    def value_and_slope(s):
-        s2, s3 = s * s, s * s * s
-        val = (2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * h * r0 + (-2 * s3 + 3 * s2) * p1 + (s3 - s2) * h * r1
-        slope = (6 * s2 - 6 * s) * p0 + (3 * s2 - 4 * s + 1) * h * r0 + (-6 * s2 + 6 * s) * p1 + (3 * s2 - 2 * s) * h * r1
-        return val, slope
-
-    for _ in range(6):
-        val, slope = value_and_slope(s)
-        ok = jnp.abs(slope) > 1e-300
-        s = jnp.clip(s - jnp.where(ok, val / jnp.where(ok, slope, 1.0), 0.0), 0.0, 1.0)
-    _, slope = value_and_slope(s)
-    return s, slope / h
-
-
-def update_memory(mech: Mechanism, t0, q0, qd0, t1, q1, qd1, memory: ContactMemory):
-    r"""The impact-memory rule, applied after every accepted step ``[t0, t1]`` (spec section 6).
-
-    Per joint, with penetration :math:`\delta` and rate :math:`\dot\delta` at both ends:
-
-    * :math:`\delta_1 \le 0` (free at the step's end): :math:`\dot\delta^{(-)} \leftarrow \dot\delta_1`;
-    * :math:`\delta_0 \le 0 < \delta_1` (the step crossed into contact): :math:`\dot\delta^{(-)}
-      \leftarrow \dot\delta(t_c)` at the crossing :math:`t_c` of the cubic Hermite interpolant of
-      :math:`\delta` (exact to the step's third order), onset time :math:`t_c`, impacts + 1;
-    * in contact at both ends: unchanged.
-
-    The running peaks of normal force and penetration are updated at the step's end too.
-
-    Returns the new memory and whether any joint crossed (the solver then re-evaluates its
-    first stage, since the force law changed).
-    """
-    if not mech.clearance_joints:
-        return memory, jnp.zeros((), bool)
-    h = t1 - t0
-    new_v, new_start, crossed_all, forces, pens = [], [], [], [], []
-    for k, joint in enumerate(mech.clearance_joints):
-        kin0 = kinematics(mech, joint, q0, qd0)
-        kin1 = kinematics(mech, joint, q1, qd1)
-        p0, p1 = joint.law.penetration(kin0), joint.law.penetration(kin1)
-        crossed = (p0 <= 0.0) & (p1 > 0.0)
-        s, rate_c = _hermite_crossing(p0, p1, kin0.deltadot, kin1.deltadot, h, crossed)
-        v = jnp.where(p1 <= 0.0, kin1.deltadot, jnp.where(crossed, rate_c, memory.impact_velocity[k]))
-        new_v.append(v)
-        new_start.append(jnp.where(crossed, t0 + s * h, memory.contact_start[k]))
-        crossed_all.append(crossed)
-        _, out = joint_forces(mech, joint, q1, qd1, v)
-        forces.append(out.normal_force)
-        pens.append(p1)
-    crossed_all = jnp.stack(crossed_all)
-    new = ContactMemory(
-        impact_velocity=jnp.stack(new_v),
-        contact_start=jnp.stack(new_start),
-        impacts=memory.impacts + crossed_all.astype(memory.impacts.dtype),
-        work=memory.work,
-        peak_force=jnp.maximum(memory.peak_force, jnp.stack(forces)),
-        peak_penetration=jnp.maximum(memory.peak_penetration, jnp.stack(pens)),
-    )
-    return new, jnp.any(crossed_all)

@@ -1,4 +1,5 @@
-"""Errors raised by jaxclear and the range checks that produce them.
+"""Errors raised by jaxclear, the range checks that produce them, and the run status
+enumeration :class:`RESULTS`.
 
 Every check names the parameter, the value it got and the range it allows, so that a
 user reading the message knows what to change. Checks run where objects are built
@@ -8,8 +9,7 @@ user reading the message knows what to change. Checks run where objects are buil
 
 from __future__ import annotations
 
-import math
-
+import equinox as eqx
 import jax
 import numpy as np
 
@@ -34,7 +34,41 @@ class SolverError(JaxclearError):
     """The integration failed (step limit, non-finite state)."""
 
 
-def _is_concrete(value) -> bool:
+class RESULTS(eqx.Enumeration):
+    """Status of a simulation, as an :class:`equinox.Enumeration` (the pattern of diffrax's
+    ``RESULTS``): traceable, batchable, and usable with ``RESULTS.where`` and
+    ``result.error_if``. :attr:`Solution.status <jaxclear.Solution.status>` holds its integer
+    code (0 = ok, in the order below); :data:`STATUS` maps codes to messages."""
+
+    successful = "ok"
+    max_steps_reached = "the solver reached max_steps before t_end"
+    nonfinite_state = "non-finite state (singular constraint Jacobian, lock-up, or diverging contact)"
+    solver_failed = "the solver failed (step size underflow or another diffrax error)"
+    assembly_failed = "the initial configuration could not be assembled (Newton did not converge)"
+
+
+#: Status code -> message, derived from :class:`RESULTS` (code ``i`` is the ``i``-th entry).
+STATUS = {int(item._value): RESULTS[item] for item in (getattr(RESULTS, n) for n in RESULTS._name_to_item)}
+
+#: What a user can do about each failure (appended to the error raised with ``throw=True``).
+REMEDIES = {
+    1: "raise Settings.max_steps (now {max_steps}, allowed >= 1) or loosen rtol/atol",
+    4: "improve the bodies' position guesses (Body.position)",
+}
+
+
+def status_message(code: int, **context) -> str:
+    """Message of a status code, with its remedy if there is one (``context`` fills the
+    remedy's fields, e.g. ``max_steps``)."""
+    message = STATUS.get(int(code), f"unknown status {int(code)}")
+    remedy = REMEDIES.get(int(code))
+    if remedy is None:
+        return message
+    return f"{message}; {remedy.format_map(dict({'max_steps': '?'}, **context))}"
+
+
+def is_concrete(value) -> bool:
+    """True if no leaf of ``value`` is a JAX tracer (so it can be checked eagerly)."""
     leaves = jax.tree_util.tree_leaves(value)
     return not any(isinstance(x, jax.core.Tracer) for x in leaves)
 
@@ -54,7 +88,7 @@ def check_range(
     ``low_open``/``high_open`` make the bound exclusive. Tracers are not checked (see module
     docstring). Returns ``value`` unchanged.
     """
-    if value is None or not _is_concrete(value):
+    if value is None or not is_concrete(value):
         return value
     arr = np.asarray(value, dtype=float)
     lo = "-inf" if low is None else f"{low:g}"
@@ -76,13 +110,8 @@ def check_range(
 
 def check_finite(name: str, value):
     """Raise :class:`ParameterError` if ``value`` (concrete) holds NaN or inf."""
-    if value is None or not _is_concrete(value):
+    if value is None or not is_concrete(value):
         return value
     if not np.all(np.isfinite(np.asarray(value, dtype=float))):
         raise ParameterError(f"{name} must be finite, got {value!r}")
     return value
-
-
-def rpm_to_rad_s(rpm: float) -> float:
-    """Convert revolutions per minute to rad/s."""
-    return rpm * 2.0 * math.pi / 60.0

@@ -1,0 +1,135 @@
+r"""The contact layer's interfaces and shared data: the geometry a law sees
+(:class:`ContactKinematics`), materials, and the abstract normal-force and friction laws.
+
+Extension points (abstract :class:`equinox.Module` classes in the style of diffrax's solver
+hierarchy; concrete laws are final):
+
+* :class:`AbstractNormalLaw`: ``normal_force(kin, deltadot0)`` and, where the law sets its
+  own direction (non-circular profiles), ``contact_force``; ``penetration`` decides contact;
+  ``stiffness_parameter`` names the leaf that ``stiffness`` addresses in fits and sweeps and
+  ``stiffness_value`` returns its value (derived from materials when the leaf is ``None``).
+* :class:`AbstractFriction`: ``__call__(v_t, F_N) -> F_T``.
+
+A new law is one subclass in one file plus one entry in :mod:`jaxclear.contact.registry`.
+"""
+
+from __future__ import annotations
+
+import abc
+import warnings
+from typing import ClassVar
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from .._errors import check_range
+from .._types import ArrayLike, Scalar, Vec2
+
+
+class ContactKinematics(eqx.Module):
+    """Geometry and velocities of one journal-in-bearing contact in one configuration
+    (all global, SI): what a normal law and a friction law see."""
+
+    ecc: Vec2  # eccentricity vector e = P_j - P_i [m]
+    e: Scalar  # |e| [m]
+    normal: Vec2  # n = e/|e| (arbitrary but finite at e = 0)
+    tangent: Vec2  # t = perp(n)
+    delta: Scalar  # e - c [m]
+    deltadot: Scalar  # penetration rate [m/s]
+    slip: Scalar  # tangential slip v_T [m/s]
+    bearing_centre: Vec2
+    journal_centre: Vec2
+    bearing_velocity: Vec2
+    journal_velocity: Vec2
+    bearing_angle: Scalar
+    journal_angle: Scalar
+    bearing_omega: Scalar
+    journal_omega: Scalar
+    radius_bearing: Scalar
+    radius_journal: Scalar
+    length: Scalar
+
+
+def compliance(young, poisson):
+    r"""Material compliance :math:`\sigma = (1-\nu^2)/E` [1/Pa]."""
+    return (1.0 - poisson**2) / young
+
+
+class Material(eqx.Module):
+    """An isotropic elastic material: Young's modulus ``young`` [Pa], Poisson ratio ``poisson``."""
+
+    young: Scalar
+    poisson: Scalar
+
+    def __init__(self, young: ArrayLike = 207e9, poisson: ArrayLike = 0.3):
+        check_range("young (Young's modulus)", young, low=0.0, low_open=True, unit="Pa")
+        check_range("poisson (Poisson ratio)", poisson, low=-1.0, high=0.5, low_open=True, high_open=True)
+        self.young = jnp.asarray(young, dtype=float)
+        self.poisson = jnp.asarray(poisson, dtype=float)
+
+    @property
+    def compliance(self):
+        """:math:`(1-\\nu^2)/E` [1/Pa]."""
+        return compliance(self.young, self.poisson)
+
+
+#: Structural steel as used in the Flores benchmark (E = 207 GPa, nu = 0.3).
+STEEL = Material(207e9, 0.3)
+
+
+def effective_modulus(bearing: Material, journal: Material):
+    r""":math:`E^* = 1/(\sigma_i + \sigma_j)` [Pa]."""
+    return 1.0 / (bearing.compliance + journal.compliance)
+
+
+class AbstractNormalLaw(eqx.Module):
+    r"""A normal contact force law :math:`F_N(\delta, \dot\delta, \dot\delta^{(-)}) \ge 0` [N].
+
+    Subclasses implement :meth:`normal_force` and :meth:`stiffness_value` and set the class
+    variable ``stiffness_parameter``; they may override :meth:`contact_force` (laws that set
+    their own direction), :meth:`penetration` and :meth:`check_geometry`."""
+
+    restitution: eqx.AbstractVar[Scalar]
+    stiffness_parameter: ClassVar[str] = "stiffness"
+
+    @property
+    @abc.abstractmethod
+    def name(self) -> str:
+        """The name the registry (:func:`~jaxclear.make_law`) knows this law by."""
+
+    @abc.abstractmethod
+    def normal_force(self, kin: ContactKinematics, deltadot0: Scalar) -> Scalar:
+        """Normal force [N] for the kinematics ``kin`` and the (floored) impact speed [m/s]."""
+
+    @abc.abstractmethod
+    def stiffness_value(self, radius_bearing, radius_journal) -> Scalar:
+        """Value of the stiffness leaf (``stiffness_parameter``), derived when it is ``None``."""
+
+    def contact_force(self, kin: ContactKinematics, deltadot0: Scalar) -> tuple[Scalar, Vec2]:
+        """``(F_N, direction)``: magnitude [N] and the unit vector from the bearing towards the
+        journal along which the force pushes the bearing (``kin.normal`` for circles)."""
+        return self.normal_force(kin, deltadot0), kin.normal
+
+    def penetration(self, kin: ContactKinematics) -> Scalar:
+        """Penetration that decides contact [m]; for a circular pin and hole it is ``e - c``."""
+        return kin.delta
+
+    def check_geometry(self, radius_bearing: float, radius_journal: float) -> None:
+        """Raise :class:`~jaxclear.ParameterError` if the law cannot serve these radii."""
+
+    def stiffness_for(self, radius_bearing, radius_journal):
+        """Deprecated spelling of :meth:`stiffness_value`."""
+        warnings.warn("law.stiffness_for(...) is deprecated; use law.stiffness_value(...)", DeprecationWarning,
+                      stacklevel=2)
+        return self.stiffness_value(radius_bearing, radius_journal)
+
+
+class AbstractFriction(eqx.Module):
+    r"""A tangential (friction) law: :math:`F_T(v_T, F_N)` [N] on the journal along the tangent,
+    with :math:`F_T v_T \le 0` (friction never does positive work)."""
+
+    coefficient: eqx.AbstractVar[Scalar]
+
+    @abc.abstractmethod
+    def __call__(self, v_t: Scalar, normal_force: Scalar) -> Scalar:
+        """Tangential force on the journal [N] for slip ``v_t`` [m/s] and normal force [N]."""

@@ -1,0 +1,6 @@
+"""Force elements between two bodies, each with its own slice of the state: the revolute
+clearance joint and the impact-memory rule it shares with future elements."""
+
+from .base import AbstractForceElement, ContactOutput
+from .memory import ContactMemory, hermite_crossing, onset_update
+from .revolute_clearance import ClearanceJoint, joint_forces, journal_state, kinematics

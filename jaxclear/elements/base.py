@@ -1,0 +1,104 @@
+r"""The force-element interface: anything that acts between two bodies through forces rather
+than constraints (the revolute clearance joint today; lubricated, translational and
+pin-in-slot clearance joints next) and owns a slice of the state vector.
+
+The vector field sums every element's generalized force; the solver wrapper calls every
+element's :meth:`~AbstractForceElement.after_step` once per accepted step; outputs see an
+element only through its :class:`ContactOutput`. The state layout is
+``y = [q, qdot, state of element 0, state of element 1, ...]``
+(:class:`~jaxclear.integrate.state.State`); each element's slice is the flat vector of its own
+state pytree (:meth:`~AbstractForceElement.state_to_vector`).
+
+A new element is one subclass in one file of :mod:`jaxclear.elements`.
+"""
+
+from __future__ import annotations
+
+import abc
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+from .._types import Array, BoolScalar, Float, Scalar, Vec2
+
+if TYPE_CHECKING:
+    from ..model.mechanism import Mechanism
+
+
+class ContactOutput(eqx.Module):
+    """Contact quantities of one element at one instant (SI): eccentricity (2,) [m],
+    penetration [m] (negative = gap), normal and friction force [N], and the power of the
+    element's forces on the mechanism [W]."""
+
+    ecc: Vec2
+    penetration: Scalar
+    normal_force: Scalar
+    friction_force: Scalar
+    power: Scalar
+
+
+class AbstractForceElement(eqx.Module):
+    """A force element between two bodies with its own state.
+
+    Subclasses implement the abstract methods below and set ``state_size`` (class variable: the
+    length of the element's slice of the state vector). During the initial assembly an element
+    is held as an ideal joint with ``n_equations`` equations (:meth:`equations`) and a
+    prescribed relative velocity (:meth:`assembly_velocity`)."""
+
+    name: eqx.AbstractVar[str]
+    state_size: ClassVar[int]
+    n_equations: ClassVar[int]
+
+    # ---- structure ------------------------------------------------------------------
+    @abc.abstractmethod
+    def bodies(self) -> tuple[str, str]:
+        """The two bodies it acts between."""
+
+    @abc.abstractmethod
+    def points(self) -> tuple[tuple[str, str], ...]:
+        """``(body, point)`` pairs it uses (validated by the mechanism)."""
+
+    @property
+    def label(self) -> str:
+        return f"{type(self).__name__} {self.name!r}"
+
+    # ---- state ----------------------------------------------------------------------
+    @abc.abstractmethod
+    def state_init(self, dtype=float) -> Any:
+        """The element's state at the start (a pytree of arrays)."""
+
+    @abc.abstractmethod
+    def state_to_vector(self, state) -> Float[Array, " s"]:
+        """Flatten a state to its slice ``(state_size,)`` of the state vector."""
+
+    @abc.abstractmethod
+    def state_from_vector(self, v: Float[Array, " s"]) -> Any:
+        """Inverse of :meth:`state_to_vector`."""
+
+    # ---- physics --------------------------------------------------------------------
+    @abc.abstractmethod
+    def forces(self, mech: "Mechanism", t: Scalar, q, qdot, state) -> tuple[Float[Array, " n"], Any, ContactOutput]:
+        """``(generalized force (n,), state derivative (same tree as state), outputs)``."""
+
+    @abc.abstractmethod
+    def after_step(self, mech: "Mechanism", t0, q0, qd0, t1, q1, qd1, state) -> tuple[Any, BoolScalar]:
+        """The state's update after an accepted step ``[t0, t1]`` (memory rules) and whether
+        the force law changed within the step (the solver then re-evaluates its first stage)."""
+
+    # ---- initial assembly -----------------------------------------------------------
+    @abc.abstractmethod
+    def equations(self, mech: "Mechanism", q, t) -> Float[Array, " e"]:
+        """Equations holding the element at its initial configuration during assembly."""
+
+    @abc.abstractmethod
+    def assembly_velocity(self) -> Float[Array, " e"]:
+        """Prescribed rate of :meth:`equations` at the start (e.g. zero: moves with its partner)."""
+
+
+def stack_outputs(outputs: list[ContactOutput]) -> ContactOutput | None:
+    """Per-element outputs stacked along a leading axis (``None`` for no element)."""
+    if not outputs:
+        return None
+    return jax.tree_util.tree_map(lambda *xs: jnp.stack(xs), *outputs)

@@ -1,0 +1,95 @@
+"""How to integrate: the solver choice, tolerances, output grid and adjoint (:class:`Settings`)."""
+
+from __future__ import annotations
+
+import diffrax
+import equinox as eqx
+import jax.numpy as jnp
+
+from .._errors import ParameterError, is_concrete
+from .._types import Array, Float
+from .dynamics import Baumgarte
+
+#: Solver name -> diffrax solver class.
+SOLVERS = {
+    "tsit5": diffrax.Tsit5,
+    "dopri5": diffrax.Dopri5,
+    "dopri8": diffrax.Dopri8,
+    "bosh3": diffrax.Bosh3,
+    "kvaerno5": diffrax.Kvaerno5,
+}
+
+
+class Settings(eqx.Module):
+    """How to integrate.
+
+    Attributes:
+        t_end: end time [s] (array leaf: may be swept).
+        t_start: start time [s].
+        n_out: number of output samples on the uniform grid ``[t_start, t_end]``.
+        solver: one of :data:`SOLVERS` (default ``"tsit5"``).
+        rtol, atol: tolerances of the adaptive PID step controller (relative, absolute [SI]).
+        dt0: first step [s]; ``None`` lets diffrax choose.
+        dtmax: largest step [s] or ``None``.
+        max_steps: step limit; reaching it is an error (or status 1 with ``throw=False``).
+        baumgarte: stabilization gains (alpha, beta) [1/s].
+        adjoint: ``"recursive"`` (reverse mode with checkpoints), ``"forward"`` (forward mode),
+            ``"direct"``.
+        checkpoints: number of checkpoints of reverse mode (``None``: diffrax's default,
+            logarithmic in ``max_steps``); fewer checkpoints = less memory, more recomputation.
+        throw: raise errors (True) or report them in ``Solution.status`` (False; sweeps).
+        progress: show a progress bar while integrating.
+        continuous_contact_after: a contact lasting longer than this [s] is classed as
+            continuous contact (mode 2) instead of impact (mode 1).
+        allow_free_dof: a driven mechanism normally has all its motion determined by the
+            drivers (plus the journal's freedom); set True to allow additional free motion.
+        stages: how an explicit Runge-Kutta solver evaluates its stages: ``"unrolled"``
+            (:class:`UnrolledExplicitRK`; fastest for a single run) or ``"loop"`` (diffrax's
+            own ``while_loop`` over the stages; faster under ``jax.vmap`` with more than a few
+            members, where one copy of the vector field serves every stage: measured 1.7x
+            faster per member at a batch of 32). The two compute the same step. Sweeps use
+            ``"loop"``.
+    """
+
+    t_end: Float[Array, ""]
+    t_start: float = eqx.field(static=True, default=0.0)
+    n_out: int = eqx.field(static=True, default=1001)
+    solver: str = eqx.field(static=True, default="tsit5")
+    rtol: float = eqx.field(static=True, default=1e-6)
+    atol: float = eqx.field(static=True, default=1e-9)
+    dt0: float | None = eqx.field(static=True, default=None)
+    dtmax: float | None = eqx.field(static=True, default=None)
+    max_steps: int = eqx.field(static=True, default=400_000)
+    baumgarte: Baumgarte = eqx.field(default_factory=lambda: Baumgarte(jnp.asarray(5.0), jnp.asarray(5.0)))
+    adjoint: str = eqx.field(static=True, default="recursive")
+    checkpoints: int | None = eqx.field(static=True, default=None)
+    throw: bool = eqx.field(static=True, default=True)
+    progress: bool = eqx.field(static=True, default=False)
+    continuous_contact_after: float = eqx.field(static=True, default=2e-4)
+    allow_free_dof: bool = eqx.field(static=True, default=False)
+    stages: str = eqx.field(static=True, default="unrolled")
+
+    def __check_init__(self):
+        if self.solver not in SOLVERS:
+            raise ParameterError(f"unknown solver {self.solver!r}; valid: {sorted(SOLVERS)}")
+        if self.stages not in ("unrolled", "loop"):
+            raise ParameterError(f"stages must be 'unrolled' or 'loop', got {self.stages!r}")
+        if self.adjoint not in ("recursive", "forward", "direct"):
+            raise ParameterError(f"adjoint must be 'recursive', 'forward' or 'direct', got {self.adjoint!r}")
+        if not (0 < self.rtol < 1):
+            raise ParameterError(f"rtol = {self.rtol:g} outside the allowed range (0, 1)")
+        if not (self.atol > 0):
+            raise ParameterError(f"atol = {self.atol:g} outside the allowed range (0, inf)")
+        if self.n_out < 2:
+            raise ParameterError(f"n_out = {self.n_out} outside the allowed range [2, inf)")
+        if self.max_steps < 1:
+            raise ParameterError(f"max_steps = {self.max_steps} outside the allowed range [1, inf)")
+        if is_concrete(self.t_end) and not float(self.t_end) > self.t_start:
+            raise ParameterError(
+                f"t_end = {float(self.t_end):g} s must be greater than t_start = {self.t_start:g} s"
+            )
+
+
+def settings(t_end, **kwargs) -> Settings:
+    """Build :class:`Settings` with ``t_end`` [s] as a float64 array leaf."""
+    return Settings(t_end=jnp.asarray(t_end, dtype=float), **kwargs)

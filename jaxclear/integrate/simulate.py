@@ -1,0 +1,158 @@
+r"""Integration with diffrax: :func:`simulate`, the one pure function that sweeps ``vmap`` and
+fits differentiate.
+
+Data path: mechanism and settings -> consistent start state (:mod:`.assembly`) -> packed state
+vector (:mod:`.state`) -> vector field (forces -> augmented solve, :mod:`.dynamics`) ->
+diffrax with the element-state solver wrapper (:mod:`.solvers`) -> post-processing on the
+output grid -> :class:`~jaxclear.integrate.solution.Solution` with a :class:`~jaxclear.RESULTS`
+status.
+
+Speed (the benchmark slider-crank takes a few thousand steps of a vector field with only a few
+dozen flops per kernel, so per-kernel overhead dominates): the solver integrates one packed
+vector rather than a pytree, the explicit Runge-Kutta stages are unrolled
+(:class:`~jaxclear.integrate.solvers.UnrolledExplicitRK`), and XLA compiles with
+:func:`~jaxclear.integrate.compile.compiler_options`. ``benchmarks/bench_engine.py --profile``
+measures each part.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import diffrax
+import jax
+import jax.numpy as jnp
+
+from .._errors import RESULTS, SolverError, is_concrete, status_message
+from ..model.mechanism import Mechanism
+from .assembly import NEWTON_TOL, assemble, check_assembly, initial_state
+from .compile import jit
+from .dynamics import _accelerations, flat_vector_field
+from .settings import SOLVERS, Settings
+from .solution import Solution
+from .solvers import ImpactMemorySolver, StateNorm, UnrolledExplicitRK
+from .state import State
+
+
+def _inner_solver(s: Settings):
+    solver = SOLVERS[s.solver]()
+    if not solver.tableau.implicit and s.stages == "unrolled":
+        return UnrolledExplicitRK(solver)
+    if s.adjoint in ("forward", "direct"):
+        return SOLVERS[s.solver](scan_kind="bounded")
+    return solver
+
+
+def _adjoint(s: Settings):
+    if s.adjoint == "forward":
+        return diffrax.ForwardMode()
+    if s.adjoint == "direct":
+        return diffrax.DirectAdjoint()
+    return diffrax.RecursiveCheckpointAdjoint(checkpoints=s.checkpoints)
+
+
+def _postprocess(mech: Mechanism, s: Settings, ts, ys: State):
+    def one(t, y):
+        qdd, lam, value, _, contact = _accelerations(mech, t, y.q, y.qdot, y.elements, s.baumgarte)
+        return qdd, lam, value, contact
+
+    qdd, lam, value, contact = jax.vmap(one)(ts, ys)
+    drift = jnp.linalg.norm(value, axis=-1) if value.shape[-1] else jnp.zeros_like(ts)
+    if contact is None:
+        z = jnp.zeros((ts.shape[0], 0), ts.dtype)
+        return qdd, lam, drift, jnp.zeros((ts.shape[0], 0, 2)), z, z, z, z.astype(jnp.int32)
+    in_contact = contact.penetration > 0.0
+    long = (ts[:, None] - ys.memory.contact_start) > s.continuous_contact_after
+    mode = jnp.where(in_contact, jnp.where(long, 2, 1), 0).astype(jnp.int32)
+    return qdd, lam, drift, contact.ecc, contact.penetration, contact.normal_force, contact.friction_force, mode
+
+
+def _solve(mech: Mechanism, s: Settings, y0: State, assembled_ok):
+    t0 = jnp.asarray(s.t_start, y0.q.dtype)
+    t1 = jnp.asarray(s.t_end, y0.q.dtype)
+    ts = t0 + (t1 - t0) * jnp.linspace(0.0, 1.0, s.n_out, dtype=y0.q.dtype)
+    ts = ts.at[-1].set(t1)
+    norm = StateNorm(mech.n_coordinates)
+    controller = diffrax.PIDController(rtol=s.rtol, atol=s.atol, dtmax=s.dtmax, norm=norm)
+    meter = diffrax.TqdmProgressMeter(refresh_steps=200) if s.progress else diffrax.NoProgressMeter()
+    sol = diffrax.diffeqsolve(
+        diffrax.ODETerm(flat_vector_field),
+        ImpactMemorySolver(_inner_solver(s)),
+        t0,
+        t1,
+        s.dt0,
+        y0.pack(),
+        args=(mech, s.baumgarte),
+        saveat=diffrax.SaveAt(ts=ts),
+        stepsize_controller=controller,
+        max_steps=s.max_steps,
+        adjoint=_adjoint(s),
+        throw=False,
+        progress_meter=meter,
+    )
+    ys: State = jax.vmap(lambda v: State.unpack(v, mech))(sol.ys)
+    qdd, lam, drift, ecc, pen, fn, ft, mode = _postprocess(mech, s, ts, ys)
+    finite = jnp.all(jnp.isfinite(ys.q)) & jnp.all(jnp.isfinite(ys.qdot)) & jnp.all(jnp.isfinite(qdd))
+    result = RESULTS.where(finite, RESULTS.successful, RESULTS.nonfinite_state)
+    result = RESULTS.where(sol.result == diffrax.RESULTS.successful, result, RESULTS.solver_failed)
+    result = RESULTS.where(sol.result == diffrax.RESULTS.max_steps_reached, RESULTS.max_steps_reached, result)
+    result = RESULTS.where(assembled_ok, result, RESULTS.assembly_failed)
+    out = Solution(
+        ts=ts,
+        q=ys.q,
+        qdot=ys.qdot,
+        qddot=qdd,
+        reactions=lam,
+        drift=drift,
+        ecc=ecc,
+        penetration=pen,
+        normal_force=fn,
+        friction_force=ft,
+        mode=mode,
+        element_states=ys.elements,
+        num_steps=sol.stats["num_steps"],
+        num_accepted_steps=sol.stats["num_accepted_steps"],
+        num_rejected_steps=sol.stats["num_rejected_steps"],
+        status=jnp.asarray(result._value, jnp.int32),
+    )
+    if s.throw:  # under a user's transformation (concrete calls are checked in simulate)
+        out = result.error_if(out, result != RESULTS.successful)
+    return out
+
+
+@jit
+def _simulate(mech: Mechanism, s: Settings, y0: State | None) -> Solution:
+    asm = assemble(mech, s.t_start)
+    assembled_ok = jnp.isfinite(asm.residual) & (asm.residual <= NEWTON_TOL)
+    if y0 is None:
+        y0 = initial_state(mech, s, asm)
+    else:
+        assembled_ok = jnp.asarray(True)
+    return _solve(mech, s, y0, assembled_ok)
+
+
+def simulate(mech: Mechanism, s: Settings, y0: State | None = None) -> Solution:
+    """Integrate ``mech`` with settings ``s``; pure, so ``jax.jit``, ``jax.vmap`` and
+    ``jax.grad`` (of a scalar of the result) apply to it.
+
+    With ``s.throw`` (default) a failed run raises: with concrete inputs a
+    :class:`~jaxclear.SolverError` (after :func:`check_assembly`'s detailed checks) naming the
+    :class:`~jaxclear.RESULTS` entry and what to change; under a transformation the same entry
+    through ``RESULTS.error_if``. With ``s.throw`` False the status is reported in
+    ``Solution.status`` and nothing raises (sweeps).
+
+    Args:
+        mech: the mechanism (structure + parameters).
+        s: :class:`Settings`.
+        y0: optional start :class:`~jaxclear.integrate.state.State`; default: assembled by
+            :func:`~jaxclear.assemble`.
+    """
+    if not (s.throw and is_concrete((mech, s, y0))):
+        return _simulate(mech, s, y0)
+    if y0 is None:
+        check_assembly(mech, s)
+    sol = _simulate(mech, dataclasses.replace(s, throw=False), y0)
+    code = int(sol.status)
+    if code != int(RESULTS.successful._value):
+        raise SolverError(f"jaxclear: {status_message(code, max_steps=s.max_steps)}")
+    return sol

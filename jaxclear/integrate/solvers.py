@@ -1,0 +1,176 @@
+r"""Solver wrappers around diffrax's Runge-Kutta solvers.
+
+* :class:`UnrolledExplicitRK`: the same step as a diffrax explicit Runge-Kutta solver (its
+  tableau and interpolation), with the stages unrolled into straight-line code; per-kernel
+  overhead dominates the small right-hand side of a planar mechanism, and the unrolled form
+  takes about 17 us per step against 25 us for diffrax's stage loop on the benchmark.
+* :class:`ImpactMemorySolver`: wraps any solver; after every accepted step it calls every force
+  element's ``after_step`` (the impact-memory rule), so history-dependent force laws see the
+  approach speed at the onset.
+
+Both rely on diffrax's solver internals (``AbstractWrappedSolver``, the Butcher tableau fields,
+the ``(y1, y_error, dense_info, solver_state, result)`` step protocol): the versions they are
+tested with are pinned in ``pyproject.toml`` and checked by :mod:`jaxclear.integrate.versions`.
+"""
+
+from __future__ import annotations
+
+import diffrax
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import optimistix as optx
+
+from .._errors import ParameterError
+from .state import State
+
+
+class _Forwarding(diffrax.AbstractWrappedSolver):
+    """A wrapper of a diffrax solver that forwards its structure, interpolation and orders."""
+
+    @property
+    def term_structure(self):
+        return self.solver.term_structure
+
+    @property
+    def interpolation_cls(self):  # pyright: ignore
+        return self.solver.interpolation_cls
+
+    @property
+    def term_compatible_contr_kwargs(self):
+        return self.solver.term_compatible_contr_kwargs
+
+    def order(self, terms):
+        return self.solver.order(terms)
+
+    def strong_order(self, terms):
+        return self.solver.strong_order(terms)
+
+    def error_order(self, terms):
+        return self.solver.error_order(terms)
+
+
+class UnrolledExplicitRK(_Forwarding):
+    """An explicit Runge-Kutta solver of diffrax (Tsit5, Dopri5, Dopri8, Bosh3) with its stages
+    unrolled into straight-line code, for ODE terms.
+
+    It takes the wrapped solver's Butcher tableau and interpolation, so it computes the same
+    step, error estimate and dense output as diffrax (a test checks equality to rounding).
+    diffrax runs the stages in a ``while_loop`` (shorter compilation, one code path for every
+    Runge-Kutta family); for a vector field as small as a planar mechanism's, each stage
+    iteration then costs more loop bookkeeping (stage-buffer copies and dynamic slices, per
+    state leaf) than the vector field itself. Unrolled, XLA fuses the stage combinations into
+    the vector field's kernels; :mod:`benchmarks.bench_engine` measures the difference.
+
+    ``solver_state = (f0, first)``: the vector field at the step's start (first same as last)
+    and whether it must be evaluated afresh (first step, or after a jump in the vector field).
+    """
+
+    solver: diffrax.AbstractERK
+
+    def __check_init__(self):
+        tab = self.solver.tableau
+        if not isinstance(tab, diffrax.ButcherTableau) or tab.implicit:
+            raise ParameterError(f"{type(self.solver).__name__} is not an explicit Runge-Kutta solver")
+
+
+    @property
+    def scan_kind(self):
+        # diffrax's forward-mode and direct adjoints swap a Runge-Kutta solver's stage loop for
+        # a differentiable one when this is None; unrolled stages have no loop to swap.
+        return "bounded"
+
+
+    def func(self, terms, t0, y0, args):
+        return terms.vf(t0, y0, args)
+
+    def init(self, terms, t0, t1, y0, args):
+        zeros = jax.tree_util.tree_map(jnp.zeros_like, y0)
+        return zeros, jnp.array(True)
+
+    def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
+        tab = self.solver.tableau
+        f0, first = solver_state
+        dt = t1 - t0
+        tmap = jax.tree_util.tree_map
+        if tab.fsal:
+            # re-evaluate the first stage on the first step and after a jump (under vmap this
+            # cond becomes a select that evaluates it for every member at every step: one reason
+            # why Settings(stages="loop") is the faster form for batches)
+            f0 = jax.lax.cond(first | made_jump, lambda: terms.vf(t0, y0, args), lambda: f0)
+        else:
+            f0 = terms.vf(t0, y0, args)
+
+        def combine(base, coeffs, ks):
+            pairs = [(float(a), k) for a, k in zip(coeffs, ks) if a != 0.0]
+            if not pairs:
+                return base if base is not None else tmap(jnp.zeros_like, ks[0])
+            def leaf(b, *kk):
+                acc = sum(a * x for (a, _), x in zip(pairs, kk))
+                return acc if b is None else b + acc
+            if base is None:
+                return tmap(lambda *kk: leaf(None, *kk), *[k for _, k in pairs])
+            return tmap(leaf, base, *[k for _, k in pairs])
+
+        ks = [tmap(lambda f: f * dt, f0)]
+        fi = f0
+        for a_row, c in zip(tab.a_lower, tab.c):
+            yi = combine(y0, a_row, ks)
+            fi = terms.vf(t0 + float(c) * dt, yi, args)
+            ks.append(tmap(lambda f: f * dt, fi))
+        y1 = yi if tab.ssal else combine(y0, tab.b_sol, ks)
+        y_error = combine(None, tab.b_error, ks)
+        k = tmap(lambda *xs: jnp.stack(xs), *ks)
+        dense_info = dict(y0=y0, y1=y1, k=k)
+        f1 = fi if tab.fsal else f0
+        return y1, y_error, dense_info, (f1, jnp.array(False)), diffrax.RESULTS.successful
+
+
+class ImpactMemorySolver(_Forwarding):
+    """Wraps a diffrax solver; after each step updates every force element's state with its
+    ``after_step`` (for a clearance joint, the impact-memory rule of
+    :mod:`jaxclear.elements.memory`). When an element's force law changed during a step (a
+    contact onset) the next step re-evaluates its first stage, so FSAL solvers stay exact.
+    The state is the packed vector of :meth:`State.pack` and the term
+    :func:`~jaxclear.integrate.dynamics.flat_vector_field`; ``args`` of the solve must be
+    ``(mechanism, baumgarte)``."""
+
+    solver: diffrax.AbstractSolver
+
+
+    @property
+    def scan_kind(self):
+        # DirectAdjoint/ForwardMode want a "bounded" scan; _inner_solver sets it on the inner solver.
+        return getattr(self.solver, "scan_kind", None)
+
+
+    def init(self, terms, t0, t1, y0, args):
+        return self.solver.init(terms, t0, t1, y0, args), jnp.zeros((), bool)
+
+    def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
+        inner_state, memory_changed = solver_state
+        y1, y_error, dense_info, inner_state, result = self.solver.step(
+            terms, t0, t1, y0, args, inner_state, made_jump | memory_changed
+        )
+        mech = args[0]
+        a, b = State.unpack(y0, mech), State.unpack(y1, mech)
+        states, changed = [], jnp.zeros((), bool)
+        for element, state in zip(mech.clearance_joints, b.elements):
+            new, crossed = element.after_step(mech, t0, a.q, a.qdot, t1, b.q, b.qdot, state)
+            states.append(new)
+            changed = changed | crossed
+        y1 = State(b.q, b.qdot, tuple(states)).pack()
+        return y1, y_error, dense_info, (inner_state, changed), result
+
+    def func(self, terms, t0, y0, args):
+        return self.solver.func(terms, t0, y0, args)
+
+
+class StateNorm(eqx.Module):
+    """Error norm of the packed state on positions and velocities only (the memory is not
+    error-controlled): RMS over the first ``2n`` entries."""
+
+    n: int = eqx.field(static=True)
+
+    def __call__(self, v):
+        return optx.rms_norm(v[: 2 * self.n])

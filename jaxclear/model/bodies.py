@@ -1,0 +1,67 @@
+r"""Rigid bodies with named body-fixed points (Nikravesh, "Computer-Aided Analysis of Mechanical
+Systems", Prentice-Hall 1988, generalized Cartesian coordinates).
+
+Body ``i`` has coordinates :math:`q_i = [x_i, y_i, \phi_i]` (centroid position [m] and
+orientation [rad]). The ground is not a body: it is named ``"ground"`` and has index ``-1``.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from .._errors import MechanismError, check_finite, check_range
+from .._types import Array, ArrayLike, Float, Scalar, Vec2
+
+GROUND = "ground"
+
+
+def vec2(name: str, value) -> Array:
+    """``value`` as a finite float 2-vector; :class:`MechanismError` naming ``name`` otherwise."""
+    arr = jnp.asarray(value, dtype=float)
+    if arr.shape != (2,):
+        raise MechanismError(f"{name} must be a 2-vector [x, y] in metres, got shape {arr.shape}")
+    check_finite(name, arr)
+    return arr
+
+
+class Body(eqx.Module):
+    """A rigid body.
+
+    Attributes:
+        name: unique name (static).
+        mass: m [kg] > 0.
+        inertia: J [kg m^2] > 0 about the centroid.
+        points: named body-fixed points [m], relative to the centroid.
+        position: initial guess of [x, y, phi] [m, m, rad] for the position solve.
+        velocity: initial guess of [xdot, ydot, phidot]; corrected to satisfy the constraints.
+    """
+
+    name: str = eqx.field(static=True)
+    mass: Scalar
+    inertia: Scalar
+    points: dict[str, Vec2]
+    position: Float[Array, "3"]
+    velocity: Float[Array, "3"]
+
+    def __init__(
+        self,
+        name: str,
+        mass: ArrayLike,
+        inertia: ArrayLike,
+        points: dict[str, ArrayLike] | None = None,
+        position: ArrayLike = (0.0, 0.0, 0.0),
+        velocity: ArrayLike = (0.0, 0.0, 0.0),
+    ):
+        if name == GROUND:
+            raise MechanismError(f"{GROUND!r} is reserved for the fixed frame; choose another body name")
+        check_range(f"mass of body {name!r}", mass, low=0.0, low_open=True, unit="kg")
+        check_range(f"inertia of body {name!r}", inertia, low=0.0, low_open=True, unit="kg m^2")
+        self.name = name
+        self.mass = jnp.asarray(mass, dtype=float)
+        self.inertia = jnp.asarray(inertia, dtype=float)
+        self.points = {k: vec2(f"point {k!r} of body {name!r}", v) for k, v in (points or {}).items()}
+        self.position = jnp.asarray(position, dtype=float).reshape(3)
+        self.velocity = jnp.asarray(velocity, dtype=float).reshape(3)
+        check_finite(f"position guess of body {name!r}", self.position)
+        check_finite(f"velocity guess of body {name!r}", self.velocity)

@@ -1,0 +1,107 @@
+r"""Drivers: prescribed motion as constraint equations (Nikravesh 1988, sec. 3.5), and the one
+lookup of a mechanism's crank.
+
+Extension point: :class:`AbstractDriver` (a subclass of
+:class:`~jaxclear.model.joints.AbstractConstraint` acting on one body).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Callable, ClassVar
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from .._errors import MechanismError, ParameterError, check_finite
+from .._types import Scalar
+from .bodies import GROUND
+from .joints import AbstractConstraint
+
+if TYPE_CHECKING:
+    from .mechanism import Mechanism
+
+COORDINATES = {"x": 0, "y": 1, "phi": 2}
+
+
+class AbstractDriver(AbstractConstraint):
+    """A driver prescribes the motion of ``body`` (one equation per prescribed coordinate)."""
+
+    body: eqx.AbstractVar[str]
+
+
+class AngleDriver(AbstractDriver):
+    r"""Constant-speed rotation (1 eq.): :math:`\phi_{body} - \phi_{ref} - (\phi_0 + \omega t) = 0`.
+
+    Attributes:
+        body: driven body; ``relative_to``: reference body (default ground).
+        speed: :math:`\omega` [rad/s]; ``angle0``: :math:`\phi_0` [rad].
+    """
+
+    body: str = eqx.field(static=True)
+    speed: Scalar
+    angle0: Scalar
+    relative_to: str = eqx.field(static=True)
+
+    n_equations: ClassVar[int] = 1
+
+    def __init__(self, body, speed, angle0=0.0, relative_to=GROUND):
+        check_finite("driver speed", speed)
+        self.body = body
+        self.speed = jnp.asarray(speed, dtype=float)
+        self.angle0 = jnp.asarray(angle0, dtype=float)
+        self.relative_to = relative_to
+
+    def bodies(self):
+        return (self.body, self.relative_to)
+
+    def equations(self, mech, q, t):
+        rel = mech.angle(q, self.body) - mech.angle(q, self.relative_to)
+        return (rel - self.angle0 - self.speed * t)[None]
+
+
+class FunctionDriver(AbstractDriver):
+    """User-prescribed coordinate (1 eq.): ``q[body, coordinate] - function(t) = 0``.
+
+    ``coordinate`` is ``"x"``, ``"y"`` or ``"phi"``; ``function`` maps time [s] to the
+    coordinate [m or rad] and must be a JAX-traceable function (it is differentiated twice).
+    """
+
+    body: str = eqx.field(static=True)
+    coordinate: str = eqx.field(static=True)
+    function: Callable = eqx.field(static=True)
+
+    n_equations: ClassVar[int] = 1
+
+    def __init__(self, body, coordinate, function):
+        if coordinate not in COORDINATES:
+            raise MechanismError(f"driver coordinate must be one of {list(COORDINATES)}, got {coordinate!r}")
+        self.body, self.coordinate, self.function = body, coordinate, function
+
+    def bodies(self):
+        return (self.body,)
+
+    def equations(self, mech, q, t):
+        i = mech.body_index(self.body)
+        return (q[3 * i + COORDINATES[self.coordinate]] - self.function(t))[None]
+
+
+def crank_driver(mech: "Mechanism") -> tuple[int, AngleDriver] | None:
+    """The mechanism's crank: ``(index in mech.drivers, driver)`` of its first
+    :class:`AngleDriver`, or ``None``. The one lookup that 'revolutions', 'speed' and the crank
+    angle of outputs go through."""
+    for i, d in enumerate(mech.drivers):
+        if isinstance(d, AngleDriver):
+            return i, d
+    return None
+
+
+def crank_period(mech: "Mechanism") -> float:
+    """Period [s] of the crank (:func:`crank_driver`), for 'revolutions' options."""
+    found = crank_driver(mech)
+    if found is None:
+        raise MechanismError("the mechanism has no AngleDriver: give t_end instead of revolutions")
+    w = float(found[1].speed)
+    if w == 0.0:
+        raise ParameterError("driver speed is 0 rad/s: revolutions are undefined, give t_end instead")
+    return 2.0 * math.pi / abs(w)

@@ -1,0 +1,84 @@
+"""Applied loads: forces and torques given as functions of time and state, and gravity.
+
+Extension point: :class:`AbstractLoad` (a generalized force on the coordinates).
+"""
+
+from __future__ import annotations
+
+import abc
+from typing import TYPE_CHECKING, Callable
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from .._errors import check_finite
+from .._types import Array, Float, Scalar, Vec2
+from .bodies import vec2
+
+if TYPE_CHECKING:
+    from .mechanism import Mechanism
+
+
+class AbstractLoad(eqx.Module):
+    """An applied load on ``body``: its generalized force on all coordinates."""
+
+    body: eqx.AbstractVar[str]
+
+    @abc.abstractmethod
+    def generalized_force(self, mech: "Mechanism", t: Scalar, q, qdot) -> Float[Array, " n"]:
+        """Generalized force (n,) [N, N, N m per body]."""
+
+    def bodies(self) -> tuple[str, ...]:
+        return (self.body,)
+
+    def points(self) -> tuple[tuple[str, str], ...]:
+        return ()
+
+    @property
+    def label(self) -> str:
+        return f"{type(self).__name__}({self.body})"
+
+
+class PointForce(AbstractLoad):
+    """A force [N] in global axes at a body point: constant ``force`` plus an optional
+    ``function(t, q, qdot) -> (2,)`` (static, JAX-traceable)."""
+
+    body: str = eqx.field(static=True)
+    point: str = eqx.field(static=True)
+    force: Vec2
+    function: Callable | None = eqx.field(static=True, default=None)
+
+    def __init__(self, body, point, force=(0.0, 0.0), function=None):
+        self.body, self.point, self.function = body, point, function
+        self.force = vec2("point force", force)
+
+    def points(self):
+        return ((self.body, self.point),)
+
+    def generalized_force(self, mech, t, q, qdot):
+        f = self.force if self.function is None else self.force + self.function(t, q, qdot)
+        return mech.point_load(q, self.body, mech.point_position(q, self.body, self.point), f)
+
+
+class Torque(AbstractLoad):
+    """A torque [N m] on a body: constant ``torque`` plus optional ``function(t, q, qdot)``."""
+
+    body: str = eqx.field(static=True)
+    torque: Scalar
+    function: Callable | None = eqx.field(static=True, default=None)
+
+    def __init__(self, body, torque=0.0, function=None):
+        check_finite("torque", torque)
+        self.body, self.function = body, function
+        self.torque = jnp.asarray(torque, dtype=float)
+
+    def generalized_force(self, mech, t, q, qdot):
+        tau = self.torque if self.function is None else self.torque + self.function(t, q, qdot)
+        i = mech.body_index(self.body)
+        return jnp.zeros(mech.n_coordinates, q.dtype).at[3 * i + 2].add(tau)
+
+
+def gravity_force(mech: "Mechanism", dtype) -> Float[Array, " n"]:
+    r"""Generalized gravity force :math:`[m_i g_x, m_i g_y, 0]` per body (n,) [N]."""
+    m = mech.mass_matrix_diagonal()
+    return (jnp.tile(jnp.concatenate([mech.gravity, jnp.zeros(1)]), mech.n_bodies) * m).astype(dtype)

@@ -1,0 +1,235 @@
+r"""A planar mechanism as data: bodies, ideal joints, drivers, force elements (clearance joints)
+and loads; index bookkeeping, validation, and the kinematics of body points.
+
+Reference: Nikravesh, "Computer-Aided Analysis of Mechanical Systems", Prentice-Hall 1988
+(generalized Cartesian coordinates). ``q`` stacks ``[x_i, y_i, phi_i]`` of every body, shape
+``(3 * n_bodies,)``; a body-fixed point :math:`s'_P` [m] sits at :math:`r_i + A(\phi_i) s'_P`.
+
+Structure (names, which bodies a joint connects, which law) is static; every number (masses,
+inertias, point coordinates, speeds, radii, law parameters) is an array leaf that can be
+differentiated, vmapped or swept.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from .._errors import MechanismError
+from .._types import Array, ArrayLike, Float, Vec2
+from .bodies import GROUND, Body, vec2
+from .geometry import cross2, perp, rotate
+from .joints import AbstractConstraint, Revolute
+
+
+class Mechanism(eqx.Module):
+    """A planar mechanism: bodies, ideal joints, drivers, force elements and loads.
+
+    Attributes:
+        bodies: the moving bodies, in coordinate order.
+        joints: ideal joints (:class:`~jaxclear.Revolute`, :class:`~jaxclear.Translational`,
+            :class:`~jaxclear.Fixed`, or any :class:`~jaxclear.model.joints.AbstractConstraint`).
+        drivers: :class:`~jaxclear.AngleDriver` / :class:`~jaxclear.FunctionDriver`.
+        clearance_joints: force elements between two bodies
+            (:class:`~jaxclear.elements.base.AbstractForceElement`, e.g.
+            :class:`~jaxclear.ClearanceJoint`), each owning its slice of the state.
+        loads: :class:`~jaxclear.PointForce` / :class:`~jaxclear.Torque`.
+        gravity: acceleration of gravity [m/s^2], global (2,).
+        ground_points: named points of the fixed frame [m].
+        name: label (static).
+        roles: optional map of role -> body name (static), e.g. ``{"crank": "crank",
+            "slider": "slider"}``, used by outputs, plots and the command line.
+    """
+
+    bodies: tuple[Body, ...]
+    joints: tuple
+    drivers: tuple
+    clearance_joints: tuple
+    loads: tuple
+    gravity: Vec2
+    ground_points: dict[str, Vec2]
+    name: str = eqx.field(static=True)
+    roles: tuple[tuple[str, str], ...] = eqx.field(static=True)
+
+    def __init__(
+        self,
+        bodies: Sequence[Body],
+        joints: Sequence = (),
+        drivers: Sequence = (),
+        clearance_joints: Sequence = (),
+        loads: Sequence = (),
+        gravity: ArrayLike = (0.0, -9.81),
+        ground_points: dict[str, ArrayLike] | None = None,
+        name: str = "mechanism",
+        roles: dict[str, str] | None = None,
+    ):
+        self.bodies = tuple(bodies)
+        self.joints = tuple(joints)
+        self.drivers = tuple(drivers)
+        self.clearance_joints = tuple(clearance_joints)
+        self.loads = tuple(loads)
+        self.gravity = vec2("gravity", gravity)
+        self.ground_points = {k: vec2(f"ground point {k!r}", v) for k, v in (ground_points or {}).items()}
+        self.name = name
+        self.roles = tuple(sorted((roles or {}).items()))
+        self._validate_structure()
+
+    def role(self, role: str) -> str | None:
+        """Body playing ``role`` (``"crank"``, ``"slider"``...), or None."""
+        return dict(self.roles).get(role)
+
+    # ---- bookkeeping ----------------------------------------------------------------
+    @property
+    def body_names(self) -> tuple[str, ...]:
+        return tuple(b.name for b in self.bodies)
+
+    @property
+    def n_bodies(self) -> int:
+        return len(self.bodies)
+
+    @property
+    def n_coordinates(self) -> int:
+        return 3 * len(self.bodies)
+
+    @property
+    def constraints(self) -> tuple[AbstractConstraint, ...]:
+        """Joints then drivers: the rows of :math:`\\Phi`, in order."""
+        return (*self.joints, *self.drivers)
+
+    @property
+    def n_constraints(self) -> int:
+        return sum(c.n_equations for c in self.constraints)
+
+    @property
+    def elements(self) -> tuple:
+        """The force elements (same as ``clearance_joints``)."""
+        return self.clearance_joints
+
+    def body_index(self, name: str) -> int:
+        """Index of a body, ``-1`` for the ground; :class:`MechanismError` for unknown names."""
+        if name == GROUND:
+            return -1
+        names = self.body_names
+        if name not in names:
+            raise MechanismError(f"unknown body {name!r}; bodies are {list(names)} and {GROUND!r}")
+        return names.index(name)
+
+    def body(self, name: str) -> Body:
+        return self.bodies[self.body_index(name)]
+
+    def point(self, body: str, point: str) -> Vec2:
+        """Body-fixed coordinates [m] of a named point (ground points are global)."""
+        table = self.ground_points if body == GROUND else self.body(body).points
+        if point not in table:
+            raise MechanismError(f"unknown point {point!r} on body {body!r}; its points are {sorted(table)}")
+        return table[point]
+
+    def _validate_structure(self):
+        names = self.body_names
+        if len(set(names)) != len(names):
+            raise MechanismError(f"body names must be unique, got {list(names)}")
+        if not names:
+            raise MechanismError("a mechanism needs at least one body")
+        for item in (*self.joints, *self.drivers, *self.clearance_joints, *self.loads):
+            bodies = item.bodies()
+            for b in bodies:
+                self.body_index(b)
+            for b, p in item.points():
+                self.point(b, p)
+            if len(bodies) == 2 and bodies[0] == bodies[1]:
+                raise MechanismError(f"{item.label} connects body {bodies[0]!r} to itself")
+        for _, body in self.roles:
+            self.body_index(body)
+        if self.n_constraints > self.n_coordinates:
+            raise MechanismError(
+                f"{self.n_constraints} constraint equations (joints + drivers) for only "
+                f"{self.n_coordinates} coordinates: the mechanism is over-constrained; remove "
+                "redundant joints or drivers (allowed: at most one equation per coordinate, "
+                "independent)"
+            )
+
+    # ---- coordinates ----------------------------------------------------------------
+    def pose(self, q, name: str):
+        """``(r, phi)`` of a body in configuration ``q`` (ground: zeros)."""
+        i = self.body_index(name)
+        if i < 0:
+            return jnp.zeros(2, q.dtype), jnp.zeros((), q.dtype)
+        return q[3 * i : 3 * i + 2], q[3 * i + 2]
+
+    def angle(self, q, name: str):
+        """Orientation :math:`\\phi` [rad] of a body (ground: 0)."""
+        return self.pose(q, name)[1]
+
+    def twist(self, qdot, name: str):
+        """``(rdot, phidot)`` of a body (ground: zeros)."""
+        return self.pose(qdot, name)
+
+    def guess(self):
+        """Stacked initial guesses ``(q, qdot)`` from the bodies."""
+        q = jnp.concatenate([b.position for b in self.bodies])
+        qd = jnp.concatenate([b.velocity for b in self.bodies])
+        return q, qd
+
+    def mass_matrix_diagonal(self) -> Float[Array, " n"]:
+        """Diagonal of :math:`M = \\mathrm{diag}(m_i, m_i, J_i)`."""
+        return jnp.concatenate([jnp.stack([b.mass, b.mass, b.inertia]) for b in self.bodies])
+
+    def ideal(self) -> "Mechanism":
+        """The same mechanism with every clearance joint replaced by an ideal :class:`Revolute`
+        between its journal and bearing points (appended after the other joints), named
+        ``NAME-ideal``: the reference whose response the clearance perturbs."""
+        if not self.clearance_joints:
+            return self
+        pins = [Revolute(c.journal_body, c.journal_point, c.bearing_body, c.bearing_point) for c in self.clearance_joints]
+        return Mechanism(
+            bodies=self.bodies, joints=(*self.joints, *pins), drivers=self.drivers, clearance_joints=(),
+            loads=self.loads, gravity=self.gravity, ground_points=self.ground_points, name=self.name + "-ideal",
+            roles=dict(self.roles),
+        )
+
+    # ---- kinematics of body points (methods so that joints need not import this module) ----
+    def point_position(self, q, body: str, point: str):
+        return point_position(self, q, body, point)
+
+    def point_velocity(self, q, qdot, body: str, point: str):
+        return point_velocity(self, q, qdot, body, point)
+
+    def point_load(self, q, body: str, at, force):
+        return point_load(self, q, body, at, force)
+
+
+# --------------------------------------------------------------------------------------
+# Kinematics of body points (the one place these formulas live)
+# --------------------------------------------------------------------------------------
+
+
+def point_position(mech: Mechanism, q, body: str, point: str) -> Vec2:
+    """Global position [m] of a named body point: :math:`r + A(\\phi) s'`."""
+    r, phi = mech.pose(q, body)
+    s = mech.point(body, point)
+    if body == GROUND:
+        return s
+    return r + rotate(phi, s)
+
+
+def point_velocity(mech: Mechanism, q, qdot, body: str, point: str) -> Vec2:
+    """Global velocity [m/s] of a named body point: :math:`\\dot r + \\dot\\phi\\,\\mathrm{perp}(A s')`."""
+    if body == GROUND:
+        return jnp.zeros(2, q.dtype)
+    _, phi = mech.pose(q, body)
+    rd, phid = mech.twist(qdot, body)
+    return rd + phid * perp(rotate(phi, mech.point(body, point)))
+
+
+def point_load(mech: Mechanism, q, body: str, at, force) -> Float[Array, " n"]:
+    """Generalized force (n,) of a global ``force`` [N] applied at global point ``at`` [m]:
+    ``[f_x, f_y, (at - r) x f]`` in the rows of ``body`` (nothing for the ground)."""
+    n = mech.n_coordinates
+    i = mech.body_index(body)
+    if i < 0:
+        return jnp.zeros(n, q.dtype)
+    r, _ = mech.pose(q, body)
+    gen = jnp.stack([force[0], force[1], cross2(at - r, force)])
+    return jnp.zeros(n, q.dtype).at[3 * i : 3 * i + 3].add(gen)
