@@ -1,4 +1,4 @@
-"""Files in and out: time series CSV, JSON, and measured data (spec section 8).
+"""Files in and out: time series CSV, JSON, and measured data (:func:`read_measurements`).
 
 Output CSV columns (:func:`timeseries_columns`), units in the names:
 
@@ -13,7 +13,6 @@ with clearance joints; with several joints they get the suffixes ``_1``, ``_2``.
 from __future__ import annotations
 
 import csv
-import json
 import math
 import os
 import warnings
@@ -21,6 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._storage import atomic_write_json
 from .errors import ParameterError
 from .mechanism import Mechanism
 from .solve import Solution
@@ -93,16 +93,13 @@ def _jsonable(obj):
 
 
 def write_json(path, obj) -> str:
-    """Write ``obj`` as indented JSON (arrays become lists, NaN/inf become null). Returns the path."""
-    path = os.fspath(path)
-    with open(path, "w", encoding="utf-8") as f:
-        json.dump(_jsonable(obj), f, indent=2)
-        f.write("\n")
-    return path
+    """Write ``obj`` as indented JSON (arrays become lists, NaN/inf become null; keys in their
+    order), atomically: a reader sees the old file or the new one, never a part. Returns the path."""
+    return atomic_write_json(path, _jsonable(obj), indent=2, sort_keys=False)
 
 
 # --------------------------------------------------------------------------------------
-# Measured data (spec section 8)
+# Measured data: a CSV of time_s, slider_acc_m_s2 and optional columns
 # --------------------------------------------------------------------------------------
 
 REQUIRED_MEASUREMENT_COLUMNS = ("time_s", "slider_acc_m_s2")
@@ -152,7 +149,7 @@ def _parse_metadata(text: str, metadata: dict):
 
 
 def read_measurements(path) -> Measurements:
-    """Read a measured-data CSV (spec section 8).
+    """Read a measured-data CSV (the record format of ``jaxclear fit``).
 
     Format: optional leading ``#`` metadata lines, one header row with units in the column
     names, then numeric rows. Required columns ``time_s`` [s] and ``slider_acc_m_s2``

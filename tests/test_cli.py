@@ -139,7 +139,9 @@ def _fake_solution(mech, n=5):
     z = np.zeros((n, k))
     from jaxclear.clearance import ContactMemory
 
-    mem = ContactMemory(z, np.full((n, k), -1e9), np.cumsum(np.ones((n, k)), axis=0), -np.ones((n, k)), z, z)
+    # memory at t = 0 is the initial one (no onsets, no work); 5 onsets and 1 J dissipated by the first step
+    onsets = np.concatenate([z[:1], np.full((n - 1, k), 5.0)])
+    mem = ContactMemory(z, np.full((n, k), -1e9), onsets, -onsets / 5.0, z, z)
     return jc.Solution(
         ts=t, q=np.tile(np.arange(nq, dtype=float), (n, 1)), qdot=np.zeros((n, nq)),
         qddot=np.outer(np.sin(np.arange(n)), np.ones(nq)), reactions=np.zeros((n, mech.n_constraints)),
