@@ -127,9 +127,10 @@ def joint_metrics(mech: Mechanism, sol: Solution, start: int = 0) -> dict:
 
 
 def _mode_fractions(sol: Solution, start: int = 0) -> dict:
-    """Shares of the window's samples (x joints) in each contact mode (``Solution.mode``)."""
+    """Shares of the window's samples (x joints) in each contact mode (``Solution.mode``): the
+    integer count divided by the number of entries (correctly rounded)."""
     mode = sol.mode[start:]
-    return {key: jnp.mean((mode == m).astype(sol.ts.dtype)) for key, m in _MODES}
+    return {key: jnp.count_nonzero(mode == m).astype(sol.ts.dtype) / mode.size for key, m in _MODES}
 
 
 def _slider_acc(mech: Mechanism, sol: Solution, start: int = 0):

@@ -164,6 +164,24 @@ def plot_contact_force(path, mech: Mechanism, sol: Solution) -> Figure:
     return _save(fig, path)
 
 
+def plot_simulation(folder, mech: Mechanism, sol: Solution, ideal_sol: Solution | None = None,
+                    ideal_mech: Mechanism | None = None) -> list[str]:
+    """Every plot that applies to ``mech``, saved in ``folder`` (which must exist):
+    ``slider_acceleration.png`` with a ``slider`` role (the ideal-joint ``ideal_sol`` of
+    ``ideal_mech`` overlaid when given), ``orbit.png`` and ``contact_force.png`` with clearance
+    joints. Returns the paths written."""
+    folder = os.fspath(folder)
+    paths = []
+    if mech.role("slider") is not None:
+        paths.append(os.path.join(folder, "slider_acceleration.png"))
+        plot_slider_acceleration(paths[-1], mech, sol, ideal_sol, ideal_mech)
+    if mech.clearance_joints:
+        for name, fn in (("orbit.png", plot_orbit), ("contact_force.png", plot_contact_force)):
+            paths.append(os.path.join(folder, name))
+            fn(paths[-1], mech, sol)
+    return paths
+
+
 # --------------------------------------------------------------------------------------
 # Sweeps: heat maps, bifurcation diagrams, Poincare sections
 # --------------------------------------------------------------------------------------
@@ -349,5 +367,5 @@ def plot_fit(path, result) -> Figure:
     return _save(fig, path)
 
 
-__all__ = ["plot_slider_acceleration", "plot_orbit", "plot_contact_force", "plot_heatmap", "plot_bifurcation",
-           "plot_poincare", "plot_fit"]
+__all__ = ["plot_slider_acceleration", "plot_orbit", "plot_contact_force", "plot_simulation", "plot_heatmap",
+           "plot_bifurcation", "plot_poincare", "plot_fit"]
