@@ -148,6 +148,77 @@ def _parse_metadata(text: str, metadata: dict):
         metadata.setdefault("comments", []).append(text)
 
 
+def _record_lines(path: str, lines: list[str]):
+    """Split a record's lines into ``(metadata, header, header_line, rows)``: the leading ``#``
+    lines' metadata, the header fields and line number (None, 0 if absent), and ``(line
+    number, fields)`` of the data rows; blank lines and later ``#`` lines are skipped."""
+    metadata: dict = {}
+    header: list[str] | None = None
+    header_line = 0
+    rows: list[tuple[int, list[str]]] = []
+    for lineno, line in enumerate(lines, start=1):
+        stripped = line.strip()
+        if not stripped:
+            continue
+        if stripped.startswith("#"):
+            if header is None:
+                _parse_metadata(stripped.lstrip("#").strip(), metadata)
+            continue
+        fields = [c.strip() for c in next(csv.reader([line]))]
+        if header is None:
+            header, header_line = fields, lineno
+        else:
+            rows.append((lineno, fields))
+    return metadata, header, header_line, rows
+
+
+def _record_columns(path: str, header: list[str] | None, header_line: int) -> dict[str, int]:
+    """Known column name -> index in the header; errors for a missing header, a duplicate or a
+    missing required column, a warning (at the caller of :func:`read_measurements`) for
+    unknown columns."""
+    if header is None:
+        raise ParameterError(f"{path}: no header row found (expected columns {list(REQUIRED_MEASUREMENT_COLUMNS)})")
+    seen = set()
+    for name in header:
+        if name in seen:
+            raise ParameterError(f"{path}, line {header_line}: column {name!r} appears twice in the header")
+        seen.add(name)
+    missing = [c for c in REQUIRED_MEASUREMENT_COLUMNS if c not in header]
+    if missing:
+        raise ParameterError(
+            f"{path}, line {header_line}: missing required column(s) {missing} in header {header}; "
+            f"required: {list(REQUIRED_MEASUREMENT_COLUMNS)}, optional: {list(OPTIONAL_MEASUREMENT_COLUMNS)}"
+        )
+    known = REQUIRED_MEASUREMENT_COLUMNS + OPTIONAL_MEASUREMENT_COLUMNS
+    unknown = [c for c in header if c not in known]
+    if unknown:
+        warnings.warn(f"{path}: ignoring unknown column(s) {unknown} (known: {list(known)})", stacklevel=3)
+    return {name: header.index(name) for name in known if name in header}
+
+
+def _record_values(path: str, n_fields: int, header_line: int, rows, used: dict[str, int]) -> dict:
+    """Column name -> float array of the data rows; errors name the line and column of a wrong
+    number of fields, a non-numeric or a non-finite value."""
+    values = {name: np.empty(len(rows)) for name in used}
+    for r, (lineno, fields) in enumerate(rows):
+        if len(fields) != n_fields:
+            raise ParameterError(
+                f"{path}, line {lineno}: {len(fields)} fields but the header (line {header_line}) has {n_fields}"
+            )
+        for name, col in used.items():
+            text = fields[col]
+            try:
+                v = float(text)
+            except ValueError:
+                raise ParameterError(
+                    f"{path}, line {lineno}, column {name!r}: non-numeric value {text!r}"
+                ) from None
+            if not math.isfinite(v):
+                raise ParameterError(f"{path}, line {lineno}, column {name!r}: non-finite value {text!r}")
+            values[name][r] = v
+    return values
+
+
 def read_measurements(path) -> Measurements:
     """Read a measured-data CSV (the record format of ``jaxclear fit``).
 
@@ -167,58 +238,9 @@ def read_measurements(path) -> Measurements:
             lines = f.read().splitlines()
     except OSError as err:
         raise ParameterError(f"cannot read measurements file {path!r}: {err.strerror or err}") from None
-    metadata: dict = {}
-    header: list[str] | None = None
-    header_line = 0
-    rows: list[tuple[int, list[str]]] = []
-    for lineno, line in enumerate(lines, start=1):
-        stripped = line.strip()
-        if not stripped:
-            continue
-        if stripped.startswith("#"):
-            if header is None:
-                _parse_metadata(stripped.lstrip("#").strip(), metadata)
-            continue
-        fields = [c.strip() for c in next(csv.reader([line]))]
-        if header is None:
-            header, header_line = fields, lineno
-        else:
-            rows.append((lineno, fields))
-    if header is None:
-        raise ParameterError(f"{path}: no header row found (expected columns {list(REQUIRED_MEASUREMENT_COLUMNS)})")
-    seen = set()
-    for name in header:
-        if name in seen:
-            raise ParameterError(f"{path}, line {header_line}: column {name!r} appears twice in the header")
-        seen.add(name)
-    missing = [c for c in REQUIRED_MEASUREMENT_COLUMNS if c not in header]
-    if missing:
-        raise ParameterError(
-            f"{path}, line {header_line}: missing required column(s) {missing} in header {header}; "
-            f"required: {list(REQUIRED_MEASUREMENT_COLUMNS)}, optional: {list(OPTIONAL_MEASUREMENT_COLUMNS)}"
-        )
-    known = REQUIRED_MEASUREMENT_COLUMNS + OPTIONAL_MEASUREMENT_COLUMNS
-    unknown = [c for c in header if c not in known]
-    if unknown:
-        warnings.warn(f"{path}: ignoring unknown column(s) {unknown} (known: {list(known)})", stacklevel=2)
-    used = {name: header.index(name) for name in known if name in header}
-    values = {name: np.empty(len(rows)) for name in used}
-    for r, (lineno, fields) in enumerate(rows):
-        if len(fields) != len(header):
-            raise ParameterError(
-                f"{path}, line {lineno}: {len(fields)} fields but the header (line {header_line}) has {len(header)}"
-            )
-        for name, col in used.items():
-            text = fields[col]
-            try:
-                v = float(text)
-            except ValueError:
-                raise ParameterError(
-                    f"{path}, line {lineno}, column {name!r}: non-numeric value {text!r}"
-                ) from None
-            if not math.isfinite(v):
-                raise ParameterError(f"{path}, line {lineno}, column {name!r}: non-finite value {text!r}")
-            values[name][r] = v
+    metadata, header, header_line, rows = _record_lines(path, lines)
+    used = _record_columns(path, header, header_line)
+    values = _record_values(path, len(header), header_line, rows, used)
     if len(rows) < 2:
         raise ParameterError(f"{path}: {len(rows)} data row(s); at least 2 samples are needed")
     t = values["time_s"]
