@@ -35,7 +35,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxclear import params
-from jaxclear.sensor import Accelerometer
+from jaxclear.analysis.sensor import Accelerometer
 
 NAMES = ("stiffness", "restitution", "friction", "clearance", "mass:slider", "speed_rpm")
 UNITS = {"stiffness": 1e10, "restitution": 1.0, "friction": 1.0, "clearance": 1e-3, "mass:slider": 1.0,

@@ -131,7 +131,7 @@ from . import io, params
 from .elements import kinematics
 from ._errors import JaxclearError, ParameterError
 from .model import AngleDriver, FunctionDriver, Mechanism
-from .sensor import Accelerometer, record_times, uniform_spacing
+from .analysis.sensor import Accelerometer, record_times, uniform_spacing
 from .integrate import Settings, jit, settings as make_settings, simulate
 from .model import crank_period
 
@@ -256,7 +256,7 @@ def sensor_signal(mech: Mechanism, t_end: float, sample_rate_hz: float, sensor: 
                   rtol: float = 1e-10, atol: float = 1e-13, max_steps: int = 400_000):
     """Noise-free sensor output of the slider acceleration: ``(t, acc, crank_angle)`` at
     ``sample_rate_hz`` on ``[0, t_end]``, simulated ``sensor.oversample`` times finer and filtered
-    (:class:`jaxclear.sensor.Accelerometer`)."""
+    (:class:`jaxclear.analysis.sensor.Accelerometer`)."""
     sensor = Accelerometer() if sensor is None else sensor
     slider = _slider(mech)
     n = int(round(t_end * sample_rate_hz))
@@ -705,7 +705,7 @@ def fit(
         max_iter, ftol, xtol: stopping rules (module docstring).
         rtol, atol, max_steps: integration settings of the model (forward-mode Jacobians).
         align, time_offset: how record times map to simulation time
-            (:func:`jaxclear.sensor.record_times`).
+            (:func:`jaxclear.analysis.sensor.record_times`).
         out: folder for the checkpoint (``fit_checkpoint.json``); None: no checkpoint.
         resume: continue from a matching checkpoint in ``out``.
         progress: show a tqdm progress bar.

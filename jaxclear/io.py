@@ -1,4 +1,4 @@
-"""Files in and out: time series CSV, JSON, and measured data (spec section 8).
+"""Files in and out: time series CSV, JSON, and measured data (:func:`read_measurements`).
 
 Output CSV columns (:func:`timeseries_columns`), units in the names:
 
@@ -13,7 +13,6 @@ with clearance joints; with several joints they get the suffixes ``_1``, ``_2``.
 from __future__ import annotations
 
 import csv
-import json
 import math
 import os
 import warnings
@@ -21,6 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._storage import atomic_write_json
 from ._errors import ParameterError
 from .model import Mechanism
 from .integrate import Solution
@@ -93,16 +93,13 @@ def _jsonable(obj):
 
 
 def write_json(path, obj) -> str:
-    """Write ``obj`` as indented JSON (arrays become lists, NaN/inf become null). Returns the path."""
-    path = os.fspath(path)
-    with open(path, "w", encoding="utf-8") as f:
-        json.dump(_jsonable(obj), f, indent=2)
-        f.write("\n")
-    return path
+    """Write ``obj`` as indented JSON (arrays become lists, NaN/inf become null; keys in their
+    order), atomically: a reader sees the old file or the new one, never a part. Returns the path."""
+    return atomic_write_json(path, _jsonable(obj), indent=2, sort_keys=False)
 
 
 # --------------------------------------------------------------------------------------
-# Measured data (spec section 8)
+# Measured data: a CSV of time_s, slider_acc_m_s2 and optional columns
 # --------------------------------------------------------------------------------------
 
 REQUIRED_MEASUREMENT_COLUMNS = ("time_s", "slider_acc_m_s2")
@@ -151,25 +148,10 @@ def _parse_metadata(text: str, metadata: dict):
         metadata.setdefault("comments", []).append(text)
 
 
-def read_measurements(path) -> Measurements:
-    """Read a measured-data CSV (spec section 8).
-
-    Format: optional leading ``#`` metadata lines, one header row with units in the column
-    names, then numeric rows. Required columns ``time_s`` [s] and ``slider_acc_m_s2``
-    [m/s^2]; optional ``crank_angle_rad``, ``slider_pos_m``, ``slider_vel_m_s``. Unknown
-    columns are ignored with a warning; blank lines and later ``#`` lines are skipped.
-
-    Raises:
-        ParameterError: missing file or header, missing required or duplicate column, wrong
-            number of fields, non-numeric or non-finite value, time not strictly increasing, or
-            fewer than 2 samples; the message names the file, line number and column.
-    """
-    path = os.fspath(path)
-    try:
-        with open(path, encoding="utf-8-sig", newline="") as f:
-            lines = f.read().splitlines()
-    except OSError as err:
-        raise ParameterError(f"cannot read measurements file {path!r}: {err.strerror or err}") from None
+def _record_lines(path: str, lines: list[str]):
+    """Split a record's lines into ``(metadata, header, header_line, rows)``: the leading ``#``
+    lines' metadata, the header fields and line number (None, 0 if absent), and ``(line
+    number, fields)`` of the data rows; blank lines and later ``#`` lines are skipped."""
     metadata: dict = {}
     header: list[str] | None = None
     header_line = 0
@@ -187,6 +169,13 @@ def read_measurements(path) -> Measurements:
             header, header_line = fields, lineno
         else:
             rows.append((lineno, fields))
+    return metadata, header, header_line, rows
+
+
+def _record_columns(path: str, header: list[str] | None, header_line: int) -> dict[str, int]:
+    """Known column name -> index in the header; errors for a missing header, a duplicate or a
+    missing required column, a warning (at the caller of :func:`read_measurements`) for
+    unknown columns."""
     if header is None:
         raise ParameterError(f"{path}: no header row found (expected columns {list(REQUIRED_MEASUREMENT_COLUMNS)})")
     seen = set()
@@ -203,13 +192,18 @@ def read_measurements(path) -> Measurements:
     known = REQUIRED_MEASUREMENT_COLUMNS + OPTIONAL_MEASUREMENT_COLUMNS
     unknown = [c for c in header if c not in known]
     if unknown:
-        warnings.warn(f"{path}: ignoring unknown column(s) {unknown} (known: {list(known)})", stacklevel=2)
-    used = {name: header.index(name) for name in known if name in header}
+        warnings.warn(f"{path}: ignoring unknown column(s) {unknown} (known: {list(known)})", stacklevel=3)
+    return {name: header.index(name) for name in known if name in header}
+
+
+def _record_values(path: str, n_fields: int, header_line: int, rows, used: dict[str, int]) -> dict:
+    """Column name -> float array of the data rows; errors name the line and column of a wrong
+    number of fields, a non-numeric or a non-finite value."""
     values = {name: np.empty(len(rows)) for name in used}
     for r, (lineno, fields) in enumerate(rows):
-        if len(fields) != len(header):
+        if len(fields) != n_fields:
             raise ParameterError(
-                f"{path}, line {lineno}: {len(fields)} fields but the header (line {header_line}) has {len(header)}"
+                f"{path}, line {lineno}: {len(fields)} fields but the header (line {header_line}) has {n_fields}"
             )
         for name, col in used.items():
             text = fields[col]
@@ -222,6 +216,31 @@ def read_measurements(path) -> Measurements:
             if not math.isfinite(v):
                 raise ParameterError(f"{path}, line {lineno}, column {name!r}: non-finite value {text!r}")
             values[name][r] = v
+    return values
+
+
+def read_measurements(path) -> Measurements:
+    """Read a measured-data CSV (the record format of ``jaxclear fit``).
+
+    Format: optional leading ``#`` metadata lines, one header row with units in the column
+    names, then numeric rows. Required columns ``time_s`` [s] and ``slider_acc_m_s2``
+    [m/s^2]; optional ``crank_angle_rad``, ``slider_pos_m``, ``slider_vel_m_s``. Unknown
+    columns are ignored with a warning; blank lines and later ``#`` lines are skipped.
+
+    Raises:
+        ParameterError: missing file or header, missing required or duplicate column, wrong
+            number of fields, non-numeric or non-finite value, time not strictly increasing, or
+            fewer than 2 samples; the message names the file, line number and column.
+    """
+    path = os.fspath(path)
+    try:
+        with open(path, encoding="utf-8-sig", newline="") as f:
+            lines = f.read().splitlines()
+    except OSError as err:
+        raise ParameterError(f"cannot read measurements file {path!r}: {err.strerror or err}") from None
+    metadata, header, header_line, rows = _record_lines(path, lines)
+    used = _record_columns(path, header, header_line)
+    values = _record_values(path, len(header), header_line, rows, used)
     if len(rows) < 2:
         raise ParameterError(f"{path}: {len(rows)} data row(s); at least 2 samples are needed")
     t = values["time_s"]

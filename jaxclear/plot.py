@@ -47,19 +47,8 @@ def _angle_ticks(ax, x):
 
 
 def law_label(law) -> str:
-    """Registered name of a contact law object (``law.model``, else looked up by its class)."""
-    name = getattr(law, "model", None)
-    if isinstance(name, str):
-        return name
-    try:
-        from .contact.registry import LAWS
-
-        for key, (cls, _) in LAWS.items():
-            if type(law) is cls:
-                return key
-    except Exception:  # pragma: no cover - registry layout changed
-        pass
-    return type(law).__name__
+    """Registered name of a contact law object (:attr:`AbstractNormalLaw.name`)."""
+    return law.name
 
 
 def joint_label(joint) -> str:
@@ -162,6 +151,24 @@ def plot_contact_force(path, mech: Mechanism, sol: Solution) -> Figure:
     ax.legend(loc="upper right")
     fig.tight_layout()
     return _save(fig, path)
+
+
+def plot_simulation(folder, mech: Mechanism, sol: Solution, ideal_sol: Solution | None = None,
+                    ideal_mech: Mechanism | None = None) -> list[str]:
+    """Every plot that applies to ``mech``, saved in ``folder`` (which must exist):
+    ``slider_acceleration.png`` with a ``slider`` role (the ideal-joint ``ideal_sol`` of
+    ``ideal_mech`` overlaid when given), ``orbit.png`` and ``contact_force.png`` with clearance
+    joints. Returns the paths written."""
+    folder = os.fspath(folder)
+    paths = []
+    if mech.role("slider") is not None:
+        paths.append(os.path.join(folder, "slider_acceleration.png"))
+        plot_slider_acceleration(paths[-1], mech, sol, ideal_sol, ideal_mech)
+    if mech.clearance_joints:
+        for name, fn in (("orbit.png", plot_orbit), ("contact_force.png", plot_contact_force)):
+            paths.append(os.path.join(folder, name))
+            fn(paths[-1], mech, sol)
+    return paths
 
 
 # --------------------------------------------------------------------------------------
@@ -349,5 +356,5 @@ def plot_fit(path, result) -> Figure:
     return _save(fig, path)
 
 
-__all__ = ["plot_slider_acceleration", "plot_orbit", "plot_contact_force", "plot_heatmap", "plot_bifurcation",
-           "plot_poincare", "plot_fit"]
+__all__ = ["plot_slider_acceleration", "plot_orbit", "plot_contact_force", "plot_simulation", "plot_heatmap",
+           "plot_bifurcation", "plot_poincare", "plot_fit"]

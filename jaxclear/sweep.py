@@ -36,7 +36,7 @@ How it runs:
 Chunks are laid out over the global run indices (chunk ``c`` = runs ``c*S .. c*S+S-1``), so a
 resumed sweep batches every run exactly as an uninterrupted one does and gets the same bits.
 
-Metrics per run: :func:`jaxclear.metrics.run_metrics` over the window after
+Metrics per run: :func:`jaxclear.analysis.metrics.run_metrics` over the window after
 ``transient_revolutions``, the slider-acceleration deviation against the ideal-joint mechanism
 (``jc.preset(..., ideal=True)``, same speed, same time grid, vmapped alongside). Poincare
 points: the journal state (eccentricity ``e_x, e_y`` [m] and its rate ``v_x, v_y`` [m/s],
@@ -71,7 +71,7 @@ from . import params
 from .elements import kinematics
 from ._errors import JaxclearError, ParameterError
 from .model import AngleDriver, Mechanism
-from .metrics import RUN_METRIC_KEYS, run_metrics
+from .analysis.metrics import RUN_METRIC_KEYS, run_metrics
 from ._errors import STATUS
 from .integrate import SOLVERS, Settings, jit, simulate
 

@@ -11,8 +11,11 @@ import numpy as np
 import pytest
 
 import jaxclear as jc
-from jaxclear import io, metrics
-from jaxclear.cli import main
+from jaxclear import io
+from jaxclear.analysis import metrics
+from jaxclear.integrate import runs
+from jaxclear.cli import build_parser, main
+from jaxclear.cli.common import mechanism_overrides
 from jaxclear import ParameterError
 
 HEADER = [
@@ -119,6 +122,41 @@ def test_help(capsys):
         assert option in text and unit in text, option
 
 
+def test_hybrid_options_name_their_flags(tmp_path, capsys):
+    """Hybrid-model options without --model hybrid: the message names the flags given."""
+    out = tmp_path / "out"
+    assert main(["simulate", "--elements", "3", "--gauss-points", "2", "--no-progress", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: --elements, --gauss-points apply only to --model hybrid"), err
+    assert not out.exists()
+    # the parser accepts what the hybrid law accepts (>= 1) and maps the flags to its options
+    args = build_parser().parse_args(["simulate", "--model", "hybrid", "--elements", "1", "--gauss-points", "1"])
+    assert mechanism_overrides(args)["law_options"] == {"n_elements": 1, "n_gauss": 1}
+    assert main(["simulate", "--model", "hybrid", "--elements", "0"]) == 2
+    assert "--elements" in capsys.readouterr().err
+
+
+def test_revolution_settings():
+    """Revolutions -> t_end and samples (2000 per revolution + 1, at least 101); t_end instead."""
+    mech = jc.preset("flores-slider-crank")  # 5000 rpm: one revolution in 12 ms
+    period = 60.0 / 5000.0
+    s = runs.revolution_settings(mech, 0.25, solver="bosh3", rtol=1e-5)
+    assert math.isclose(float(s.t_end), 0.25 * period, rel_tol=1e-14) and s.n_out == 501
+    assert s.solver == "bosh3" and s.rtol == 1e-5
+    assert runs.revolution_settings(mech).n_out == 6001  # 3 revolutions by default
+    assert runs.revolution_settings(mech, 0.01).n_out == 101  # at least 100 + 1
+    s = runs.revolution_settings(mech, t_end=0.5 * period)  # t_end wins over revolutions
+    assert float(s.t_end) == 0.5 * period and s.n_out == 1001
+    assert runs.revolution_settings(mech, 2.0, n_out=7).n_out == 7
+    assert math.isclose(runs.revolutions_of(mech, 3 * period), 3.0, rel_tol=1e-14)
+    assert runs.revolutions_of(jc.preset("flores-slider-crank", speed_rpm=0.0), 1.0) is None
+    assert runs.revolution_settings(jc.preset("flores-slider-crank", speed_rpm=0.0), t_end=1.0).n_out == 2001
+    with pytest.raises(ParameterError, match="revolutions"):
+        runs.revolution_settings(mech, 0.0)
+    with pytest.raises(ParameterError, match="t_end"):
+        runs.revolution_settings(mech, t_end=-1.0)
+
+
 def test_presets_command(capsys):
     assert main(["presets"]) == 0
     text = capsys.readouterr().out
@@ -139,7 +177,9 @@ def _fake_solution(mech, n=5):
     z = np.zeros((n, k))
     from jaxclear.elements import ContactMemory
 
-    mem = ContactMemory(z, np.full((n, k), -1e9), np.cumsum(np.ones((n, k)), axis=0), -np.ones((n, k)), z, z)
+    # memory at t = 0 is the initial one (no onsets, no work); 5 onsets and 1 J dissipated by the first step
+    onsets = np.concatenate([z[:1], np.full((n - 1, k), 5.0)])
+    mem = ContactMemory(z, np.full((n, k), -1e9), onsets, -onsets / 5.0, z, z)
     return jc.Solution(
         ts=t, q=np.tile(np.arange(nq, dtype=float), (n, 1)), qdot=np.zeros((n, nq)),
         qddot=np.outer(np.sin(np.arange(n)), np.ones(nq)), reactions=np.zeros((n, mech.n_constraints)),

@@ -32,7 +32,8 @@ import numpy as np
 import pytest
 
 import jaxclear as jc
-from jaxclear import metrics, params, sweep
+from jaxclear import params, sweep
+from jaxclear.analysis import metrics
 from jaxclear.cli import main
 from jaxclear import ParameterError
 

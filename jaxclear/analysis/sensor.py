@@ -1,5 +1,6 @@
 r"""What a measured acceleration record is compared with: the accelerometer model, and putting
-the simulation on the record's clock (spec section 8 records; used by :mod:`jaxclear.fit`).
+the simulation on the record's clock (records read by :func:`jaxclear.io.read_measurements`;
+used by :mod:`jaxclear.fit`).
 
 Accelerometer model
 -------------------
@@ -34,8 +35,7 @@ Clock alignment
 :func:`record_times` maps the record's times to simulation time: ``align="time"`` takes the
 first sample as :math:`t = 0` of the simulation (plus ``time_offset``); ``align="crank"`` uses
 the ``crank_angle_rad`` column and the crank speed, :math:`t = (\varphi - \varphi_0)/\omega`,
-which removes a clock offset or drift of the recorder. :func:`resample` puts any signal on
-another time grid (linear interpolation).
+which removes a clock offset or drift of the recorder.
 """
 
 from __future__ import annotations
@@ -48,7 +48,7 @@ import jax.numpy as jnp
 import numpy as np
 import scipy.linalg
 
-from ._errors import ParameterError, check_range
+from .._errors import ParameterError, check_range
 
 
 class Accelerometer(eqx.Module):
@@ -121,12 +121,6 @@ def _foh_matrices(cutoff_hz: float, dt: float):
     return e[:2, :2], e[:2, 2], e[:2, 3] / dt
 
 
-def butterworth_response(cutoff_hz: float, freq_hz):
-    """|H(f)| of the analogue 2nd-order Butterworth low-pass (for checks and plots)."""
-    r = np.asarray(freq_hz, dtype=float) / cutoff_hz
-    return 1.0 / np.sqrt(1.0 + r**4)
-
-
 # --------------------------------------------------------------------------------------
 # Clocks and grids
 # --------------------------------------------------------------------------------------
@@ -164,12 +158,6 @@ def record_times(meas, align: str = "time", speed: float | None = None, angle0: 
     raise ParameterError(f"align = {align!r}; valid: 'time', 'crank'")
 
 
-def resample(t, y, t_new):
-    """Linear interpolation of ``y(t)`` at ``t_new`` (jax; differentiable in ``y``). ``t`` must be
-    increasing; ``t_new`` outside ``[t[0], t[-1]]`` takes the end values."""
-    return jnp.interp(jnp.asarray(t_new), jnp.asarray(t), y)
-
-
 def uniform_spacing(t) -> float:
     """Median sample spacing [s] of an increasing time vector."""
     d = np.diff(np.asarray(t, dtype=float))
@@ -178,4 +166,4 @@ def uniform_spacing(t) -> float:
     return float(np.median(d))
 
 
-__all__ = ["Accelerometer", "butterworth_response", "record_times", "resample", "uniform_spacing"]
+__all__ = ["Accelerometer", "record_times", "uniform_spacing"]

@@ -1,0 +1,72 @@
+"""The ``jaxclear`` command line.
+
+    jaxclear simulate [options]          simulate a preset, write CSV, JSON and PNG plots
+    jaxclear presets                     list the preset mechanisms
+    jaxclear models [--json]             list the contact force laws
+    jaxclear sweep CONFIG.toml [options] run a parameter sweep
+    jaxclear fit DATA.csv [options]      fit contact parameters to a measured record
+
+One module per command (:mod:`.simulate`, :mod:`.presets`, :mod:`.models`, :mod:`.sweep`,
+:mod:`.fit`), each with ``HELP``, ``DESCRIPTION`` and ``configure(parser) -> run``, where
+``run(args)`` returns the exit code; shared options live in :mod:`.common`. The commands parse
+and print only: the work is done by the library. Errors of type
+:class:`jaxclear.JaxclearError` (bad parameters, failed runs) are printed as ``error: ...`` on
+stderr with exit code 2 and no traceback; command-line syntax errors also exit with 2
+(argparse), file-system errors with 1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from .. import __version__
+from .._errors import JaxclearError
+from . import fit, models, presets, simulate, sweep
+from .common import Formatter
+
+#: Commands in help order: name -> module.
+COMMANDS = {"presets": presets, "simulate": simulate, "models": models, "sweep": sweep, "fit": fit}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The full parser, with one sub-parser per command of :data:`COMMANDS`."""
+    parser = argparse.ArgumentParser(
+        prog="jaxclear",
+        description="Dynamics of planar mechanisms with revolute clearance joints (JAX, differentiable).",
+        epilog="Run 'jaxclear COMMAND --help' for the options of a command (all in SI units).\n"
+        "Example: jaxclear simulate --preset flores-slider-crank --clearance 0.5e-3 --revolutions 3",
+        formatter_class=Formatter,
+    )
+    parser.add_argument("--version", action="version", version=f"jaxclear {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", title="commands")
+    for name, module in COMMANDS.items():
+        p = sub.add_parser(name, help=module.HELP, description=module.DESCRIPTION, formatter_class=Formatter)
+        p.set_defaults(run=module.configure(p))
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``jaxclear`` console script; returns the exit code."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help, --version, usage errors (code 2)
+        return int(exc.code or 0) if not isinstance(exc.code, str) else 2
+    if getattr(args, "run", None) is None:
+        parser.print_help(sys.stderr)
+        return 2
+    try:
+        return int(args.run(args) or 0)
+    except JaxclearError as err:
+        text = str(err)
+        text = text[len("jaxclear: "):] if text.startswith("jaxclear: ") else text
+        print(f"error: {text}", file=sys.stderr)
+        return 2
+    except OSError as err:
+        where = f" {err.filename!r}" if getattr(err, "filename", None) else ""
+        print(f"error: cannot access{where}: {err.strerror or err}", file=sys.stderr)
+        return 1
+
+
+__all__ = ["COMMANDS", "build_parser", "main"]

@@ -1,0 +1,129 @@
+"""What the commands share: the help formatter, argument types, the mechanism option group
+(preset, physical parameters, contact law and its hybrid-model options) and the conversion of
+those options to :func:`jaxclear.presets.preset` keyword arguments."""
+
+from __future__ import annotations
+
+import argparse
+
+from ..contact.registry import law_names
+from .._errors import ParameterError
+from ..presets import preset_names
+
+
+class Formatter(argparse.RawDescriptionHelpFormatter):
+    """Help layout of every command: descriptions kept as written, 100 columns."""
+
+    def __init__(self, prog):
+        super().__init__(prog, max_help_position=30, width=100)
+
+
+def int_at_least(low: int):
+    """argparse type: an integer >= ``low`` (else a usage error naming the bound)."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+        if value < low:
+            raise argparse.ArgumentTypeError(f"must be at least {low}, got {value}")
+        return value
+
+    return parse
+
+
+def name_value(text: str) -> tuple[str, float]:
+    """argparse type: ``NAME=VALUE`` with a numeric value -> ``(name, value)``."""
+    name, sep, value = text.partition("=")
+    if not sep or not name.strip():
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}")
+    try:
+        return name.strip(), float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{name.strip()}: value {value!r} is not a number") from None
+
+
+def fmt(value, unit: str = "", spec: str = ".4g") -> str:
+    """``value`` with its unit for printing, ``n/a`` for None."""
+    return "n/a" if value is None else f"{value:{spec}}{(' ' + unit) if unit else ''}"
+
+
+def add_mechanism_options(p: argparse.ArgumentParser, title: str = "mechanism", ideal: bool = True,
+                          needs_slider: bool = False):
+    """The mechanism options (``--preset``, the physical parameters, ``--model`` and its hybrid
+    options) of simulate and fit, in a group named ``title``; ``--ideal`` only if ``ideal``;
+    ``needs_slider``: the command needs a preset with a slider (said in the help)."""
+    mech = p.add_argument_group(title)
+    which = "preset mechanism with a slider" if needs_slider else "preset mechanism"
+    mech.add_argument("--preset", default="flores-slider-crank", metavar="NAME",
+                      help=f"{which}, one of {', '.join(preset_names())} (default: flores-slider-crank)")
+    mech.add_argument("--clearance", type=float, metavar="M",
+                      help="radial clearance c = R_B - R_J [m], > 0 and < the bearing radius "
+                      "(default: the preset's, 0.5e-3 m)")
+    mech.add_argument("--restitution", type=float, metavar="CR",
+                      help="coefficient of restitution c_r [-], in (0, 1] (default: the preset's, 0.9)")
+    mech.add_argument("--friction", type=float, metavar="MU",
+                      help="friction coefficient mu [-], >= 0 (default: the preset's; 0 for "
+                      "flores-slider-crank and four-bar, 0.01 for flores-2011-rig)")
+    mech.add_argument("--speed-rpm", type=float, metavar="RPM",
+                      help="crank speed [rev/min] (default: the preset's; 5000 for flores-slider-crank, "
+                      "200 for flores-2011-rig, 500 for four-bar)")
+    mech.add_argument("--model", default="lankarani-nikravesh", metavar="LAW",
+                      help=f"normal contact force law [-], one of {', '.join(law_names())} "
+                      "(default: lankarani-nikravesh)")
+    mech.add_argument("--stiffness", type=float, metavar="K",
+                      help="contact stiffness, > 0: K [N/m^n] of the Hertz-family laws (n = 1.5), the "
+                      "stiffness parameter of the others (default: from steel, E = 207 GPa, nu = 0.3, and "
+                      "the radii; K = 6.61e10 N/m^1.5 for R_B = 10 mm, c = 0.5 mm)")
+    if ideal:
+        mech.add_argument("--ideal", action="store_true",
+                          help="replace the clearance joint by an ideal revolute joint (default: off)")
+    _add_hybrid_options(p)
+
+
+#: Hybrid-model option (argparse attribute) -> keyword of the hybrid law.
+HYBRID_OPTIONS = {"placement": "placement", "elements": "n_elements", "gauss_points": "n_gauss",
+                  "layer_thickness": "thickness", "damping": "damping", "geometry": "geometry"}
+
+
+def _add_hybrid_options(p: argparse.ArgumentParser):
+    """Options of the hybrid Gauss-point model (``--model hybrid``)."""
+    h = p.add_argument_group("hybrid model (--model hybrid)")
+    h.add_argument("--placement", choices=("arc", "fixed"), default=None,
+                   help="where the Gauss points sit: 'arc' (on the current contact arc, exact with few "
+                   "points) or 'fixed' (body-fixed over the whole pin circumference, the model's original "
+                   "formulation) (default: arc)")
+    h.add_argument("--elements", type=int_at_least(1), metavar="N_E",
+                   help="number of elements N_e [-], >= 1 (default: 2 for arc, 180 for fixed)")
+    h.add_argument("--gauss-points", type=int_at_least(1), metavar="N_G",
+                   help="Gauss-Legendre points per element N_g [-], >= 1 (default: 4)")
+    h.add_argument("--layer-thickness", type=float, metavar="H",
+                   help="compliant layer thickness h [m], > 0 (default: the clearance c)")
+    h.add_argument("--damping", choices=("joint", "point"), default=None,
+                   help="Qin-Lu damping applied to the joint resultant or to every point (default: joint)")
+    h.add_argument("--geometry", choices=("exact", "small-gap"), default=None,
+                   help="point penetration from the exact circles or the small-gap profile e cos(theta) - c "
+                   "(default: exact)")
+
+
+def _hybrid_options(args) -> dict:
+    """``law_options`` of the hybrid law from its options; an error naming the options given
+    without ``--model hybrid``."""
+    given = [attr for attr in HYBRID_OPTIONS if getattr(args, attr, None) is not None]
+    if given and args.model != "hybrid":
+        flags = ", ".join("--" + attr.replace("_", "-") for attr in given)
+        raise ParameterError(f"{flags} apply only to --model hybrid (got --model {args.model})")
+    return {HYBRID_OPTIONS[attr]: getattr(args, attr) for attr in given}
+
+
+def mechanism_overrides(args) -> dict:
+    """Keyword arguments of :func:`jaxclear.presets.preset` from the mechanism options: the
+    physical parameters given (SI, crank speed in rpm), ``law`` and ``law_options``."""
+    names = ("clearance", "restitution", "friction", "speed_rpm", "stiffness")
+    out = {name: getattr(args, name) for name in names if getattr(args, name) is not None}
+    out["law"] = args.model
+    opts = _hybrid_options(args)
+    if opts:
+        out["law_options"] = opts
+    return out

@@ -1,0 +1,112 @@
+"""``jaxclear fit``: fit contact parameters of a preset to a measured record (JSON, PNG)."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import warnings
+
+from .._errors import ParameterError
+from ..fit import fit
+from ..presets import preset
+from ..analysis.sensor import Accelerometer
+from .common import add_mechanism_options, mechanism_overrides, name_value
+
+HELP = "fit contact parameters to a measured record (JSON, PNG)"
+DESCRIPTION = """\
+Fit contact parameters of a preset to a measured slider acceleration (a CSV with the columns
+time_s, slider_acc_m_s2 and optionally crank_angle_rad, slider_pos_m, slider_vel_m_s; see
+jaxclear.io.read_measurements) and write:
+  fit.json              estimates, std (Gauss-Newton), loss, iterations, wall time, diagnostics
+  fit.png               measured vs fitted acceleration and the residuals
+  fit_checkpoint.json   the fit's state after every iteration: the same command resumes it
+The first sample is the preset's start (crank angle 0, journal centred, velocities from the
+ideal kinematics). The loss is on short windows from that state (see jaxclear.fit).
+Example: jaxclear fit data.csv --free stiffness,restitution --start stiffness=2e11 \\
+         --start restitution=0.6 --sensor-cutoff-hz 20000 --out fit-out"""
+
+
+def configure(p: argparse.ArgumentParser):
+    """Add the options of ``jaxclear fit``; returns its ``run(args) -> exit code``."""
+    p.add_argument("data", metavar="DATA.csv", help="measured record (time_s, slider_acc_m_s2, ...)")
+    add_mechanism_options(p, "model (known values; free parameters start from them unless --start)", ideal=False,
+                          needs_slider=True)
+    f = p.add_argument_group("fit")
+    f.add_argument("--free", default="stiffness,restitution", metavar="NAMES",
+                   help="comma-separated free parameters: stiffness [N/m^1.5 for the LN family], restitution, "
+                   "friction, clearance [m], mass:BODY, ..., sensor_gain, sensor_bias (default: stiffness,restitution)")
+    f.add_argument("--start", type=name_value, action="append", default=[], metavar="NAME=VALUE",
+                   help="start value of a free parameter (SI), repeatable (default: the model's value)")
+    f.add_argument("--window", type=float, metavar="S",
+                   help="length of a fit window [s], > 0 (default: a quarter crank revolution)")
+    f.add_argument("--windows", type=int, default=1, metavar="N",
+                   help="back-to-back windows, >= 1; windows after the first estimate their journal state "
+                   "(default: 1)")
+    f.add_argument("--starts", type=int, default=1, metavar="N", help="number of starts, >= 1 (default: 1)")
+    f.add_argument("--optimizer", default="levenberg-marquardt", metavar="NAME",
+                   help="levenberg-marquardt (optax transformation, default) or adam[:LR]")
+    f.add_argument("--max-iter", type=int, default=30, metavar="N",
+                   help="iterations of the last stage, >= 1; earlier stages get half (default: 30)")
+    f.add_argument("--align", choices=("time", "crank"), default="time",
+                   help="first sample = simulation start ('time') or simulation time from crank_angle_rad "
+                   "('crank') (default: time)")
+    f.add_argument("--rtol", type=float, default=1e-8, metavar="TOL",
+                   help="relative tolerance of the model's integration (default: 1e-8)")
+    f.add_argument("--atol", type=float, default=1e-11, metavar="TOL",
+                   help="absolute tolerance of the model's integration [m, rad, m/s] (default: 1e-11)")
+    s = p.add_argument_group("sensor model")
+    s.add_argument("--sensor-cutoff-hz", type=float, metavar="HZ",
+                   help="accelerometer low-pass cut-off (2nd-order Butterworth) [Hz] (default: none)")
+    s.add_argument("--sensor-gain", type=float, default=1.0, metavar="G", help="accelerometer gain [-] (default: 1)")
+    s.add_argument("--sensor-bias", type=float, default=0.0, metavar="B",
+                   help="accelerometer bias [m/s^2] (default: 0)")
+    s.add_argument("--oversample", type=int, default=4, metavar="N",
+                   help="model grid points per record sample, >= 1 (default: 4)")
+    out = p.add_argument_group("output")
+    out.add_argument("--out", default="./jaxclear-fit", metavar="DIR",
+                     help="output folder, created if missing (default: ./jaxclear-fit)")
+    out.add_argument("--restart", action="store_true", help="ignore a checkpoint in --out instead of resuming")
+    out.add_argument("--no-plots", action="store_true", help="write fit.json only (default: off)")
+    out.add_argument("--no-progress", action="store_true", help="hide the progress bar (default: shown)")
+    return run
+
+
+def run(args) -> int:
+    """Check the counts, fit, write fit.json and fit.png, print the estimates."""
+    for name, value in (("--windows", args.windows), ("--starts", args.starts), ("--max-iter", args.max_iter),
+                        ("--oversample", args.oversample)):
+        if value < 1:
+            raise ParameterError(f"{name} = {value} must be >= 1")
+    mech = preset(args.preset, **mechanism_overrides(args))
+    free = [n.strip() for n in args.free.split(",") if n.strip()]
+    sensor = Accelerometer(args.sensor_cutoff_hz, gain=args.sensor_gain, bias=args.sensor_bias,
+                           oversample=args.oversample)
+    os.makedirs(args.out, exist_ok=True)
+    print(f"jaxclear fit: {args.data}, {mech.name} with {args.model}, free {', '.join(free)}; sensor: "
+          f"{sensor.describe()}", flush=True)
+    print("compiling the forward-mode model (about 20 to 40 s), then fitting...", flush=True)
+    with warnings.catch_warnings():  # the fit's warnings are printed below, once
+        warnings.simplefilter("ignore", UserWarning)
+        res = fit(args.data, mech, free, dict(args.start), sensor=sensor, window=args.window, windows=args.windows,
+                  starts=args.starts, optimizer=args.optimizer, max_iter=args.max_iter, rtol=args.rtol,
+                  atol=args.atol, align=args.align, out=args.out, resume=not args.restart,
+                  progress=not args.no_progress)
+    files = [res.write_json(os.path.join(args.out, "fit.json"))]
+    if not args.no_plots:
+        files.append(os.path.join(args.out, "fit.png"))
+        res.plot(files[-1])
+    _print_result(res, files)
+    return 0
+
+
+def _print_result(res, files: list[str]):
+    """Print the fit's outcome, the estimates with their start values and std, and warnings."""
+    width = max(len(n) for n in res.estimates)
+    print(f"done in {res.wall_time_s:.1f} s wall, {res.iterations} iterations ({res.stop_reason}); "
+          f"loss {res.loss:.4g}, residual lag-1 autocorrelation {res.residual_autocorrelation:.2f}")
+    print(f"  {'parameter':<{width}}  {'start':>12}  {'estimate':>12}  {'std':>10}")
+    for name, value in res.estimates.items():
+        print(f"  {name:<{width}}  {res.start[name]:>12.6g}  {value:>12.6g}  {res.std[name]:>10.3g}")
+    for w in res.warnings:
+        print(f"warning: {w}")
+    print("wrote " + ", ".join(files))

@@ -1,0 +1,129 @@
+"""``jaxclear simulate``: simulate a preset mechanism and write CSV, JSON and PNG plots."""
+
+from __future__ import annotations
+
+import argparse
+import os
+
+from .. import io, plot
+from ..analysis import metrics
+from ..integrate import runs
+from .._errors import check_range
+from ..presets import preset
+from ..integrate import SOLVERS
+from .common import add_mechanism_options, fmt, int_at_least, mechanism_overrides
+
+HELP = "simulate a preset mechanism (CSV, JSON, PNG)"
+DESCRIPTION = """\
+Simulate a preset mechanism and write to the output folder:
+  timeseries.csv          sampled time series (SI units in the column names)
+  summary.json            peak contact force, impacts, penetration, solver statistics, wall time
+  slider_acceleration.png slider acceleration vs crank angle, ideal joint overlaid (slider only)
+  orbit.png               journal-centre orbit inside the clearance circle (clearance joint only)
+  contact_force.png       contact force vs crank angle (clearance joint only)
+
+Physical parameters left out keep the preset's values (see 'jaxclear presets' and the
+preset's docstring); e.g. flores-slider-crank: clearance 0.5e-3 m, restitution 0.9,
+friction 0, 5000 rpm."""
+
+
+def configure(p: argparse.ArgumentParser):
+    """Add the options of ``jaxclear simulate``; returns its ``run(args) -> exit code``."""
+    add_mechanism_options(p)
+    run_ = p.add_argument_group("integration")
+    run_.add_argument("--revolutions", type=float, default=3.0, metavar="N",
+                      help="simulated time in crank revolutions [-], > 0 (default: 3)")
+    run_.add_argument("--t-end", type=float, metavar="S",
+                      help="simulated time [s], > 0; overrides --revolutions (default: unset)")
+    run_.add_argument("--n-out", type=int_at_least(2), metavar="N",
+                      help=f"number of output samples [-], >= 2, uniform in time (default: "
+                      f"{runs.SAMPLES_PER_REVOLUTION} per crank revolution + 1, i.e. "
+                      f"{3 * runs.SAMPLES_PER_REVOLUTION + 1} for 3 revolutions)")
+    run_.add_argument("--solver", default="tsit5", metavar="NAME",
+                      help=f"explicit/implicit Runge-Kutta solver, one of {', '.join(SOLVERS)} (default: tsit5)")
+    run_.add_argument("--rtol", type=float, default=1e-6, metavar="TOL",
+                      help="relative tolerance of the adaptive step [-], in (0, 1) (default: 1e-6)")
+    run_.add_argument("--atol", type=float, default=1e-9, metavar="TOL",
+                      help="absolute tolerance of the adaptive step [m, rad, m/s, rad/s], > 0 (default: 1e-9)")
+    run_.add_argument("--max-steps", type=int, default=400_000, metavar="N",
+                      help="maximum number of solver steps [-], >= 1 (default: 400000)")
+    out = p.add_argument_group("output")
+    out.add_argument("--out", default="./jaxclear-out", metavar="DIR",
+                     help="output folder, created if missing (default: ./jaxclear-out)")
+    out.add_argument("--no-plots", action="store_true", help="write CSV and JSON only, no PNG (default: off)")
+    out.add_argument("--no-progress", action="store_true", help="hide the progress bar (default: shown)")
+    return run
+
+
+def _settings(args, mech):
+    """The run's :class:`~jaxclear.solve.Settings` from the integration options (checked first
+    under their flag names)."""
+    if args.t_end is not None:
+        check_range("--t-end", args.t_end, low=0.0, low_open=True, unit="s")
+    else:
+        check_range("--revolutions", args.revolutions, low=0.0, low_open=True)
+    return runs.revolution_settings(mech, args.revolutions, t_end=args.t_end, n_out=args.n_out,
+                                    solver=args.solver, rtol=args.rtol, atol=args.atol,
+                                    max_steps=args.max_steps, progress=not args.no_progress)
+
+
+def run(args) -> int:
+    """Simulate, write timeseries.csv, the plots and summary.json, print the summary."""
+    overrides = mechanism_overrides(args)
+    mech = preset(args.preset, ideal=args.ideal, **overrides)
+    s = _settings(args, mech)
+    t_end, n_out = float(s.t_end), int(s.n_out)
+    revolutions = runs.revolutions_of(mech, t_end)
+    os.makedirs(args.out, exist_ok=True)
+
+    joint = mech.clearance_joints[0] if mech.clearance_joints else None
+    what = "ideal joints" if joint is None else f"{plot.joint_label(joint)}, mu = {float(joint.friction.coefficient):g}"
+    revs = f" ({revolutions:g} crank revolution(s))" if revolutions is not None else ""
+    print(f"jaxclear: {mech.name}, {what}; t_end = {t_end:.6g} s{revs}, {n_out} samples, "
+          f"{args.solver} rtol={args.rtol:g} atol={args.atol:g}", flush=True)
+    overlay = not args.no_plots and mech.role("slider") is not None and bool(mech.clearance_joints)
+    print("compiling and integrating (the first run includes JIT compilation)"
+          + (", then the ideal-joint mechanism for the overlay" if overlay else "") + "...", flush=True)
+    r = runs.simulate_with_ideal(mech, s, ideal=overlay)
+
+    summary = metrics.summary(mech, r.sol, wall_time_s=r.wall_time_s)
+    summary["inputs"] = {
+        "preset": args.preset, "ideal": bool(args.ideal), **overrides, "t_end_s": t_end,
+        "revolutions": revolutions, "n_out": n_out, "solver": args.solver, "rtol": args.rtol,
+        "atol": args.atol, "max_steps": args.max_steps,
+    }
+    if r.ideal_sol is not None:
+        summary["ideal_wall_time_s"] = r.ideal_wall_time_s
+        summary["ideal_peak_slider_acc_m_s2"] = metrics.peak_slider_acceleration(r.ideal_mech, r.ideal_sol)
+    files = [io.write_timeseries_csv(os.path.join(args.out, "timeseries.csv"), mech, r.sol)]
+    if not args.no_plots:
+        files += plot.plot_simulation(args.out, mech, r.sol, r.ideal_sol, r.ideal_mech)
+    files.append(io.write_json(os.path.join(args.out, "summary.json"), summary))
+    _print_summary(summary, files)
+    return 0
+
+
+def _print_summary(s: dict, files: list[str]):
+    """Print the main numbers of summary.json and the files written."""
+    lines = [f"done in {s['wall_time_s']:.2f} s wall (incl. compilation); status {s['status']}: {s['status_message']}"]
+    if s["impacts"] is not None:
+        pen = s["max_penetration_m"]
+        lines += [
+            f"  impacts (contact onsets)   {s['impacts']}",
+            f"  peak contact force         {fmt(s['peak_contact_force_n'], 'N')}",
+            f"  max penetration            {fmt(pen * 1e6 if pen is not None else None, 'um')}",
+            f"  free / impact / continuous {s['fraction_free_flight']:.1%} / {s['fraction_impact']:.1%} / "
+            f"{s['fraction_continuous_contact']:.1%} of samples",
+            f"  energy dissipated          {fmt(s['energy_dissipated_j'], 'J')}",
+        ]
+    if s["peak_slider_acc_m_s2"] is not None:
+        ideal = s.get("ideal_peak_slider_acc_m_s2")
+        extra = f" (ideal joint: {fmt(ideal, 'm/s^2')})" if ideal is not None else ""
+        lines.append(f"  peak slider acceleration   {fmt(s['peak_slider_acc_m_s2'], 'm/s^2')}{extra}")
+    lines += [
+        f"  max constraint drift       {fmt(s['max_constraint_drift'], spec='.3g')}",
+        f"  solver steps               {s['num_steps']} ({s['num_accepted_steps']} accepted, "
+        f"{s['num_rejected_steps']} rejected)",
+        "wrote " + ", ".join(files),
+    ]
+    print("\n".join(lines))

@@ -1,0 +1,77 @@
+"""``jaxclear sweep``: run a parameter sweep from a TOML file (CSV, NPZ, PNG)."""
+
+from __future__ import annotations
+
+import argparse
+import os
+
+from ..sweep import CSV_NAME, MANIFEST_NAME, bifurcation, heatmap, load_config, poincare_plot, run_sweep
+
+HELP = "run a parameter sweep from a TOML file (CSV, NPZ, PNG)"
+DESCRIPTION = """\
+Run a parameter sweep described by a TOML file (see examples/sweep.toml): a grid or a list
+over any numeric parameters, batched with jax.vmap over all local devices, compiled once,
+written chunk by chunk to the output folder:
+  runs.csv                one row per run: index, parameters, metrics, status, status message
+  manifest.json           the sweep's definition and hash (a re-run resumes the same sweep)
+  chunks/chunk_NNNNNN.npz Poincare points (and time series with --trajectories)
+  heatmap_METRIC.png      2-parameter grids: heat maps of the main metrics
+  bifurcation_NAME.png    1-parameter sweeps: bifurcation diagram (Poincare e_x per revolution)
+  poincare.png            Poincare sections of every run
+Running the same command again after an interruption resumes where it stopped."""
+
+#: Metrics drawn as heat maps for 2-parameter grids.
+PLOT_METRICS = ("peak_contact_force_n", "energy_dissipated_per_rev_j", "rms_acc_deviation_m_s2", "impacts")
+
+
+def configure(p: argparse.ArgumentParser):
+    """Add the options of ``jaxclear sweep``; returns its ``run(args) -> exit code``."""
+    p.add_argument("config", metavar="CONFIG.toml", help="sweep configuration file (TOML)")
+    p.add_argument("--out", metavar="DIR", help="output folder (default: the file's output.dir, else ./sweep-out)")
+    p.add_argument("--chunk-size", type=int, metavar="N",
+                   help="runs per chunk, >= 1, rounded up to a multiple of the devices "
+                   "(default: the file's, else auto)")
+    p.add_argument("--devices", type=int, metavar="N",
+                   help="number of local devices to use, >= 1 (default: all)")
+    p.add_argument("--trajectories", action="store_true", default=None,
+                   help="also store the time series in the chunk files (default: the file's, else off)")
+    p.add_argument("--restart", action="store_true", help="discard results already in the folder instead of resuming")
+    p.add_argument("--no-plots", action="store_true", help="write CSV/NPZ/JSON only, no PNG (default: off)")
+    p.add_argument("--no-progress", action="store_true", help="hide the progress bar (default: shown)")
+    return run
+
+
+def run(args) -> int:
+    """Load the configuration, run (or resume) the sweep, draw its plots, print a summary."""
+    cfg = load_config(args.config, out=args.out, chunk_size=args.chunk_size, devices=args.devices,
+                      trajectories=args.trajectories, progress=False if args.no_progress else None)
+    mode = "grid" if cfg.grid is not None else "list"
+    print(f"jaxclear sweep: {cfg.n_runs} runs ({mode} over {', '.join(cfg.names)}), {cfg.revolutions:g} revolutions "
+          f"each, output {cfg.out}", flush=True)
+    res = run_sweep(cfg, restart=args.restart)
+    table = res.table
+    failed = int(sum(1 for s in table["status"] if s != 0))
+    files = [os.path.join(cfg.out, CSV_NAME), os.path.join(cfg.out, MANIFEST_NAME)]
+    if not args.no_plots and len(table["run"]):
+        files += _plots(cfg, res, grid=mode == "grid")
+    print(f"done: {len(table['run'])} of {cfg.n_runs} runs on disk ({res.computed} computed now), {failed} failed")
+    print("wrote " + ", ".join(files))
+    return 0
+
+
+def _plots(cfg, res, grid: bool) -> list[str]:
+    """Heat maps (2-parameter grids), the bifurcation diagram (1 parameter) and the Poincare
+    sections of a sweep, in its output folder; returns the paths written."""
+    files = []
+    if grid and len(cfg.names) == 2:
+        for metric in PLOT_METRICS:
+            if metric in res.table:
+                files.append(os.path.join(cfg.out, f"heatmap_{metric}.png"))
+                heatmap(res, metric, x=cfg.names[0], y=cfg.names[1], path=files[-1])
+    if res.poincare.size:
+        if len(cfg.names) == 1:
+            files.append(os.path.join(cfg.out, f"bifurcation_{cfg.names[0].replace(':', '_')}.png"))
+            bifurcation(res, cfg.names[0], path=files[-1])
+        files.append(os.path.join(cfg.out, "poincare.png"))
+        poincare_plot(res, path=files[-1])
+    return files

@@ -1,0 +1,116 @@
+"""How long to simulate and what to compare with: run settings in crank revolutions, and a
+simulation paired with its ideal-joint reference.
+
+* :func:`revolution_settings`: :class:`~jaxclear.solve.Settings` for ``revolutions`` crank
+  revolutions (or a time ``t_end`` [s]), with :data:`SAMPLES_PER_REVOLUTION` output samples per
+  revolution unless ``n_out`` is given.
+* :func:`simulate_with_ideal`: the simulation of a mechanism and, when it has clearance
+  joints, of its ideal-joint counterpart (:meth:`~jaxclear.mechanism.Mechanism.ideal`) on the
+  same settings and output grid, with wall times; the reference that the clearance perturbs
+  (e.g. the overlay of the slider-acceleration plot).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import NamedTuple
+
+import jax
+
+from .._errors import check_range
+from ..model import Mechanism, crank_driver, crank_period
+from .settings import Settings, settings
+from .simulate import simulate
+from .solution import Solution
+
+#: Output samples per crank revolution of :func:`revolution_settings` (plus one for the end).
+SAMPLES_PER_REVOLUTION = 2000
+#: Fewest output samples from the revolutions rule (plus one for the end), for short runs.
+MIN_SAMPLES = 100
+#: Output samples when the revolutions are undefined (no crank, or a crank at rest) and
+#: ``n_out`` is not given.
+DEFAULT_SAMPLES = 2001
+
+
+def revolutions_of(mech: Mechanism, t_end: float) -> float | None:
+    """Crank revolutions [-] in ``t_end`` seconds, or None when the mechanism has no crank
+    driver (:func:`~jaxclear.mechanism.crank_driver`) or its crank is at rest."""
+    crank = crank_driver(mech)
+    if crank is None or float(crank[1].speed) == 0.0:
+        return None
+    return float(t_end) / crank_period(mech)
+
+
+def revolution_settings(mech: Mechanism, revolutions: float | None = 3.0, *, t_end: float | None = None,
+                        n_out: int | None = None, samples_per_revolution: int = SAMPLES_PER_REVOLUTION,
+                        **settings_kwargs) -> Settings:
+    """:class:`~jaxclear.solve.Settings` for ``revolutions`` crank revolutions.
+
+    Args:
+        mech: the mechanism; its crank driver's speed sets the period ``2 pi / |omega|`` [s].
+        revolutions: simulated time in crank revolutions [-], > 0 (ignored when ``t_end`` is
+            given). Needs a crank driver with a non-zero speed.
+        t_end: simulated time [s], > 0, instead of ``revolutions`` (works without a crank).
+        n_out: number of output samples [-], >= 2, uniform in time; default
+            ``max(round(samples_per_revolution * revolutions), MIN_SAMPLES) + 1``, or
+            :data:`DEFAULT_SAMPLES` when the revolutions are undefined.
+        samples_per_revolution: output samples per crank revolution [-] for the default ``n_out``.
+        **settings_kwargs: the other fields of :func:`jaxclear.solve.settings` (``solver``,
+            ``rtol``, ``atol``, ``max_steps``, ``progress``...).
+
+    Raises:
+        ParameterError: ``revolutions`` or ``t_end`` not > 0, or no crank speed for
+            ``revolutions`` (MechanismError without a crank driver).
+    """
+    if t_end is not None:
+        check_range("t_end", t_end, low=0.0, low_open=True, unit="s")
+        t_end = float(t_end)
+        revolutions = revolutions_of(mech, t_end)
+    else:
+        check_range("revolutions", revolutions, low=0.0, low_open=True)
+        t_end = float(revolutions) * crank_period(mech)
+    if n_out is None:
+        n_out = DEFAULT_SAMPLES if revolutions is None else (
+            max(int(round(samples_per_revolution * revolutions)), MIN_SAMPLES) + 1)
+    return settings(t_end, n_out=int(n_out), **settings_kwargs)
+
+
+class RunWithIdeal(NamedTuple):
+    """A simulation and its ideal-joint reference (see :func:`simulate_with_ideal`)."""
+
+    sol: Solution
+    #: the solution of ``ideal_mech`` on the same settings, or None
+    ideal_sol: Solution | None
+    #: ``mech.ideal()``, or None when no reference was simulated
+    ideal_mech: Mechanism | None
+    #: wall time of ``sol`` [s], including JIT compilation on the first call
+    wall_time_s: float
+    #: wall time of ``ideal_sol`` [s], or None
+    ideal_wall_time_s: float | None
+
+
+def timed_simulate(mech: Mechanism, s: Settings) -> tuple[Solution, float]:
+    """:func:`jaxclear.solve.simulate` and its wall time [s] (until the results are ready,
+    including JIT compilation on the first call)."""
+    t0 = time.perf_counter()
+    sol = jax.block_until_ready(simulate(mech, s))
+    return sol, time.perf_counter() - t0
+
+
+def simulate_with_ideal(mech: Mechanism, s: Settings, ideal: bool = True) -> RunWithIdeal:
+    """Simulate ``mech`` and, if ``ideal`` and it has clearance joints, its ideal-joint
+    counterpart ``mech.ideal()`` (every clearance joint an ideal revolute joint) with the same
+    settings, so both solutions share the output grid. Errors of either run propagate
+    (:class:`jaxclear.JaxclearError`)."""
+    sol, wall = timed_simulate(mech, s)
+    if not (ideal and mech.clearance_joints):
+        return RunWithIdeal(sol, None, None, wall, None)
+    ideal_mech = mech.ideal()
+    ideal_sol, ideal_wall = timed_simulate(ideal_mech, s)
+    return RunWithIdeal(sol, ideal_sol, ideal_mech, wall, ideal_wall)
+
+
+__all__ = [
+    "DEFAULT_SAMPLES", "MIN_SAMPLES", "SAMPLES_PER_REVOLUTION", "RunWithIdeal", "revolution_settings",
+    "revolutions_of", "simulate_with_ideal", "timed_simulate",
+]
