@@ -107,13 +107,13 @@ def _doc(**changes):
     (dict(output__trajectories="yes"), r"trajectories = 'yes': expected true or false"),
 ])
 def test_bad_config_is_a_clear_error_before_any_compute(changes, match, tmp_path):
-    before = sweep.TRACE_COUNT
+    before = sweep.TRACE_COUNT.value
     out = tmp_path / "never"
     doc = _doc(**changes)
     doc.setdefault("output", {})["dir"] = str(out)
     with pytest.raises(ParameterError, match=match):
         sweep.config_from_dict(doc, source="cfg.toml")
-    assert sweep.TRACE_COUNT == before and not out.exists()
+    assert sweep.TRACE_COUNT.value == before and not out.exists()
 
 
 def test_bad_toml_and_missing_file(tmp_path):
@@ -161,6 +161,23 @@ def test_auto_chunk_size():
     assert sweep.auto_chunk_size(101, 1, 1000, memory_bytes=1 << 34) == sweep.DEFAULT_RUNS_PER_DEVICE
     assert sweep.auto_chunk_size(101, 4, 5, memory_bytes=1 << 34) == 8  # runs rounded up to the devices
     assert sweep.auto_chunk_size(101, 1, 3, memory_bytes=1 << 34) == 3
+
+
+def test_compiled_chunk_has_no_lapack_call():
+    """The compiled chunk (clearance runs, ideal-joint runs, metrics; 2 runs on one device)
+    contains no LAPACK custom call. jaxlib 0.10's batched CPU LAPACK kernels split a large batch
+    over the intra-op thread pool and block the calling thread, so two concurrent ones (two
+    host devices, or the clearance and ideal phases) could deadlock; the sweep no longer orders
+    its phases or caps its runs per device against that, so this must stay true."""
+    import re
+
+    cfg = sweep.SweepConfig(grid={"clearance": [0.25e-3, 0.5e-3]}, revolutions=0.5, ideal_reference=True,
+                            **FAST_RUN)
+    assert cfg.ideal is not None
+    plan = sweep.make_plan(cfg, sweep.make_mesh(1))
+    text = sweep.compiled_hlo(sweep._put(cfg.values, plan.mesh), cfg.base_mechanism, cfg.ideal, plan)
+    targets = set(re.findall(r'custom_call_target="([^"]+)"', text))
+    assert "lapack" not in text.lower(), sorted(targets)
 
 
 # --------------------------------------------------------------------------------------
@@ -253,11 +270,11 @@ E2E = {
 def _e2e(out):
     cfg = sweep.SweepConfig(list=E2E, revolutions=1.0, transient_revolutions=0.5, chunk_size=2, out=str(out),
                             trajectories=True, max_steps=10_000, **FAST_RUN)
-    before = sweep.TRACE_COUNT
+    before = sweep.TRACE_COUNT.value
     res = sweep.run_sweep(cfg)
-    traces = sweep.TRACE_COUNT - before
+    traces = sweep.TRACE_COUNT.value - before
     again = sweep.run_sweep(cfg)  # everything is on disk: nothing to do, nothing compiled
-    return cfg, res, traces, again, sweep.TRACE_COUNT - before
+    return cfg, res, traces, again, sweep.TRACE_COUNT.value - before
 
 
 def _check_compiled_once_for_the_whole_sweep(e2e):
@@ -463,7 +480,7 @@ MULTI_DEVICE_SCRIPT = textwrap.dedent("""
     same = all(np.array_equal(two.table[k], one.table[k]) for k in two.table)
     print(json.dumps({"same": bool(same), "input_devices": len(arr.sharding.device_set),
                       "shard_shape": list(arr.addressable_shards[0].data.shape),
-                      "layout": manifest["layout"], "traces": sweep.TRACE_COUNT,
+                      "layout": manifest["layout"], "traces": sweep.TRACE_COUNT.value,
                       "poincare_same": bool(np.array_equal(two.poincare, one.poincare))}))
 """)
 
