@@ -30,7 +30,7 @@ from jaxtyping import Array, Float
 
 from . import constraints
 from .clearance import ContactMemory, update_memory
-from .dynamics import Baumgarte, State, accelerations, flat_vector_field
+from .dynamics import Baumgarte, State, accelerations, flat_vector_field, spd_solve
 from .errors import InitialConditionError, MechanismError, ParameterError, SolverError, _is_concrete
 from .mechanism import AngleDriver, FunctionDriver, Mechanism
 
@@ -210,6 +210,24 @@ class Assembly(eqx.Module):
     jacobian: Float[Array, "m n"]
 
 
+def minimum_norm_correction(d, r):
+    r"""Minimum-norm :math:`x` with :math:`D x = r`: :math:`x = D^T (D D^T + \epsilon I)^{-1} r`
+    (m, n) x (m,) -> (n,).
+
+    The small Tikhonov term :math:`\epsilon = 10^{-13}\,\mathrm{tr}(D D^T)/m` keeps the solve
+    finite for redundant (rank-deficient but consistent) constraints, which the eager checks
+    then name; for independent constraints it changes the result by a relative
+    :math:`\epsilon/\sigma_{min}^2`, removed by the Newton iterations (positions) and by one
+    refinement step (velocities). The solve is :func:`~jaxclear.dynamics.spd_solve`, an unrolled
+    elimination: no LAPACK call, so a vmapped batch of assemblies (sweeps) never reaches jaxlib's
+    batched CPU LAPACK kernels."""
+    dd = jnp.sum(d[:, None, :] * d[None, :, :], axis=-1)
+    m = dd.shape[0]
+    eps = 1e-13 * jnp.trace(dd) / m
+    y = spd_solve(dd + eps * jnp.eye(m, dtype=dd.dtype), r)
+    return jnp.sum(d * y[:, None], axis=0)
+
+
 def assemble(mech: Mechanism, t0=0.0) -> Assembly:
     r"""Consistent ``(q, qdot)`` at ``t0``.
 
@@ -219,6 +237,7 @@ def assemble(mech: Mechanism, t0=0.0) -> Assembly:
     Velocities: the guess corrected (minimum-norm) to :math:`D\dot q = -\Phi_t` on joints and
     drivers and to the prescribed relative velocity ``initial_velocity`` on every clearance
     joint (zero by default: the ideal-joint kinematics, journal moving with its bearing).
+    :math:`D^+` is applied by :func:`minimum_norm_correction` (no LAPACK).
     """
     q, qd = mech.guess()
     t0 = jnp.asarray(t0, q.dtype)
@@ -227,7 +246,7 @@ def assemble(mech: Mechanism, t0=0.0) -> Assembly:
     def newton(_, q):
         r = constraints.phi(mech, q, t0, extra)
         d = constraints.jacobian(mech, q, t0, extra)
-        return q - jnp.linalg.pinv(d) @ r
+        return q - minimum_norm_correction(d, r)
 
     if mech.n_constraints + 2 * len(extra) == 0:
         return Assembly(q, qd, jnp.zeros((), q.dtype), jnp.zeros((0, q.shape[0]), q.dtype))
@@ -237,7 +256,8 @@ def assemble(mech: Mechanism, t0=0.0) -> Assembly:
     phit = constraints.time_derivative(mech, q, t0, extra)
     # clearance joints: prescribed relative journal velocity (zero by default)
     target = jnp.concatenate([jnp.zeros(mech.n_constraints, q.dtype)] + [c.initial_velocity for c in extra])
-    qd = qd - jnp.linalg.pinv(d) @ (d @ qd + phit - target)
+    for _ in range(2):  # one projection and one refinement step
+        qd = qd - minimum_norm_correction(d, d @ qd + phit - target)
     return Assembly(q, qd, jnp.linalg.norm(r), d)
 
 
