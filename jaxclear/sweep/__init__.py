@@ -35,17 +35,28 @@ alongside). Poincare points: the journal state (eccentricity ``e_x, e_y`` [m] an
 ``v_x, v_y`` [m/s], journal centre relative to bearing centre,
 :func:`jaxclear.clearance.journal_state`) at every whole crank revolution after the transient.
 
-No LAPACK in the compiled chunk (measured). Earlier versions sequenced the ideal-joint runs after
-the clearance runs and capped the runs per CPU device, because jaxlib 0.10's batched CPU LAPACK
-kernels split a large batch over the intra-op thread pool and block, so two concurrent ones
-could deadlock. The engine's per-step and post-processing solves are unrolled eliminations and
-the assembly no longer calls an SVD, so the compiled HLO of a chunk (flores-slider-crank,
-4 runs, ideal reference on, ``jax.jit(...).lower(...).compile().as_text()``) holds no
-``lapack`` custom call (before the assembly change: ``lapack_dgesdd_ffi``, the assembly's
-``pinv``). With both workarounds removed, a 24-run chunk with the ideal reference over 2 forced
-host devices on 2 cores (``XLA_FLAGS=--xla_force_host_platform_device_count=2``, 0.5 revolution,
-101 samples, Bogacki-Shampine) completes (timings in ``benchmarks/README.md``). The test
-``test_compiled_chunk_has_no_lapack_call`` keeps it that way.
+No LAPACK in the compiled chunk (measured 2026-11-23, jax 0.10.2, 2 shared CPU cores). Earlier
+versions ran the ideal-joint runs only after every clearance run of the batch had finished and
+capped the runs per CPU device, because jaxlib 0.10's batched CPU LAPACK kernels split a large
+batch over the intra-op thread pool and block the calling pool thread, so two concurrent ones
+could deadlock (a 20-run chunk on 2 forced host devices once hung with every pool thread in
+``lapack_dgetrf_ffi``). The engine's solves are now unrolled eliminations
+(``dynamics.spd_solve``), also in the assembly of the initial conditions. Measured:
+
+* custom calls of the compiled chunk (flores-slider-crank, 4 runs, ideal reference on, 1 device;
+  :func:`compiled_hlo`, i.e. ``jit(...).lower(...).compile()`` as text): before the assembly
+  change ``lapack_dgesdd_ffi`` (the assembly's ``pinv``) and ``xla_ffi_python_cpu_callback``;
+  after it only ``xla_ffi_python_cpu_callback``;
+* with both workarounds removed, on 2 forced host devices
+  (``XLA_FLAGS=--xla_force_host_platform_device_count=2``), ideal reference on, Bogacki-Shampine:
+  a 24-run chunk (12 per device, 0.5 revolution, 101 samples) completes in 9.5 s (compilation
+  included; 16.0 s before the assembly change); a 600-run chunk (300 per device: ``300 x 9^3``
+  is above the 200,000 at which jaxlib 0.10 split its batched LU kernel over the pool; 0.25
+  revolution, 2 samples) in 12.1 s (24.8 s before the assembly change, which also completed).
+  Timings on a shared machine (load average about 5), so they vary.
+
+``tests/test_sweep.py::test_compiled_chunk_has_no_lapack_call`` keeps the compiled chunk free of
+LAPACK calls, so the deadlock cannot come back unnoticed.
 
 Several hosts: call ``jax.distributed.initialize()`` in every process before
 :func:`run_sweep`; the mesh then spans every device of every process, each process feeds its
