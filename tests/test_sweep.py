@@ -20,6 +20,7 @@ import csv
 import json
 import math
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -164,19 +165,29 @@ def test_auto_chunk_size():
     assert sweep.auto_chunk_size(101, 1, 3, memory_bytes=1 << 34) == 3
 
 
+def test_trace_count_is_read_as_value_and_ideal_defaults_to_mechanism_ideal():
+    assert isinstance(sweep.TRACE_COUNT.value, int)
+    with pytest.raises(TypeError, match=r"TRACE_COUNT.value"):
+        sweep.TRACE_COUNT == 0  # noqa: B015  (the object is not a number: no silent self-comparison)
+    mech = jc.preset("flores-slider-crank")
+    cfg = sweep.SweepConfig(mechanism=mech, grid={"clearance": [0.25e-3]}, revolutions=1)
+    assert cfg.ideal is not None and cfg.ideal.name == mech.name + "-ideal" and not cfg.ideal.clearance_joints
+    assert cfg.ideal_names == ()  # clearance does not apply to the ideal-joint mechanism
+    assert sweep.SweepConfig(mechanism=mech, grid={"clearance": [0.25e-3]}, ideal_reference=False).ideal is None
+
+
 def test_compiled_chunk_has_no_lapack_call():
     """The compiled chunk (clearance runs, ideal-joint runs, metrics; 2 runs on one device)
     contains no LAPACK custom call. jaxlib 0.10's batched CPU LAPACK kernels split a large batch
     over the intra-op thread pool and block the calling thread, so two concurrent ones (two
     host devices, or the clearance and ideal phases) could deadlock; the sweep no longer orders
     its phases or caps its runs per device against that, so this must stay true."""
-    import re
-
     cfg = sweep.SweepConfig(grid={"clearance": [0.25e-3, 0.5e-3]}, revolutions=0.5, ideal_reference=True,
                             **FAST_RUN)
     assert cfg.ideal is not None
     plan = sweep.make_plan(cfg, sweep.make_mesh(1))
     text = sweep.compiled_hlo(sweep._put(cfg.values, plan.mesh), cfg.base_mechanism, cfg.ideal, plan)
+
     def lapack_targets(hlo: str) -> list[str]:
         return sorted(t for t in set(re.findall(r'custom_call_target="([^"]+)"', hlo)) if "lapack" in t.lower())
 
