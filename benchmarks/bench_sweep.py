@@ -21,9 +21,9 @@ restitution 0.5 to 0.95 drawn from a fixed grid) are computed
 * (``--two-devices``) in a child process with two host CPU devices forced
   (``XLA_FLAGS=--xla_force_host_platform_device_count=2``): the chunk function sharded over both
   devices against the same chunks on one device, with ``--two-devices-samples`` output samples
-  per revolution. With as many CPU devices as cores, a per-device batch of ``r`` runs must keep
-  ``r x n_out x n^3`` below jaxlib's LAPACK split size (``jaxclear.sweep.max_runs_per_device``;
-  otherwise jaxlib 0.10 can deadlock), hence the few samples there.
+  per revolution (default: ``--samples``). The compiled chunk calls no LAPACK kernel, so the
+  jaxlib 0.10 thread-pool deadlock of batched LAPACK calls, which once forced few samples and
+  small per-device batches here, cannot occur.
 
 Every jaxclear row runs the per-run metrics too (no ideal-joint reference run, so that the work
 equals SciPy's: one clearance simulation per run). Throughput = runs / wall time of the whole
@@ -80,9 +80,7 @@ def _config(args, values, chunk, devices=1):
 def _plan(cfg, mesh):
     from jaxclear import sweep
 
-    return sweep.Plan(names=cfg.names, ideal_names=(), revolutions=float(cfg.revolutions), n_out=cfg.n_out,
-                      start=cfg.window_start, section=cfg.section, solver=cfg.solver, rtol=cfg.rtol, atol=cfg.atol,
-                      max_steps=cfg.max_steps, trajectories=False, mesh=mesh)
+    return sweep.make_plan(cfg, mesh, trajectories=False, ideal=False)
 
 
 def time_batched(args, values, batch: int, devices: int = 1) -> dict:
@@ -129,12 +127,13 @@ def time_serial(args, values, stages="loop") -> dict:
     import jax.numpy as jnp
 
     from jaxclear import sweep
+    from jaxclear.sweep import batch
 
     cfg = _config(args, values, 1)
     plan = _plan(cfg, None)
-    original = sweep._settings
+    original = batch._settings
     if stages != "loop":
-        sweep._settings = lambda plan, m: dataclasses.replace(original(plan, m), stages=stages)
+        batch._settings = lambda plan, m: dataclasses.replace(original(plan, m), stages=stages)
     try:
         # a fresh function object per call: jit caches compilations by function, and the
         # stages setting is read inside it
@@ -151,7 +150,7 @@ def time_serial(args, values, stages="loop") -> dict:
             status.append(int(out["status"]))
         wall = time.perf_counter() - t
     finally:
-        sweep._settings = original
+        batch._settings = original
     n = len(values)
     method = ("serial loop (same function, jitted, unbatched)" if stages == "loop"
               else "serial loop, unrolled stages (jc.simulate default)")
@@ -224,8 +223,8 @@ def main(argv=None) -> int:
     p.add_argument("--scipy-runs", type=int, default=4, help="runs of the SciPy reference (default 4; 0 skips)")
     p.add_argument("--two-devices", default="4,8,16",
                    help="chunk sizes sharded over 2 forced host devices in a child process ('' skips; default 4,8,16)")
-    p.add_argument("--two-devices-samples", type=int, default=5,
-                   help="output samples per revolution in the two-device rows (default 5, see above)")
+    p.add_argument("--two-devices-samples", type=int, default=None,
+                   help="output samples per revolution in the two-device rows (default: --samples)")
     p.add_argument("--json", default=str(HERE / "results" / "sweep.json"), help="where the JSON results go")
     p.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = p.parse_args(argv)
@@ -233,15 +232,8 @@ def main(argv=None) -> int:
     sizes = [int(s) for s in args.batch_sizes.split(",") if s]
 
     if args.child:  # two forced host devices: sharded rows and the same chunks on one device
-        from jaxclear import sweep
-
-        cap = sweep.max_runs_per_device(_config(args, values, 2, 2), 2)
         rows = []
         for b in sizes:
-            if cap is not None and b > 2 * cap:
-                print(f"skipping chunk {b}: more than {cap} runs per device can deadlock jaxlib here",
-                      file=sys.stderr)
-                continue
             rows.append(time_batched(args, values, b, devices=1))
             rows[-1]["method"] = f"vmap chunks, 1 device ({args.samples}/rev)"
             rows.append(time_batched(args, values, b, devices=2))
@@ -270,7 +262,7 @@ def main(argv=None) -> int:
         env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2",
                    PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
         cmd = [sys.executable, __file__, "--child", "--runs", str(args.runs), "--revolutions", str(args.revolutions),
-               "--samples", str(args.two_devices_samples), "--batch-sizes", args.two_devices]
+               "--samples", str(args.two_devices_samples or args.samples), "--batch-sizes", args.two_devices]
         done = subprocess.run(cmd, env=env, capture_output=True, text=True)
         if done.returncode == 0:
             child_rows = json.loads(done.stdout.strip().splitlines()[-1])

@@ -184,7 +184,9 @@ def _fake_solution(mech, n=5):
         ts=t, q=np.tile(np.arange(nq, dtype=float), (n, 1)), qdot=np.zeros((n, nq)),
         qddot=np.outer(np.sin(np.arange(n)), np.ones(nq)), reactions=np.zeros((n, mech.n_constraints)),
         drift=np.full(n, 1e-9), ecc=np.zeros((n, k, 2)), penetration=z - 1e-4, normal_force=z,
-        friction_force=z, mode=np.zeros((n, k), int), memory=mem, num_steps=np.asarray(7),
+        friction_force=z, mode=np.zeros((n, k), int),
+        element_states=tuple(ContactMemory(*(np.asarray(x)[:, j] for x in (mem.impact_velocity, mem.contact_start, mem.impacts, mem.work, mem.peak_force, mem.peak_penetration))) for j in range(k)),
+        num_steps=np.asarray(7),
         num_accepted_steps=np.asarray(5), num_rejected_steps=np.asarray(2), status=np.asarray(0),
     )
 

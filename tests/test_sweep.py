@@ -20,6 +20,7 @@ import csv
 import json
 import math
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -27,6 +28,7 @@ import textwrap
 import time
 from pathlib import Path
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -108,13 +110,13 @@ def _doc(**changes):
     (dict(output__trajectories="yes"), r"trajectories = 'yes': expected true or false"),
 ])
 def test_bad_config_is_a_clear_error_before_any_compute(changes, match, tmp_path):
-    before = sweep.TRACE_COUNT
+    before = sweep.TRACE_COUNT.value
     out = tmp_path / "never"
     doc = _doc(**changes)
     doc.setdefault("output", {})["dir"] = str(out)
     with pytest.raises(ParameterError, match=match):
         sweep.config_from_dict(doc, source="cfg.toml")
-    assert sweep.TRACE_COUNT == before and not out.exists()
+    assert sweep.TRACE_COUNT.value == before and not out.exists()
 
 
 def test_bad_toml_and_missing_file(tmp_path):
@@ -162,6 +164,39 @@ def test_auto_chunk_size():
     assert sweep.auto_chunk_size(101, 1, 1000, memory_bytes=1 << 34) == sweep.DEFAULT_RUNS_PER_DEVICE
     assert sweep.auto_chunk_size(101, 4, 5, memory_bytes=1 << 34) == 8  # runs rounded up to the devices
     assert sweep.auto_chunk_size(101, 1, 3, memory_bytes=1 << 34) == 3
+
+
+def test_trace_count_is_read_as_value_and_ideal_defaults_to_mechanism_ideal():
+    assert isinstance(sweep.TRACE_COUNT.value, int)
+    with pytest.raises(TypeError, match=r"TRACE_COUNT.value"):
+        sweep.TRACE_COUNT == 0  # noqa: B015  (the object is not a number: no silent self-comparison)
+    mech = jc.preset("flores-slider-crank")
+    cfg = sweep.SweepConfig(mechanism=mech, grid={"clearance": [0.25e-3]}, revolutions=1)
+    assert cfg.ideal is not None and cfg.ideal.name == mech.name + "-ideal" and not cfg.ideal.clearance_joints
+    assert cfg.ideal_names == ()  # clearance does not apply to the ideal-joint mechanism
+    assert sweep.SweepConfig(mechanism=mech, grid={"clearance": [0.25e-3]}, ideal_reference=False).ideal is None
+
+
+def test_compiled_chunk_has_no_lapack_call():
+    """The compiled chunk (clearance runs, ideal-joint runs, metrics; 2 runs on one device)
+    contains no LAPACK custom call. jaxlib 0.10's batched CPU LAPACK kernels split a large batch
+    over the intra-op thread pool and block the calling thread, so two concurrent ones (two
+    host devices, or the clearance and ideal phases) could deadlock; the sweep no longer orders
+    its phases or caps its runs per device against that, so this must stay true."""
+    cfg = sweep.SweepConfig(grid={"clearance": [0.25e-3, 0.5e-3]}, revolutions=0.5, ideal_reference=True,
+                            **FAST_RUN)
+    assert cfg.ideal is not None
+    plan = sweep.make_plan(cfg, sweep.make_mesh(1))
+    text = sweep.compiled_hlo(sweep._put(cfg.values, plan.mesh), cfg.base_mechanism, cfg.ideal, plan)
+
+    def lapack_targets(hlo: str) -> list[str]:
+        return sorted(t for t in set(re.findall(r'custom_call_target="([^"]+)"', hlo)) if "lapack" in t.lower())
+
+    # control: the check sees a LAPACK call where there is one (a batched LU solve on CPU)
+    control = jax.jit(jax.vmap(jnp.linalg.solve)).lower(jnp.ones((4, 3, 3)), jnp.ones((4, 3))).compile().as_text()
+    if jax.default_backend() == "cpu":
+        assert lapack_targets(control), "the check cannot see LAPACK calls: the HLO format changed"
+    assert lapack_targets(text) == []
 
 
 # --------------------------------------------------------------------------------------
@@ -254,11 +289,11 @@ E2E = {
 def _e2e(out):
     cfg = sweep.SweepConfig(list=E2E, revolutions=1.0, transient_revolutions=0.5, chunk_size=2, out=str(out),
                             trajectories=True, max_steps=10_000, **FAST_RUN)
-    before = sweep.TRACE_COUNT
+    before = sweep.TRACE_COUNT.value
     res = sweep.run_sweep(cfg)
-    traces = sweep.TRACE_COUNT - before
+    traces = sweep.TRACE_COUNT.value - before
     again = sweep.run_sweep(cfg)  # everything is on disk: nothing to do, nothing compiled
-    return cfg, res, traces, again, sweep.TRACE_COUNT - before
+    return cfg, res, traces, again, sweep.TRACE_COUNT.value - before
 
 
 def _check_compiled_once_for_the_whole_sweep(e2e):
@@ -464,7 +499,7 @@ MULTI_DEVICE_SCRIPT = textwrap.dedent("""
     same = all(np.array_equal(two.table[k], one.table[k]) for k in two.table)
     print(json.dumps({"same": bool(same), "input_devices": len(arr.sharding.device_set),
                       "shard_shape": list(arr.addressable_shards[0].data.shape),
-                      "layout": manifest["layout"], "traces": sweep.TRACE_COUNT,
+                      "layout": manifest["layout"], "traces": sweep.TRACE_COUNT.value,
                       "poincare_same": bool(np.array_equal(two.poincare, one.poincare))}))
 """)
 

@@ -1,0 +1,181 @@
+r"""The compiled batch function: one pure function ``values (B, P) -> outputs``, jitted once
+per sweep structure.
+
+A run has three phases, each ``jax.vmap``-ped over the batch inside ``jax.shard_map`` over a
+1-D mesh of the devices (batch axis ``"batch"``):
+
+1. :func:`_clearance_run`: the mechanism with the row's parameters, integrated to
+   :math:`t_{end} = N_{rev}\, 2\pi / |\omega|` with ``n_out`` output samples;
+2. :func:`_ideal_run` (``ideal_reference``): the ideal-joint mechanism at the same speed on the
+   same time grid, for the slider-acceleration deviation;
+3. :func:`_finish`: the per-run metrics (:func:`jaxclear.analysis.metrics.run_metrics`), the Poincare
+   section and, optionally, the time series.
+
+The phases run in whatever order XLA schedules them: nothing in the compiled chunk calls LAPACK
+(``tests/test_sweep.py::test_compiled_chunk_has_no_lapack_call`` checks the compiled HLO), so
+the ordering and per-device caps once needed against jaxlib 0.10's batched-LAPACK thread-pool
+deadlock are gone (measurements in ``jaxclear/sweep/__init__.py``).
+
+:data:`TRACE_COUNT` counts the traces of the per-run function (a Python side effect: traces, not
+calls); read it as ``jaxclear.sweep.TRACE_COUNT.value``.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+from jax.sharding import PartitionSpec
+
+from .. import params
+from ..elements import journal_state
+from ..model import Mechanism, crank_driver
+from ..analysis.metrics import run_metrics
+from ..integrate import Settings, jit, simulate
+from .plan import Plan
+
+#: Metrics that stay defined for a failed run (counts and status); the others become NaN.
+_COUNT_KEYS = ("status", "num_steps", "num_accepted_steps", "num_rejected_steps")
+_DEVIATION_KEYS = ("peak_acc_deviation_m_s2", "rms_acc_deviation_m_s2")
+
+
+class TraceCounter:
+    """A counter read as ``.value`` (an object, so that the submodule that increments it and the
+    users who read it through ``jaxclear.sweep`` share one number). It is deliberately not a
+    number: ``TRACE_COUNT - before`` or ``TRACE_COUNT == before`` raise instead of comparing
+    the object with itself."""
+
+    def __init__(self):
+        self.value = 0
+
+    def increment(self):
+        self.value += 1
+
+    def __eq__(self, other):
+        raise TypeError("compare TRACE_COUNT.value, not the counter object")
+
+    __hash__ = object.__hash__
+
+    def __repr__(self):
+        return f"TraceCounter(value={self.value})"
+
+
+#: Number of times the per-run function has been traced (compiled) in this process.
+TRACE_COUNT = TraceCounter()
+
+
+def _with_row(plan: Plan, mech: Mechanism, row) -> Mechanism:
+    """``mech`` with the row's swept parameters (``row``: (P,) in ``plan.names`` order)."""
+    return params.replace_many(mech, {n: row[i] for i, n in enumerate(plan.names)})
+
+
+def _settings(plan: Plan, m: Mechanism) -> Settings:
+    """Integration settings of one run: ``t_end = revolutions * 2 pi / |omega|`` [s] of the crank
+    driver's speed ``omega`` [rad/s]; ``throw=False`` (a failure is a status, not an error)."""
+    _, crank = crank_driver(m)
+    t_end = plan.revolutions * 2.0 * jnp.pi / jnp.abs(crank.speed)
+    # stages="loop": under vmap one copy of the vector field serves every Runge-Kutta stage
+    return Settings(t_end=t_end, n_out=plan.n_out, solver=plan.solver, rtol=plan.rtol, atol=plan.atol,
+                    max_steps=plan.max_steps, throw=False, stages="loop")
+
+
+def _clearance_run(plan: Plan, mech: Mechanism, row):
+    """Phase 1 of a run: the mechanism with this row's parameters, integrated."""
+    TRACE_COUNT.increment()  # a Python side effect: counts traces, not calls
+    m = _with_row(plan, mech, row)
+    return simulate(m, _settings(plan, m))
+
+
+def _ideal_run(plan: Plan, mech: Mechanism, ideal: Mechanism, row):
+    """Phase 2: the ideal-joint mechanism with the row's parameters that apply to it (speed,
+    masses...), same time grid. Returns (slider acceleration (T,) [m/s^2], status)."""
+    m = _with_row(plan, mech, row)
+    im = params.replace_many(ideal, {n: row[plan.names.index(n)] for n in plan.ideal_names})
+    isol = simulate(im, _settings(plan, m))
+    return isol.coordinate(im, im.role("slider"), "x", derivative=2), isol.status
+
+
+def _poincare(plan: Plan, m: Mechanism, sol):
+    """Journal state ``[e_x, e_y, v_x, v_y]`` [m, m, m/s, m/s] of every clearance joint at the
+    section samples: (n_section, n_joints, 4)."""
+    k = len(m.clearance_joints)
+    if not (k and len(plan.section)):
+        return jnp.zeros((len(plan.section), k, 4), sol.ts.dtype)
+    idx = jnp.asarray(plan.section, dtype=jnp.int32)
+    return jax.vmap(lambda q, qd: journal_state(m, q, qd).reshape(k, 4))(sol.q[idx], sol.qdot[idx])
+
+
+def _trajectories(m: Mechanism, sol, ideal_acc) -> dict:
+    """The stored time series of one run (``trajectories = true``), keys ``traj_*``."""
+    out = {"traj_ts": sol.ts, "traj_ecc": sol.ecc, "traj_normal_force": sol.normal_force,
+           "traj_penetration": sol.penetration, "traj_mode": sol.mode}
+    slider = m.role("slider")
+    if slider is not None:
+        out["traj_slider_acc"] = sol.coordinate(m, slider, "x", derivative=2)
+        if ideal_acc is not None:
+            out["traj_ideal_slider_acc"] = ideal_acc
+    return out
+
+
+def _finish(plan: Plan, mech: Mechanism, row, sol, ideal_acc, ideal_status):
+    """Phase 3: metrics (NaN for a failed run; deviation metrics NaN when the ideal run failed),
+    Poincare points and optional time series of one run."""
+    m = _with_row(plan, mech, row)
+    met = run_metrics(m, sol, ideal_acc, plan.start)
+    failed = sol.status != 0
+    out = {}
+    for key, value in met.items():
+        if key not in _COUNT_KEYS:
+            value = jnp.where(failed, jnp.nan, value)
+            if ideal_status is not None and key in _DEVIATION_KEYS:
+                value = jnp.where(ideal_status != 0, jnp.nan, value)
+        out[key] = value
+    if ideal_status is not None:
+        out["ideal_status"] = ideal_status
+    out["t_end_s"] = sol.ts[-1]
+    out["poincare"] = _poincare(plan, m, sol)
+    if plan.trajectories:
+        out.update(_trajectories(m, sol, ideal_acc))
+    return out
+
+
+def _one_run(plan: Plan, mech: Mechanism, ideal: Mechanism | None, row):
+    """One run, unbatched: the three phases in order (what :func:`_runs` vmaps)."""
+    sol = _clearance_run(plan, mech, row)
+    ideal_acc = ideal_status = None
+    if ideal is not None:
+        ideal_acc, ideal_status = _ideal_run(plan, mech, ideal, row)
+    return _finish(plan, mech, row, sol, ideal_acc, ideal_status)
+
+
+def _runs(plan: Plan, mech: Mechanism, ideal: Mechanism | None, rows):
+    """A batch of runs (B, P) -> dict of (B, ...): each phase vmapped over the batch. An ideal
+    mechanism that no swept parameter changes is integrated once, unbatched (vmap leaves it
+    unbatched)."""
+    sol = jax.vmap(lambda r: _clearance_run(plan, mech, r))(rows)
+    ideal_acc = ideal_status = None
+    if ideal is not None:
+        ideal_acc, ideal_status = jax.vmap(lambda r: _ideal_run(plan, mech, ideal, r))(rows)
+    return jax.vmap(lambda r, s, a, st: _finish(plan, mech, r, s, a, st))(rows, sol, ideal_acc, ideal_status)
+
+
+@jit
+def _run_chunk(values, mech: Mechanism, ideal: Mechanism | None, plan: Plan):
+    """``values`` (B, P) sharded over ``plan.mesh`` -> dict of (B, ...) outputs."""
+    m_arr, m_static = eqx.partition(mech, eqx.is_array)
+    i_arr, i_static = eqx.partition(ideal, eqx.is_array)
+
+    def local(rows, m_arr, i_arr):
+        m = eqx.combine(m_arr, m_static)
+        i = None if ideal is None else eqx.combine(i_arr, i_static)
+        return _runs(plan, m, i, rows)
+
+    batch, whole = PartitionSpec("batch"), PartitionSpec()
+    f = jax.shard_map(local, mesh=plan.mesh, in_specs=(batch, whole, whole), out_specs=batch, check_vma=False)
+    return f(values, m_arr, i_arr)
+
+
+def compiled_hlo(values, mech: Mechanism, ideal: Mechanism | None, plan: Plan) -> str:
+    """Optimized HLO text of the chunk function compiled for these arguments (what XLA runs;
+    e.g. to check which custom calls, such as LAPACK kernels, it contains)."""
+    return _run_chunk.lower(values, mech, ideal, plan).compile().compiled.as_text()

@@ -1,0 +1,368 @@
+"""Sweep configuration: :class:`SweepConfig` (validated when built, before anything is
+compiled), :func:`load_config` (TOML) and :func:`config_from_dict`.
+
+Checks: unknown tables or keys, unknown or conflicting parameter names, empty or inconsistent
+grids, values outside their physical range, bad run and output settings; every error is a
+:class:`~jaxclear.errors.ParameterError` naming the source and the allowed values.
+"""
+
+from __future__ import annotations
+
+import inspect
+import json
+import math
+import os
+import tomllib
+from dataclasses import dataclass, field
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import params
+from .._storage import fingerprint
+from .._errors import JaxclearError, ParameterError
+from ..model import Mechanism
+from ..presets import PRESETS, preset
+from ..integrate import SOLVERS, Settings
+from .values import _canonical, _number, _values
+
+#: Allowed keys of a sweep configuration file, per table (see :func:`load_config`).
+CONFIG_KEYS = {
+    "mechanism": "preset and preset keyword overrides (law, friction, speed_rpm, clearance...)",
+    "grid": "parameters swept as a Cartesian product: NAME = [values] or {start, stop, num, spacing}",
+    "list": "parameters swept together (zipped, equal lengths): NAME = [values]",
+    "run": "revolutions, transient_revolutions, samples_per_revolution, solver, rtol, atol, max_steps, "
+           "ideal_reference",
+    "output": "dir, chunk_size, trajectories, progress, devices",
+}
+RUN_KEYS = ("revolutions", "transient_revolutions", "samples_per_revolution", "solver", "rtol", "atol",
+            "max_steps", "ideal_reference")
+OUTPUT_KEYS = ("dir", "chunk_size", "trajectories", "progress", "devices")
+
+
+@dataclass
+class SweepConfig:
+    """A sweep, validated when built (every check runs before anything is compiled).
+
+    Args:
+        grid: ``{name: values}`` swept as a Cartesian product (first name slowest), or
+        list: ``{name: values}`` zipped (equal lengths); exactly one of the two. Values: a list of
+            numbers, one number, or ``{"start", "stop", "num", "spacing": "linear" | "log"}``.
+        preset: preset mechanism name (:func:`jaxclear.preset`), with keyword overrides
+            ``preset_options`` (``law``, ``friction``, ``speed_rpm``...); or
+        mechanism: a :class:`~jaxclear.Mechanism` (then ``ideal_mechanism`` is its ideal-joint
+            counterpart with the same bodies; default ``mechanism.ideal()``).
+        revolutions: crank revolutions per run (> 0); ``t_end = revolutions * 2 pi / |omega|``.
+        transient_revolutions: revolutions excluded from the metrics and the Poincare section
+            (in [0, revolutions)).
+        samples_per_revolution: output samples per revolution (>= 2; ``revolutions *
+            samples_per_revolution`` must be an integer).
+        solver, rtol, atol, max_steps: integration settings (:class:`jaxclear.Settings`).
+        ideal_reference: also run the ideal-joint mechanism (acceleration deviation metrics).
+        out: output folder; chunk_size: runs per chunk (``"auto"`` or an integer, rounded up to a
+            multiple of the number of devices); trajectories: also store the time series;
+        progress: tqdm bar over the chunks; devices: number of devices to use (``None``: all).
+    """
+
+    grid: dict | None = None
+    list: dict | None = None
+    preset: str | None = "flores-slider-crank"
+    preset_options: dict = field(default_factory=dict)
+    mechanism: Mechanism | None = None
+    ideal_mechanism: Mechanism | None = None
+    revolutions: float = 3.0
+    transient_revolutions: float = 0.0
+    samples_per_revolution: int = 200
+    solver: str = "tsit5"
+    rtol: float = 1e-6
+    atol: float = 1e-9
+    max_steps: int = 200_000
+    ideal_reference: bool = True
+    out: str = "sweep-out"
+    chunk_size: int | str = "auto"
+    trajectories: bool = False
+    progress: bool = True
+    devices: int | None = None
+    source: str = "<python>"
+
+    def __post_init__(self):
+        self._check()
+
+    # ---- validation -------------------------------------------------------------
+    def _check(self):
+        if (self.grid is None) == (self.list is None):
+            raise ParameterError(f"{self.source}: give exactly one of 'grid' (Cartesian product) or 'list' "
+                                 "(zipped values)")
+        table = self.grid if self.grid is not None else self.list
+        if not isinstance(table, dict) or not table:
+            raise ParameterError(f"{self.source}: the {'grid' if self.grid is not None else 'list'} has no "
+                                 f"parameters; give at least one NAME = [values] (names: {params.parameter_names()})")
+        self._mech, self._ideal = self._check_mechanism()
+        if self._ideal is not None and self._mech.role("slider") is None:
+            self._ideal = None  # the deviation metrics are defined for a slider only
+        self._check_parameters(table)
+        self._check_run()
+        self._check_output()
+
+    def _check_mechanism(self) -> tuple[Mechanism, Mechanism | None]:
+        """(mechanism, ideal-joint mechanism or None) from the preset or the given mechanism."""
+        src = self.source
+        if self.mechanism is not None:
+            if not isinstance(self.mechanism, Mechanism):
+                raise ParameterError(
+                    f"{src}: mechanism must be a jaxclear Mechanism, got {type(self.mechanism).__name__}")
+            if not self.ideal_reference:
+                return self.mechanism, None
+            return self.mechanism, self.ideal_mechanism if self.ideal_mechanism is not None else self.mechanism.ideal()
+        if self.preset not in PRESETS:
+            raise ParameterError(f"{src}: unknown preset {self.preset!r}; valid presets: {sorted(PRESETS)}")
+        allowed = [k for k in inspect.signature(PRESETS[self.preset]).parameters if k != "ideal"]
+        unknown = sorted(set(self.preset_options) - set(allowed))
+        if unknown:
+            raise ParameterError(f"{src}: unknown key(s) {unknown} for preset {self.preset!r} in [mechanism]; "
+                                 f"allowed: {['preset'] + allowed}")
+        try:
+            mech = preset(self.preset, **self.preset_options)
+            ideal = preset(self.preset, ideal=True, **self.preset_options) if self.ideal_reference else None
+        except JaxclearError as err:
+            raise ParameterError(f"{src}: [mechanism]: {err}") from None
+        return mech, ideal
+
+    def _check_names(self, names: list[str]):
+        """Every name addresses a leaf of the mechanism, and no two the same one."""
+        seen: dict[tuple, str] = {}
+        for name in names:
+            try:
+                params.get(self._mech, name)  # unknown name, joint or body -> ParameterError
+            except JaxclearError as err:
+                raise ParameterError(f"{self.source}: {err}") from None
+            key = _canonical(name)
+            if key in seen:
+                raise ParameterError(f"{self.source}: parameters {seen[key]!r} and {name!r} set the same "
+                                     "quantity; keep one")
+            seen[key] = name
+
+    def _check_parameters(self, table: dict):
+        """Names, values and the (n_runs, n_params) layout of the runs."""
+        src = self.source
+        names = [str(n) for n in table]
+        self._check_names(names)
+        axes = {}
+        for name in names:
+            vals = _values(name, table[name])
+            try:
+                params.validate(self._mech, name, vals)
+            except JaxclearError as err:
+                raise ParameterError(f"{src}: {err}") from None
+            if _canonical(name) == ("speed",) and np.any(vals == 0.0):
+                raise ParameterError(f"{src}: {name} = 0: crank revolutions are undefined at zero speed")
+            axes[name] = vals
+        if self.grid is not None:
+            mesh = np.meshgrid(*axes.values(), indexing="ij")
+            values = np.stack([m.ravel() for m in mesh], axis=-1)
+        else:
+            lengths = {n: len(v) for n, v in axes.items()}
+            if len(set(lengths.values())) != 1:
+                raise ParameterError(f"{src}: the list's parameters have different lengths {lengths}; a list sweep "
+                                     "zips them, so they must be equally long (use 'grid' for a product)")
+            values = np.stack(list(axes.values()), axis=-1)
+        self._names, self._axes, self._values = tuple(names), axes, values
+        if not any(_canonical(n) == ("speed",) for n in names):
+            try:
+                w = float(params.get(self._mech, "speed"))
+            except JaxclearError as err:
+                raise ParameterError(f"{src}: {err}; sweeps run whole crank revolutions") from None
+            if w == 0.0:
+                raise ParameterError(f"{src}: the crank speed is 0: crank revolutions are undefined")
+        self._ideal_names = tuple(n for n in names if self._ideal is not None and _applies(self._ideal, n))
+
+    def _check_run(self):
+        """Revolutions, samples and integration settings."""
+        src = self.source
+        r = _number(f"{src}: run.revolutions", self.revolutions)
+        if not r > 0:
+            raise ParameterError(f"{src}: run.revolutions = {r:g} is outside the allowed range (0, inf)")
+        tr = _number(f"{src}: run.transient_revolutions", self.transient_revolutions)
+        if not 0 <= tr < r:
+            raise ParameterError(f"{src}: run.transient_revolutions = {tr:g} is outside the allowed range "
+                                 f"[0, revolutions = {r:g})")
+        spr = self.samples_per_revolution
+        if isinstance(spr, bool) or not isinstance(spr, (int, np.integer)) or spr < 2:
+            raise ParameterError(f"{src}: run.samples_per_revolution = {spr!r}: expected an integer >= 2")
+        total = r * spr
+        if abs(total - round(total)) > 1e-9 * max(total, 1.0):
+            raise ParameterError(f"{src}: revolutions x samples_per_revolution = {total:g} must be an integer "
+                                 "(so that samples fall on whole revolutions)")
+        if isinstance(self.max_steps, bool) or not isinstance(self.max_steps, (int, np.integer)):
+            raise ParameterError(f"{src}: run.max_steps = {self.max_steps!r}: expected an integer >= 1")
+        for key in ("rtol", "atol"):
+            _number(f"{src}: run.{key}", getattr(self, key))
+        if self.solver not in SOLVERS:
+            raise ParameterError(f"{src}: unknown solver {self.solver!r}; valid: {sorted(SOLVERS)}")
+        try:  # Settings' own range checks (rtol in (0, 1), atol > 0, max_steps >= 1)
+            Settings(t_end=jnp.asarray(1.0), solver=self.solver, rtol=float(self.rtol), atol=float(self.atol),
+                     max_steps=int(self.max_steps))
+        except JaxclearError as err:
+            raise ParameterError(f"{src}: run: {err}") from None
+
+    def _check_output(self):
+        """Flags, output folder, chunk size and device count."""
+        src = self.source
+        for key in ("ideal_reference", "trajectories", "progress"):
+            if not isinstance(getattr(self, key), bool):
+                raise ParameterError(f"{src}: {key} = {getattr(self, key)!r}: expected true or false")
+        if not isinstance(self.out, (str, os.PathLike)) or not str(self.out):
+            raise ParameterError(f"{src}: output.dir = {self.out!r}: expected a folder name")
+        cs = self.chunk_size
+        if not (cs == "auto" or (isinstance(cs, (int, np.integer)) and not isinstance(cs, bool) and cs >= 1)):
+            raise ParameterError(f"{src}: output.chunk_size = {cs!r}: expected 'auto' or an integer >= 1")
+        available = len(jax.devices())
+        d = self.devices
+        if d is not None and (isinstance(d, bool) or not isinstance(d, (int, np.integer)) or not 1 <= d <= available):
+            raise ParameterError(f"{src}: output.devices = {d!r}: expected an integer in [1, {available}] "
+                                 f"(devices available: {available}) or 'all'")
+
+    # ---- derived ----------------------------------------------------------------
+    @property
+    def names(self) -> tuple[str, ...]:
+        """Swept parameter names, in column order."""
+        return self._names
+
+    @property
+    def ideal_names(self) -> tuple[str, ...]:
+        """Swept names that also apply to the ideal-joint mechanism (empty without one)."""
+        return self._ideal_names
+
+    @property
+    def values(self) -> np.ndarray:
+        """(n_runs, n_params) parameter values, row ``i`` = run ``i``."""
+        return self._values
+
+    @property
+    def axes(self) -> dict[str, np.ndarray]:
+        """Each parameter's distinct values as given (the grid axes)."""
+        return dict(self._axes)
+
+    @property
+    def n_runs(self) -> int:
+        return int(self._values.shape[0])
+
+    @property
+    def base_mechanism(self) -> Mechanism:
+        return self._mech
+
+    @property
+    def ideal(self) -> Mechanism | None:
+        """The ideal-joint reference mechanism, or None (no reference run)."""
+        return self._ideal
+
+    @property
+    def n_out(self) -> int:
+        return int(round(self.revolutions * self.samples_per_revolution)) + 1
+
+    @property
+    def section(self) -> tuple[int, ...]:
+        """Output sample indices of the Poincare section: every whole revolution after the transient."""
+        s = self.samples_per_revolution
+        first = math.ceil(self.transient_revolutions - 1e-12)
+        last = math.floor(self.revolutions + 1e-12)
+        return tuple(k * s for k in range(first, last + 1) if k * s < self.n_out)
+
+    @property
+    def window_start(self) -> int:
+        """First output sample of the metrics window (after the transient)."""
+        return int(math.ceil(self.transient_revolutions * self.samples_per_revolution - 1e-9))
+
+    def describe(self) -> dict:
+        """JSON-able definition (what the manifest stores and hashes)."""
+        if self.mechanism is None:
+            mech = {"preset": self.preset, **{k: _jsonable(v) for k, v in sorted(self.preset_options.items())}}
+        else:
+            mech = {"mechanism": self._mech.name, "leaves_sha256": _tree_hash(self._mech),
+                    "ideal_leaves_sha256": None if self._ideal is None else _tree_hash(self._ideal)}
+        return {
+            "mechanism": mech,
+            "mode": "grid" if self.grid is not None else "list",
+            "parameters": {n: [float(v) for v in a] for n, a in self._axes.items()},
+            "run": {"revolutions": float(self.revolutions), "transient_revolutions": float(self.transient_revolutions),
+                    "samples_per_revolution": int(self.samples_per_revolution), "solver": self.solver,
+                    "rtol": float(self.rtol), "atol": float(self.atol), "max_steps": int(self.max_steps),
+                    "ideal_reference": self._ideal is not None},
+            "trajectories": bool(self.trajectories),
+        }
+
+    def sweep_hash(self) -> str:
+        """sha256 of the definition (:meth:`describe`, as sorted JSON) and of every run's
+        parameter values (float64 bytes, bit-exact), via :func:`jaxclear._storage.fingerprint`."""
+        return fingerprint(json.dumps(self.describe(), sort_keys=True), np.asarray(self._values, dtype=float))
+
+
+def _applies(mech: Mechanism, name: str) -> bool:
+    try:
+        params.get(mech, name)
+        return True
+    except JaxclearError:
+        return False
+
+
+def _jsonable(v):
+    if isinstance(v, dict):
+        return {str(k): _jsonable(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_jsonable(x) for x in v]
+    if isinstance(v, (np.ndarray, jax.Array)):
+        return np.asarray(v).tolist()
+    return v
+
+
+def _tree_hash(tree) -> str:
+    """sha256 of a pytree's array leaves (float64 bytes) and its structure."""
+    return fingerprint(eqx.filter(tree, eqx.is_array))
+
+
+def load_config(path, **overrides) -> SweepConfig:
+    """Read a TOML sweep configuration (see ``examples/sweep.toml``) and validate it.
+
+    Tables: ``[mechanism]`` (``preset`` and preset keyword overrides), ``[grid]`` or ``[list]``
+    (the swept parameters), ``[run]`` (:data:`RUN_KEYS`), ``[output]`` (:data:`OUTPUT_KEYS`).
+    Unknown tables or keys are errors. ``overrides`` replace :class:`SweepConfig` fields
+    (the command-line options). Relative ``output.dir`` is relative to the current folder.
+    """
+    path = os.fspath(path)
+    try:
+        with open(path, "rb") as f:
+            doc = tomllib.load(f)
+    except OSError as err:
+        raise ParameterError(f"cannot read sweep configuration {path!r}: {err.strerror or err}") from None
+    except tomllib.TOMLDecodeError as err:
+        raise ParameterError(f"{path}: not valid TOML: {err}") from None
+    return config_from_dict(doc, source=path, **overrides)
+
+
+def config_from_dict(doc: dict, source: str = "<dict>", **overrides) -> SweepConfig:
+    """Build a :class:`SweepConfig` from the TOML layout (a dict of tables); unknown keys are
+    errors naming the allowed ones."""
+    unknown = sorted(set(doc) - set(CONFIG_KEYS))
+    if unknown:
+        raise ParameterError(f"{source}: unknown table(s) or key(s) {unknown}; allowed tables: {list(CONFIG_KEYS)}")
+    for table in CONFIG_KEYS:
+        if table in doc and not isinstance(doc[table], dict):
+            raise ParameterError(f"{source}: '{table}' must be a table ([{table}]), got {doc[table]!r}")
+    mech = dict(doc.get("mechanism", {}))
+    run = dict(doc.get("run", {}))
+    out = dict(doc.get("output", {}))
+    for table, got, allowed in (("run", run, RUN_KEYS), ("output", out, OUTPUT_KEYS)):
+        bad = sorted(set(got) - set(allowed))
+        if bad:
+            raise ParameterError(f"{source}: unknown key(s) {bad} in [{table}]; allowed: {list(allowed)}")
+    kwargs: dict = {"source": source, "preset": mech.pop("preset", "flores-slider-crank"), "preset_options": mech,
+                    "grid": doc.get("grid"), "list": doc.get("list"), **run}
+    for key in OUTPUT_KEYS:
+        if key in out:
+            kwargs["out" if key == "dir" else key] = out[key]
+    if kwargs.get("devices") == "all":
+        kwargs["devices"] = None
+    kwargs.update({k: v for k, v in overrides.items() if v is not None})
+    return SweepConfig(**kwargs)

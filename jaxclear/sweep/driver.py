@@ -1,0 +1,85 @@
+"""The driver: :func:`run_sweep` runs (or resumes) a sweep chunk by chunk.
+
+Chunks are laid out over the global run indices (chunk ``c`` = runs ``c*S .. c*S+S-1``, the
+last one padded by repeating its last run, the padded rows dropped), so every chunk has the
+same shape (one compilation per sweep) and a resumed sweep batches every run exactly as an
+uninterrupted one does and gets the same bits. With several processes (``jax.distributed``)
+every process feeds its own shards and process 0 alone writes the files.
+"""
+
+from __future__ import annotations
+
+import os
+
+import jax
+import numpy as np
+from tqdm import tqdm
+
+from .batch import _run_chunk
+from .config import SweepConfig
+from .devices import _fetch, _put, agree_on_done, barrier, chunk_size, make_mesh
+from .plan import Plan, make_plan
+from .results import SweepResult, read_results
+from .store import prepare_output, write_chunk
+
+
+def _layout(cfg: SweepConfig):
+    """(mesh, chunk size, layout dict for the manifest)."""
+    mesh = make_mesh(cfg.devices)
+    n_dev = mesh.devices.size
+    chunk = chunk_size(cfg, n_dev)
+    layout = {"chunk_size": chunk, "devices": n_dev, "processes": jax.process_count(),
+              "platform": jax.devices()[0].platform}
+    return mesh, chunk, layout
+
+
+def _todo(cfg: SweepConfig, chunk: int, done: set[int]) -> list[int]:
+    """Indices of the chunks with at least one run not yet done."""
+    n_chunks = -(-cfg.n_runs // chunk)
+    return [c for c in range(n_chunks)
+            if any(i not in done for i in range(c * chunk, min((c + 1) * chunk, cfg.n_runs)))]
+
+
+def _compute(cfg: SweepConfig, plan: Plan, c: int, chunk: int) -> tuple[int, dict]:
+    """Chunk ``c`` computed (padded to ``chunk`` runs, padding dropped): (first run, outputs)."""
+    lo, hi = c * chunk, min((c + 1) * chunk, cfg.n_runs)
+    rows = cfg.values[lo:hi]
+    padded = np.concatenate([rows, np.repeat(rows[-1:], chunk - (hi - lo), axis=0)], axis=0)
+    res = _fetch(_run_chunk(_put(padded, plan.mesh), cfg.base_mechanism, cfg.ideal, plan))
+    return lo, {k: v[: hi - lo] for k, v in res.items()}
+
+
+def run_sweep(cfg: SweepConfig, out: str | None = None, restart: bool = False,
+              progress: bool | None = None) -> SweepResult:
+    """Run (or resume) a sweep; returns its results read back from disk.
+
+    Args:
+        cfg: a validated :class:`SweepConfig` (errors were raised when it was built).
+        out: output folder (default ``cfg.out``).
+        restart: discard results of a previous sweep in ``out`` instead of resuming.
+        progress: tqdm bar over the chunks (default ``cfg.progress``).
+    """
+    out = os.fspath(out if out is not None else cfg.out)
+    progress = cfg.progress if progress is None else progress
+    mesh, chunk, layout = _layout(cfg)
+    lead = jax.process_index() == 0
+    done = prepare_output(cfg, out, restart, layout) if lead else set()
+    done = agree_on_done(done, cfg.n_runs)  # every process must agree on the work left
+    plan = make_plan(cfg, mesh)
+    todo = _todo(cfg, chunk, done)
+    n_chunks = -(-cfg.n_runs // chunk)
+    computed = 0
+    with tqdm(total=n_chunks, initial=n_chunks - len(todo), unit="chunk", desc="sweep",
+              disable=not (progress and lead), dynamic_ncols=True) as bar:
+        for c in todo:
+            lo, res = _compute(cfg, plan, c, chunk)
+            if lead:
+                computed += write_chunk(cfg, out, c, lo, res, done)
+            bar.update(1)
+    barrier("jaxclear-sweep-done")
+    if not lead:
+        return SweepResult(out, {}, cfg.names, np.zeros(0), cfg.axes, "grid" if cfg.grid is not None else "list",
+                           computed)
+    res = read_results(out)
+    res.computed = computed
+    return res

@@ -1,0 +1,50 @@
+"""The static part of a sweep (:class:`Plan`): everything the compiled chunk function depends
+on besides the mechanism's numbers and the swept values. Hashable: a jit static argument, so a
+later sweep with the same plan (other numbers) reuses the compilation."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+
+@dataclass(frozen=True)
+class Plan:
+    """Static description of the runs of one compiled chunk.
+
+    Attributes:
+        names: swept parameter names, in the column order of the (B, P) values.
+        ideal_names: those that also apply to the ideal-joint mechanism.
+        revolutions: crank revolutions per run; ``t_end = revolutions * 2 pi / |omega|`` [s].
+        n_out: output samples per run (``revolutions * samples_per_revolution + 1``).
+        start: first output sample of the metrics window (after the transient).
+        section: output sample indices of the Poincare section.
+        solver, rtol, atol, max_steps: integration settings.
+        trajectories: also return the time series.
+        mesh: the 1-D ``jax.sharding.Mesh`` (axis ``"batch"``) the chunk is sharded over
+            (``None`` for an unbatched call of the per-run function).
+    """
+
+    names: tuple[str, ...]
+    ideal_names: tuple[str, ...]
+    revolutions: float
+    n_out: int
+    start: int
+    section: tuple[int, ...]
+    solver: str
+    rtol: float
+    atol: float
+    max_steps: int
+    trajectories: bool
+    mesh: Any
+
+
+def make_plan(cfg, mesh, trajectories: bool | None = None, ideal: bool = True) -> Plan:
+    """The :class:`Plan` of a validated :class:`~jaxclear.sweep.SweepConfig` on ``mesh``
+    (``trajectories`` default: the config's; ``ideal=False``: no ideal-joint parameters)."""
+    return Plan(
+        names=cfg.names, ideal_names=cfg.ideal_names if ideal else (), revolutions=float(cfg.revolutions),
+        n_out=cfg.n_out, start=cfg.window_start, section=cfg.section, solver=cfg.solver, rtol=float(cfg.rtol),
+        atol=float(cfg.atol), max_steps=int(cfg.max_steps),
+        trajectories=bool(cfg.trajectories if trajectories is None else trajectories), mesh=mesh,
+    )

@@ -1,0 +1,120 @@
+"""Reading a sweep folder back: :class:`SweepResult` (the CSV table, the Poincare points, the
+grid axes) and :func:`read_chunks` (the NPZ arrays, e.g. the time series)."""
+
+from __future__ import annotations
+
+import csv
+import io as _io
+import json
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._errors import ParameterError
+from .store import CHUNK_DIR, CSV_NAME, MANIFEST_NAME
+
+#: CSV columns read back as integers (``impacts`` stays a float: NaN for a failed run).
+_INT_READ = ("run", "num_steps", "num_accepted_steps", "num_rejected_steps", "status", "ideal_status")
+
+
+@dataclass
+class SweepResult:
+    """A finished sweep read back from its folder (rows sorted by run index).
+
+    Attributes:
+        out: the folder. table: column -> (n_runs,) array (``status_message`` as strings).
+        names: swept parameters. poincare: (n_runs, n_section, n_joints, 4) journal states
+            (:data:`~jaxclear.sweep.POINCARE_COORDS`: [m, m, m/s, m/s]) at the whole revolutions
+            after the transient.
+        axes: each parameter's grid values. mode: ``"grid"`` or ``"list"``. computed: runs
+            computed by this call (the others were already on disk). base_clearance: radial
+            clearance [m] of each clearance joint of the unswept mechanism.
+    """
+
+    out: str
+    table: dict
+    names: tuple
+    poincare: np.ndarray
+    axes: dict
+    mode: str
+    computed: int = 0
+    base_clearance: tuple = ()
+
+    def grid(self, metric: str, x: str, y: str) -> np.ndarray:
+        """Metric as a (len(y axis), len(x axis)) array over a two-parameter grid sweep (NaN
+        where no run is on disk)."""
+        if self.mode != "grid":
+            raise ParameterError("a 2-D map needs a grid sweep (this one is a list)")
+        for n in (x, y):
+            if n not in self.axes:
+                raise ParameterError(f"{n!r} is not a swept parameter; swept: {list(self.axes)}")
+        if metric not in self.table:
+            raise ParameterError(f"unknown metric {metric!r}; columns: {list(self.table)}")
+        xs, ys = self.axes[x], self.axes[y]
+        z = np.full((len(ys), len(xs)), np.nan)
+        for r in range(len(self.table["run"])):
+            i = int(np.argmin(np.abs(ys - self.table[y][r])))
+            j = int(np.argmin(np.abs(xs - self.table[x][r])))
+            z[i, j] = self.table[metric][r]
+        return z
+
+    def trajectories(self) -> dict:
+        """The stored time series (``trajectories = true``): key -> (n_runs, ...) arrays."""
+        return read_chunks(self.out, prefix="traj_")
+
+
+def _read_table(out: str) -> dict:
+    """``runs.csv`` as column -> array, rows sorted by run index (a partial last line ignored)."""
+    with open(os.path.join(out, CSV_NAME), encoding="utf-8", newline="") as f:
+        text = f.read()
+    if text and not text.endswith("\n"):
+        text = text[: text.rfind("\n") + 1]
+    rows = list(csv.reader(_io.StringIO(text)))
+    header, body = rows[0], rows[1:]
+    body.sort(key=lambda r: int(r[0]))
+    table: dict = {}
+    for j, col in enumerate(header):
+        vals = [r[j] for r in body]
+        if col == "status_message":
+            table[col] = np.array(vals, dtype=object)
+        elif col in _INT_READ:
+            table[col] = np.array([int(v) for v in vals], dtype=np.int64)
+        else:
+            table[col] = np.array([float(v) for v in vals], dtype=float)
+    return table
+
+
+def read_results(out) -> SweepResult:
+    """Read a sweep folder (complete or not): rows sorted by run index, Poincare points."""
+    out = os.fspath(out)
+    with open(os.path.join(out, MANIFEST_NAME), encoding="utf-8") as f:
+        manifest = json.load(f)
+    table = _read_table(out)
+    chunks = read_chunks(out, prefix="poincare")
+    poincare = chunks.get("poincare", np.zeros((0,)))
+    if "run" in chunks and len(table.get("run", [])):
+        pos = {int(r): k for k, r in enumerate(chunks["run"])}
+        poincare = poincare[[pos[int(r)] for r in table["run"]]]
+    cfg = manifest["config"]
+    axes = {n: np.asarray(v, dtype=float) for n, v in cfg["parameters"].items()}
+    return SweepResult(out, table, tuple(manifest["names"]), poincare, axes, cfg["mode"],
+                       base_clearance=tuple(manifest.get("base_clearance_m", ())))
+
+
+def read_chunks(out, prefix: str = "") -> dict:
+    """Concatenate the arrays of ``OUT/chunks/*.npz`` whose key starts with ``prefix`` (and the
+    run indices, key ``run``), ordered by run index."""
+    folder = os.path.join(os.fspath(out), CHUNK_DIR)
+    names = sorted(n for n in os.listdir(folder) if n.startswith("chunk_") and n.endswith(".npz"))
+    parts: dict[str, list] = {}
+    for name in names:
+        with np.load(os.path.join(folder, name)) as z:
+            for key in z.files:
+                if key == "run" or key.startswith(prefix):
+                    parts.setdefault(key, []).append(z[key])
+    if not parts:
+        return {}
+    merged = {k: np.concatenate(v, axis=0) for k, v in parts.items()}
+    order = np.argsort(merged["run"], kind="stable")
+    return {k: v[order] for k, v in merged.items()}

@@ -1,0 +1,70 @@
+"""Parsing the swept values of one parameter (a list, one number or a range) and recognising
+names that address the same quantity."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .. import params
+from .._errors import ParameterError
+
+#: Keys of a range ``{start, stop, num, spacing}``.
+RANGE_KEYS = ("start", "stop", "num", "spacing")
+
+
+def _number(where: str, value) -> float:
+    """``value`` as a finite float, or a :class:`ParameterError` naming ``where``."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ParameterError(f"{where}: expected a number, got {value!r}")
+    v = float(value)
+    if not math.isfinite(v):
+        raise ParameterError(f"{where}: values must be finite, got {value!r}")
+    return v
+
+
+def _range(where: str, spec: dict) -> np.ndarray:
+    """``{start, stop, num, spacing: "linear" | "log"}`` -> (num,) values (both ends included)."""
+    unknown = sorted(set(spec) - set(RANGE_KEYS))
+    if unknown:
+        raise ParameterError(f"{where}: unknown key(s) {unknown} in a range; allowed: {list(RANGE_KEYS)}")
+    missing = [k for k in ("start", "stop", "num") if k not in spec]
+    if missing:
+        raise ParameterError(f"{where}: a range needs start, stop and num (missing {missing})")
+    start, stop = _number(f"{where}.start", spec["start"]), _number(f"{where}.stop", spec["stop"])
+    num = spec["num"]
+    if isinstance(num, bool) or not isinstance(num, (int, np.integer)) or num < 1:
+        raise ParameterError(f"{where}.num = {num!r}: expected an integer >= 1")
+    spacing = spec.get("spacing", "linear")
+    if spacing == "linear":
+        return np.linspace(start, stop, int(num))
+    if spacing == "log":
+        if start <= 0 or stop <= 0:
+            raise ParameterError(f"{where}: a log range needs start, stop > 0 (got {start:g}, {stop:g})")
+        return np.geomspace(start, stop, int(num))
+    raise ParameterError(f"{where}.spacing = {spacing!r}: expected 'linear' or 'log'")
+
+
+def _values(name: str, spec) -> np.ndarray:
+    """A parameter's values (float64, 1-D) from a list, a single number or a range dict."""
+    where = f"parameter {name!r}"
+    if isinstance(spec, dict):
+        return _range(where, spec)
+    if isinstance(spec, (list, tuple, np.ndarray)):
+        arr = np.asarray(spec, dtype=object).ravel()
+        if arr.size == 0:
+            raise ParameterError(f"{where}: empty list of values (give at least one)")
+        return np.array([_number(f"{where}, value #{i + 1}", v) for i, v in enumerate(arr)], dtype=float)
+    return np.array([_number(where, spec)])
+
+
+def _canonical(name: str) -> tuple:
+    """What a name addresses (so that ``speed``/``speed_rpm`` and ``clearance``/``clearance@0``
+    are recognised as the same leaf)."""
+    base, joint, body = params._split(name)
+    if base in ("speed", "speed_rpm"):
+        return ("speed",)
+    if base in ("mass", "inertia"):
+        return (base, body)
+    return (base, joint)
