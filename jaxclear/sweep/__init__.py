@@ -17,7 +17,7 @@ Modules:
 * :mod:`~jaxclear.sweep.plan`: :class:`Plan`, the static part of the compiled function;
 * :mod:`~jaxclear.sweep.batch`: the compiled chunk function ``values (B, P) -> outputs``
   (clearance runs, ideal-joint runs, metrics, each vmapped, inside ``jax.shard_map``), jitted
-  once per sweep structure (:data:`TRACE_COUNT`\ ``.value`` counts the traces);
+  once per sweep structure (``TRACES.value`` counts the traces);
 * :mod:`~jaxclear.sweep.devices`: the mesh, chunk sizing, moving chunks on and off the devices;
 * :mod:`~jaxclear.sweep.store`: ``runs.csv``, ``manifest.json``, ``chunks/*.npz``;
 * :mod:`~jaxclear.sweep.driver`: :func:`run_sweep`;
@@ -66,9 +66,11 @@ own shards (``jax.make_array_from_callback``), the metrics are gathered
 
 from __future__ import annotations
 
+import warnings
+
 import importlib
 
-from .batch import TRACE_COUNT, TraceCounter, _one_run, _run_chunk, _runs, _settings, compiled_hlo
+from .batch import TRACES, TraceCounter, _one_run, _run_chunk, _runs, _settings, compiled_hlo
 from .config import CONFIG_KEYS, OUTPUT_KEYS, RUN_KEYS, SweepConfig, config_from_dict, load_config
 from .devices import (
     BYTES_PER_SAMPLE,
@@ -123,7 +125,7 @@ __all__ = [
     "poincare_coordinate",
     "axis_label",
     "metric_label",
-    "TRACE_COUNT",
+    "TRACES",
     "TraceCounter",
     "POINCARE_COORDS",
     "CSV_NAME",
@@ -137,3 +139,11 @@ __all__ = [
     "BYTES_PER_SAMPLE",
     "DEFAULT_RUNS_PER_DEVICE",
 ]
+
+
+def __getattr__(name):
+    if name == "TRACE_COUNT":  # the old spelling: a number read from the module
+        warnings.warn("jaxclear.sweep.TRACE_COUNT is deprecated; read jaxclear.sweep.TRACES.value",
+                      DeprecationWarning, stacklevel=2)
+        return TRACES.value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

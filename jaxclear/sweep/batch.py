@@ -16,8 +16,8 @@ The phases run in whatever order XLA schedules them: nothing in the compiled chu
 the ordering and per-device caps once needed against jaxlib 0.10's batched-LAPACK thread-pool
 deadlock are gone (measurements in ``jaxclear/sweep/__init__.py``).
 
-:data:`TRACE_COUNT` counts the traces of the per-run function (a Python side effect: traces, not
-calls); read it as ``jaxclear.sweep.TRACE_COUNT.value``.
+:data:`TRACES` counts the traces of the per-run function (a Python side effect: traces, not
+calls); read it as ``jaxclear.sweep.TRACES.value``.
 """
 
 from __future__ import annotations
@@ -41,9 +41,7 @@ _DEVIATION_KEYS = ("peak_acc_deviation_m_s2", "rms_acc_deviation_m_s2")
 
 class TraceCounter:
     """A counter read as ``.value`` (an object, so that the submodule that increments it and the
-    users who read it through ``jaxclear.sweep`` share one number). It is deliberately not a
-    number: ``TRACE_COUNT - before`` or ``TRACE_COUNT == before`` raise instead of comparing
-    the object with itself."""
+    users who read it through ``jaxclear.sweep`` share one number)."""
 
     def __init__(self):
         self.value = 0
@@ -51,17 +49,12 @@ class TraceCounter:
     def increment(self):
         self.value += 1
 
-    def __eq__(self, other):
-        raise TypeError("compare TRACE_COUNT.value, not the counter object")
-
-    __hash__ = object.__hash__
-
     def __repr__(self):
         return f"TraceCounter(value={self.value})"
 
 
-#: Number of times the per-run function has been traced (compiled) in this process.
-TRACE_COUNT = TraceCounter()
+#: Number of times the per-run function has been traced (compiled) in this process: ``TRACES.value``.
+TRACES = TraceCounter()
 
 
 def _with_row(plan: Plan, mech: Mechanism, row) -> Mechanism:
@@ -81,7 +74,7 @@ def _settings(plan: Plan, m: Mechanism) -> Settings:
 
 def _clearance_run(plan: Plan, mech: Mechanism, row):
     """Phase 1 of a run: the mechanism with this row's parameters, integrated."""
-    TRACE_COUNT.increment()  # a Python side effect: counts traces, not calls
+    TRACES.increment()  # a Python side effect: counts traces, not calls
     m = _with_row(plan, mech, row)
     return simulate(m, _settings(plan, m))
 
