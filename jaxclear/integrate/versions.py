@@ -26,7 +26,7 @@ def _key(text: str) -> tuple[int, ...]:
     for piece in text.split(".")[:3]:
         digits = "".join(ch for ch in piece if ch.isdigit()) or "0"
         parts.append(int(digits))
-    return tuple(parts)
+    return tuple(parts + [0] * (3 - len(parts)))
 
 
 def untested() -> dict[str, str]:
