@@ -66,9 +66,8 @@ own shards (``jax.make_array_from_callback``), the metrics are gathered
 
 from __future__ import annotations
 
-import warnings
-
 import importlib
+import warnings
 
 from .batch import TRACES, TraceCounter, _one_run, _run_chunk, _runs, _settings, compiled_hlo
 from .config import CONFIG_KEYS, OUTPUT_KEYS, RUN_KEYS, SweepConfig, config_from_dict, load_config
@@ -102,6 +101,10 @@ _FIGURES = ("heatmap", "bifurcation", "poincare_plot", "poincare_coordinate", "a
 def __getattr__(name):
     if name in _FIGURES:
         return getattr(importlib.import_module(".figures", __name__), name)
+    if name == "TRACE_COUNT":  # the old spelling: a number read from the module
+        warnings.warn("jaxclear.sweep.TRACE_COUNT is deprecated; read jaxclear.sweep.TRACES.value",
+                      DeprecationWarning, stacklevel=2)
+        return TRACES.value
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
@@ -139,11 +142,3 @@ __all__ = [
     "BYTES_PER_SAMPLE",
     "DEFAULT_RUNS_PER_DEVICE",
 ]
-
-
-def __getattr__(name):
-    if name == "TRACE_COUNT":  # the old spelling: a number read from the module
-        warnings.warn("jaxclear.sweep.TRACE_COUNT is deprecated; read jaxclear.sweep.TRACES.value",
-                      DeprecationWarning, stacklevel=2)
-        return TRACES.value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
