@@ -15,16 +15,14 @@ A new element is one subclass in one file of :mod:`jaxclear.elements`.
 from __future__ import annotations
 
 import abc
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import Any, ClassVar
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 
 from .._types import Array, BoolScalar, Float, Scalar, Vec2
-
-if TYPE_CHECKING:
-    from ..model.mechanism import Mechanism
+from ..model.mechanism import Mechanism
 
 
 class ContactOutput(eqx.Module):
@@ -79,17 +77,17 @@ class AbstractForceElement(eqx.Module):
 
     # ---- physics --------------------------------------------------------------------
     @abc.abstractmethod
-    def forces(self, mech: "Mechanism", t: Scalar, q, qdot, state) -> tuple[Float[Array, " n"], Any, ContactOutput]:
+    def forces(self, mech: Mechanism, t: Scalar, q, qdot, state) -> tuple[Float[Array, " n"], Any, ContactOutput]:
         """``(generalized force (n,), state derivative (same tree as state), outputs)``."""
 
     @abc.abstractmethod
-    def after_step(self, mech: "Mechanism", t0, q0, qd0, t1, q1, qd1, state) -> tuple[Any, BoolScalar]:
+    def after_step(self, mech: Mechanism, t0, q0, qd0, t1, q1, qd1, state) -> tuple[Any, BoolScalar]:
         """The state's update after an accepted step ``[t0, t1]`` (memory rules) and whether
         the force law changed within the step (the solver then re-evaluates its first stage)."""
 
     # ---- initial assembly -----------------------------------------------------------
     @abc.abstractmethod
-    def equations(self, mech: "Mechanism", q, t) -> Float[Array, " e"]:
+    def equations(self, mech: Mechanism, q, t) -> Float[Array, " e"]:
         """Equations holding the element at its initial configuration during assembly."""
 
     @abc.abstractmethod

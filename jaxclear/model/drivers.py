@@ -8,7 +8,7 @@ Extension point: :class:`AbstractDriver` (a subclass of
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Callable, ClassVar
+from typing import Callable, ClassVar
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -18,8 +18,6 @@ from .._types import Scalar
 from .bodies import GROUND
 from .joints import AbstractConstraint
 
-if TYPE_CHECKING:
-    from .mechanism import Mechanism
 
 COORDINATES = {"x": 0, "y": 1, "phi": 2}
 
@@ -86,7 +84,7 @@ class FunctionDriver(AbstractDriver):
         return (q[3 * i + COORDINATES[self.coordinate]] - self.function(t))[None]
 
 
-def crank_driver(mech: "Mechanism") -> tuple[int, AngleDriver] | None:
+def crank_driver(mech) -> tuple[int, AngleDriver] | None:
     """The mechanism's crank: ``(index in mech.drivers, driver)`` of its first
     :class:`AngleDriver`, or ``None``. The one lookup that 'revolutions', 'speed' and the crank
     angle of outputs go through."""
@@ -96,7 +94,7 @@ def crank_driver(mech: "Mechanism") -> tuple[int, AngleDriver] | None:
     return None
 
 
-def crank_period(mech: "Mechanism") -> float:
+def crank_period(mech) -> float:
     """Period [s] of the crank (:func:`crank_driver`), for 'revolutions' options."""
     found = crank_driver(mech)
     if found is None:

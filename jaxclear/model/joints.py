@@ -9,7 +9,7 @@ one subclass with ``n_equations``, ``bodies`` and ``equations``.
 from __future__ import annotations
 
 import abc
-from typing import TYPE_CHECKING, ClassVar
+from typing import ClassVar
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -19,8 +19,6 @@ from .._types import Array, Float, Scalar, Vec2
 from .bodies import vec2
 from .geometry import dot2, perp, rotate
 
-if TYPE_CHECKING:  # annotations only: the mechanism module imports this one
-    from .mechanism import Mechanism
 
 
 class AbstractConstraint(eqx.Module):
@@ -32,7 +30,7 @@ class AbstractConstraint(eqx.Module):
     n_equations: ClassVar[int]
 
     @abc.abstractmethod
-    def equations(self, mech: "Mechanism", q: Float[Array, " n"], t: Scalar) -> Float[Array, " e"]:
+    def equations(self, mech, q: Float[Array, " n"], t: Scalar) -> Float[Array, " e"]:
         r""":math:`\Phi` rows of this joint, shape ``(n_equations,)``."""
 
     @abc.abstractmethod
@@ -63,7 +61,7 @@ class AbstractJoint(AbstractConstraint):
     def points(self) -> tuple[tuple[str, str], ...]:
         return ((self.body_i, self.point_i), (self.body_j, self.point_j))
 
-    def _separation(self, mech: "Mechanism", q) -> Float[Array, "2"]:
+    def _separation(self, mech, q) -> Float[Array, "2"]:
         return mech.point_position(q, self.body_i, self.point_i) - mech.point_position(q, self.body_j, self.point_j)
 
 

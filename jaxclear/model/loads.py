@@ -6,7 +6,7 @@ Extension point: :class:`AbstractLoad` (a generalized force on the coordinates).
 from __future__ import annotations
 
 import abc
-from typing import TYPE_CHECKING, Callable
+from typing import Callable
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -15,8 +15,6 @@ from .._errors import check_finite
 from .._types import Array, Float, Scalar, Vec2
 from .bodies import vec2
 
-if TYPE_CHECKING:
-    from .mechanism import Mechanism
 
 
 class AbstractLoad(eqx.Module):
@@ -25,7 +23,7 @@ class AbstractLoad(eqx.Module):
     body: eqx.AbstractVar[str]
 
     @abc.abstractmethod
-    def generalized_force(self, mech: "Mechanism", t: Scalar, q, qdot) -> Float[Array, " n"]:
+    def generalized_force(self, mech, t: Scalar, q, qdot) -> Float[Array, " n"]:
         """Generalized force (n,) [N, N, N m per body]."""
 
     def bodies(self) -> tuple[str, ...]:
@@ -78,7 +76,7 @@ class Torque(AbstractLoad):
         return jnp.zeros(mech.n_coordinates, q.dtype).at[3 * i + 2].add(tau)
 
 
-def gravity_force(mech: "Mechanism", dtype) -> Float[Array, " n"]:
+def gravity_force(mech, dtype) -> Float[Array, " n"]:
     r"""Generalized gravity force :math:`[m_i g_x, m_i g_y, 0]` per body (n,) [N]."""
     m = mech.mass_matrix_diagonal()
     return (jnp.tile(jnp.concatenate([mech.gravity, jnp.zeros(1)]), mech.n_bodies) * m).astype(dtype)
