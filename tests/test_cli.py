@@ -14,6 +14,7 @@ import jaxclear as jc
 from jaxclear import io
 from jaxclear.analysis import metrics
 from jaxclear.integrate import runs
+from jaxclear.integrate.state import element_states
 from jaxclear.cli import build_parser, main
 from jaxclear.cli.common import mechanism_overrides
 from jaxclear import ParameterError
@@ -185,7 +186,7 @@ def _fake_solution(mech, n=5):
         qddot=np.outer(np.sin(np.arange(n)), np.ones(nq)), reactions=np.zeros((n, mech.n_constraints)),
         drift=np.full(n, 1e-9), ecc=np.zeros((n, k, 2)), penetration=z - 1e-4, normal_force=z,
         friction_force=z, mode=np.zeros((n, k), int),
-        element_states=tuple(ContactMemory(*(np.asarray(x)[:, j] for x in (mem.impact_velocity, mem.contact_start, mem.impacts, mem.work, mem.peak_force, mem.peak_penetration))) for j in range(k)),
+        element_states=element_states(mech, mem),
         num_steps=np.asarray(7),
         num_accepted_steps=np.asarray(5), num_rejected_steps=np.asarray(2), status=np.asarray(0),
     )

@@ -36,6 +36,7 @@ import pytest
 import jaxclear as jc
 from jaxclear import params, sweep
 from jaxclear.analysis import metrics
+from jaxclear.integrate.state import element_states
 from jaxclear.cli import main
 from jaxclear import ParameterError
 
@@ -223,7 +224,7 @@ def _fake_solution(mech, t_end):
     )
     return jc.Solution(ts=ts, q=z, qdot=z, qddot=qddot, reactions=jnp.zeros((T, 7)),
                        drift=jnp.array([0.0, 1e-9, 3e-9, 2e-9, 0.0, 0.0]), ecc=jnp.zeros((T, 1, 2)),
-                       penetration=pen, normal_force=fn, friction_force=jnp.zeros((T, 1)), mode=mode, memory=mem,
+                       penetration=pen, normal_force=fn, friction_force=jnp.zeros((T, 1)), mode=mode, element_states=element_states(mech, mem),
                        num_steps=jnp.asarray(10), num_accepted_steps=jnp.asarray(8),
                        num_rejected_steps=jnp.asarray(2), status=jnp.asarray(0))
 
