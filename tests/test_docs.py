@@ -90,3 +90,35 @@ def test_repository_refers_to_no_file_outside_it():
             if OUTSIDE.search(line):
                 hits.append(f"{name}:{lineno}: {line.strip()[:100]}")
     assert not hits, "references to files outside the repository:\n" + "\n".join(hits)
+
+
+def test_site_builds_strict(tmp_path):
+    """``mkdocs build --strict`` of the whole site (theory pages, API pages from the docstrings,
+    the executed notebooks, every internal link and anchor) into a scratch folder; about 10 s."""
+    import os
+
+    env = dict(os.environ, PYTHONPATH=str(ROOT), NO_MKDOCS_2_WARNING="1")
+    proc = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-f", str(ROOT / "mkdocs.yml"),
+                           "-d", str(tmp_path / "site")], cwd=tmp_path, env=env, capture_output=True, text=True,
+                          timeout=300, check=False)
+    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-4000:]
+    site = tmp_path / "site"
+    for page in ("index.html", "theory/hybrid/index.html", "theory/contact-laws/index.html",
+                 "api/contact/index.html", "notebooks/contact_models/index.html", "architecture/index.html"):
+        assert (site / page).is_file(), page
+    api = (site / "api/contact/index.html").read_text(encoding="utf-8")
+    assert "arithmatex" in api and ":math:" not in api  # docstring math reaches MathJax
+    hybrid = (site / "theory/hybrid/index.html").read_text(encoding="utf-8")
+    assert "Dynamic analysis of mechanical systems with planar revolute joints with clearance" in hybrid
+
+
+def test_griffe_extension_converts_rst_math_and_roles():
+    sys.path.insert(0, str(ROOT / "docs"))
+    try:
+        from griffe_rst import rst_to_markdown
+    finally:
+        sys.path.pop(0)
+    text = "Force :math:`F = K\\delta` (see :func:`~jaxclear.contact.hertz.chi_flores`, ``x``).\n\n.. math:: a = b\n          + c\n\nAfter."
+    out = rst_to_markdown(text)
+    assert "$F = K\\delta$" in out and "`jaxclear.contact.hertz.chi_flores`" in out and "`x`" in out
+    assert "$$\na = b\n+ c\n$$" in out and out.rstrip().endswith("After.")
