@@ -22,6 +22,8 @@ Modules:
 * :mod:`~jaxclear.sweep.store`: ``runs.csv``, ``manifest.json``, ``chunks/*.npz``;
 * :mod:`~jaxclear.sweep.driver`: :func:`run_sweep`;
 * :mod:`~jaxclear.sweep.results`: :class:`SweepResult`, :func:`read_results`;
+* :mod:`~jaxclear.sweep.dataset`: the results as an ``xarray.Dataset`` / ``pandas.DataFrame``,
+  ``OUT/results.nc`` (:func:`open_dataset`; loaded on first use, like the figures);
 * :mod:`~jaxclear.sweep.figures`: :func:`heatmap`, :func:`bifurcation`, :func:`poincare_plot`
   (loaded on first use, so that ``import jaxclear`` does not import matplotlib).
 
@@ -96,11 +98,15 @@ from .values import RANGE_KEYS
 
 #: Names served by :mod:`jaxclear.sweep.figures`, imported on first access (matplotlib).
 _FIGURES = ("heatmap", "bifurcation", "poincare_plot", "poincare_coordinate", "axis_label", "metric_label")
+#: Names served by :mod:`jaxclear.sweep.dataset`, imported on first access (xarray, pandas).
+_DATASET = ("open_dataset", "write_netcdf", "NETCDF_NAME", "column_unit")
 
 
 def __getattr__(name):
     if name in _FIGURES:
         return getattr(importlib.import_module(".figures", __name__), name)
+    if name in _DATASET:
+        return getattr(importlib.import_module(".dataset", __name__), name)
     if name == "TRACE_COUNT":  # the old spelling: a number read from the module
         warnings.warn("jaxclear.sweep.TRACE_COUNT is deprecated; read jaxclear.sweep.TRACES.value",
                       DeprecationWarning, stacklevel=2)
@@ -128,6 +134,10 @@ __all__ = [
     "poincare_coordinate",
     "axis_label",
     "metric_label",
+    "open_dataset",
+    "write_netcdf",
+    "NETCDF_NAME",
+    "column_unit",
     "TRACES",
     "TraceCounter",
     "POINCARE_COORDS",
