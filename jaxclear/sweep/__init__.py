@@ -22,6 +22,7 @@ Modules:
 * :mod:`~jaxclear.sweep.store`: ``runs.csv``, ``manifest.json``, ``chunks/*.npz``;
 * :mod:`~jaxclear.sweep.driver`: :func:`run_sweep`;
 * :mod:`~jaxclear.sweep.results`: :class:`SweepResult`, :func:`read_results`;
+* :mod:`~jaxclear.sweep.labels`: units and names of the columns;
 * :mod:`~jaxclear.sweep.dataset`: the results as an ``xarray.Dataset`` / ``pandas.DataFrame``,
   ``OUT/results.nc`` (:func:`open_dataset`; loaded on first use, like the figures);
 * :mod:`~jaxclear.sweep.figures`: :func:`heatmap`, :func:`bifurcation`, :func:`poincare_plot`
@@ -90,16 +91,18 @@ from .store import (
     CSV_NAME,
     FORMAT_VERSION,
     MANIFEST_NAME,
+    NETCDF_NAME,
     POINCARE_COORDS,
     _repair_csv,
     csv_columns,
 )
+from .labels import column_unit, long_name
 from .values import RANGE_KEYS
 
 #: Names served by :mod:`jaxclear.sweep.figures`, imported on first access (matplotlib).
 _FIGURES = ("heatmap", "bifurcation", "poincare_plot", "poincare_coordinate", "axis_label", "metric_label")
 #: Names served by :mod:`jaxclear.sweep.dataset`, imported on first access (xarray, pandas).
-_DATASET = ("open_dataset", "write_netcdf", "NETCDF_NAME", "column_unit")
+_DATASET = ("open_dataset", "write_netcdf")
 
 
 def __getattr__(name):
@@ -138,6 +141,7 @@ __all__ = [
     "write_netcdf",
     "NETCDF_NAME",
     "column_unit",
+    "long_name",
     "TRACES",
     "TraceCounter",
     "POINCARE_COORDS",

@@ -11,7 +11,7 @@ import numpy as np
 
 from .._errors import ParameterError
 from ..plot import plot_bifurcation, plot_heatmap, plot_poincare
-from .dataset import column_unit, long_name
+from .labels import column_unit, long_name
 from .results import SweepResult
 from .store import POINCARE_COORDS
 
