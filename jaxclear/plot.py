@@ -264,12 +264,14 @@ def plot_bifurcation(path, parameter, points, xlabel: str = "parameter", ylabel:
 
 
 def plot_poincare(path, points, colors=None, color_label: str = "", clearance=None, labels=None,
-                  title: str = "") -> Figure:
+                  title: str = "", marker_index=None) -> Figure:
     """Poincare sections of one or several runs: ``points`` (n_runs, n_section, 4) journal states
     (e_x, e_y [m], v_x, v_y [m/s]) once per crank revolution. Left: the journal-centre position
     [mm] inside the whole clearance circle(s) (``clearance`` [m], one per run or one value);
     right: the (e_x, v_x) plane. Runs are coloured by ``colors`` (e.g. a swept parameter);
-    ``labels`` (one per run) make a legend, ``title`` a figure title."""
+    ``labels`` (one per run) make a legend, ``title`` a figure title; ``marker_index`` (one
+    integer per run, default the run's position) picks each run's marker, e.g. the index of a
+    second swept parameter's value."""
     from matplotlib import colormaps
     from matplotlib.colors import Normalize
 
@@ -285,7 +287,8 @@ def plot_poincare(path, points, colors=None, color_label: str = "", clearance=No
     markers = "osD^vP*X"
     for r in range(n):
         color = cmap(norm(cvals[r]))
-        style = dict(ls="none", marker=markers[r % len(markers)], ms=4.0, color=color, mec="black", mew=0.3)
+        m = r if marker_index is None else int(marker_index[r])
+        style = dict(ls="none", marker=markers[m % len(markers)], ms=4.0, color=color, mec="black", mew=0.3)
         ax1.plot(1e3 * pts[r, :, 0], 1e3 * pts[r, :, 1], label=None if labels is None else labels[r], **style)
         ax2.plot(1e3 * pts[r, :, 0], pts[r, :, 2], **style)
     if clearance is not None:  # the whole clearance circle(s), the points inside

@@ -156,7 +156,9 @@ def test_grid_and_list_layout():
     assert other.sweep_hash() != cfg.sweep_hash()
     # the example config is valid
     ex = sweep.load_config(ROOT / "examples" / "sweep.toml")
-    assert ex.n_runs == 12 and ex.section == (200, 400)
+    assert ex.n_runs == 12 and ex.section == (400, 600, 800, 1000, 1200)
+    # it teaches: several chunks (progress, resume) and several Poincare points per run
+    assert ex.n_runs // ex.chunk_size >= 4 and len(ex.section) > 1
 
 
 def test_auto_chunk_size():

@@ -103,8 +103,9 @@ def poincare_coordinate(points: np.ndarray, coordinate: str, joint: int = 0) -> 
 def poincare_plot(res: SweepResult, runs=None, joint: int = 0, path=None, color_by: str | None = None):
     """PNG Poincare sections of the given runs (default all): journal position in the whole
     clearance circle and the (e_x, v_x) plane, one point per crank revolution after the
-    transient. Runs are coloured by ``color_by`` (default the first swept parameter) and
-    labelled with every swept parameter's value; the title names the fixed settings."""
+    transient. Runs are coloured by ``color_by`` (default the first swept parameter), marked by
+    the value of the next swept parameter and labelled with every swept parameter's value; the
+    title names the fixed settings."""
     runs = np.arange(len(res.table["run"])) if runs is None else np.asarray(runs)
     color_by = color_by or res.names[0]
     label, scale = axis_label(color_by)
@@ -123,5 +124,11 @@ def poincare_plot(res: SweepResult, runs=None, joint: int = 0, path=None, color_
             unit = text[text.rfind("[") + 1: -1]
             parts.append(f"{_SHORT.get(n, n)} {res.table[n][r] * s:g}{'' if unit == '-' else ' ' + unit}")
         labels.append(", ".join(parts))
+    other = [n for n in res.names if n != color_by]
+    marker_index = None
+    if other:  # one marker per value of the next swept parameter (e.g. the restitution)
+        values = np.unique(res.table[other[0]])
+        marker_index = np.searchsorted(values, res.table[other[0]][runs])
     return plot_poincare(path, res.poincare[runs, :, joint, :], colors=res.table[color_by][runs] * scale,
-                         color_label=label, clearance=clearance, labels=labels, title=_fixed(res))
+                         color_label=label, clearance=clearance, labels=labels, title=_fixed(res),
+                         marker_index=marker_index)
