@@ -56,7 +56,7 @@ def configure(p: argparse.ArgumentParser):
 
 
 def _settings(args, mech):
-    """The run's :class:`~jaxclear.solve.Settings` from the integration options (checked first
+    """The run's :class:`~jaxclear.integrate.Settings` from the integration options (checked first
     under their flag names)."""
     if args.t_end is not None:
         check_range("--t-end", args.t_end, low=0.0, low_open=True, unit="s")

@@ -36,7 +36,7 @@ Metrics per run: :func:`jaxclear.analysis.metrics.run_metrics` over the window a
 (``jc.preset(..., ideal=True)`` or ``Mechanism.ideal()``, same speed, same time grid, vmapped
 alongside). Poincare points: the journal state (eccentricity ``e_x, e_y`` [m] and its rate
 ``v_x, v_y`` [m/s], journal centre relative to bearing centre,
-:func:`jaxclear.clearance.journal_state`) at every whole crank revolution after the transient.
+:func:`jaxclear.elements.journal_state`) at every whole crank revolution after the transient.
 
 No LAPACK in the compiled chunk (measured 2026-11-23, jax 0.10.2, 2 shared CPU cores). Earlier
 versions ran the ideal-joint runs only after every clearance run of the batch had finished and
