@@ -48,7 +48,8 @@ class SweepResult:
 
     def grid(self, metric: str, x: str, y: str) -> np.ndarray:
         """Metric as a (len(y axis), len(x axis)) array over a two-parameter grid sweep (NaN
-        where no run is on disk)."""
+        where no run is on disk). Unlabelled; ``to_xarray()[metric]`` is the same map with its
+        axes, values and units attached."""
         if self.mode != "grid":
             raise ParameterError("a 2-D map needs a grid sweep (this one is a list)")
         for n in (x, y):
