@@ -49,7 +49,6 @@ from .solve import (  # noqa: E402
 from .sweep import SweepConfig, SweepResult, load_config, read_results, run_sweep  # noqa: E402
 from .io import Measurements, read_measurements  # noqa: E402
 from .sensor import Accelerometer  # noqa: E402
-from .fit import FitResult, levenberg_marquardt, parameter_grad, synthetic_record  # noqa: E402
-from . import fit  # noqa: E402  (a callable module: jc.fit(data, mech, ...) is jc.fit.fit(...))
+from .fitting import FitResult, fit, levenberg_marquardt, parameter_grad, synthetic_record  # noqa: E402
 
 __version__ = "0.1.0"

@@ -542,7 +542,7 @@ def _configure_fit(p: argparse.ArgumentParser):
 
 
 def _run_fit(args) -> int:
-    from . import fit as fitting
+    from . import fitting
     from .errors import ParameterError
     from .presets import preset
     from .sensor import Accelerometer

@@ -1,4 +1,4 @@
-"""Identification (jaxclear.fit, jaxclear fit): the sensor model, the optimiser, bad input, a small
+"""Identification (jaxclear.fitting, jaxclear.fit, jaxclear fit): the sensor model, the optimiser, bad input, a small
 end-to-end fit with an interruption and a resume, and (slow) the acceptance runs of the issue.
 
 Acceptance criteria (issue 4): records made by jaxclear with known parameters, the sensor model
@@ -21,7 +21,7 @@ import pytest
 import scipy.signal
 
 import jaxclear as jc
-from jaxclear import fit as fitting
+from jaxclear import fitting
 from jaxclear import params
 from jaxclear.cli import main
 from jaxclear.sensor import Accelerometer, record_times, resample
@@ -76,7 +76,8 @@ def test_record_times_by_time_and_by_crank_angle():
 
 def test_levenberg_marquardt_is_an_optax_transformation():
     """On an exponential fit y = a exp(-b t): converges from far in a few iterations through the
-    optax interface (update with the extra arguments jacobian, residual, value_fn)."""
+    optax interface (update with the extra arguments jacobian, residual, value_fn). The spelling
+    is deprecated (the fit runs optimistix's Levenberg-Marquardt) and warns so."""
     t = np.linspace(0, 3, 40)
     y = 2.0 * np.exp(-1.3 * t)
 
@@ -87,7 +88,8 @@ def test_levenberg_marquardt_is_an_optax_transformation():
         e = np.exp(-np.exp(z[1]) * t)
         return np.stack([np.exp(z[0]) * e, -np.exp(z[0]) * t * np.exp(z[1]) * e], axis=1)
 
-    opt = jc.levenberg_marquardt()
+    with pytest.warns(DeprecationWarning, match="optimistix"):
+        opt = jc.levenberg_marquardt()
     assert isinstance(opt, optax.GradientTransformationExtraArgs)
     z = np.array([np.log(0.2), np.log(5.0)])
     state = opt.init(z)
