@@ -172,7 +172,8 @@ def _result(problem: FitProblem, st: FitState, wall: float, resumed: bool) -> Fi
     s = problem.settings
     return FitResult(
         estimates=unc.estimates, std=unc.std, loss=float(np.mean(r[mask > 0] ** 2)), iterations=int(st.total),
-        wall_time_s=wall, start=dict(zip(problem.free, values_of(problem.free, problem.z0, problem.win.scale))),
+        evaluations=int(st.evaluations), wall_time_s=wall,
+        start=dict(zip(problem.free, values_of(problem.free, problem.z0, problem.win.scale))),
         correlation=unc.correlation, noise_sigma_m_s2=unc.sigma, residual_rms_m_s2=unc.rms,
         residual_autocorrelation=unc.autocorrelation, n_samples=unc.n_samples, n_unknowns=unc.n_unknowns,
         converged=converged, stop_reason=st.stop_reason, history=list(st.history),

@@ -18,7 +18,10 @@ class FitResult:
         estimates, std, start: parameter name -> value (SI; std by the delta method,
             :mod:`jaxclear.fitting`), and the start of the best run.
         loss: mean square of the normalised residual over the fitted samples (see :mod:`jaxclear.fitting`).
-        iterations: optimiser iterations over all stages and starts.
+        iterations: optimiser iterations over all stages and starts (Levenberg-Marquardt: accepted
+            steps, plus the last update of a stage that finds no decreasing step).
+        evaluations: solver steps, each one evaluation of the model and its Jacobian (accepted
+            and rejected trial points and each stage's start).
         wall_time_s: wall time of the fit [s] (including compilation; summed over resumed runs).
         correlation: correlation matrix of the free parameters (list of lists, ``free`` order).
         noise_sigma_m_s2: residual standard deviation sigma [m/s^2]; residual_rms_m_s2: RMS.
@@ -57,6 +60,7 @@ class FitResult:
     warnings: list = field(default_factory=list)
     window_states: list = field(default_factory=list)
     window_losses: list = field(default_factory=list)
+    evaluations: int = 0
 
     def to_dict(self) -> dict:
         """The content of ``fit.json``."""
@@ -65,6 +69,7 @@ class FitResult:
             "std": self.std,
             "loss": self.loss,
             "iterations": self.iterations,
+            "evaluations": self.evaluations,
             "wall_time_s": self.wall_time_s,
             "start": self.start,
             "fixed": self.fixed,

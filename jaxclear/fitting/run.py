@@ -134,7 +134,7 @@ def run_stage(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoin
             raise _cannot_simulate(problem, split(problem, st, stage, join(st, stage))[0])
         theta, states = split(problem, st, stage, rep.x)
         st = st.replace(x=rep.u.tolist(), solver=solver_leaves(rep.arrays), theta=theta.tolist(),
-                        states=states.tolist())
+                        states=states.tolist(), evaluations=st.evaluations + 1)
         loss, reason = rep.loss, rep.reason
         if rep.counted:
             record = {"stage": stage.name, "iteration": st.total + 1, "loss": loss / n_fit,

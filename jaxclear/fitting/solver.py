@@ -19,9 +19,11 @@ The loop calls ``solver.step`` and ``solver.terminate`` itself (compiled with
 is checkpointed after every step, and a killed fit resumes bit for bit. An optax first-order
 optimiser can be used instead through :class:`optimistix.OptaxMinimiser` on ``0.5 |r|^2``.
 
-Stopping (per stage, besides optimistix's own Cauchy criterion): ``max_iter`` trial steps; an
-accepted step lowering the loss by less than ``ftol`` (relative); an accepted step below
-``xtol`` in every coordinate; a trust region below 1e-10 (no decreasing step).
+Stopping (per stage, besides optimistix's own Cauchy criterion): ``max_iter`` iterations
+(accepted steps); an accepted step lowering the loss by less than ``ftol`` (relative); an
+accepted step below ``xtol`` in every coordinate; a rejected trial below ``xtol`` or whose
+predicted relative decrease is below ``ftol`` (nothing left to gain: MINPACK's rule); a trust
+region below 1e-10.
 """
 
 from __future__ import annotations
@@ -213,8 +215,11 @@ def restore(template, leaves):
 
 class StepReport(NamedTuple):
     """After a step: the accepted solver unknowns ``u`` and ``x = u / D``, the loss ``|r|^2``
-    there, whether the step was counted as an iteration (a trial point evaluated: every step
-    but the first evaluation of the start), the stop reason ('' to go on) and the solver arrays."""
+    there, whether the step counts as an iteration, the stop reason ('' to go on) and the
+    solver arrays. An iteration is a Levenberg-Marquardt update in the classical sense: an
+    accepted step (its rejected trials, with more damping, belong to it), or the last update
+    that finds no decreasing step; for first-order optimisers every step. Every step but the
+    first (the evaluation of the start) evaluates one trial point."""
 
     u: np.ndarray
     x: np.ndarray
@@ -236,7 +241,7 @@ class StageRun:
         self.arrays = arrays if leaves is None else restore(arrays, leaves)
 
     def step(self, iteration: int, limit: int, tol_f: float, xtol: float) -> StepReport:
-        """One solver step; ``iteration``: steps counted so far in this stage."""
+        """One solver step; ``iteration``: iterations so far in this stage, ``limit`` their most."""
         before, old = np.asarray(self.y), self.arrays
         y, arrays, aux, done, predicted = _step(self.opt.solver, self.fn, self.y, self.args, self.arrays)
         self.y, self.arrays = y, arrays
@@ -263,9 +268,9 @@ class StageRun:
             reason = "no decreasing step (trust region collapsed)"
         elif done:
             reason = "optimistix: Cauchy criterion met"
-        elif iteration + 1 >= limit:
+        elif accepted and iteration + 1 >= limit:
             reason = "max_iter"
-        return StepReport(u, u / self.scale, loss, True, reason, arrays)
+        return StepReport(u, u / self.scale, loss, accepted or bool(reason), reason, arrays)
 
     def _after_minimiser(self, before, u, arrays, aux, done, iteration, limit, xtol) -> StepReport:
         loss = float(jnp.sum(aux[0] ** 2))  # at the point before the step

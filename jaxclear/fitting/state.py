@@ -49,7 +49,9 @@ class FitState(eqx.Module):
 
     Attributes:
         stage, iteration: index of the current stage and of the iteration within it.
-        total: iterations so far, all stages and starts.
+        total: iterations so far, all stages and starts (accepted steps and final updates,
+            :class:`jaxclear.fitting.solver.StepReport`).
+        evaluations: solver steps so far (each one evaluation of the model and its Jacobian).
         x: accepted solver unknowns ``u = D x`` of the current stage (``x``: ``theta_z`` then the
             free window states), or None before the stage has begun.
         column_scale: ``D`` of the current stage (:func:`jaxclear.fitting.solver.column_scale`).
@@ -65,6 +67,7 @@ class FitState(eqx.Module):
     stage: int = 0
     iteration: int = 0
     total: int = 0
+    evaluations: int = 0
     x: tuple | None = None
     column_scale: tuple | None = None
     solver: tuple | None = None
