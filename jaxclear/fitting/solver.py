@@ -14,10 +14,16 @@ linearisation (which optimistix takes with ``jax.linearize``) is the matrix ``J`
 Levenberg-Marquardt step costs one forward-mode simulation per window, and the linear solves
 (QR) and trust-region updates act on an ``N x P`` matrix.
 
+The solver works in scaled unknowns ``u = D x`` (:func:`column_scale`: ``D_j = sqrt(1e-3)
+|J_{:,j}|`` at the stage's start), so that optimistix's ``lambda I`` damping, which starts at
+``lambda = 1``, acts like Marquardt's scale-invariant ``mu diag(J^T J)`` with ``mu = 1e-3``.
+
 The loop calls ``solver.step`` and ``solver.terminate`` itself (compiled with
-:class:`jaxclear.solve.jit`, an ``equinox.filter_jit``), so that the fit's state, including the solver state's array leaves,
-is checkpointed after every step, and a killed fit resumes bit for bit. An optax first-order
-optimiser can be used instead through :class:`optimistix.OptaxMinimiser` on ``0.5 |r|^2``.
+:class:`jaxclear.solve.jit`, an ``equinox.filter_jit``), so that the fit's state, including the
+solver state's array leaves, is checkpointed after every step, and a killed fit resumes bit for
+bit. An optax first-order optimiser can be used instead through
+:class:`optimistix.OptaxMinimiser` on ``0.5 |r|^2`` (with ``D = 1``: the learning rate is in
+the transformed parameters).
 
 Stopping (per stage, besides optimistix's own Cauchy criterion): ``max_iter`` iterations
 (accepted steps); an accepted step lowering the loss by less than ``ftol`` (relative); an
@@ -198,7 +204,7 @@ def _step(solver, fn, y, args, arrays):
     else:
         predicted = jnp.zeros(())
     y, state, aux = solver.step(fn, y, args, _OPTIONS, state, _TAGS)
-    done, result = solver.terminate(fn, y, args, _OPTIONS, state, _TAGS)
+    done, _ = solver.terminate(fn, y, args, _OPTIONS, state, _TAGS)
     return y, eqx.filter(state, eqx.is_array), aux, done, predicted
 
 
