@@ -44,7 +44,14 @@ from .contact import (  # noqa: E402
     make_law,
     oval,
 )
-from .elements import AbstractForceElement, ClearanceJoint, ContactMemory, kinematics  # noqa: E402
+from .elements import (  # noqa: E402
+    AbstractForceElement,
+    AbstractJournalJoint,
+    ClearanceJoint,
+    ContactMemory,
+    LubricatedJoint,
+    kinematics,
+)
 from .integrate import (  # noqa: E402
     SOLVERS,
     Baumgarte,

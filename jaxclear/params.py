@@ -13,6 +13,8 @@ name                leaf                                                     uni
 ``exponent``        ``law.exponent``                                         -, (0, inf)
 ``friction``        ``friction.coefficient``                                 -, [0, inf)
 ``length``          joint axial length L                                     m, (0, inf)
+``viscosity``       oil viscosity of a :class:`LubricatedJoint`              Pa s, (0, inf)
+``width``           film width of a :class:`LubricatedJoint` (its ``length``)  m, (0, inf)
 ``speed``           first ``AngleDriver.speed``                              rad/s
 ``speed_rpm``       the same in rev/min                                      rpm
 ``mass:BODY``       body mass                                                kg, (0, inf)
@@ -34,6 +36,7 @@ import numpy as np
 
 from ._errors import ParameterError, check_range
 from ._units import rad_s_to_rpm, rpm_to_rad_s
+from .elements import LubricatedJoint
 from .model import Mechanism, crank_driver
 
 
@@ -59,6 +62,8 @@ INFO = {
     "exponent": ParameterInfo("exponent", "", 0.0, None, True, False, "log", "force exponent n"),
     "friction": ParameterInfo("friction", "", 0.0, None, False, False, "log", "friction coefficient mu"),
     "length": ParameterInfo("length", "m", 0.0, None, True, False, "log", "axial length of the joint"),
+    "viscosity": ParameterInfo("viscosity", "Pa s", 0.0, None, True, False, "log", "oil viscosity (lubricated joint)"),
+    "width": ParameterInfo("width", "m", 0.0, None, True, False, "log", "film width L (lubricated joint)"),
     "speed": ParameterInfo("speed", "rad/s", None, None, False, False, "none", "crank speed"),
     "speed_rpm": ParameterInfo("speed_rpm", "rpm", None, None, False, False, "none", "crank speed"),
     "mass": ParameterInfo("mass", "kg", 0.0, None, True, False, "log", "body mass (mass:BODY)"),
@@ -130,6 +135,12 @@ def _accessor(mech: Mechanism, name: str) -> tuple[Callable, Callable]:
         return w, w
     if base == "length":
         w = lambda m: m.clearance_joints[k].length  # noqa: E731
+        return w, w
+    if base in ("viscosity", "width"):
+        if not isinstance(joint, LubricatedJoint):
+            raise ParameterError(f"parameter {name!r} belongs to a LubricatedJoint; clearance joint {k} is a "
+                                 f"{type(joint).__name__}")
+        w = (lambda m: m.clearance_joints[k].viscosity) if base == "viscosity" else (lambda m: m.clearance_joints[k].length)
         return w, w
     field = {"restitution": "restitution", "exponent": "exponent"}.get(base) or joint.law.stiffness_parameter
     if field not in type(joint.law).__dataclass_fields__:

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from .elements import ClearanceJoint
+from .elements import ClearanceJoint, LubricatedJoint
 from .contact import Friction
 from .contact import make_law
 from ._errors import ParameterError, check_range
@@ -17,13 +17,20 @@ from .model import GROUND, AngleDriver, Body, Mechanism, Revolute, Translational
 
 
 def _clearance_joint(name, bearing, bearing_point, journal, journal_point, *, bearing_radius, clearance,
-                     law, restitution, stiffness, friction, length, law_options):
+                     law, restitution, stiffness, friction, length, law_options, viscosity=None):
     check_range("clearance", clearance, low=0.0, low_open=True, unit="m")
     check_range("bearing_radius", bearing_radius, low=0.0, low_open=True, unit="m")
     if clearance >= bearing_radius:
         raise ParameterError(
             f"clearance = {clearance:g} m must be smaller than bearing_radius = {bearing_radius:g} m "
             "(the journal radius R_B - c must stay positive)"
+        )
+    if viscosity is not None:
+        return LubricatedJoint(
+            bearing, bearing_point, journal, journal_point, bearing_radius=bearing_radius,
+            journal_radius=bearing_radius - clearance, length=length, viscosity=viscosity,
+            law=make_law(law, restitution=restitution, stiffness=stiffness, **(law_options or {})),
+            friction=Friction(friction), name=name,
         )
     return ClearanceJoint(
         bearing,
@@ -41,7 +48,7 @@ def _clearance_joint(name, bearing, bearing_point, journal, journal_point, *, be
 
 def _slider_crank(*, name, crank_length, crank_mass, crank_inertia, rod_length, rod_mass, rod_inertia,
                   slider_mass, slider_inertia, speed_rpm, clearance, bearing_radius, length, law,
-                  restitution, stiffness, friction, ideal, gravity, law_options):
+                  restitution, stiffness, friction, ideal, gravity, law_options, viscosity=None):
     r, l = crank_length, rod_length
     check_range("crank_length", r, low=0.0, low_open=True, unit="m")
     check_range("rod_length", l, low=r, low_open=True, unit="m")
@@ -60,7 +67,7 @@ def _slider_crank(*, name, crank_length, crank_mass, crank_inertia, rod_length, 
         clearance_joints.append(
             _clearance_joint("rod-slider", "slider", "B", "rod", "B", bearing_radius=bearing_radius,
                              clearance=clearance, law=law, restitution=restitution, stiffness=stiffness,
-                             friction=friction, length=length, law_options=law_options)
+                             friction=friction, length=length, law_options=law_options, viscosity=viscosity)
         )
     return Mechanism(
         bodies=[crank, rod, slider],
@@ -87,6 +94,7 @@ def flores_slider_crank(
     length=0.010,
     gravity=(0.0, -9.81),
     law_options=None,
+    viscosity=None,
 ):
     """The Flores benchmark slider-crank with a clearance in the rod-slider joint.
 
@@ -98,13 +106,18 @@ def flores_slider_crank(
     (on the rod) radius 9.5 mm (c = 0.5 mm); steel E = 207 GPa, nu = 0.3; c_r = 0.9;
     Baumgarte alpha = beta = 5 (the default Settings). Joint length 10 mm (used only by the
     cylindrical laws). Starts at crank angle 0 with the journal centred.
+
+    ``viscosity`` [Pa s] (default None: dry) makes the rod-slider joint a
+    :class:`~jaxclear.LubricatedJoint` (short-bearing film of width ``length``, half film,
+    the dry law taking over at contact), the lubricated benchmark of Flores, Ambrósio, Claro,
+    Lankarani, Koshy, Nonlinear Dyn. 56 (2009) 277-295 (their oil: 400 cP = 0.4 Pa s).
     """
     return _slider_crank(
         name="flores-slider-crank", crank_length=0.05, crank_mass=0.30, crank_inertia=crank_inertia,
         rod_length=0.12, rod_mass=0.21, rod_inertia=2.5e-4, slider_mass=0.14, slider_inertia=1e-4,
         speed_rpm=speed_rpm, clearance=clearance, bearing_radius=bearing_radius, length=length, law=law,
         restitution=restitution, stiffness=stiffness, friction=friction, ideal=ideal, gravity=gravity,
-        law_options=law_options,
+        law_options=law_options, viscosity=viscosity,
     )
 
 
