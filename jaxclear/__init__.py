@@ -49,7 +49,9 @@ from .elements import (  # noqa: E402
     AbstractJournalJoint,
     ClearanceJoint,
     ContactMemory,
+    CornerMemory,
     LubricatedJoint,
+    TranslationalClearanceJoint,
     kinematics,
 )
 from .integrate import (  # noqa: E402
