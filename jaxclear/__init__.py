@@ -51,6 +51,7 @@ from .elements import (  # noqa: E402
     ContactMemory,
     CornerMemory,
     LubricatedJoint,
+    PinSlotJoint,
     TranslationalClearanceJoint,
     kinematics,
 )
@@ -82,6 +83,7 @@ from .model import (  # noqa: E402
     FunctionDriver,
     Mechanism,
     PointForce,
+    PointOnLine,
     Revolute,
     Torque,
     Translational,

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from .elements import ClearanceJoint, LubricatedJoint, TranslationalClearanceJoint
+from .elements import ClearanceJoint, LubricatedJoint, PinSlotJoint, TranslationalClearanceJoint
 from .contact import Friction
 from .contact import make_law
 from ._errors import ParameterError, check_range
@@ -256,11 +256,48 @@ def slider_crank_guide_clearance(
                      name=name, roles=dict(base.roles))
 
 
+def slider_crank_pin_slot(
+    slot_length=1e-3,
+    clearance=0.5e-3,
+    restitution=0.9,
+    friction=0.0,
+    speed_rpm=1000.0,
+    law="lankarani-nikravesh",
+    stiffness=None,
+    ideal=False,
+    bearing_radius=0.010,
+    length=0.010,
+    gravity=(0.0, -9.81),
+):
+    """The benchmark slider-crank of :func:`flores_slider_crank` whose rod-slider joint is a pin
+    in a slot (:class:`~jaxclear.PinSlotJoint`; the pin-slot clearance joint of Škrinjar, Slavič,
+    Boltežar, Nonlinear Dyn. 88 (2017) 131-143).
+
+    Stated values (ours): the slot, on the slider, runs along the stroke with a straight length
+    of 1 mm and a width of 20 mm; pin radius 9.5 mm (clearance 0.5 mm), steel, Lankarani-Nikravesh
+    with c_r = 0.9 and the cylindrical stiffness of the benchmark joint; crank at 1000 rpm; the
+    pin starts centred. ``ideal=True`` gives the benchmark's ideal mechanism.
+    """
+    check_range("slot_length", slot_length, low=0.0, unit="m")
+    base = flores_slider_crank(clearance=clearance, restitution=restitution, friction=friction, speed_rpm=speed_rpm,
+                               law=law, stiffness=stiffness, ideal=ideal, bearing_radius=bearing_radius,
+                               length=length, gravity=gravity)
+    if ideal:
+        return base
+    dry = base.clearance_joints[0]
+    slot = PinSlotJoint(dry.bearing_body, dry.bearing_point, dry.journal_body, dry.journal_point,
+                        bearing_radius=dry.bearing_radius, journal_radius=dry.journal_radius, slot_length=slot_length,
+                        axis=(1.0, 0.0), length=dry.length, law=dry.law, friction=dry.friction, name="rod-slider-slot")
+    return Mechanism(base.bodies, base.joints, base.drivers, [slot], gravity=base.gravity,
+                     ground_points=base.ground_points, name="slider-crank-pin-slot", roles=dict(base.roles))
+
+
 PRESETS = {
     "flores-slider-crank": flores_slider_crank,
     "flores-2011-rig": flores_2011_rig,
     "four-bar": four_bar,
     "slider-crank-guide-clearance": slider_crank_guide_clearance,
+    "slider-crank-pin-slot": slider_crank_pin_slot,
 }
 
 

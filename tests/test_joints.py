@@ -262,3 +262,70 @@ def test_named_parameters_address_the_translational_joint():
     joint = m2.clearance_joints[0]
     np.testing.assert_allclose(float(joint.guide_width), 0.03 + 4e-4)
     assert float(jc.params.get(m2, "stiffness")) == 1e10 and float(joint.law.restitution) == 0.5
+
+
+# ---- pin-in-slot joint ----------------------------------------------------------------
+
+
+def _as_slot(joint, slot_length=0.0):
+    return jc.PinSlotJoint(joint.bearing_body, joint.bearing_point, joint.journal_body, joint.journal_point,
+                           joint.bearing_radius, joint.journal_radius, slot_length=slot_length, length=joint.length,
+                           law=joint.law, friction=joint.friction, name=joint.name)
+
+
+def _slot_benchmark():
+    dry = jc.preset("flores-slider-crank", friction=0.1)
+    slot = _as_slot(dry.clearance_joints[0])
+    mech = jc.Mechanism(dry.bodies, dry.joints, dry.drivers, [slot], gravity=dry.gravity,
+                        ground_points=dry.ground_points, roles=dict(dry.roles))
+    return dry, mech
+
+
+def test_zero_length_slot_is_the_revolute_clearance_joint():
+    """With l = 0 the stadium is the bearing's circle: the element's generalized force equals the
+    revolute clearance joint's at random states (journal up to 0.6 mm from the centre, so
+    in and out of contact, friction 0.1) to rounding (1e-15 relative)."""
+    dry, mech = _slot_benchmark()
+    joint, slot = dry.clearance_joints[0], mech.clearance_joints[0]
+    both = jax.jit(lambda q, qd: (joint.contact(dry, q, qd, jnp.asarray(0.3))[0],
+                                  slot.contact(mech, q, qd, jnp.asarray(0.3))[0]))
+    q0, _ = dry.guess()
+    key = jax.random.PRNGKey(0)
+    for _ in range(5):
+        k1, k2, key = jax.random.split(key, 3)
+        g1, g2 = both(q0 + 6e-4 * jax.random.normal(k1, q0.shape), jax.random.normal(k2, q0.shape))
+        np.testing.assert_allclose(g2, g1, rtol=1e-15, atol=1e-15 * float(jnp.abs(g1).max()))
+
+
+@pytest.mark.slow
+def test_zero_length_slot_simulates_like_the_revolute_clearance_joint():
+    """Two crank revolutions of the benchmark slider-crank with the l = 0 slot and with the revolute
+    clearance joint agree to rounding (the same operations: 1e-12 allowed)."""
+    dry, mech = _slot_benchmark()
+    s = jc.settings(2 * jc.crank_period(dry), n_out=11)
+    a, b = jc.simulate(dry, s), jc.simulate(mech, s)
+    np.testing.assert_allclose(b.q, a.q, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(b.normal_force, a.normal_force, rtol=1e-12, atol=1e-9)
+
+
+def test_pin_moves_freely_along_the_slot_and_stops_at_its_end():
+    """A free pin in a ground slot (l = 2 mm, c = 0.5 mm), no gravity, moving along the slot at
+    0.1 m/s: no contact until it has travelled l/2 + c = 1.5 mm (the semicircular end), then one
+    impact (the stadium geometry)."""
+    pin = jc.Body("pin", 1.0, 1e-3, {"c": (0.0, 0.0)}, position=(0.0, 0.0, 0.0))
+    slot = jc.PinSlotJoint(jc.GROUND, "slot", "pin", "c", 0.010, 0.0095, slot_length=2e-3,
+                           initial_velocity=(0.1, 0.0))
+    mech = jc.Mechanism([pin], clearance_joints=[slot], gravity=(0.0, 0.0), ground_points={"slot": (0.0, 0.0)})
+    sol = jc.simulate(mech, jc.settings(1.4e-3 / 0.1, n_out=3))
+    assert float(sol.impacts[0]) == 0.0
+    sol = jc.simulate(mech, jc.settings(1.6e-3 / 0.1, n_out=3))
+    assert float(sol.impacts[0]) == 1.0
+
+
+def test_pin_slot_bad_input_is_named():
+    with pytest.raises(jc.ParameterError, match="slot_length"):
+        jc.PinSlotJoint(jc.GROUND, "slot", "pin", "c", 0.010, 0.0095, slot_length=-1e-3)
+    with pytest.raises(jc.ParameterError, match="initial_offset"):
+        jc.PinSlotJoint(jc.GROUND, "slot", "pin", "c", 0.010, 0.0095, slot_length=1e-3, initial_offset=(0.0, 6e-4))
+    jc.PinSlotJoint(jc.GROUND, "slot", "pin", "c", 0.010, 0.0095, slot_length=1e-3, initial_offset=(9e-4, 0.0))
+    assert isinstance(jc.preset("slider-crank-pin-slot").ideal().joints[-1], jc.PointOnLine)
