@@ -91,6 +91,14 @@ class AbstractForceElement(eqx.Module):
         """``[x, y, v_x, v_y]`` of the element's moving part relative to its seat (the journal
         centre relative to the bearing centre; the slider relative to the guide) [m, m/s]."""
 
+    #: axis labels of the orbit plot of :attr:`ContactOutput.ecc` (without unit)
+    orbit_labels: ClassVar[tuple[str, str]] = ("eccentricity x", "eccentricity y")
+
+    @abc.abstractmethod
+    def clearance_region(self, n: int = 361) -> Float[Array, "n 2"]:
+        """Boundary (closed polyline, (n, 2), [m]) of the region that :attr:`ContactOutput.ecc`
+        stays in without contact (the orbit plot draws it to scale)."""
+
     @abc.abstractmethod
     def ideal_joint(self) -> AbstractConstraint:
         """The ideal joint that replaces this element in :meth:`Mechanism.ideal` (zero clearance)."""

@@ -121,6 +121,25 @@ class PinSlotJoint(AbstractJournalJoint):
         self.initial_velocity = jnp.asarray(initial_velocity, dtype=float).reshape(2)
         self.name = name
 
+    def clearance_region(self, n: int = 361):
+        """The stadium the pin centre may roam without contact, around the slot centre with the
+        slot axis at the slot body's reference orientation (n, 2) [m]: half-length
+        :math:`\ell/2`, radius :math:`c`."""
+        theta = jnp.linspace(-0.5 * jnp.pi, 1.5 * jnp.pi, n - 1)
+        u, m = self.axis, perp(self.axis)
+        side = jnp.where(jnp.arange(n - 1) < n // 2, 0.5, -0.5) * self.slot_length  # right half, then left
+        ring = (side + self.clearance * jnp.cos(theta))[:, None] * u + (self.clearance * jnp.sin(theta))[:, None] * m
+        return jnp.concatenate([ring, ring[:1]])
+
+    def relative_state(self, mech: Mechanism, q, qdot):
+        """``[r_x, r_y, v_x, v_y]``: pin centre relative to the slot centre and its velocity relative
+        to the slot centre point [m, m/s]."""
+        r = point_position(mech, q, self.journal_body, self.journal_point) - point_position(
+            mech, q, self.bearing_body, self.bearing_point)
+        v = point_velocity(mech, q, qdot, self.journal_body, self.journal_point) - point_velocity(
+            mech, q, qdot, self.bearing_body, self.bearing_point)
+        return jnp.concatenate([r, v])
+
     def ideal_joint(self) -> PointOnLine:
         """The ideal pin in a slot: the pin centre on the slot's centre line (no end stops)."""
         return PointOnLine(self.bearing_body, self.bearing_point, self.journal_body, self.journal_point, axis=self.axis)
@@ -155,5 +174,10 @@ class PinSlotJoint(AbstractJournalJoint):
         )
 
     def contact(self, mech: Mechanism, q, qdot, impact_velocity):
-        """Dry contact with the stadium (:func:`~jaxclear.elements.revolute_clearance.contact_forces`)."""
-        return contact_forces(mech, self, self.kinematics(mech, q, qdot), q, qdot, impact_velocity)
+        """Dry contact with the stadium (:func:`~jaxclear.elements.revolute_clearance.contact_forces`);
+        the output's ``ecc`` is the pin centre relative to the slot centre (``kin.ecc`` plus the
+        nearest point's offset along the slot; the same for :math:`\ell = 0`)."""
+        kin = self.kinematics(mech, q, qdot)
+        gen, out = contact_forces(mech, self, kin, q, qdot, impact_velocity)
+        centre = point_position(mech, q, self.bearing_body, self.bearing_point)
+        return gen, eqx.tree_at(lambda o: o.ecc, out, kin.journal_centre - centre)

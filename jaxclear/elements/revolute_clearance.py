@@ -93,6 +93,11 @@ class AbstractJournalJoint(AbstractForceElement):
         kin = self.kinematics(mech, q, qdot)
         return jnp.concatenate([kin.ecc, kin.journal_velocity - kin.bearing_velocity])
 
+    def clearance_region(self, n: int = 361):
+        """The clearance circle :math:`|\mathbf e| = c` (n, 2) [m]."""
+        theta = jnp.linspace(0.0, 2.0 * jnp.pi, n)
+        return self.clearance * jnp.stack([jnp.cos(theta), jnp.sin(theta)], axis=-1)
+
     def ideal_joint(self) -> Revolute:
         """The ideal revolute joint this element replaces: journal and bearing centres coincide."""
         return Revolute(self.journal_body, self.journal_point, self.bearing_body, self.bearing_point)

@@ -205,6 +205,16 @@ class TranslationalClearanceJoint(AbstractForceElement):
     def label(self):
         return f"translational clearance joint {self.name}"
 
+    orbit_labels: ClassVar[tuple[str, str]] = ("lateral offset y", "tilt x half length")
+
+    def clearance_region(self, n: int = 361):
+        """Offsets ``[y, (l/2) theta]`` with no corner in contact, to first order in the tilt:
+        the square :math:`|y| + |(l/2)\theta| \le c` (n, 2) [m]."""
+        s = jnp.linspace(0.0, 4.0, n)
+        x = jnp.interp(s, jnp.arange(5.0), jnp.array([1.0, 0.0, -1.0, 0.0, 1.0]))
+        y = jnp.interp(s, jnp.arange(5.0), jnp.array([0.0, 1.0, 0.0, -1.0, 0.0]))
+        return self.clearance * jnp.stack([x, y], axis=-1)
+
     def ideal_joint(self) -> Translational:
         """The ideal translational joint: slider centre on the guide line, block aligned."""
         return Translational(self.guide_body, self.guide_point, self.slider_body, self.slider_point,
