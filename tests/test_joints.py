@@ -328,7 +328,11 @@ def test_pin_slot_bad_input_is_named():
     with pytest.raises(jc.ParameterError, match="initial_offset"):
         jc.PinSlotJoint(jc.GROUND, "slot", "pin", "c", 0.010, 0.0095, slot_length=1e-3, initial_offset=(0.0, 6e-4))
     jc.PinSlotJoint(jc.GROUND, "slot", "pin", "c", 0.010, 0.0095, slot_length=1e-3, initial_offset=(9e-4, 0.0))
-    assert isinstance(jc.preset("slider-crank-pin-slot").ideal().joints[-1], jc.PointOnLine)
+    assert isinstance(jc.preset("slider-crank-pin-slot").ideal().joints[-1], jc.Revolute)
+    line = jc.PinSlotJoint(jc.GROUND, "slot", "pin", "c", 0.010, 0.0095, slot_length=1e-3, ideal="line")
+    assert isinstance(line.ideal_joint(), jc.PointOnLine)
+    with pytest.raises(jc.ParameterError, match="ideal"):
+        jc.PinSlotJoint(jc.GROUND, "slot", "pin", "c", 0.010, 0.0095, ideal="weld")
 
 
 # ---- several kinds of element in one mechanism ------------------------------------------
@@ -386,3 +390,23 @@ def test_mixed_elements_batch_under_vmap():
         np.testing.assert_allclose(x_b, x_1, atol=1e-6)
         np.testing.assert_array_equal(batched.impacts[i], one.impacts)
     assert float(jnp.abs(batched.ecc[0, -1, 0] - batched.ecc[1, -1, 0]).max()) > 1e-6
+
+
+@pytest.mark.slow
+def test_simulation_gradient_wrt_viscosity_and_width_matches_central_differences():
+    """d(slider velocity at 2 ms)/d(viscosity, width) of the lubricated benchmark (forward mode
+    through diffrax) against central differences of the simulation (relative steps 1e-5,
+    tolerance 1e-4: rtol 1e-10 integration)."""
+    mech = jc.preset("flores-slider-crank", viscosity=0.4)
+    s = jc.settings(2e-3, n_out=3, rtol=1e-10, atol=1e-13)
+
+    def loss(sol, m):
+        return sol.coordinate(m, "slider", "x", 1)[-1]
+
+    value, grads = jc.parameter_grad(loss, mech, ["viscosity", "width"], s, mode="forward")
+    for name, x0 in (("viscosity", 0.4), ("width", 0.010)):
+        h = 1e-5 * x0
+        up = loss(jc.simulate(jc.params.replace(mech, name, x0 + h), s), mech)
+        down = loss(jc.simulate(jc.params.replace(mech, name, x0 - h), s), mech)
+        fd = float(up - down) / (2 * h)
+        np.testing.assert_allclose(float(grads[name]), fd, rtol=1e-4, atol=1e-9)

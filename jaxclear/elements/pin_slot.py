@@ -54,6 +54,10 @@ class PinSlotJoint(AbstractJournalJoint):
         axis: slot direction, body-fixed in the slot body (unit, (2,)).
         initial_offset: pin centre relative to the slot centre at the start [m] (inside the
             stadium shrunk by the clearance).
+        ideal: the ideal joint that replaces it in :meth:`~jaxclear.Mechanism.ideal` (static):
+            ``"revolute"`` (default: the slot's length is play, like the clearance; the pin at
+            the slot centre) or ``"line"`` (:class:`~jaxclear.PointOnLine`: the slot is a guide
+            the pin travels along; the ends are not modelled).
     """
 
     bearing_body: str = eqx.field(static=True)
@@ -70,6 +74,7 @@ class PinSlotJoint(AbstractJournalJoint):
     impact_velocity_floor: Scalar
     initial_offset: Vec2
     initial_velocity: Vec2
+    ideal: str = eqx.field(static=True)
     name: str = eqx.field(static=True)
 
     def __init__(
@@ -88,8 +93,12 @@ class PinSlotJoint(AbstractJournalJoint):
         impact_velocity_floor: ArrayLike = 1e-4,
         initial_offset: ArrayLike = (0.0, 0.0),
         initial_velocity: ArrayLike = (0.0, 0.0),
+        ideal: str = "revolute",
         name: str = "pin-slot",
     ):
+        if ideal not in ("revolute", "line"):
+            raise ParameterError(f"ideal = {ideal!r}; valid: 'revolute' (pin at the slot centre), 'line' (pin on the "
+                                 "slot's line)")
         check_range("slot_length", slot_length, low=0.0, unit="m")
         rb, rj, _ = check_journal_geometry(bearing_radius, journal_radius, length, impact_velocity_floor, law,
                                            (0.0, 0.0))
@@ -119,6 +128,7 @@ class PinSlotJoint(AbstractJournalJoint):
         self.impact_velocity_floor = jnp.asarray(impact_velocity_floor, dtype=float)
         self.initial_offset = offset
         self.initial_velocity = jnp.asarray(initial_velocity, dtype=float).reshape(2)
+        self.ideal = ideal
         self.name = name
 
     def clearance_region(self, n: int = 361):
@@ -140,9 +150,13 @@ class PinSlotJoint(AbstractJournalJoint):
             mech, q, qdot, self.bearing_body, self.bearing_point)
         return jnp.concatenate([r, v])
 
-    def ideal_joint(self) -> PointOnLine:
-        """The ideal pin in a slot: the pin centre on the slot's centre line (no end stops)."""
-        return PointOnLine(self.bearing_body, self.bearing_point, self.journal_body, self.journal_point, axis=self.axis)
+    def ideal_joint(self):
+        """The ideal joint chosen by ``ideal``: a :class:`~jaxclear.Revolute` at the slot centre or a
+        :class:`~jaxclear.PointOnLine` (pin on the slot's line, no end stops)."""
+        if self.ideal == "line":
+            return PointOnLine(self.bearing_body, self.bearing_point, self.journal_body, self.journal_point,
+                               axis=self.axis)
+        return super().ideal_joint()
 
     def kinematics(self, mech: Mechanism, q, qdot) -> ContactKinematics:
         """The contact with the nearest point of the stadium (module docstring); the bearing
