@@ -220,6 +220,21 @@ def test_single_corner_impact_reproduces_the_laws_effective_restitution():
     assert abs(ratio - 0.725) < 2e-3, ratio
 
 
+def test_spinning_block_jams_on_diagonal_corners():
+    """A centred block spinning at 1 rad/s, no gravity: at theta = 2c/l (4 ms) the rear-lower and
+    front-upper corners reach opposite surfaces together (jamming): both carry force at once,
+    equal by symmetry (1e-6), the others none, everything finite."""
+    mech = _block(velocity=(0.0, 1.0), gravity=(0.0, 0.0))
+    joint = mech.clearance_joints[0]
+    sol = jc.simulate(mech, BLOCK_SETTINGS(4.03e-3))
+    corners = sol.element_states[0].corners
+    f_n = np.asarray(joint.corner_forces(mech, sol.q[-1], sol.qdot[-1], corners.impact_velocity[-1])[0])
+    assert np.all(np.isfinite(np.asarray(sol.q))) and np.all(np.isfinite(f_n))
+    np.testing.assert_array_equal(np.asarray(corners.impacts[-1]), [1.0, 0.0, 0.0, 1.0])
+    assert f_n[0] > 0 and f_n[3] > 0 and f_n[1] == 0 and f_n[2] == 0
+    np.testing.assert_allclose(f_n[0], f_n[3], rtol=1e-6)
+
+
 @pytest.mark.slow
 def test_guide_clearance_converges_to_the_ideal_translational_joint():
     """Slider-crank with a guide clearance (1000 rpm, one revolution): shrinking the clearance

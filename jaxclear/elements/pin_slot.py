@@ -132,7 +132,7 @@ class PinSlotJoint(AbstractJournalJoint):
         self.name = name
 
     def clearance_region(self, n: int = 361):
-        """The stadium the pin centre may roam without contact, around the slot centre with the
+        r"""The stadium the pin centre may roam without contact, around the slot centre with the
         slot axis at the slot body's reference orientation (n, 2) [m]: half-length
         :math:`\ell/2`, radius :math:`c`."""
         theta = jnp.linspace(-0.5 * jnp.pi, 1.5 * jnp.pi, n - 1)
@@ -188,7 +188,7 @@ class PinSlotJoint(AbstractJournalJoint):
         )
 
     def contact(self, mech: Mechanism, q, qdot, impact_velocity):
-        """Dry contact with the stadium (:func:`~jaxclear.elements.revolute_clearance.contact_forces`);
+        r"""Dry contact with the stadium (:func:`~jaxclear.elements.revolute_clearance.contact_forces`);
         the output's ``ecc`` is the pin centre relative to the slot centre (``kin.ecc`` plus the
         nearest point's offset along the slot; the same for :math:`\ell = 0`)."""
         kin = self.kinematics(mech, q, qdot)

@@ -94,7 +94,7 @@ class AbstractJournalJoint(AbstractForceElement):
         return jnp.concatenate([kin.ecc, kin.journal_velocity - kin.bearing_velocity])
 
     def clearance_region(self, n: int = 361):
-        """The clearance circle :math:`|\mathbf e| = c` (n, 2) [m]."""
+        r"""The clearance circle :math:`|\mathbf e| = c` (n, 2) [m]."""
         theta = jnp.linspace(0.0, 2.0 * jnp.pi, n)
         return self.clearance * jnp.stack([jnp.cos(theta), jnp.sin(theta)], axis=-1)
 

@@ -208,7 +208,7 @@ class TranslationalClearanceJoint(AbstractForceElement):
     orbit_labels: ClassVar[tuple[str, str]] = ("lateral offset y", "tilt x half length")
 
     def clearance_region(self, n: int = 361):
-        """Offsets ``[y, (l/2) theta]`` with no corner in contact, to first order in the tilt:
+        r"""Offsets ``[y, (l/2) theta]`` with no corner in contact, to first order in the tilt:
         the square :math:`|y| + |(l/2)\theta| \le c` (n, 2) [m]."""
         s = jnp.linspace(0.0, 4.0, n)
         x = jnp.interp(s, jnp.arange(5.0), jnp.array([1.0, 0.0, -1.0, 0.0, 1.0]))
