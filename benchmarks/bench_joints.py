@@ -65,7 +65,7 @@ def rhs_time(mech, s, calls=2000):
 
     @jax.jit
     def many(y):
-        return jax.lax.fori_loop(0, calls, lambda i, acc: acc + flat_vector_field(t, y + 1e-20 * i, args)[0], 0.0)
+        return jax.lax.fori_loop(0, calls, lambda i, acc: acc + jax.numpy.sum(flat_vector_field(t, y + 1e-20 * i, args)), 0.0)
 
     jax.block_until_ready(many(y0))
     times = []
