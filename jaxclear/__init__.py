@@ -44,7 +44,17 @@ from .contact import (  # noqa: E402
     make_law,
     oval,
 )
-from .elements import AbstractForceElement, ClearanceJoint, ContactMemory, kinematics  # noqa: E402
+from .elements import (  # noqa: E402
+    AbstractForceElement,
+    AbstractJournalJoint,
+    ClearanceJoint,
+    ContactMemory,
+    CornerMemory,
+    LubricatedJoint,
+    PinSlotJoint,
+    TranslationalClearanceJoint,
+    kinematics,
+)
 from .integrate import (  # noqa: E402
     SOLVERS,
     Baumgarte,
@@ -73,6 +83,7 @@ from .model import (  # noqa: E402
     FunctionDriver,
     Mechanism,
     PointForce,
+    PointOnLine,
     Revolute,
     Torque,
     Translational,

@@ -7,12 +7,15 @@ Names (``J`` = clearance-joint index, default 0, written ``name@J`` e.g. ``clear
 ==================  =======================================================  ============
 name                leaf                                                     unit, range
 ==================  =======================================================  ============
-``clearance``       ``R_B - R_J`` (sets the journal radius, bearing kept)    m, (0, R_B)
+``clearance``       ``R_B - R_J`` (sets the journal radius, bearing kept);   m, (0, R_B)
+                    translational joint: ``(W - b)/2`` (sets the guide width)
 ``restitution``     ``law.restitution``                                      -, (0, 1]
 ``stiffness``       the law's stiffness leaf (``law.stiffness_parameter``)      law's unit, (0, inf)
 ``exponent``        ``law.exponent``                                         -, (0, inf)
 ``friction``        ``friction.coefficient``                                 -, [0, inf)
 ``length``          joint axial length L                                     m, (0, inf)
+``viscosity``       oil viscosity of a :class:`LubricatedJoint`              Pa s, (0, inf)
+``width``           film width of a :class:`LubricatedJoint` (its ``length``)  m, (0, inf)
 ``speed``           first ``AngleDriver.speed``                              rad/s
 ``speed_rpm``       the same in rev/min                                      rpm
 ``mass:BODY``       body mass                                                kg, (0, inf)
@@ -34,6 +37,7 @@ import numpy as np
 
 from ._errors import ParameterError, check_range
 from ._units import rad_s_to_rpm, rpm_to_rad_s
+from .elements import LubricatedJoint, TranslationalClearanceJoint
 from .model import Mechanism, crank_driver
 
 
@@ -59,6 +63,8 @@ INFO = {
     "exponent": ParameterInfo("exponent", "", 0.0, None, True, False, "log", "force exponent n"),
     "friction": ParameterInfo("friction", "", 0.0, None, False, False, "log", "friction coefficient mu"),
     "length": ParameterInfo("length", "m", 0.0, None, True, False, "log", "axial length of the joint"),
+    "viscosity": ParameterInfo("viscosity", "Pa s", 0.0, None, True, False, "log", "oil viscosity (lubricated joint)"),
+    "width": ParameterInfo("width", "m", 0.0, None, True, False, "log", "film width L (lubricated joint)"),
     "speed": ParameterInfo("speed", "rad/s", None, None, False, False, "none", "crank speed"),
     "speed_rpm": ParameterInfo("speed_rpm", "rpm", None, None, False, False, "none", "crank speed"),
     "mass": ParameterInfo("mass", "kg", 0.0, None, True, False, "log", "body mass (mass:BODY)"),
@@ -124,17 +130,30 @@ def _accessor(mech: Mechanism, name: str) -> tuple[Callable, Callable]:
         return (lambda m: m.drivers[i].speed), (lambda m: m.drivers[i].speed)
     joint = _joint(mech, name, k)
     if base == "clearance":
+        if isinstance(joint, TranslationalClearanceJoint):  # (W - b)/2: sets the guide width, block kept
+            return (lambda m: m.clearance_joints[k].clearance), (lambda m: m.clearance_joints[k].guide_width)
         return (lambda m: m.clearance_joints[k].clearance), (lambda m: m.clearance_joints[k].journal_radius)
     if base == "friction":
         w = lambda m: m.clearance_joints[k].friction.coefficient  # noqa: E731
         return w, w
     if base == "length":
+        if isinstance(joint, TranslationalClearanceJoint):
+            raise ParameterError(f"parameter {name!r}: a translational clearance joint has no axial length "
+                                 "(its block has slider_length and slider_height)")
         w = lambda m: m.clearance_joints[k].length  # noqa: E731
+        return w, w
+    if base in ("viscosity", "width"):
+        if not isinstance(joint, LubricatedJoint):
+            raise ParameterError(f"parameter {name!r} belongs to a LubricatedJoint; clearance joint {k} is a "
+                                 f"{type(joint).__name__}")
+        w = (lambda m: m.clearance_joints[k].viscosity) if base == "viscosity" else (lambda m: m.clearance_joints[k].length)
         return w, w
     field = {"restitution": "restitution", "exponent": "exponent"}.get(base) or joint.law.stiffness_parameter
     if field not in type(joint.law).__dataclass_fields__:
         raise ParameterError(f"parameter {name!r}: contact law {type(joint.law).__name__} has no {field!r}")
     w = lambda m: getattr(m.clearance_joints[k].law, field)  # noqa: E731
+    if base == "stiffness" and isinstance(joint, TranslationalClearanceJoint):  # always explicit
+        return w, w
     if base == "stiffness":  # the leaf, or the value derived from the materials when it is None
         return (lambda m: m.clearance_joints[k].law.stiffness_value(
             m.clearance_joints[k].bearing_radius, m.clearance_joints[k].journal_radius)), w
@@ -156,7 +175,9 @@ def replace(mech: Mechanism, name: str, value) -> Mechanism:
     base, k, _ = _split(name)
     _, where = _accessor(mech, name)
     value = jnp.asarray(value, dtype=float)
-    if base == "clearance":
+    if base == "clearance" and isinstance(mech.clearance_joints[k], TranslationalClearanceJoint):
+        value = mech.clearance_joints[k].slider_height + 2.0 * value
+    elif base == "clearance":
         value = mech.clearance_joints[k].bearing_radius - value
     elif base == "speed_rpm":
         value = rpm_to_rad_s(value)
@@ -179,7 +200,7 @@ def validate(mech: Mechanism, name: str, values) -> np.ndarray:
     p = INFO[base]
     check_range(name, arr, low=p.low, high=p.high, low_open=p.low_open, high_open=p.high_open,
                 unit="" if p.unit in ("", "law unit") else p.unit)
-    if base == "clearance":
+    if base == "clearance" and not isinstance(mech.clearance_joints[k], TranslationalClearanceJoint):
         rb = float(mech.clearance_joints[k].bearing_radius)
         if np.any(arr >= rb):
             raise ParameterError(f"{name} = {arr.max():g} m must be smaller than the bearing radius {rb:g} m")

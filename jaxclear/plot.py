@@ -94,30 +94,32 @@ def plot_slider_acceleration(path, mech: Mechanism, sol: Solution, ideal_sol: So
 
 
 def plot_orbit(path, mech: Mechanism, sol: Solution) -> Figure:
-    """Journal-centre orbit: the eccentricity vector [mm] of every clearance joint, inside its
-    clearance circle (radius c); start and end marked."""
+    """Orbit of every force element in its clearance region, to scale [mm]: the journal centre
+    inside its clearance circle (revolute and lubricated joints), the pin centre inside the
+    stadium of its slot, the slider's lateral offset and tilt inside its guide
+    (``element.clearance_region()``); start and end marked."""
     k = len(mech.clearance_joints)
     if k == 0:
         raise ValueError(f"mechanism {mech.name!r} has no clearance joint: no orbit to plot")
     fig = Figure(figsize=(5.2 * k, 6.0))
     ecc = 1e3 * np.asarray(sol.ecc, dtype=float)
-    theta = np.linspace(0.0, 2.0 * np.pi, 361)
     for j, joint in enumerate(mech.clearance_joints):
         ax = fig.add_subplot(1, k, j + 1)
         c = 1e3 * float(joint.clearance)
-        ax.plot(c * np.cos(theta), c * np.sin(theta), color="black", lw=1.2, label=f"clearance circle, c = {c:g} mm")
-        ax.plot(ecc[:, j, 0], ecc[:, j, 1], color=COLORS[0], lw=0.7, label="journal centre")
+        region = 1e3 * np.asarray(joint.clearance_region(), dtype=float)
+        ax.plot(region[:, 0], region[:, 1], color="black", lw=1.2, label=f"clearance region, c = {c:g} mm")
+        ax.plot(ecc[:, j, 0], ecc[:, j, 1], color=COLORS[0], lw=0.7, label="orbit")
         ax.plot(ecc[0, j, 0], ecc[0, j, 1], "o", color="tab:green", ms=5, label="start")
         ax.plot(ecc[-1, j, 0], ecc[-1, j, 1], "s", color="tab:red", ms=5, label="end")
-        lim = 1.15 * max(c, float(np.max(np.abs(ecc[:, j]))))
+        lim = 1.15 * max(float(np.max(np.abs(region))), float(np.max(np.abs(ecc[:, j]))))
         ax.set_xlim(-lim, lim)
         ax.set_ylim(-lim, lim)
         ax.set_aspect("equal")
         ax.axhline(0.0, color="grey", lw=0.5, alpha=0.5)
         ax.axvline(0.0, color="grey", lw=0.5, alpha=0.5)
-        ax.set_xlabel("eccentricity x [mm]")
-        ax.set_ylabel("eccentricity y [mm]")
-        ax.set_title(f"{mech.name}: journal orbit, joint {joint.name}", fontsize=10)
+        ax.set_xlabel(f"{joint.orbit_labels[0]} [mm]")
+        ax.set_ylabel(f"{joint.orbit_labels[1]} [mm]")
+        ax.set_title(f"{mech.name}: orbit, joint {joint.name}", fontsize=10)
         ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, fontsize=8, frameon=False)
         ax.grid(True, alpha=0.3)
     fig.tight_layout()

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from .elements import ClearanceJoint
+from .elements import ClearanceJoint, LubricatedJoint, PinSlotJoint, TranslationalClearanceJoint
 from .contact import Friction
 from .contact import make_law
 from ._errors import ParameterError, check_range
@@ -17,13 +17,20 @@ from .model import GROUND, AngleDriver, Body, Mechanism, Revolute, Translational
 
 
 def _clearance_joint(name, bearing, bearing_point, journal, journal_point, *, bearing_radius, clearance,
-                     law, restitution, stiffness, friction, length, law_options):
+                     law, restitution, stiffness, friction, length, law_options, viscosity=None):
     check_range("clearance", clearance, low=0.0, low_open=True, unit="m")
     check_range("bearing_radius", bearing_radius, low=0.0, low_open=True, unit="m")
     if clearance >= bearing_radius:
         raise ParameterError(
             f"clearance = {clearance:g} m must be smaller than bearing_radius = {bearing_radius:g} m "
             "(the journal radius R_B - c must stay positive)"
+        )
+    if viscosity is not None:
+        return LubricatedJoint(
+            bearing, bearing_point, journal, journal_point, bearing_radius=bearing_radius,
+            journal_radius=bearing_radius - clearance, length=length, viscosity=viscosity,
+            law=make_law(law, restitution=restitution, stiffness=stiffness, **(law_options or {})),
+            friction=Friction(friction), name=name,
         )
     return ClearanceJoint(
         bearing,
@@ -41,7 +48,7 @@ def _clearance_joint(name, bearing, bearing_point, journal, journal_point, *, be
 
 def _slider_crank(*, name, crank_length, crank_mass, crank_inertia, rod_length, rod_mass, rod_inertia,
                   slider_mass, slider_inertia, speed_rpm, clearance, bearing_radius, length, law,
-                  restitution, stiffness, friction, ideal, gravity, law_options):
+                  restitution, stiffness, friction, ideal, gravity, law_options, viscosity=None):
     r, l = crank_length, rod_length
     check_range("crank_length", r, low=0.0, low_open=True, unit="m")
     check_range("rod_length", l, low=r, low_open=True, unit="m")
@@ -60,7 +67,7 @@ def _slider_crank(*, name, crank_length, crank_mass, crank_inertia, rod_length, 
         clearance_joints.append(
             _clearance_joint("rod-slider", "slider", "B", "rod", "B", bearing_radius=bearing_radius,
                              clearance=clearance, law=law, restitution=restitution, stiffness=stiffness,
-                             friction=friction, length=length, law_options=law_options)
+                             friction=friction, length=length, law_options=law_options, viscosity=viscosity)
         )
     return Mechanism(
         bodies=[crank, rod, slider],
@@ -87,6 +94,7 @@ def flores_slider_crank(
     length=0.010,
     gravity=(0.0, -9.81),
     law_options=None,
+    viscosity=None,
 ):
     """The Flores benchmark slider-crank with a clearance in the rod-slider joint.
 
@@ -98,13 +106,18 @@ def flores_slider_crank(
     (on the rod) radius 9.5 mm (c = 0.5 mm); steel E = 207 GPa, nu = 0.3; c_r = 0.9;
     Baumgarte alpha = beta = 5 (the default Settings). Joint length 10 mm (used only by the
     cylindrical laws). Starts at crank angle 0 with the journal centred.
+
+    ``viscosity`` [Pa s] (default None: dry) makes the rod-slider joint a
+    :class:`~jaxclear.LubricatedJoint` (short-bearing film of width ``length``, half film,
+    the dry law taking over at contact), the lubricated benchmark of Flores, Ambrósio, Claro,
+    Lankarani, Koshy, Nonlinear Dyn. 56 (2009) 277-295 (their oil: 400 cP = 0.4 Pa s).
     """
     return _slider_crank(
         name="flores-slider-crank", crank_length=0.05, crank_mass=0.30, crank_inertia=crank_inertia,
         rod_length=0.12, rod_mass=0.21, rod_inertia=2.5e-4, slider_mass=0.14, slider_inertia=1e-4,
         speed_rpm=speed_rpm, clearance=clearance, bearing_radius=bearing_radius, length=length, law=law,
         restitution=restitution, stiffness=stiffness, friction=friction, ideal=ideal, gravity=gravity,
-        law_options=law_options,
+        law_options=law_options, viscosity=viscosity,
     )
 
 
@@ -203,10 +216,88 @@ def four_bar(
     )
 
 
+def slider_crank_guide_clearance(
+    clearance=0.1e-3,
+    restitution=0.9,
+    friction=0.0,
+    speed_rpm=1000.0,
+    law="lankarani-nikravesh",
+    stiffness=4.8e9,
+    ideal=False,
+    slider_length=0.05,
+    slider_height=0.03,
+    gravity=(0.0, -9.81),
+):
+    r"""The benchmark slider-crank (links, masses and inertias of :func:`flores_slider_crank`,
+    every revolute joint ideal) with a clearance in the slider's guide: a
+    :class:`~jaxclear.TranslationalClearanceJoint`, the system studied by Flores, Ambrósio,
+    Claro, Lankarani, "Translational joints with clearance in rigid multibody systems",
+    J. Comput. Nonlinear Dyn. 3 (2008) 011007.
+
+    Stated values (ours, not the paper's): block 50 mm long and 30 mm high centred on the rod-slider
+    pin, clearance 0.1 mm per side, corners with the Lankarani-Nikravesh law, c_r = 0.9 and
+    K = 4.8e9 N/m^1.5 (Hertz sphere on plane, :math:`K = (4/3)E^*\sqrt{r}` with a 1 mm corner
+    radius and steel, :math:`E^* = E/(2(1-\nu^2))`), no friction, crank at 1000 rpm; the slider
+    starts centred in its guide.
+    """
+    check_range("clearance", clearance, low=0.0, low_open=True, unit="m")
+    base = flores_slider_crank(speed_rpm=speed_rpm, ideal=True, gravity=gravity)
+    name = "slider-crank-guide-clearance"
+    if ideal:
+        return Mechanism(base.bodies, base.joints, base.drivers, gravity=base.gravity, ground_points=base.ground_points,
+                         name=name + "-ideal", roles=dict(base.roles))
+    guide = TranslationalClearanceJoint(
+        GROUND, "rail", "slider", "B", slider_length=slider_length, slider_height=slider_height,
+        guide_width=slider_height + 2 * clearance, law=make_law(law, restitution=restitution, stiffness=stiffness),
+        friction=Friction(friction), name="guide",
+    )
+    joints = [j for j in base.joints if not isinstance(j, Translational)]
+    return Mechanism(base.bodies, joints, base.drivers, [guide], gravity=base.gravity, ground_points=base.ground_points,
+                     name=name, roles=dict(base.roles))
+
+
+def slider_crank_pin_slot(
+    slot_length=1e-3,
+    clearance=0.5e-3,
+    restitution=0.9,
+    friction=0.0,
+    speed_rpm=1000.0,
+    law="lankarani-nikravesh",
+    stiffness=None,
+    ideal=False,
+    bearing_radius=0.010,
+    length=0.010,
+    gravity=(0.0, -9.81),
+):
+    """The benchmark slider-crank of :func:`flores_slider_crank` whose rod-slider joint is a pin
+    in a slot (:class:`~jaxclear.PinSlotJoint`; the pin-slot clearance joint of Škrinjar, Slavič,
+    Boltežar, Nonlinear Dyn. 88 (2017) 131-143).
+
+    Stated values (ours): the slot, on the slider, runs along the stroke with a straight length
+    of 1 mm and a width of 20 mm; pin radius 9.5 mm (clearance 0.5 mm), steel, Lankarani-Nikravesh
+    with c_r = 0.9 and the cylindrical stiffness of the benchmark joint; crank at 1000 rpm; the
+    pin starts centred. ``ideal=True`` gives the benchmark's ideal mechanism.
+    """
+    check_range("slot_length", slot_length, low=0.0, unit="m")
+    base = flores_slider_crank(clearance=clearance, restitution=restitution, friction=friction, speed_rpm=speed_rpm,
+                               law=law, stiffness=stiffness, ideal=ideal, bearing_radius=bearing_radius,
+                               length=length, gravity=gravity)
+    if ideal:
+        return base
+    dry = base.clearance_joints[0]
+    slot = PinSlotJoint(dry.bearing_body, dry.bearing_point, dry.journal_body, dry.journal_point,
+                        bearing_radius=dry.bearing_radius, journal_radius=dry.journal_radius, slot_length=slot_length,
+                        axis=(1.0, 0.0), length=dry.length, law=dry.law, friction=dry.friction, name="rod-slider-slot")
+    return Mechanism(base.bodies, base.joints, base.drivers, [slot], gravity=base.gravity,
+                     ground_points=base.ground_points, name="slider-crank-pin-slot", roles=dict(base.roles))
+
+
 PRESETS = {
     "flores-slider-crank": flores_slider_crank,
     "flores-2011-rig": flores_2011_rig,
     "four-bar": four_bar,
+    "slider-crank-guide-clearance": slider_crank_guide_clearance,
+    "slider-crank-pin-slot": slider_crank_pin_slot,
 }
 
 

@@ -49,3 +49,15 @@ def test_committed_notebook_has_outputs_and_figures():
     assert all(c.outputs for c in nb.cells if c.cell_type == "code")
     for fig in ("effective_restitution.png", "hybrid_vs_ln_orbits.png", "hybrid_vs_ln_signals.png"):
         assert (NOTEBOOKS / "figures" / fig).stat().st_size > 10_000
+
+
+@pytest.mark.slow
+def test_joints_notebook_runs(tmp_path):
+    """notebooks/joints.ipynb (dry against lubricated benchmark, guide clearance) end to end."""
+    nb = execute_notebook("joints.ipynb", tmp_path)
+    errors = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs if o.output_type == "error"]
+    assert not errors
+    figures = sorted(p.name for p in (tmp_path / "figures").glob("*.png"))
+    assert figures == ["joints_dry_vs_lubricated.png", "joints_guide_clearance.png"]
+    text = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.outputs)
+    assert "lubricated: impacts   0" in text

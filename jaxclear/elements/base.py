@@ -22,6 +22,7 @@ import jax
 import jax.numpy as jnp
 
 from .._types import Array, BoolScalar, Float, Scalar, Vec2
+from ..model.joints import AbstractConstraint
 from ..model.mechanism import Mechanism
 
 
@@ -84,6 +85,23 @@ class AbstractForceElement(eqx.Module):
     def after_step(self, mech: Mechanism, t0, q0, qd0, t1, q1, qd1, state) -> tuple[Any, BoolScalar]:
         """The state's update after an accepted step ``[t0, t1]`` (memory rules) and whether
         the force law changed within the step (the solver then re-evaluates its first stage)."""
+
+    @abc.abstractmethod
+    def relative_state(self, mech: Mechanism, q, qdot) -> Float[Array, "4"]:
+        """``[x, y, v_x, v_y]`` of the element's moving part relative to its seat (the journal
+        centre relative to the bearing centre; the slider relative to the guide) [m, m/s]."""
+
+    #: axis labels of the orbit plot of :attr:`ContactOutput.ecc` (without unit)
+    orbit_labels: ClassVar[tuple[str, str]] = ("eccentricity x", "eccentricity y")
+
+    @abc.abstractmethod
+    def clearance_region(self, n: int = 361) -> Float[Array, "n 2"]:
+        """Boundary (closed polyline, (n, 2), [m]) of the region that :attr:`ContactOutput.ecc`
+        stays in without contact (the orbit plot draws it to scale)."""
+
+    @abc.abstractmethod
+    def ideal_joint(self) -> AbstractConstraint:
+        """The ideal joint that replaces this element in :meth:`Mechanism.ideal` (zero clearance)."""
 
     # ---- initial assembly -----------------------------------------------------------
     @abc.abstractmethod

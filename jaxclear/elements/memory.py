@@ -53,6 +53,11 @@ class ContactMemory(eqx.Module):
         # finite sentinels (not -inf): dense interpolation of the state may difference two samples
         return ContactMemory(z, jnp.full(shape, -1e9, dtype), z, z, z, jnp.full(shape, -1.0, dtype))
 
+    def summary(self) -> "ContactMemory":
+        """The element's memory as one contact (itself); elements with several contacts (the
+        translational clearance joint) reduce theirs to one (``Solution.memory``)."""
+        return self
+
     def zeros_like(self) -> "ContactMemory":
         z = jnp.zeros_like(self.impacts)
         return ContactMemory(z, z, z, z, z, z)

@@ -24,6 +24,7 @@ The impact speed :math:`\dot\delta^{(-)}` of the joint is history: the joint's s
 
 from __future__ import annotations
 
+import abc
 from typing import ClassVar
 
 import equinox as eqx
@@ -36,12 +37,144 @@ from ..contact.base import AbstractFriction, AbstractNormalLaw, ContactKinematic
 from ..contact.friction import Friction
 from ..contact.hertz import ContactLaw
 from ..model.geometry import perp, safe_normal
+from ..model.joints import Revolute
 from ..model.mechanism import Mechanism, point_load, point_position, point_velocity
 from .base import AbstractForceElement, ContactOutput
 from .memory import N_FIELDS, ContactMemory, onset_update, with_peak_force
 
 
-class ClearanceJoint(AbstractForceElement):
+class AbstractJournalJoint(AbstractForceElement):
+    """A journal (pin, radius :math:`R_J`, on the journal body) inside a bearing (radius
+    :math:`R_B`, on the bearing body), with one contact and one impact memory: what the
+    revolute clearance joint, the lubricated joint and the pin-in-slot joint share (state,
+    memory rule, assembly at an initial offset, ideal replacement). Subclasses give the
+    kinematics of the contact (:meth:`kinematics`) and its forces (:meth:`contact`)."""
+
+    bearing_body: eqx.AbstractVar[str]
+    bearing_point: eqx.AbstractVar[str]
+    journal_body: eqx.AbstractVar[str]
+    journal_point: eqx.AbstractVar[str]
+    bearing_radius: eqx.AbstractVar[Scalar]
+    journal_radius: eqx.AbstractVar[Scalar]
+    length: eqx.AbstractVar[Scalar]
+    law: eqx.AbstractVar[AbstractNormalLaw]
+    friction: eqx.AbstractVar[AbstractFriction]
+    impact_velocity_floor: eqx.AbstractVar[Scalar]
+    initial_offset: eqx.AbstractVar[Vec2]
+    initial_velocity: eqx.AbstractVar[Vec2]
+
+    @abc.abstractmethod
+    def kinematics(self, mech: Mechanism, q, qdot) -> ContactKinematics:
+        """The contact's kinematics (the penetration the law decides contact on)."""
+
+    @abc.abstractmethod
+    def contact(self, mech: Mechanism, q, qdot, impact_velocity) -> tuple[Float[Array, " n"], ContactOutput]:
+        """Generalized force (n,) of the element and its :class:`ContactOutput`."""
+
+    @property
+    def clearance(self):
+        """Radial clearance :math:`c = R_B - R_J` [m]."""
+        return self.bearing_radius - self.journal_radius
+
+    # ---- structure ------------------------------------------------------------------
+    def bodies(self):
+        return (self.bearing_body, self.journal_body)
+
+    def points(self):
+        return ((self.bearing_body, self.bearing_point), (self.journal_body, self.journal_point))
+
+    @property
+    def label(self):
+        return f"clearance joint {self.name}"
+
+    def relative_state(self, mech: Mechanism, q, qdot):
+        """``[e_x, e_y, v_x, v_y]``: eccentricity [m] and journal-centre velocity relative to the
+        bearing centre [m/s] (4,)."""
+        kin = self.kinematics(mech, q, qdot)
+        return jnp.concatenate([kin.ecc, kin.journal_velocity - kin.bearing_velocity])
+
+    def clearance_region(self, n: int = 361):
+        r"""The clearance circle :math:`|\mathbf e| = c` (n, 2) [m]."""
+        theta = jnp.linspace(0.0, 2.0 * jnp.pi, n)
+        return self.clearance * jnp.stack([jnp.cos(theta), jnp.sin(theta)], axis=-1)
+
+    def ideal_joint(self) -> Revolute:
+        """The ideal revolute joint this element replaces: journal and bearing centres coincide."""
+        return Revolute(self.journal_body, self.journal_point, self.bearing_body, self.bearing_point)
+
+    # ---- state: one ContactMemory -----------------------------------------------------
+    state_size: ClassVar[int] = N_FIELDS
+
+    def state_init(self, dtype=float) -> ContactMemory:
+        return ContactMemory.initial((), dtype)
+
+    def state_to_vector(self, state: ContactMemory):
+        return jnp.stack(jax.tree_util.tree_leaves(state))
+
+    def state_from_vector(self, v) -> ContactMemory:
+        return ContactMemory(*(v[i] for i in range(N_FIELDS)))
+
+    # ---- physics ----------------------------------------------------------------------
+    def forces(self, mech: Mechanism, t, q, qdot, state: ContactMemory):
+        """Generalized contact force (n,), memory rate (the work's rate is the power) and the
+        joint's :class:`ContactOutput`."""
+        gen, out = self.contact(mech, q, qdot, state.impact_velocity)
+        return gen, state.rate(out.power), out
+
+    def after_step(self, mech: Mechanism, t0, q0, qd0, t1, q1, qd1, state: ContactMemory):
+        """The impact-memory rule over the accepted step ``[t0, t1]``
+        (:func:`~jaxclear.elements.memory.onset_update`), then the running peak force at the
+        step's end."""
+        kin0, kin1 = self.kinematics(mech, q0, qd0), self.kinematics(mech, q1, qd1)
+        p0, p1 = self.law.penetration(kin0), self.law.penetration(kin1)
+        new, crossed = onset_update(state, t0, t1, p0, p1, kin0.deltadot, kin1.deltadot)
+        _, out = self.contact(mech, q1, qd1, new.impact_velocity)
+        return with_peak_force(new, out.normal_force), crossed
+
+    # ---- initial assembly: hold the journal at its initial offset ---------------------
+    n_equations: ClassVar[int] = 2
+
+    def equations(self, mech: Mechanism, q, t):
+        """:math:`P_j - P_i - e_0 = 0` (2,), the joint treated as ideal at a fixed offset."""
+        return (
+            point_position(mech, q, self.journal_body, self.journal_point)
+            - point_position(mech, q, self.bearing_body, self.bearing_point)
+            - self.initial_offset
+        )
+
+    def assembly_velocity(self):
+        """Relative velocity of the journal centre at the start [m/s] (2,)."""
+        return self.initial_velocity
+
+
+
+def check_journal_geometry(bearing_radius, journal_radius, length, impact_velocity_floor, law, initial_offset):
+    """Validate the geometry of a journal in a bearing (concrete values only; tracers pass):
+    radii positive with :math:`R_J < R_B`, length and floor positive, the law able to serve the
+    radii, the initial offset inside the clearance. Returns ``(R_B, R_J, offset)`` as arrays."""
+    check_range("bearing_radius", bearing_radius, low=0.0, low_open=True, unit="m")
+    check_range("journal_radius", journal_radius, low=0.0, low_open=True, unit="m")
+    check_range("length (joint width)", length, low=0.0, low_open=True, unit="m")
+    check_range("impact_velocity_floor", impact_velocity_floor, low=0.0, low_open=True, unit="m/s")
+    rb, rj = jnp.asarray(bearing_radius, dtype=float), jnp.asarray(journal_radius, dtype=float)
+    if not isinstance(rb, jax.core.Tracer) and not isinstance(rj, jax.core.Tracer):
+        if float(rj) >= float(rb):
+            raise ParameterError(
+                f"journal_radius = {float(rj):g} m must be smaller than bearing_radius = "
+                f"{float(rb):g} m (clearance c = R_B - R_J must be > 0; got {float(rb - rj):g} m)"
+            )
+        if law is not None:
+            law.check_geometry(float(rb), float(rj))
+    offset = jnp.asarray(initial_offset, dtype=float).reshape(2)
+    if not isinstance(offset, jax.core.Tracer) and float(jnp.linalg.norm(offset)) >= float(rb - rj):
+        raise ParameterError(
+            f"initial_offset |e| = {float(jnp.linalg.norm(offset)):g} m must be smaller than the "
+            f"clearance {float(rb - rj):g} m (the journal must start inside its bearing)"
+        )
+    return rb, rj, offset
+
+
+class ClearanceJoint(AbstractJournalJoint):
     """A revolute joint with radial clearance, modelled as a contact force element.
 
     Attributes:
@@ -95,25 +228,8 @@ class ClearanceJoint(AbstractForceElement):
         initial_velocity: ArrayLike = (0.0, 0.0),
         name: str = "clearance",
     ):
-        check_range("bearing_radius", bearing_radius, low=0.0, low_open=True, unit="m")
-        check_range("journal_radius", journal_radius, low=0.0, low_open=True, unit="m")
-        check_range("length (joint width)", length, low=0.0, low_open=True, unit="m")
-        check_range("impact_velocity_floor", impact_velocity_floor, low=0.0, low_open=True, unit="m/s")
-        rb, rj = jnp.asarray(bearing_radius, dtype=float), jnp.asarray(journal_radius, dtype=float)
-        if not isinstance(rb, jax.core.Tracer) and not isinstance(rj, jax.core.Tracer):
-            if float(rj) >= float(rb):
-                raise ParameterError(
-                    f"journal_radius = {float(rj):g} m must be smaller than bearing_radius = "
-                    f"{float(rb):g} m (clearance c = R_B - R_J must be > 0; got {float(rb - rj):g} m)"
-                )
-            if law is not None:
-                law.check_geometry(float(rb), float(rj))
-        offset = jnp.asarray(initial_offset, dtype=float).reshape(2)
-        if not isinstance(offset, jax.core.Tracer) and float(jnp.linalg.norm(offset)) >= float(rb - rj):
-            raise ParameterError(
-                f"initial_offset |e| = {float(jnp.linalg.norm(offset)):g} m must be smaller than the "
-                f"clearance {float(rb - rj):g} m (the journal must start inside its bearing)"
-            )
+        rb, rj, offset = check_journal_geometry(bearing_radius, journal_radius, length, impact_velocity_floor, law,
+                                                initial_offset)
         self.bearing_body, self.bearing_point = bearing_body, bearing_point
         self.journal_body, self.journal_point = journal_body, journal_point
         self.bearing_radius, self.journal_radius = rb, rj
@@ -125,65 +241,14 @@ class ClearanceJoint(AbstractForceElement):
         self.initial_velocity = jnp.asarray(initial_velocity, dtype=float).reshape(2)
         self.name = name
 
-    @property
-    def clearance(self):
-        """Radial clearance :math:`c = R_B - R_J` [m]."""
-        return self.bearing_radius - self.journal_radius
+    # ---- the two hooks of AbstractJournalJoint -----------------------------------------
+    def kinematics(self, mech: Mechanism, q, qdot) -> ContactKinematics:
+        """Eccentricity, penetration, its rate and the slip (:func:`kinematics`)."""
+        return kinematics(mech, self, q, qdot)
 
-    # ---- structure ------------------------------------------------------------------
-    def bodies(self):
-        return (self.bearing_body, self.journal_body)
-
-    def points(self):
-        return ((self.bearing_body, self.bearing_point), (self.journal_body, self.journal_point))
-
-    @property
-    def label(self):
-        return f"clearance joint {self.name}"
-
-    # ---- state: one ContactMemory -----------------------------------------------------
-    state_size: ClassVar[int] = N_FIELDS
-
-    def state_init(self, dtype=float) -> ContactMemory:
-        return ContactMemory.initial((), dtype)
-
-    def state_to_vector(self, state: ContactMemory):
-        return jnp.stack(jax.tree_util.tree_leaves(state))
-
-    def state_from_vector(self, v) -> ContactMemory:
-        return ContactMemory(*(v[i] for i in range(N_FIELDS)))
-
-    # ---- physics ----------------------------------------------------------------------
-    def forces(self, mech: Mechanism, t, q, qdot, state: ContactMemory):
-        """Generalized contact force (n,), memory rate (the work's rate is the power) and the
-        joint's :class:`ContactOutput`."""
-        gen, out = joint_forces(mech, self, q, qdot, state.impact_velocity)
-        return gen, state.rate(out.power), out
-
-    def after_step(self, mech: Mechanism, t0, q0, qd0, t1, q1, qd1, state: ContactMemory):
-        """The impact-memory rule over the accepted step ``[t0, t1]``
-        (:func:`~jaxclear.elements.memory.onset_update`), then the running peak force at the
-        step's end."""
-        kin0, kin1 = kinematics(mech, self, q0, qd0), kinematics(mech, self, q1, qd1)
-        p0, p1 = self.law.penetration(kin0), self.law.penetration(kin1)
-        new, crossed = onset_update(state, t0, t1, p0, p1, kin0.deltadot, kin1.deltadot)
-        _, out = joint_forces(mech, self, q1, qd1, new.impact_velocity)
-        return with_peak_force(new, out.normal_force), crossed
-
-    # ---- initial assembly: hold the journal at its initial offset ---------------------
-    n_equations: ClassVar[int] = 2
-
-    def equations(self, mech: Mechanism, q, t):
-        """:math:`P_j - P_i - e_0 = 0` (2,), the joint treated as ideal at a fixed offset."""
-        return (
-            point_position(mech, q, self.journal_body, self.journal_point)
-            - point_position(mech, q, self.bearing_body, self.bearing_point)
-            - self.initial_offset
-        )
-
-    def assembly_velocity(self):
-        """Relative velocity of the journal centre at the start [m/s] (2,)."""
-        return self.initial_velocity
+    def contact(self, mech: Mechanism, q, qdot, impact_velocity):
+        """Generalized contact force (n,) and :class:`ContactOutput` (:func:`joint_forces`)."""
+        return joint_forces(mech, self, q, qdot, impact_velocity)
 
 
 def kinematics(mech: Mechanism, joint: ClearanceJoint, q, qdot) -> ContactKinematics:
@@ -226,20 +291,24 @@ def kinematics(mech: Mechanism, joint: ClearanceJoint, q, qdot) -> ContactKinema
 
 
 def journal_state(mech: Mechanism, q, qdot) -> Float[Array, " 4k"]:
-    """Journal state relative to its bearing of every clearance joint, stacked
-    ``[e_x, e_y, v_x, v_y]`` per joint (``(4k,)``; [m, m, m/s, m/s]): the eccentricity and the
-    velocity of the journal centre relative to the bearing centre. Poincare sections and the
-    fit's window states use it."""
-    rows = [
-        jnp.concatenate([kin.ecc, kin.journal_velocity - kin.bearing_velocity])
-        for kin in (kinematics(mech, joint, q, qdot) for joint in mech.clearance_joints)
-    ]
+    """Relative state of every force element, stacked ``[e_x, e_y, v_x, v_y]`` per element
+    (``(4k,)``; [m, m, m/s, m/s]): for a journal joint the eccentricity and the velocity of the
+    journal centre relative to the bearing centre
+    (:meth:`~jaxclear.elements.base.AbstractForceElement.relative_state`). Poincare sections and
+    the fit's window states use it."""
+    rows = [element.relative_state(mech, q, qdot) for element in mech.clearance_joints]
     return jnp.concatenate(rows) if rows else jnp.zeros((0,), q.dtype)
 
 
 def joint_forces(mech: Mechanism, joint: ClearanceJoint, q, qdot, impact_velocity):
     """Generalized contact force (n,) of one joint and its :class:`ContactOutput`."""
-    kin = kinematics(mech, joint, q, qdot)
+    return contact_forces(mech, joint, kinematics(mech, joint, q, qdot), q, qdot, impact_velocity)
+
+
+def contact_forces(mech: Mechanism, joint: AbstractJournalJoint, kin: ContactKinematics, q, qdot, impact_velocity):
+    """Generalized force (n,) of the dry contact of a journal joint with kinematics ``kin``
+    (normal law, then friction law; the force on the journal at :math:`Q_j = P_j + R_J n`, minus
+    it on the bearing at ``kin.bearing_centre`` :math:`+ R_B n`) and its :class:`ContactOutput`."""
     speed0 = jnp.maximum(impact_velocity, joint.impact_velocity_floor)
     f_n, n = joint.law.contact_force(kin, speed0)
     f_t = joint.friction(kin.slip, f_n)

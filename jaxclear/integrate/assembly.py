@@ -70,7 +70,7 @@ def assemble(mech: Mechanism, t0=0.0) -> Assembly:
         d = constraints.jacobian(mech, q, t0, extra)
         return q - minimum_norm_correction(d, r)
 
-    if mech.n_constraints + 2 * len(extra) == 0:
+    if mech.n_constraints + sum(c.n_equations for c in extra) == 0:
         return Assembly(q, qd, jnp.zeros((), q.dtype), jnp.zeros((0, q.shape[0]), q.dtype))
     q = jax.lax.fori_loop(0, NEWTON_ITERATIONS, newton, q)
     r = constraints.phi(mech, q, t0, extra)

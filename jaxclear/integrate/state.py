@@ -57,9 +57,9 @@ class State(eqx.Module):
 
 
 def stack_memory(states: tuple, like) -> ContactMemory:
-    """The :class:`ContactMemory` entries of ``states`` stacked along a trailing axis; shaped
-    ``like.shape[:-1] + (0,)`` when there are none."""
-    memories = [s for s in states if isinstance(s, ContactMemory)]
+    """The elements' memories (each state's ``summary()``, a :class:`ContactMemory`) stacked
+    along a trailing axis; shaped ``like.shape[:-1] + (0,)`` when there are none."""
+    memories = [s.summary() for s in states]
     if not memories:
         z = jnp.zeros(like.shape[:-1] + (0,), like.dtype)
         return ContactMemory(z, z, z, z, z, z)

@@ -108,6 +108,32 @@ class Translational(AbstractJoint):
         return jnp.stack([rel, -dot2(normal, self._separation(mech, q))])
 
 
+class PointOnLine(AbstractJoint):
+    r"""Ideal pin in a slot (1 eq.): point ``point_j`` of ``body_j`` stays on the line through
+    ``point_i`` of ``body_i`` along the body-fixed unit direction ``axis`` of ``body_i``
+    (the ideal pin-in-slot joint; the slot's ends are not modelled)."""
+
+    body_i: str = eqx.field(static=True)
+    point_i: str = eqx.field(static=True)
+    body_j: str = eqx.field(static=True)
+    point_j: str = eqx.field(static=True)
+    axis: Vec2
+
+    n_equations: ClassVar[int] = 1
+
+    def __init__(self, body_i, point_i, body_j, point_j, axis=(1.0, 0.0)):
+        self.body_i, self.point_i, self.body_j, self.point_j = body_i, point_i, body_j, point_j
+        ax = vec2("slot axis", axis)
+        norm = float(jnp.linalg.norm(ax))
+        if norm == 0.0:
+            raise MechanismError("slot axis must be a non-zero vector")
+        self.axis = ax / norm
+
+    def equations(self, mech, q, t):
+        normal = rotate(mech.angle(q, self.body_i), perp(self.axis))
+        return -dot2(normal, self._separation(mech, q))[None]
+
+
 class Fixed(AbstractJoint):
     """Weld (3 eq.): points coincide and the relative angle stays ``angle`` [rad]."""
 

@@ -21,7 +21,7 @@ from .._errors import MechanismError
 from .._types import Array, ArrayLike, Float, Vec2
 from .bodies import GROUND, Body, vec2
 from .geometry import cross2, perp, rotate
-from .joints import AbstractConstraint, Revolute
+from .joints import AbstractConstraint
 
 
 class Mechanism(eqx.Module):
@@ -177,12 +177,13 @@ class Mechanism(eqx.Module):
         return jnp.concatenate([jnp.stack([b.mass, b.mass, b.inertia]) for b in self.bodies])
 
     def ideal(self) -> "Mechanism":
-        """The same mechanism with every clearance joint replaced by an ideal :class:`Revolute`
-        between its journal and bearing points (appended after the other joints), named
-        ``NAME-ideal``: the reference whose response the clearance perturbs."""
+        """The same mechanism with every force element replaced by its ideal joint
+        (``element.ideal_joint()``: a :class:`Revolute` for the journal joints, a
+        :class:`Translational` for the translational clearance joint; appended after the other
+        joints), named ``NAME-ideal``: the reference whose response the clearance perturbs."""
         if not self.clearance_joints:
             return self
-        pins = [Revolute(c.journal_body, c.journal_point, c.bearing_body, c.bearing_point) for c in self.clearance_joints]
+        pins = [c.ideal_joint() for c in self.clearance_joints]
         return Mechanism(
             bodies=self.bodies, joints=(*self.joints, *pins), drivers=self.drivers, clearance_joints=(),
             loads=self.loads, gravity=self.gravity, ground_points=self.ground_points, name=self.name + "-ideal",

@@ -1,0 +1,256 @@
+r"""Lubricated revolute joints: a journal in a bearing separated by an oil film, with the
+short-bearing (Ocvirk) hydrodynamic force and a C1 transition to dry contact.
+
+References: Flores, Ambrósio, Claro, Lankarani, Koshy, "Lubricated revolute joints in rigid
+multibody systems", Nonlinear Dyn. 56 (2009) 277-295; Pinkus and Sternlicht, "Theory of
+Hydrodynamic Lubrication", McGraw-Hill 1961, ch. 3; Hamrock, Schmid, Jacobson, "Fundamentals of
+Fluid Film Lubrication", 2nd ed., Dekker 2004, ch. 10 (short-bearing theory).
+
+Geometry (SI): radial clearance :math:`c = R_B - R_J`, eccentricity :math:`\mathbf e = P_j - P_i`,
+ratio :math:`\varepsilon = e/c`, unit normal :math:`n = \mathbf e/e` and tangent
+:math:`t = \mathrm{perp}(n)`. The angle :math:`\psi` is measured on the journal from :math:`n`
+(the thinnest film) towards :math:`t`; the film thickness is
+:math:`h(\psi) = c(1 - \varepsilon\cos\psi)`.
+
+Short-bearing Reynolds equation in the frame turning with the line of centres (film width
+:math:`L` = the joint's ``length``, viscosity :math:`\mu`), integrated over the width:
+
+.. math::
+
+    \bar p(\psi) = \frac{\mu L^3}{c^2}\,
+        \frac{\dot\varepsilon\cos\psi - \bar\omega\varepsilon\sin\psi}{(1 - \varepsilon\cos\psi)^3}
+    \quad [\mathrm{N/m}],\qquad
+    \bar\omega = \tfrac12(\omega_j + \omega_b - 2\dot\gamma),
+
+with :math:`\dot\gamma` the rate of the line of centres. Written with the relative velocity
+:math:`v = \dot P_j - \dot P_i`: :math:`\dot\varepsilon = v\cdot n / c` (squeeze) and
+:math:`\bar\omega\varepsilon = ((\omega_j+\omega_b) e/2 - v\cdot t)/c` (wedge), so nothing is
+divided by :math:`e`. The force on the journal is
+:math:`F = -R_J\int \bar p\,(\cos\psi\, n + \sin\psi\, t)\,d\psi`, through its centre; minus it
+acts on the bearing body along the same line (applied at the journal centre). The viscous
+shear torque is neglected.
+
+Film conditions (``film``):
+
+* ``"half"`` (default, Gümbel / half-Sommerfeld): negative pressures set to zero; the film
+  covers the half circle where :math:`\bar p > 0`, whose edges
+  :math:`\dot\varepsilon\cos\psi = \bar\omega\varepsilon\sin\psi` move with the squeeze rate;
+* ``"full"`` (Sommerfeld, :math:`2\pi` film): the whole circumference;
+* ``"half-fixed"``: edges fixed at :math:`\psi = -\pi, 0` (or :math:`0, \pi` when
+  :math:`\bar\omega < 0`), the form of Pinkus and Sternlicht quoted by Flores et al. (2009);
+  equal to ``"half"`` only when :math:`\dot\varepsilon = 0`.
+
+Closed forms: with the Sommerfeld substitution :math:`1 - \varepsilon\cos\psi =
+(1-\varepsilon^2)/(1+\varepsilon\cos\beta)`, i.e. :math:`\tan(\beta/2) =
+\sqrt{(1+\varepsilon)/(1-\varepsilon)}\tan(\psi/2)`, the three integrals of
+:math:`\{\cos^2\psi, \sin\psi\cos\psi, \sin^2\psi\}/(1-\varepsilon\cos\psi)^3` over any interval
+become :math:`(1-\varepsilon^2)^{-5/2}\int(\cos\beta+\varepsilon)^2`,
+:math:`(1-\varepsilon^2)^{-2}\int\sin\beta(\cos\beta+\varepsilon)` and
+:math:`(1-\varepsilon^2)^{-3/2}\int\sin^2\beta` (:func:`film_integrals`): exact for any film
+edges. Steady rotation (:math:`\dot\varepsilon = 0`, stationary bearing, half film) gives the
+classical short-bearing loads :math:`W_r = \mu U L^3\varepsilon^2/(c^2(1-\varepsilon^2)^2)`,
+:math:`W_t = \pi\mu U L^3\varepsilon/(4c^2(1-\varepsilon^2)^{3/2})`, :math:`U = \omega R_J`.
+
+Transition to dry contact (film rupture): the film force is evaluated at the ratio
+:math:`\tilde\varepsilon = g(\varepsilon)` with :math:`g(\varepsilon) = \varepsilon` below
+``blend_start`` :math:`\varepsilon_0`, :math:`g = \varepsilon - (\varepsilon-\varepsilon_0)^2 /
+(2(\varepsilon_1-\varepsilon_0))` between :math:`\varepsilon_0` and ``blend_end``
+:math:`\varepsilon_1`, and :math:`g = (\varepsilon_0+\varepsilon_1)/2` above (C1: value and slope
+continuous at both bounds; the film's squeeze and wedge rates are kept). The film force thus stays
+finite as :math:`\varepsilon \to 1`, and once the journal touches the bearing
+(:math:`\delta = e - c > 0`) the dry normal law of the joint (any law of the catalogue, with its
+impact memory) and its friction law add to it: mixed lubrication.
+"""
+
+from __future__ import annotations
+
+import math
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from .._errors import ParameterError, check_range, is_concrete
+from .._types import ArrayLike, Scalar, Vec2
+from ..contact.base import AbstractFriction, AbstractNormalLaw
+from ..contact.friction import Friction
+from ..contact.hertz import ContactLaw
+from ..model.mechanism import Mechanism, point_load
+from .base import ContactOutput
+from .revolute_clearance import AbstractJournalJoint, check_journal_geometry, contact_forces, kinematics
+
+#: Film conditions (module docstring).
+FILMS = ("half", "full", "half-fixed")
+
+
+def film_integrals(eps, a, b):
+    r"""``(I_cc, I_cs, I_ss)``: the integrals over :math:`\psi \in [a, b]` of
+    :math:`\cos^2\psi`, :math:`\sin\psi\cos\psi`, :math:`\sin^2\psi` over
+    :math:`(1 - \varepsilon\cos\psi)^3`, in closed form (Sommerfeld substitution, module
+    docstring), for :math:`0 \le \varepsilon < 1` and any real ``a <= b``."""
+    k = jnp.sqrt((1.0 + eps) / (1.0 - eps))
+
+    def beta(psi):  # continuous, increasing branch of 2 atan(k tan(psi / 2))
+        x = 0.5 * psi
+        sx, cx = jnp.sin(x), jnp.cos(x)
+        return psi + 2.0 * jnp.arctan2((k - 1.0) * sx * cx, cx * cx + k * sx * sx)
+
+    def antiderivatives(bt):
+        s, c, s2 = jnp.sin(bt), jnp.cos(bt), jnp.sin(2.0 * bt)
+        return (0.5 * bt + 0.25 * s2 + 2.0 * eps * s + eps * eps * bt, 0.5 * s * s - eps * c, 0.5 * bt - 0.25 * s2)
+
+    (cc1, cs1, ss1), (cc0, cs0, ss0) = antiderivatives(beta(b)), antiderivatives(beta(a))
+    one = 1.0 - eps * eps
+    return (cc1 - cc0) * one**-2.5, (cs1 - cs0) * one**-2.0, (ss1 - ss0) * one**-1.5
+
+
+def film_limits(eps_dot, wedge, film: str):
+    """Edges ``(a, b)`` of the pressurised film in :math:`\\psi` for the film condition."""
+    if film == "full":
+        return jnp.asarray(-math.pi), jnp.asarray(math.pi)
+    if film == "half-fixed":
+        a = jnp.where(wedge >= 0.0, -math.pi, 0.0)
+        return a, a + math.pi
+    # positive pressure where eps_dot cos(psi) - wedge sin(psi) = A cos(psi - psi0) > 0
+    ok = eps_dot * eps_dot + wedge * wedge > 0.0
+    psi0 = jnp.arctan2(jnp.where(ok, -wedge, 0.0), jnp.where(ok, eps_dot, 1.0))
+    return psi0 - 0.5 * math.pi, psi0 + 0.5 * math.pi
+
+
+def film_force(eps, eps_dot, wedge, radius, clearance, length, viscosity, film: str = "half"):
+    r"""Short-bearing film force on the journal, ``(F_n, F_t)`` [N] along :math:`n` and :math:`t`.
+
+    Args:
+        eps: eccentricity ratio :math:`\varepsilon \in [0, 1)`.
+        eps_dot: squeeze rate :math:`\dot\varepsilon` [1/s].
+        wedge: :math:`\bar\omega\varepsilon` [1/s].
+        radius: journal radius :math:`R_J` [m]; clearance :math:`c` [m]; length: film width L [m].
+        viscosity: dynamic viscosity :math:`\mu` [Pa s].
+        film: ``"half"``, ``"full"`` or ``"half-fixed"`` (module docstring).
+    """
+    a, b = film_limits(eps_dot, wedge, film)
+    i_cc, i_cs, i_ss = film_integrals(eps, a, b)
+    scale = radius * viscosity * length**3 / clearance**2
+    return -scale * (eps_dot * i_cc - wedge * i_cs), -scale * (eps_dot * i_cs - wedge * i_ss)
+
+
+def film_ratio(eps, blend_start, blend_end):
+    r"""The ratio :math:`\tilde\varepsilon = g(\varepsilon)` the film force is evaluated at
+    (C1 saturation between ``blend_start`` and ``blend_end``; module docstring)."""
+    width = blend_end - blend_start
+    inside = eps - (eps - blend_start) ** 2 / (2.0 * width)
+    return jnp.where(eps <= blend_start, eps, jnp.where(eps >= blend_end, 0.5 * (blend_start + blend_end), inside))
+
+
+class LubricatedJoint(AbstractJournalJoint):
+    """A revolute joint with an oil film in its clearance (module docstring for the model).
+
+    Attributes (besides those of :class:`~jaxclear.ClearanceJoint`, whose meaning they keep):
+        length: film width L [m] (= the joint's axial length; the parameter ``width``).
+        viscosity: dynamic viscosity :math:`\\mu` of the oil [Pa s] > 0.
+        blend_start, blend_end: eccentricity ratios :math:`0 < \\varepsilon_0 < \\varepsilon_1 < 1`
+            of the film's C1 saturation (transition to dry contact).
+        film: film condition, one of :data:`FILMS` (static).
+    """
+
+    bearing_body: str = eqx.field(static=True)
+    bearing_point: str = eqx.field(static=True)
+    journal_body: str = eqx.field(static=True)
+    journal_point: str = eqx.field(static=True)
+    bearing_radius: Scalar
+    journal_radius: Scalar
+    length: Scalar
+    viscosity: Scalar
+    blend_start: Scalar
+    blend_end: Scalar
+    law: AbstractNormalLaw
+    friction: AbstractFriction
+    impact_velocity_floor: Scalar
+    initial_offset: Vec2
+    initial_velocity: Vec2
+    film: str = eqx.field(static=True)
+    name: str = eqx.field(static=True)
+
+    def __init__(
+        self,
+        bearing_body: str,
+        bearing_point: str,
+        journal_body: str,
+        journal_point: str,
+        bearing_radius: ArrayLike = 0.010,
+        journal_radius: ArrayLike = 0.0095,
+        length: ArrayLike = 0.010,
+        viscosity: ArrayLike = 0.4,
+        law=None,
+        friction: AbstractFriction | None = None,
+        film: str = "half",
+        blend_start: ArrayLike = 0.95,
+        blend_end: ArrayLike = 0.99,
+        impact_velocity_floor: ArrayLike = 1e-4,
+        initial_offset: ArrayLike = (0.0, 0.0),
+        initial_velocity: ArrayLike = (0.0, 0.0),
+        name: str = "lubricated",
+    ):
+        check_range("viscosity", viscosity, low=0.0, low_open=True, unit="Pa s")
+        check_range("width (film width, the joint's length)", length, low=0.0, low_open=True, unit="m")
+        check_range("blend_start", blend_start, low=0.0, high=1.0, low_open=True, high_open=True)
+        check_range("blend_end", blend_end, low=0.0, high=1.0, low_open=True, high_open=True)
+        if is_concrete(blend_start) and is_concrete(blend_end) and not float(blend_start) < float(blend_end):
+            raise ParameterError(
+                f"blend_start = {float(blend_start):g} must be smaller than blend_end = {float(blend_end):g} "
+                "(allowed: 0 < blend_start < blend_end < 1)"
+            )
+        if film not in FILMS:
+            raise ParameterError(f"film = {film!r} is not a film condition; valid: {list(FILMS)}")
+        rb, rj, offset = check_journal_geometry(bearing_radius, journal_radius, length, impact_velocity_floor, law,
+                                                initial_offset)
+        self.bearing_body, self.bearing_point = bearing_body, bearing_point
+        self.journal_body, self.journal_point = journal_body, journal_point
+        self.bearing_radius, self.journal_radius = rb, rj
+        self.length = jnp.asarray(length, dtype=float)
+        self.viscosity = jnp.asarray(viscosity, dtype=float)
+        self.blend_start = jnp.asarray(blend_start, dtype=float)
+        self.blend_end = jnp.asarray(blend_end, dtype=float)
+        self.law = ContactLaw() if law is None else law
+        self.friction = Friction() if friction is None else friction
+        self.impact_velocity_floor = jnp.asarray(impact_velocity_floor, dtype=float)
+        self.initial_offset = offset
+        self.initial_velocity = jnp.asarray(initial_velocity, dtype=float).reshape(2)
+        self.film = film
+        self.name = name
+
+    @property
+    def width(self):
+        """Film width L [m] (the joint's ``length``)."""
+        return self.length
+
+    def kinematics(self, mech: Mechanism, q, qdot):
+        return kinematics(mech, self, q, qdot)
+
+    def film_force(self, mech: Mechanism, q, qdot) -> tuple[Scalar, Scalar]:
+        """Film force on the journal ``(F_n, F_t)`` [N] along the normal :math:`n` (from the
+        bearing centre to the journal centre) and the tangent :math:`t` at ``(q, qdot)``."""
+        kin = self.kinematics(mech, q, qdot)
+        return self._film(kin)
+
+    def _film(self, kin):
+        c = self.clearance
+        v = kin.journal_velocity - kin.bearing_velocity
+        eps = film_ratio(kin.e / c, self.blend_start, self.blend_end)
+        eps_dot = (v[0] * kin.normal[0] + v[1] * kin.normal[1]) / c
+        wedge = (0.5 * (kin.journal_omega + kin.bearing_omega) * kin.e - (v[0] * kin.tangent[0] + v[1] * kin.tangent[1])) / c
+        return film_force(eps, eps_dot, wedge, self.journal_radius, c, self.length, self.viscosity, self.film)
+
+    def contact(self, mech: Mechanism, q, qdot, impact_velocity):
+        """Dry contact (law and friction, :func:`contact_forces`) plus the film force. The output's
+        ``normal_force`` is the total force pushing the journal towards the bearing centre
+        (dry :math:`F_N` minus the film's :math:`F_n`), ``friction_force`` the dry friction."""
+        kin = self.kinematics(mech, q, qdot)
+        gen, dry = contact_forces(mech, self, kin, q, qdot, impact_velocity)
+        f_n, f_t = self._film(kin)
+        f = f_n * kin.normal + f_t * kin.tangent
+        gen = gen + point_load(mech, q, self.journal_body, kin.journal_centre, f) + point_load(
+            mech, q, self.bearing_body, kin.journal_centre, -f
+        )
+        out = ContactOutput(ecc=dry.ecc, penetration=dry.penetration, normal_force=dry.normal_force - f_n,
+                            friction_force=dry.friction_force, power=jnp.sum(gen * qdot))
+        return gen, out
