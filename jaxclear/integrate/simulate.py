@@ -51,6 +51,41 @@ def _adjoint(s: Settings):
     return diffrax.RecursiveCheckpointAdjoint(checkpoints=s.checkpoints)
 
 
+class StopOnNonFinite(diffrax.AbstractAdaptiveStepSizeController):
+    """A step-size controller that delegates to ``inner`` (a :class:`diffrax.PIDController`)
+    and ends the solve at the first step whose candidate state is not finite (diffrax would
+    otherwise reject it and halve the step until ``max_steps``). The solve then reports
+    ``diffrax.RESULTS.dt_min_reached``, which :func:`simulate` maps to ``nonfinite_state``."""
+
+    inner: diffrax.PIDController
+
+    @property
+    def rtol(self):
+        return self.inner.rtol
+
+    @property
+    def atol(self):
+        return self.inner.atol
+
+    @property
+    def norm(self):
+        return self.inner.norm
+
+    def wrap(self, direction):
+        return StopOnNonFinite(self.inner.wrap(direction))
+
+    def init(self, terms, t0, t1, y0, dt0, args, func, error_order):
+        return self.inner.init(terms, t0, t1, y0, dt0, args, func, error_order)
+
+    def adapt_step_size(self, t0, t1, y0, y1_candidate, args, y_error, error_order, controller_state):
+        keep, tprev, tnext, jump, state, result = self.inner.adapt_step_size(
+            t0, t1, y0, y1_candidate, args, y_error, error_order, controller_state
+        )
+        finite = jnp.all(jnp.isfinite(y1_candidate))
+        result = diffrax.RESULTS.where(finite, result, diffrax.RESULTS.dt_min_reached)
+        return keep & finite, tprev, tnext, jump, state, result
+
+
 def _postprocess(mech: Mechanism, s: Settings, ts, ys: State):
     def one(t, y):
         qdd, lam, value, _, contact = _accelerations(mech, t, y.q, y.qdot, y.elements, s.baumgarte)
@@ -74,7 +109,7 @@ def _solve(mech: Mechanism, s: Settings, y0: State, assembled_ok, valid=RESULTS.
     ts = t0 + (t1 - t0) * jnp.linspace(0.0, 1.0, s.n_out, dtype=y0.q.dtype)
     ts = ts.at[-1].set(t1)
     norm = StateNorm(mech.n_coordinates)
-    controller = diffrax.PIDController(rtol=s.rtol, atol=s.atol, dtmax=s.dtmax, norm=norm)
+    controller = StopOnNonFinite(diffrax.PIDController(rtol=s.rtol, atol=s.atol, dtmax=s.dtmax, norm=norm))
     meter = diffrax.TqdmProgressMeter(refresh_steps=200) if s.progress else diffrax.NoProgressMeter()
     sol = diffrax.diffeqsolve(
         diffrax.ODETerm(flat_vector_field),
@@ -96,6 +131,7 @@ def _solve(mech: Mechanism, s: Settings, y0: State, assembled_ok, valid=RESULTS.
     finite = jnp.all(jnp.isfinite(ys.q)) & jnp.all(jnp.isfinite(ys.qdot)) & jnp.all(jnp.isfinite(qdd))
     result = RESULTS.where(finite, RESULTS.successful, RESULTS.nonfinite_state)
     result = RESULTS.where(sol.result == diffrax.RESULTS.successful, result, RESULTS.solver_failed)
+    result = RESULTS.where(sol.result == diffrax.RESULTS.dt_min_reached, RESULTS.nonfinite_state, result)
     result = RESULTS.where(sol.result == diffrax.RESULTS.max_steps_reached, RESULTS.max_steps_reached, result)
     result = RESULTS.where(assembled_ok, result, RESULTS.assembly_failed)
     result = RESULTS.where(_too_deep(mech, pen), RESULTS.penetration_too_deep, result)
