@@ -35,6 +35,14 @@ class SolverError(JaxclearError):
     """The integration failed (step limit, non-finite state)."""
 
 
+class OutputLockedError(JaxclearError):
+    """Another process holds the output folder of a sweep or fit."""
+
+
+class CheckpointError(JaxclearError):
+    """A checkpoint file exists but cannot be read."""
+
+
 class RESULTS(eqx.Enumeration):
     """Status of a simulation, as an :class:`equinox.Enumeration` (the pattern of diffrax's
     ``RESULTS``): traceable, batchable, and usable with ``RESULTS.where`` and
