@@ -102,6 +102,8 @@ def _fit_locked(problem: FitProblem, opt, out, resume: bool, progress: bool, cal
     ckpt = Checkpoint(out, problem.checkpoint_key(), problem.checkpoint_config(),
                       clock=lambda: wall_before + time.perf_counter() - t_wall)
     saved = ckpt.load() if resume else None
+    if saved is not None and progress:
+        tqdm.write(f"jaxclear fit: resuming from {ckpt.path} after {saved.total} iteration(s)")
     st = saved if saved is not None else fresh_state(problem)
     wall_before = st.wall
     bar = _progress_bar(problem, st) if progress else None

@@ -80,6 +80,8 @@ def _run_sweep(cfg: SweepConfig, out: str, restart: bool, progress: bool, lead: 
     plan = make_plan(cfg, mesh)
     todo = _todo(cfg, chunk, done)
     n_chunks = -(-cfg.n_runs // chunk)
+    if done and progress and lead:
+        tqdm.write(f"jaxclear sweep: resuming in {out}: {len(done)} of {cfg.n_runs} runs already done")
     computed = 0
     with tqdm(total=n_chunks, initial=n_chunks - len(todo), unit="chunk", desc="sweep",
               disable=not (progress and lead), dynamic_ncols=True) as bar:
