@@ -17,9 +17,11 @@ jax.config.update("jax_enable_x64", True)
 from ._errors import (  # noqa: E402
     RESULTS,
     STATUS,
+    CheckpointError,
     InitialConditionError,
     JaxclearError,
     MechanismError,
+    OutputLockedError,
     ParameterError,
     SolverError,
 )

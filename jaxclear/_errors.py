@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import equinox as eqx
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 
@@ -34,6 +35,14 @@ class SolverError(JaxclearError):
     """The integration failed (step limit, non-finite state)."""
 
 
+class OutputLockedError(JaxclearError):
+    """Another process holds the output folder of a sweep or fit."""
+
+
+class CheckpointError(JaxclearError):
+    """A checkpoint file exists but cannot be read."""
+
+
 class RESULTS(eqx.Enumeration):
     """Status of a simulation, as an :class:`equinox.Enumeration` (the pattern of diffrax's
     ``RESULTS``): traceable, batchable, and usable with ``RESULTS.where`` and
@@ -45,6 +54,23 @@ class RESULTS(eqx.Enumeration):
     nonfinite_state = "non-finite state (singular constraint Jacobian, lock-up, or diverging contact)"
     solver_failed = "the solver failed (step size underflow or another diffrax error)"
     assembly_failed = "the initial configuration could not be assembled (Newton did not converge)"
+    invalid_restitution = "invalid parameter: restitution must be finite and in (0, 1]"
+    invalid_stiffness = "invalid parameter: contact stiffness (K, E*, foundation modulus) must be finite and > 0"
+    invalid_clearance = (
+        "invalid parameter: radii must be finite and > 0 with journal_radius < bearing_radius "
+        "(clearance c = R_B - R_J in (0, R_B))"
+    )
+    invalid_friction = "invalid parameter: friction coefficient must be finite and >= 0"
+    invalid_mass = "invalid parameter: every body's mass and inertia must be finite and > 0"
+    invalid_parameter = (
+        "invalid parameter: another law or element number outside its range (exponent > 0, "
+        "length > 0, impact_velocity_floor > 0, Young's modulus > 0, Poisson ratio in (-1, 0.5), "
+        "friction speeds > 0, all finite)"
+    )
+    penetration_too_deep = (
+        "penetration deeper than a tenth of the journal radius: the contact law is outside its "
+        "validity (stiffness far too small, or a lock-up)"
+    )
 
 
 #: Status code -> message, derived from :class:`RESULTS` (code ``i`` is the ``i``-th entry).
@@ -54,6 +80,7 @@ STATUS = {int(item._value): RESULTS[item] for item in (getattr(RESULTS, n) for n
 REMEDIES = {
     1: "raise Settings.max_steps (now {max_steps}, allowed >= 1) or loosen rtol/atol",
     4: "improve the bodies' position guesses (Body.position)",
+    11: "raise the contact stiffness (or the materials' Young's modulus) to a physical value",
 }
 
 
@@ -115,3 +142,37 @@ def check_finite(name: str, value):
     if not np.all(np.isfinite(np.asarray(value, dtype=float))):
         raise ParameterError(f"{name} must be finite, got {value!r}")
     return value
+
+
+# ---- traceable range checks (run time, under jit/vmap) ------------------------------------
+
+
+def in_range(value, *, low=None, high=None, low_open=False, high_open=False):
+    """Traceable counterpart of :func:`check_range`: a boolean scalar, True when every element
+    of ``value`` is finite and inside the range (``None`` bounds are open ends). Works on
+    tracers, so :func:`jaxclear.simulate` evaluates it at run time under ``jit``/``vmap``."""
+    x = jnp.asarray(value, dtype=float)
+    ok = jnp.isfinite(x)
+    if low is not None:
+        ok &= (x > low) if low_open else (x >= low)
+    if high is not None:
+        ok &= (x < high) if high_open else (x <= high)
+    return jnp.all(ok)
+
+
+def first_failure(*checks: tuple) -> RESULTS:
+    """Combine ``(ok, RESULTS item)`` pairs (or RESULTS items, successful meaning ok) into one
+    traceable :class:`RESULTS`: the first failing check's item, or ``successful``."""
+    result = RESULTS.successful
+    for check in reversed(checks):
+        if isinstance(check, tuple):
+            ok, item = check
+            result = RESULTS.where(ok, result, item)
+        else:
+            result = RESULTS.where(check == RESULTS.successful, result, check)
+    return result
+
+
+def invalid_codes() -> tuple[int, ...]:
+    """Status codes of the ``invalid_*`` entries (inputs outside their ranges)."""
+    return tuple(code for code, msg in STATUS.items() if msg.startswith("invalid parameter"))

@@ -8,11 +8,17 @@ its old content or its new content, never a mix (write to a temporary file besid
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
+import socket
+import time
 
+import filelock
 import numpy as np
+
+from ._errors import OutputLockedError
 
 
 def fsync_append(path, text: str, mode: str = "a") -> str:
@@ -81,3 +87,36 @@ def fingerprint(*items, length: int | None = None) -> str:
                 h.update(repr(leaf).encode())
     digest = h.hexdigest()
     return digest if length is None else digest[:length]
+
+
+LOCK_NAME = ".jaxclear.lock"
+
+
+@contextlib.contextmanager
+def locked_folder(folder, what: str = "output folder"):
+    """Hold an exclusive :mod:`filelock` lock on ``folder`` (file ``folder/.jaxclear.lock``) for
+    the duration of the ``with`` block; the holder (host, process id, start time) is written to
+    ``.jaxclear.lock.owner``. A second process gets :class:`~jaxclear.OutputLockedError`
+    naming the folder and the holder at once (no waiting)."""
+    folder = os.fspath(folder)
+    os.makedirs(folder, exist_ok=True)
+    owner = os.path.join(folder, LOCK_NAME + ".owner")
+    lock = filelock.FileLock(os.path.join(folder, LOCK_NAME), timeout=0)
+    try:
+        lock.acquire()
+    except filelock.Timeout:
+        try:
+            with open(owner, encoding="utf-8") as f:
+                holder = f.read().strip() or "unknown"
+        except OSError:
+            holder = "unknown"
+        raise OutputLockedError(
+            f"the {what} {folder!r} is in use by another process ({holder}); wait for it to finish, "
+            f"stop it, or choose another folder"
+        ) from None
+    try:
+        atomic_write_text(owner, f"host {socket.gethostname()}, pid {os.getpid()}, since "
+                                 f"{time.strftime('%Y-%m-%d %H:%M:%S')}\n")
+        yield folder
+    finally:
+        lock.release()

@@ -4,6 +4,8 @@ takes keyword overrides; :func:`preset` builds one by name."""
 
 from __future__ import annotations
 
+import inspect
+
 import math
 
 import numpy as np
@@ -311,4 +313,10 @@ def preset(name: str, **overrides) -> Mechanism:
     ``friction``, ``speed_rpm``, ``law``, ``stiffness``, ``ideal``...)."""
     if name not in PRESETS:
         raise ParameterError(f"unknown preset {name!r}; valid presets: {preset_names()}")
+    unknown = sorted(set(overrides) - set(inspect.signature(PRESETS[name]).parameters))
+    if unknown and not any(p.kind is p.VAR_KEYWORD for p in inspect.signature(PRESETS[name]).parameters.values()):
+        raise ParameterError(
+            f"unknown option(s) {unknown} for preset {name!r}; valid: "
+            f"{sorted(inspect.signature(PRESETS[name]).parameters)}"
+        )
     return PRESETS[name](**overrides)

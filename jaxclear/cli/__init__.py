@@ -67,6 +67,19 @@ def main(argv: list[str] | None = None) -> int:
         where = f" {err.filename!r}" if getattr(err, "filename", None) else ""
         print(f"error: cannot access{where}: {err.strerror or err}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:
+        print(f"jaxclear: interrupted; {_saved(args)}", file=sys.stderr)
+        return 130
+
+
+def _saved(args) -> str:
+    """What an interrupted command left on disk and how to resume (one line)."""
+    out = getattr(args, "out", None)
+    if args.command == "sweep" and out:
+        return f"finished chunks are saved in {out!r}; run the same command again to resume"
+    if args.command == "fit" and out:
+        return f"the last iteration is checkpointed in {out!r}; run the same command again to resume"
+    return "nothing was saved"
 
 
 __all__ = ["COMMANDS", "build_parser", "main"]

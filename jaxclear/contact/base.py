@@ -22,7 +22,7 @@ from typing import ClassVar
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._errors import check_range
+from .._errors import RESULTS, check_range, first_failure, in_range
 from .._types import ArrayLike, Scalar, Vec2
 
 
@@ -66,6 +66,14 @@ class Material(eqx.Module):
         check_range("poisson (Poisson ratio)", poisson, low=-1.0, high=0.5, low_open=True, high_open=True)
         self.young = jnp.asarray(young, dtype=float)
         self.poisson = jnp.asarray(poisson, dtype=float)
+
+    def check(self) -> RESULTS:
+        """Traceable range check (run time): ``invalid_stiffness`` for E <= 0,
+        ``invalid_parameter`` for a Poisson ratio outside (-1, 0.5)."""
+        return first_failure(
+            (in_range(self.young, low=0.0, low_open=True), RESULTS.invalid_stiffness),
+            (in_range(self.poisson, low=-1.0, high=0.5, low_open=True, high_open=True), RESULTS.invalid_parameter),
+        )
 
     @property
     def compliance(self):
@@ -114,6 +122,13 @@ class AbstractNormalLaw(eqx.Module):
         """Penetration that decides contact [m]; for a circular pin and hole it is ``e - c``."""
         return kin.delta
 
+    def check(self) -> RESULTS:
+        """Traceable range check of the law's numbers, evaluated at run time under ``jit`` and
+        ``vmap`` by :func:`~jaxclear.simulate`: the first failing :class:`~jaxclear.RESULTS`
+        ``invalid_*`` entry, or ``successful``. The default checks the restitution in (0, 1];
+        laws with more numbers extend it (one method per class)."""
+        return first_failure((in_range(self.restitution, low=0.0, high=1.0, low_open=True), RESULTS.invalid_restitution))
+
     def check_geometry(self, radius_bearing: float, radius_journal: float) -> None:
         """Raise :class:`~jaxclear.ParameterError` if the law cannot serve these radii."""
 
@@ -129,6 +144,11 @@ class AbstractFriction(eqx.Module):
     with :math:`F_T v_T \le 0` (friction never does positive work)."""
 
     coefficient: eqx.AbstractVar[Scalar]
+
+    def check(self) -> RESULTS:
+        """Traceable range check (run time): ``invalid_friction`` unless the coefficient is
+        finite and >= 0; laws with more numbers extend it."""
+        return first_failure((in_range(self.coefficient, low=0.0), RESULTS.invalid_friction))
 
     @abc.abstractmethod
     def __call__(self, v_t: Scalar, normal_force: Scalar) -> Scalar:

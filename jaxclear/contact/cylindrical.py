@@ -8,7 +8,7 @@ from typing import ClassVar
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._errors import ParameterError, check_range
+from .._errors import RESULTS, ParameterError, check_range, first_failure, in_range
 from .._types import Scalar
 from .base import STEEL, AbstractNormalLaw, Material, effective_modulus
 from .hertz import HYSTERESIS_FACTORS, dissipative_hertz, hysteresis_model
@@ -84,6 +84,16 @@ class CylindricalLaw(AbstractNormalLaw):
         default = "lankarani-nikravesh" if model == "liu" else "qin-lu"
         self.hysteresis = hysteresis_model(default if hysteresis is None else hysteresis)
         self.bearing_material, self.journal_material = bearing_material, journal_material
+
+    def check(self) -> RESULTS:
+        """Restitution in (0, 1], E* > 0 (when given), the materials."""
+        modulus = 1.0 if self.modulus is None else self.modulus
+        return first_failure(
+            super().check(),
+            (in_range(modulus, low=0.0, low_open=True), RESULTS.invalid_stiffness),
+            self.bearing_material.check(),
+            self.journal_material.check(),
+        )
 
     def modulus_value(self):
         """:math:`E^*` [Pa]: the given one, or from the materials."""

@@ -12,7 +12,7 @@ from __future__ import annotations
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._errors import ParameterError, check_range, is_concrete
+from .._errors import RESULTS, ParameterError, check_range, first_failure, in_range, is_concrete
 from .._types import ArrayLike, Scalar
 from .base import AbstractFriction
 
@@ -67,6 +67,13 @@ class AmbrosioFriction(AbstractFriction):
         self.v0 = jnp.asarray(v0, dtype=float)
         self.v1 = jnp.asarray(v1, dtype=float)
 
+    def check(self) -> RESULTS:
+        """Coefficient >= 0, 0 <= v0 < v1."""
+        return first_failure(
+            super().check(), (in_range(self.v0, low=0.0) & in_range(self.v1 - self.v0, low=0.0, low_open=True),
+                              RESULTS.invalid_parameter)
+        )
+
     def __call__(self, v_t, normal_force):
         return ambrosio(v_t, normal_force, self.coefficient, self.v0, self.v1)
 
@@ -94,6 +101,10 @@ class SmoothCoulombFriction(AbstractFriction):
         check_range("v_s (regularization speed)", v_s, low=0.0, low_open=True, unit="m/s")
         self.coefficient = _coefficient(coefficient)
         self.v_s = jnp.asarray(v_s, dtype=float)
+
+    def check(self) -> RESULTS:
+        """Coefficient >= 0, v_s > 0."""
+        return first_failure(super().check(), (in_range(self.v_s, low=0.0, low_open=True), RESULTS.invalid_parameter))
 
     def __call__(self, v_t, normal_force):
         return smooth_coulomb(v_t, normal_force, self.coefficient, self.v_s)

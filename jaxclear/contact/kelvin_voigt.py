@@ -7,7 +7,7 @@ from typing import ClassVar
 
 import jax.numpy as jnp
 
-from .._errors import check_range
+from .._errors import RESULTS, check_range, first_failure, in_range
 from .._types import ArrayLike, Scalar
 from .base import AbstractNormalLaw
 
@@ -56,6 +56,14 @@ class KelvinVoigtLaw(AbstractNormalLaw):
         self.stiffness = jnp.asarray(stiffness, dtype=float)
         self.restitution = jnp.asarray(restitution, dtype=float)
         self.effective_mass = jnp.asarray(effective_mass, dtype=float)
+
+    def check(self) -> RESULTS:
+        """Restitution in (0, 1], stiffness > 0, effective mass > 0."""
+        return first_failure(
+            super().check(),
+            (in_range(self.stiffness, low=0.0, low_open=True), RESULTS.invalid_stiffness),
+            (in_range(self.effective_mass, low=0.0, low_open=True), RESULTS.invalid_parameter),
+        )
 
     def stiffness_value(self, radius_bearing, radius_journal):
         return self.stiffness

@@ -21,6 +21,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
+from .._errors import RESULTS
 from .._types import Array, BoolScalar, Float, Scalar, Vec2
 from ..model.joints import AbstractConstraint
 from ..model.mechanism import Mechanism
@@ -62,6 +63,18 @@ class AbstractForceElement(eqx.Module):
     @property
     def label(self) -> str:
         return f"{type(self).__name__} {self.name!r}"
+
+    # ---- validity (run time) -----------------------------------------------------------
+    def check(self) -> RESULTS:
+        """Traceable range check of the element's numbers (its laws included): the first
+        failing :class:`~jaxclear.RESULTS` ``invalid_*`` entry, or ``successful``. Evaluated
+        by :func:`~jaxclear.simulate` under ``jit``/``vmap``. Default: nothing to check."""
+        return RESULTS.successful
+
+    def penetration_limit(self) -> Scalar:
+        """Deepest physically meaningful penetration [m]; a run whose output penetration
+        exceeds it gets status ``penetration_too_deep``. Default: no limit (``inf``)."""
+        return jnp.inf
 
     # ---- state ----------------------------------------------------------------------
     @abc.abstractmethod

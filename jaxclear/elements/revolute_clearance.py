@@ -31,7 +31,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from .._errors import ParameterError, check_range
+from .._errors import RESULTS, ParameterError, check_range, first_failure, in_range
 from .._types import Array, ArrayLike, Float, Scalar, Vec2
 from ..contact.base import AbstractFriction, AbstractNormalLaw, ContactKinematics
 from ..contact.friction import Friction
@@ -86,6 +86,36 @@ class AbstractJournalJoint(AbstractForceElement):
     @property
     def label(self):
         return f"clearance joint {self.name}"
+
+    # ---- validity (shared by every journal joint) ---------------------------------------
+    #: A penetration deeper than this fraction of the journal radius is reported as
+    #: ``penetration_too_deep``. Hertz-type laws assume a contact zone small against the radii
+    #: (Johnson, "Contact Mechanics", CUP 1985, ch. 4-5); for two cylinders the half-width
+    #: a ~ sqrt(delta R) reaches ~0.3 R at delta = R/10, far outside that assumption, while
+    #: steel contacts in real bearings penetrate microns (R/1000 or less).
+    MAX_PENETRATION_FRACTION: ClassVar[float] = 0.1
+
+    def check(self) -> RESULTS:
+        """Radii > 0 with R_J < R_B (clearance in (0, R_B)); length and impact_velocity_floor
+        > 0; then the normal law's and the friction law's own checks."""
+        radii = (
+            in_range(self.bearing_radius, low=0.0, low_open=True)
+            & in_range(self.journal_radius, low=0.0, low_open=True)
+            & in_range(self.clearance, low=0.0, low_open=True)
+        )
+        others = in_range(self.length, low=0.0, low_open=True) & in_range(
+            self.impact_velocity_floor, low=0.0, low_open=True
+        )
+        return first_failure(
+            (radii, RESULTS.invalid_clearance),
+            (others, RESULTS.invalid_parameter),
+            self.law.check(),
+            self.friction.check(),
+        )
+
+    def penetration_limit(self):
+        """:attr:`MAX_PENETRATION_FRACTION` times the journal radius [m]."""
+        return self.MAX_PENETRATION_FRACTION * self.journal_radius
 
     def relative_state(self, mech: Mechanism, q, qdot):
         """``[e_x, e_y, v_x, v_y]``: eccentricity [m] and journal-centre velocity relative to the

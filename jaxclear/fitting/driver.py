@@ -3,6 +3,7 @@ uncertainty at the optimum and returns a :class:`FitResult` (method: :mod:`jaxcl
 
 from __future__ import annotations
 
+import contextlib
 import time
 import warnings
 from typing import Callable, Sequence
@@ -12,6 +13,7 @@ import numpy as np
 import optax
 from tqdm.auto import tqdm
 
+from .._storage import locked_folder
 from ..model import Mechanism
 from ..analysis.sensor import Accelerometer
 from .parameters import DEFAULT_FREE, law_name, values_of
@@ -91,9 +93,17 @@ def fit(
     settings = dict(max_iter=max_iter, ftol=ftol, xtol=xtol, rtol=rtol, atol=atol, max_steps=max_steps, align=align,
                     time_offset=time_offset, optimizer=opt.name)
     problem = build_problem(data, mech, free, start, sensor, window, windows, horizons, coarse, starts, settings)
+    with locked_folder(out, "fit output folder") if out is not None else contextlib.nullcontext():
+        return _fit_locked(problem, opt, out, resume, progress, callback, t_wall)
+
+
+def _fit_locked(problem: FitProblem, opt, out, resume: bool, progress: bool, callback, t_wall: float):
+    """:func:`fit` inside the output folder's lock."""
     ckpt = Checkpoint(out, problem.checkpoint_key(), problem.checkpoint_config(),
                       clock=lambda: wall_before + time.perf_counter() - t_wall)
     saved = ckpt.load() if resume else None
+    if saved is not None and progress:
+        tqdm.write(f"jaxclear fit: resuming from {ckpt.path} after {saved.total} iteration(s)")
     st = saved if saved is not None else fresh_state(problem)
     wall_before = st.wall
     bar = _progress_bar(problem, st) if progress else None

@@ -99,6 +99,26 @@ def _window_length(mech, window, windows: int, span: float, dt: float, h: float,
     return window
 
 
+#: Largest |acceleration| [m/s^2] a fit accepts: the least-squares loss sums squares of
+#: residuals, which must stay far below the float64 maximum (1.8e308) for a million samples.
+MAX_ABS_DATA = 1e100
+
+
+def _check_data(y_rec, where: str):
+    """ParameterError for data a least-squares fit cannot treat honestly: non-finite values,
+    magnitudes beyond :data:`MAX_ABS_DATA`, or a record without any signal (all zero)."""
+    bad = ~np.isfinite(y_rec)
+    if bad.any():
+        raise ParameterError(f"{where}: slider_acc_m_s2 holds {int(bad.sum())} non-finite value(s) "
+                             f"(first at sample {int(np.argmax(bad))}); remove or interpolate them")
+    peak = float(np.max(np.abs(y_rec))) if y_rec.size else 0.0
+    if peak > MAX_ABS_DATA:
+        raise ParameterError(f"{where}: |slider_acc_m_s2| reaches {peak:g} m/s^2, beyond the allowed "
+                             f"{MAX_ABS_DATA:g} m/s^2 (check the units or the scale of the record)")
+    if peak == 0.0:
+        raise ParameterError(f"{where}: slider_acc_m_s2 is zero everywhere: there is nothing to fit")
+
+
 def build_problem(data, mech: Mechanism, free: Sequence[str], start: dict | None, sensor: Accelerometer | None,
                   window, windows: int, horizons, coarse, starts: int, settings: dict) -> FitProblem:
     """Check the inputs (ParameterError before any compilation) and build the :class:`FitProblem`.
@@ -118,6 +138,7 @@ def build_problem(data, mech: Mechanism, free: Sequence[str], start: dict | None
     dt = uniform_spacing(t_rec)
     h = dt / sensor.oversample
     where = meas.path or "the record"
+    _check_data(y_rec, where)
     window = _window_length(mech, window, windows, float(t_rec[-1]), dt, h, len(t_rec), t_rec, where)
     settle = 2.0 / sensor.cutoff_hz if sensor.cutoff_hz is not None else 0.0
     win = cut_windows(t_rec, y_rec, dt, windows, window, settle, horizons, where)

@@ -21,6 +21,7 @@ import os
 import equinox as eqx
 import numpy as np
 
+from .._errors import CheckpointError
 from .._storage import atomic_write_json, fingerprint
 
 CHECKPOINT_NAME = "fit_checkpoint.json"
@@ -131,7 +132,9 @@ class Checkpoint:
         self.config = json.loads(json.dumps(config, default=str))
 
     def load(self) -> FitState | None:
-        """The saved state if the file exists and its key matches, else None."""
+        """The saved state if the file exists and its key matches, else None (a different
+        fit's checkpoint is replaced). A file that cannot be read raises
+        :class:`~jaxclear.CheckpointError` naming it: nothing is discarded silently."""
         if self.path is None or not os.path.isfile(self.path):
             return None
         try:
@@ -140,8 +143,11 @@ class Checkpoint:
             if saved.get("key") != self.key:
                 return None
             return FitState.from_json(saved["state"])
-        except (OSError, ValueError, KeyError, TypeError):
-            return None
+        except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
+            raise CheckpointError(
+                f"the fit checkpoint {self.path!r} is corrupt or unreadable ({type(exc).__name__}: {exc}); "
+                f"delete it, or start over with --restart (API: resume=False)"
+            ) from None
 
     def save(self, state: FitState):
         if self.path is None:

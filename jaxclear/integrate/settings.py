@@ -20,6 +20,11 @@ SOLVERS = {
 }
 
 
+#: Largest number of output samples of one run (``n_out``): ~1 kB per sample of a small
+#: mechanism (states, accelerations, reactions, contact outputs) makes this ~2 GB.
+MAX_OUT_SAMPLES = 2_000_000
+
+
 class Settings(eqx.Module):
     """How to integrate.
 
@@ -80,8 +85,12 @@ class Settings(eqx.Module):
             raise ParameterError(f"rtol = {self.rtol:g} outside the allowed range (0, 1)")
         if not (self.atol > 0):
             raise ParameterError(f"atol = {self.atol:g} outside the allowed range (0, inf)")
-        if self.n_out < 2:
-            raise ParameterError(f"n_out = {self.n_out} outside the allowed range [2, inf)")
+        if not 2 <= self.n_out <= MAX_OUT_SAMPLES:
+            raise ParameterError(
+                f"n_out = {self.n_out} output samples outside the allowed range [2, {MAX_OUT_SAMPLES}] "
+                "(CLI: --n-out, or fewer --revolutions, whose default n_out grows with them); the outputs "
+                f"take about 1 kB per sample, and this bound is checked before anything is compiled"
+            )
         if self.max_steps < 1:
             raise ParameterError(f"max_steps = {self.max_steps} outside the allowed range [1, inf)")
         if is_concrete(self.t_end) and not float(self.t_end) > self.t_start:

@@ -23,7 +23,7 @@ import diffrax
 import jax
 import jax.numpy as jnp
 
-from .._errors import RESULTS, SolverError, is_concrete, status_message
+from .._errors import RESULTS, ParameterError, SolverError, invalid_codes, is_concrete, status_message
 from ..model.mechanism import Mechanism
 from .assembly import NEWTON_TOL, assemble, check_assembly, initial_state
 from .compile import jit
@@ -51,6 +51,41 @@ def _adjoint(s: Settings):
     return diffrax.RecursiveCheckpointAdjoint(checkpoints=s.checkpoints)
 
 
+class StopOnNonFinite(diffrax.AbstractAdaptiveStepSizeController):
+    """A step-size controller that delegates to ``inner`` (a :class:`diffrax.PIDController`)
+    and ends the solve at the first step whose candidate state is not finite (diffrax would
+    otherwise reject it and halve the step until ``max_steps``). The solve then reports
+    ``diffrax.RESULTS.dt_min_reached``, which :func:`simulate` maps to ``nonfinite_state``."""
+
+    inner: diffrax.PIDController
+
+    @property
+    def rtol(self):
+        return self.inner.rtol
+
+    @property
+    def atol(self):
+        return self.inner.atol
+
+    @property
+    def norm(self):
+        return self.inner.norm
+
+    def wrap(self, direction):
+        return StopOnNonFinite(self.inner.wrap(direction))
+
+    def init(self, terms, t0, t1, y0, dt0, args, func, error_order):
+        return self.inner.init(terms, t0, t1, y0, dt0, args, func, error_order)
+
+    def adapt_step_size(self, t0, t1, y0, y1_candidate, args, y_error, error_order, controller_state):
+        keep, tprev, tnext, jump, state, result = self.inner.adapt_step_size(
+            t0, t1, y0, y1_candidate, args, y_error, error_order, controller_state
+        )
+        finite = jnp.all(jnp.isfinite(y1_candidate))
+        result = diffrax.RESULTS.where(finite, result, diffrax.RESULTS.dt_min_reached)
+        return keep & finite, tprev, tnext, jump, state, result
+
+
 def _postprocess(mech: Mechanism, s: Settings, ts, ys: State):
     def one(t, y):
         qdd, lam, value, _, contact = _accelerations(mech, t, y.q, y.qdot, y.elements, s.baumgarte)
@@ -67,13 +102,14 @@ def _postprocess(mech: Mechanism, s: Settings, ts, ys: State):
     return qdd, lam, drift, contact.ecc, contact.penetration, contact.normal_force, contact.friction_force, mode
 
 
-def _solve(mech: Mechanism, s: Settings, y0: State, assembled_ok):
+def _solve(mech: Mechanism, s: Settings, y0: State, assembled_ok, valid=RESULTS.successful):
     t0 = jnp.asarray(s.t_start, y0.q.dtype)
-    t1 = jnp.asarray(s.t_end, y0.q.dtype)
+    # an invalid member (parameters outside their ranges) is not integrated: zero-length run
+    t1 = jnp.where(valid == RESULTS.successful, jnp.asarray(s.t_end, y0.q.dtype), t0)
     ts = t0 + (t1 - t0) * jnp.linspace(0.0, 1.0, s.n_out, dtype=y0.q.dtype)
     ts = ts.at[-1].set(t1)
     norm = StateNorm(mech.n_coordinates)
-    controller = diffrax.PIDController(rtol=s.rtol, atol=s.atol, dtmax=s.dtmax, norm=norm)
+    controller = StopOnNonFinite(diffrax.PIDController(rtol=s.rtol, atol=s.atol, dtmax=s.dtmax, norm=norm))
     meter = diffrax.TqdmProgressMeter(refresh_steps=200) if s.progress else diffrax.NoProgressMeter()
     sol = diffrax.diffeqsolve(
         diffrax.ODETerm(flat_vector_field),
@@ -95,8 +131,11 @@ def _solve(mech: Mechanism, s: Settings, y0: State, assembled_ok):
     finite = jnp.all(jnp.isfinite(ys.q)) & jnp.all(jnp.isfinite(ys.qdot)) & jnp.all(jnp.isfinite(qdd))
     result = RESULTS.where(finite, RESULTS.successful, RESULTS.nonfinite_state)
     result = RESULTS.where(sol.result == diffrax.RESULTS.successful, result, RESULTS.solver_failed)
+    result = RESULTS.where(sol.result == diffrax.RESULTS.dt_min_reached, RESULTS.nonfinite_state, result)
     result = RESULTS.where(sol.result == diffrax.RESULTS.max_steps_reached, RESULTS.max_steps_reached, result)
     result = RESULTS.where(assembled_ok, result, RESULTS.assembly_failed)
+    result = RESULTS.where(_too_deep(mech, pen), RESULTS.penetration_too_deep, result)
+    result = RESULTS.where(valid == RESULTS.successful, result, valid)
     out = Solution(
         ts=ts,
         q=ys.q,
@@ -120,6 +159,14 @@ def _solve(mech: Mechanism, s: Settings, y0: State, assembled_ok):
     return out
 
 
+def _too_deep(mech: Mechanism, pen):
+    """Whether any element's output penetration exceeds its ``penetration_limit()``."""
+    if not mech.elements or pen.shape[-1] != len(mech.elements):
+        return jnp.asarray(False)
+    limits = jnp.stack([jnp.asarray(e.penetration_limit(), pen.dtype) for e in mech.elements])
+    return jnp.any(pen > limits)
+
+
 @jit
 def _simulate(mech: Mechanism, s: Settings, y0: State | None) -> Solution:
     asm = assemble(mech, s.t_start)
@@ -128,7 +175,7 @@ def _simulate(mech: Mechanism, s: Settings, y0: State | None) -> Solution:
         y0 = initial_state(mech, s, asm)
     else:
         assembled_ok = jnp.asarray(True)
-    return _solve(mech, s, y0, assembled_ok)
+    return _solve(mech, s, y0, assembled_ok, mech.check())
 
 
 def simulate(mech: Mechanism, s: Settings, y0: State | None = None) -> Solution:
@@ -153,6 +200,8 @@ def simulate(mech: Mechanism, s: Settings, y0: State | None = None) -> Solution:
         check_assembly(mech, s)
     sol = _simulate(mech, dataclasses.replace(s, throw=False), y0)
     code = int(sol.status)
+    if code in invalid_codes():
+        raise ParameterError(f"jaxclear: {status_message(code)}")
     if code != int(RESULTS.successful._value):
         raise SolverError(f"jaxclear: {status_message(code, max_steps=s.max_steps)}")
     return sol

@@ -10,7 +10,7 @@ from __future__ import annotations
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._errors import MechanismError, check_finite, check_range
+from .._errors import RESULTS, MechanismError, check_finite, check_range, first_failure, in_range
 from .._types import Array, ArrayLike, Float, Scalar, Vec2
 
 GROUND = "ground"
@@ -65,3 +65,9 @@ class Body(eqx.Module):
         self.velocity = jnp.asarray(velocity, dtype=float).reshape(3)
         check_finite(f"position guess of body {name!r}", self.position)
         check_finite(f"velocity guess of body {name!r}", self.velocity)
+
+    def check(self) -> RESULTS:
+        """Traceable range check (run time): ``invalid_mass`` unless mass and inertia are
+        finite and > 0."""
+        ok = in_range(self.mass, low=0.0, low_open=True) & in_range(self.inertia, low=0.0, low_open=True)
+        return first_failure((ok, RESULTS.invalid_mass))

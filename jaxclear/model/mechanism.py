@@ -17,7 +17,7 @@ from typing import Sequence
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._errors import MechanismError
+from .._errors import RESULTS, MechanismError, first_failure
 from .._types import Array, ArrayLike, Float, Vec2
 from .bodies import GROUND, Body, vec2
 from .geometry import cross2, perp, rotate
@@ -106,6 +106,14 @@ class Mechanism(eqx.Module):
     def elements(self) -> tuple:
         """The force elements (same as ``clearance_joints``)."""
         return self.clearance_joints
+
+    def check(self) -> RESULTS:
+        """Traceable range check of every number of the mechanism (bodies, then force
+        elements, each through its own ``check()``): the first failing
+        :class:`~jaxclear.RESULTS` ``invalid_*`` entry, or ``successful``. :func:`~jaxclear.simulate`
+        evaluates it at run time, so it holds under ``jit`` and ``vmap`` where the constructors'
+        checks see only tracers."""
+        return first_failure(*(b.check() for b in self.bodies), *(e.check() for e in self.elements))
 
     def body_index(self, name: str) -> int:
         """Index of a body, ``-1`` for the ground; :class:`MechanismError` for unknown names."""

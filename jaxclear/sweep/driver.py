@@ -9,12 +9,15 @@ every process feeds its own shards and process 0 alone writes the files.
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import os
 
 import jax
 import numpy as np
 from tqdm import tqdm
+
+from .._storage import locked_folder
 
 from .batch import _run_chunk
 from .config import SweepConfig
@@ -63,13 +66,22 @@ def run_sweep(cfg: SweepConfig, out: str | None = None, restart: bool = False,
     """
     out = os.fspath(out if out is not None else cfg.out)
     progress = cfg.progress if progress is None else progress
-    mesh, chunk, layout = _layout(cfg)
     lead = jax.process_index() == 0
+    # one writer per folder: a second sweep into it fails at once (no row written twice)
+    with locked_folder(out, "sweep output folder") if lead else contextlib.nullcontext():
+        return _run_sweep(cfg, out, restart, progress, lead)
+
+
+def _run_sweep(cfg: SweepConfig, out: str, restart: bool, progress: bool, lead: bool) -> SweepResult:
+    """:func:`run_sweep` inside the folder's lock."""
+    mesh, chunk, layout = _layout(cfg)
     done = prepare_output(cfg, out, restart, layout) if lead else set()
     done = agree_on_done(done, cfg.n_runs)  # every process must agree on the work left
     plan = make_plan(cfg, mesh)
     todo = _todo(cfg, chunk, done)
     n_chunks = -(-cfg.n_runs // chunk)
+    if done and progress and lead:
+        tqdm.write(f"jaxclear sweep: resuming in {out}: {len(done)} of {cfg.n_runs} runs already done")
     computed = 0
     with tqdm(total=n_chunks, initial=n_chunks - len(todo), unit="chunk", desc="sweep",
               disable=not (progress and lead), dynamic_ncols=True) as bar:
