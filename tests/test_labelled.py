@@ -119,3 +119,20 @@ def test_timeseries_and_record_frames(tmp_path):
     rec = io.read_measurements(path).to_dataframe()
     assert list(rec.columns) == ["slider_acc_m_s2", "crank_angle_rad"] and rec.attrs["metadata"] == {"rig": "bench"}
     np.testing.assert_array_equal(rec["slider_acc_m_s2"].to_numpy(), [1.5, 2.5])
+
+
+def test_fit_result_as_dataframes():
+    """A FitResult reads as a parameter table (estimates, std, start, correlations) and a signal
+    table; values are copied exactly."""
+    from jaxclear.fitting import FitResult
+
+    res = FitResult(estimates={"stiffness": 6.6e10, "restitution": 0.9}, std={"stiffness": 1e8, "restitution": 1e-4},
+                    loss=0.01, iterations=12, wall_time_s=1.0, start={"stiffness": 2e10, "restitution": 0.6},
+                    correlation=[[1.0, -0.3], [-0.3, 1.0]], free=("stiffness", "restitution"),
+                    t=np.linspace(0, 1e-3, 4), measured=np.arange(4.0), fitted=np.arange(4.0) + 0.5, initial=np.zeros(4))
+    df = res.to_dataframe()
+    assert list(df.index) == ["stiffness", "restitution"]
+    assert df.loc["stiffness", "estimate"] == 6.6e10 and df.loc["restitution", "std"] == 1e-4
+    assert df.loc["stiffness", "corr_restitution"] == -0.3 and df.attrs["iterations"] == 12
+    sig = res.signals_frame()
+    assert list(sig.columns) == ["time_s", "measured", "fitted", "initial"] and sig["fitted"].iloc[3] == 3.5

@@ -91,6 +91,37 @@ class FitResult:
             "std_definition": "Gauss-Newton: sigma^2 (J^T J)^-1 in the transformed parameters, delta method back",
         }
 
+    def to_dataframe(self):
+        """The estimates as a :class:`pandas.DataFrame`: one row per free parameter (index
+        ``parameter``) with columns ``estimate``, ``std``, ``start`` (SI units) and the
+        correlation with every free parameter; ``df.attrs`` holds the loss, iterations,
+        evaluations, noise and residual statistics."""
+        import pandas as pd  # deferred like the sweep's labelled results: pandas loads on use
+
+        names = list(self.free)
+        rows = {
+            "estimate": [self.estimates.get(n, np.nan) for n in names],
+            "std": [self.std.get(n, np.nan) for n in names],
+            "start": [self.start.get(n, np.nan) for n in names],
+        }
+        corr = np.asarray(self.correlation, dtype=float) if len(self.correlation) else np.full((len(names),) * 2, np.nan)
+        for j, n in enumerate(names):
+            rows[f"corr_{n}"] = list(corr[:, j])
+        df = pd.DataFrame(rows, index=pd.Index(names, name="parameter"))
+        df.attrs.update(loss=self.loss, iterations=self.iterations, evaluations=self.evaluations,
+                        noise_sigma_m_s2=self.noise_sigma_m_s2, residual_rms_m_s2=self.residual_rms_m_s2,
+                        residual_lag1_autocorrelation=self.residual_autocorrelation, converged=self.converged)
+        return df
+
+    def signals_frame(self):
+        """The fitted samples as a :class:`pandas.DataFrame` with columns ``time_s``
+        (simulation time), ``measured``, ``fitted`` and ``initial`` [m/s^2] (empty when the fit
+        kept no samples)."""
+        import pandas as pd
+
+        cols = {"time_s": self.t, "measured": self.measured, "fitted": self.fitted, "initial": self.initial}
+        return pd.DataFrame({k: np.ravel(v) for k, v in cols.items() if v is not None})
+
     def write_json(self, path) -> str:
         return io.write_json(path, self.to_dict())
 
