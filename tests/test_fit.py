@@ -15,6 +15,7 @@ import math
 import re
 import warnings
 
+import jax
 import numpy as np
 import optax
 import pytest
@@ -71,6 +72,34 @@ def test_record_times_by_time_and_by_crank_angle():
         record_times(bad, "crank", speed=10.0)
     # resampling onto another grid (as the fit's jnp.interp does): linear, end values held outside
     np.testing.assert_allclose(np.interp([0.5, 1.5, 3.0], [0.0, 1.0, 2.0], [0.0, 10.0, 30.0]), [5.0, 20.0, 30.0])
+
+
+@pytest.mark.parametrize("extend,cap", [(0, math.inf), (3, 0.5)])
+def test_fit_levenberg_marquardt_on_rosenbrock(extend, cap):
+    """The fit's optimistix Levenberg-Marquardt (Nielsen damping, optional step extension and
+    step cap) on Rosenbrock's residuals (10 (y1 - y0^2), 1 - y0): the minimum is (1, 1) exactly;
+    from (-1.2, 1) no step exceeds the cap in any coordinate."""
+    import jax.numpy as jnp
+    import optimistix as optx
+    from jaxclear.fitting import lm
+
+    def fn(y, _):
+        return jnp.stack([10 * (y[1] - y[0] ** 2), 1 - y[0]])
+
+    solver = lm.with_scale(lm.levenberg_marquardt(1e-10, 1e-10, extend=extend, max_step=cap), jnp.ones(2))
+    sol = optx.least_squares(fn, solver, jnp.array([-1.2, 1.0]), max_steps=200)
+    np.testing.assert_allclose(np.asarray(sol.value), [1.0, 1.0], atol=1e-8)
+    y = jnp.array([-1.2, 1.0])
+
+    def fa(y, args):
+        return fn(y, args), None
+
+    f_struct = jax.eval_shape(lambda: fn(y, None))
+    state = solver.init(fa, y, None, {}, f_struct, None, frozenset())
+    for _ in range(60):
+        y_new, state, _ = solver.step(fa, y, None, {}, state, frozenset())
+        assert float(jnp.max(jnp.abs(state.y_eval - y_new))) <= cap * (1 + 1e-12)
+        y = y_new
 
 
 def test_levenberg_marquardt_is_an_optax_transformation():
