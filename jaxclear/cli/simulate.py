@@ -8,14 +8,17 @@ import os
 from .. import io, plot
 from ..analysis import metrics
 from ..integrate import runs
-from .._errors import check_range
+from .._errors import ParameterError, check_range
+from ..model import crank_driver
 from ..presets import preset
 from ..integrate import SOLVERS
-from .common import add_mechanism_options, fmt, int_at_least, mechanism_overrides
+from .common import (add_mechanism_file_option, add_mechanism_options, fmt, int_at_least, load_mechanism_file,
+                     mechanism_file, mechanism_overrides)
 
-HELP = "simulate a preset mechanism (CSV, JSON, PNG)"
+HELP = "simulate a preset or a mechanism file (CSV, JSON, PNG)"
 DESCRIPTION = """\
-Simulate a preset mechanism and write to the output folder:
+Simulate a preset mechanism or a mechanism file (jaxclear simulate FILE.toml) and write to the
+output folder:
   timeseries.csv          sampled time series (SI units in the column names)
   summary.json            peak contact force, impacts, penetration, solver statistics, wall time
   slider_acceleration.png slider acceleration vs crank angle, ideal joint overlaid (slider only)
@@ -29,6 +32,7 @@ friction 0, 5000 rpm."""
 
 def configure(p: argparse.ArgumentParser):
     """Add the options of ``jaxclear simulate``; returns its ``run(args) -> exit code``."""
+    add_mechanism_file_option(p)
     add_mechanism_options(p)
     run_ = p.add_argument_group("integration")
     run_.add_argument("--revolutions", type=float, default=3.0, metavar="N",
@@ -62,6 +66,8 @@ def _settings(args, mech):
         check_range("--t-end", args.t_end, low=0.0, low_open=True, unit="s")
     else:
         check_range("--revolutions", args.revolutions, low=0.0, low_open=True)
+        if crank_driver(mech) is None:
+            raise ParameterError(f"{mech.name!r} has no crank (AngleDriver): give --t-end [s] instead of --revolutions")
     return runs.revolution_settings(mech, args.revolutions, t_end=args.t_end, n_out=args.n_out,
                                     solver=args.solver, rtol=args.rtol, atol=args.atol,
                                     max_steps=args.max_steps, progress=not args.no_progress)
@@ -69,8 +75,13 @@ def _settings(args, mech):
 
 def run(args) -> int:
     """Simulate, write timeseries.csv, the plots and summary.json, print the summary."""
-    overrides = mechanism_overrides(args)
-    mech = preset(args.preset, ideal=args.ideal, **overrides)
+    path = mechanism_file(args)
+    if path is None:
+        overrides = mechanism_overrides(args)
+        mech = preset(args.preset, ideal=args.ideal, **overrides)
+    else:
+        mech = load_mechanism_file(args, path, ideal=args.ideal)
+        overrides = {"mechanism_file": path}
     s = _settings(args, mech)
     t_end, n_out = float(s.t_end), int(s.n_out)
     revolutions = runs.revolutions_of(mech, t_end)
@@ -88,7 +99,7 @@ def run(args) -> int:
 
     summary = metrics.summary(mech, r.sol, wall_time_s=r.wall_time_s)
     summary["inputs"] = {
-        "preset": args.preset, "ideal": bool(args.ideal), **overrides, "t_end_s": t_end,
+        "preset": args.preset if path is None else None, "ideal": bool(args.ideal), **overrides, "t_end_s": t_end,
         "revolutions": revolutions, "n_out": n_out, "solver": args.solver, "rtol": args.rtol,
         "atol": args.atol, "max_steps": args.max_steps,
     }
