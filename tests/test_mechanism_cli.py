@@ -40,15 +40,6 @@ def test_check_needs_a_mechanism(capsys):
     assert "give a mechanism file" in capsys.readouterr().err
 
 
-def test_simulate_a_file_with_overrides(tmp_path, capsys):
-    code = main(["simulate", str(PENDULUM), "--t-end", "0.01", "--n-out", "11", "--restitution", "0.5",
-                 "--no-plots", "--no-progress", "--out", str(tmp_path)])
-    assert code == 0, capsys.readouterr().err
-    summary = json.loads((tmp_path / "summary.json").read_text())
-    assert summary["inputs"]["mechanism_file"] == str(PENDULUM)
-    assert "c_r = 0.5" in capsys.readouterr().out
-
-
 def test_simulate_a_file_errors(tmp_path, capsys):
     assert main(["simulate", str(PENDULUM), "--no-progress", "--out", str(tmp_path)]) == 2
     assert "--t-end" in capsys.readouterr().err

@@ -6,7 +6,7 @@ import argparse
 import os
 
 from .. import io, plot
-from ..analysis import metrics
+from ..analysis import channels, metrics
 from ..integrate import runs
 from .._errors import ParameterError, check_range
 from ..model import crank_driver
@@ -54,6 +54,11 @@ def configure(p: argparse.ArgumentParser):
     out = p.add_argument_group("output")
     out.add_argument("--out", default="./jaxclear-out", metavar="DIR",
                      help="output folder, created if missing (default: ./jaxclear-out)")
+    out.add_argument("--output", action="append", metavar="CHANNEL",
+                     help="output channel(s) for timeseries.csv (and one PNG each), repeatable or comma-separated, "
+                     "e.g. body:rocker:phi:acc, point:rocker:B:acc:x:frame=rocker, reaction:0:norm, "
+                     "joint:0:normal_force (names: docs/mechanism-files.md; default: the legacy columns, plus the "
+                     "output link's motion with its ideal-joint overlay for a mechanism without a slider)")
     out.add_argument("--no-plots", action="store_true", help="write CSV and JSON only, no PNG (default: off)")
     out.add_argument("--no-progress", action="store_true", help="hide the progress bar (default: shown)")
     return run
@@ -92,7 +97,12 @@ def run(args) -> int:
     revs = f" ({revolutions:g} crank revolution(s))" if revolutions is not None else ""
     print(f"jaxclear: {mech.name}, {what}; t_end = {t_end:.6g} s{revs}, {n_out} samples, "
           f"{args.solver} rtol={args.rtol:g} atol={args.atol:g}", flush=True)
-    overlay = not args.no_plots and mech.role("slider") is not None and bool(mech.clearance_joints)
+    chosen = [c.strip() for text in (args.output or []) for c in text.split(",") if c.strip()]
+    names = chosen or (channels.default_channels(mech) if path is not None or mech.role("slider") is None else [])
+    for name in names:
+        channels.unit(mech, name)  # a bad name is an error before any compute
+    wants_overlay = any(channels.parse(n).kind in channels.OVERLAY_KINDS for n in names)
+    overlay = bool(mech.clearance_joints) and (wants_overlay or (not args.no_plots and mech.role("slider") is not None))
     print("compiling and integrating (the first run includes JIT compilation)"
           + (", then the ideal-joint mechanism for the overlay" if overlay else "") + "...", flush=True)
     r = runs.simulate_with_ideal(mech, s, ideal=overlay)
@@ -106,12 +116,29 @@ def run(args) -> int:
     if r.ideal_sol is not None:
         summary["ideal_wall_time_s"] = r.ideal_wall_time_s
         summary["ideal_peak_slider_acc_m_s2"] = metrics.peak_slider_acceleration(r.ideal_mech, r.ideal_sol)
-    files = [io.write_timeseries_csv(os.path.join(args.out, "timeseries.csv"), mech, r.sol)]
+    table = channels.channel_table(mech, r.sol, names, r.ideal_mech, r.ideal_sol)
+    base = {"time_s": r.sol.ts} if chosen else io.timeseries_table(mech, r.sol)
+    files = [io.write_table_csv(os.path.join(args.out, "timeseries.csv"), {**base, **table})]
     if not args.no_plots:
         files += plot.plot_simulation(args.out, mech, r.sol, r.ideal_sol, r.ideal_mech)
+        files += _plot_channels(args.out, mech, r, chosen or names[-1:])
     files.append(io.write_json(os.path.join(args.out, "summary.json"), summary))
     _print_summary(summary, files)
     return 0
+
+
+def _plot_channels(folder: str, mech, r, names: list[str]) -> list[str]:
+    """One PNG per channel (ideal-joint overlay where it applies): ``channel_<name>.png``."""
+    paths = []
+    for name in names:
+        values, unit = channels.channel_with_unit(mech, r.sol, name)
+        ideal = None
+        if r.ideal_sol is not None and channels.parse(name).kind in channels.OVERLAY_KINDS:
+            ideal = channels.channel(r.ideal_mech, r.ideal_sol, name)
+        safe = "".join(ch if ch.isalnum() else "_" for ch in name)
+        paths.append(os.path.join(folder, f"channel_{safe}.png"))
+        plot.plot_channel(paths[-1], mech, r.sol, name, values, unit, ideal)
+    return paths
 
 
 def _print_summary(s: dict, files: list[str]):
