@@ -34,6 +34,22 @@ def configure(p: argparse.ArgumentParser):
     """Add the options of ``jaxclear simulate``; returns its ``run(args) -> exit code``."""
     add_mechanism_file_option(p)
     add_mechanism_options(p)
+    add_integration_options(p)
+    out = p.add_argument_group("output")
+    out.add_argument("--out", default="./jaxclear-out", metavar="DIR",
+                     help="output folder, created if missing (default: ./jaxclear-out)")
+    out.add_argument("--output", action="append", metavar="CHANNEL",
+                     help="output channel(s) for timeseries.csv (and one PNG each), repeatable or comma-separated, "
+                     "e.g. body:rocker:phi:acc, point:rocker:B:acc:x:frame=rocker, reaction:0:norm, "
+                     "joint:0:normal_force (names: docs/mechanism-files.md; default: the legacy columns, plus the "
+                     "output link's motion with its ideal-joint overlay for a mechanism without a slider)")
+    out.add_argument("--no-plots", action="store_true", help="write CSV and JSON only, no PNG (default: off)")
+    out.add_argument("--no-progress", action="store_true", help="hide the progress bar (default: shown)")
+    return run
+
+
+def add_integration_options(p: argparse.ArgumentParser):
+    """The integration options (time span, samples, solver, tolerances) of simulate and animate."""
     run_ = p.add_argument_group("integration")
     run_.add_argument("--revolutions", type=float, default=3.0, metavar="N",
                       help="simulated time in crank revolutions [-], > 0 (default: 3)")
@@ -51,20 +67,18 @@ def configure(p: argparse.ArgumentParser):
                       help="absolute tolerance of the adaptive step [m, rad, m/s, rad/s], > 0 (default: 1e-9)")
     run_.add_argument("--max-steps", type=int, default=400_000, metavar="N",
                       help="maximum number of solver steps [-], >= 1 (default: 400000)")
-    out = p.add_argument_group("output")
-    out.add_argument("--out", default="./jaxclear-out", metavar="DIR",
-                     help="output folder, created if missing (default: ./jaxclear-out)")
-    out.add_argument("--output", action="append", metavar="CHANNEL",
-                     help="output channel(s) for timeseries.csv (and one PNG each), repeatable or comma-separated, "
-                     "e.g. body:rocker:phi:acc, point:rocker:B:acc:x:frame=rocker, reaction:0:norm, "
-                     "joint:0:normal_force (names: docs/mechanism-files.md; default: the legacy columns, plus the "
-                     "output link's motion with its ideal-joint overlay for a mechanism without a slider)")
-    out.add_argument("--no-plots", action="store_true", help="write CSV and JSON only, no PNG (default: off)")
-    out.add_argument("--no-progress", action="store_true", help="hide the progress bar (default: shown)")
-    return run
 
 
-def _settings(args, mech):
+def load(args):
+    """``(mechanism, path or None, overrides)`` from a mechanism file or the preset options."""
+    path = mechanism_file(args)
+    if path is None:
+        overrides = mechanism_overrides(args)
+        return preset(args.preset, ideal=args.ideal, **overrides), None, overrides
+    return load_mechanism_file(args, path, ideal=args.ideal), path, {"mechanism_file": path}
+
+
+def settings_from(args, mech):
     """The run's :class:`~jaxclear.solve.Settings` from the integration options (checked first
     under their flag names)."""
     if args.t_end is not None:
@@ -80,14 +94,8 @@ def _settings(args, mech):
 
 def run(args) -> int:
     """Simulate, write timeseries.csv, the plots and summary.json, print the summary."""
-    path = mechanism_file(args)
-    if path is None:
-        overrides = mechanism_overrides(args)
-        mech = preset(args.preset, ideal=args.ideal, **overrides)
-    else:
-        mech = load_mechanism_file(args, path, ideal=args.ideal)
-        overrides = {"mechanism_file": path}
-    s = _settings(args, mech)
+    mech, path, overrides = load(args)
+    s = settings_from(args, mech)
     t_end, n_out = float(s.t_end), int(s.n_out)
     revolutions = runs.revolutions_of(mech, t_end)
     os.makedirs(args.out, exist_ok=True)
