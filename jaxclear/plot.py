@@ -53,10 +53,8 @@ def law_label(law) -> str:
 
 def joint_label(joint) -> str:
     """``clearance 0.5 mm, lankarani-nikravesh, c_r = 0.9`` for a clearance joint."""
-    parts = [f"clearance {1e3 * float(joint.clearance):g} mm", law_label(joint.law)]
-    restitution = getattr(joint.law, "restitution", None)
-    if restitution is not None:
-        parts.append(f"c_r = {float(restitution):g}")
+    parts = [f"clearance {1e3 * float(joint.clearance):g} mm", law_label(joint.law),
+             f"c_r = {float(joint.law.restitution):g}"]
     return ", ".join(parts)
 
 
