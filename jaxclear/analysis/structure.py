@@ -22,7 +22,8 @@ import numpy as np
 
 from ..integrate.assembly import RANK_TOL, check_assembly
 from ..integrate.settings import settings
-from ..model import Mechanism
+from ..elements import ClearanceJoint
+from ..model import AngleDriver, Mechanism
 
 
 def _rank(mech: Mechanism, q, constraints) -> int:
@@ -65,19 +66,13 @@ def check_mechanism(mech: Mechanism) -> dict:
 
 
 def _driver_text(d) -> str:
-    speed = getattr(d, "speed", None)
-    return d.label + ("" if speed is None else f", {float(speed):.6g} rad/s")
+    return d.label + (f", {float(d.speed):.6g} rad/s" if isinstance(d, AngleDriver) else "")
 
 
 def _joint_text(j) -> str:
-    law = getattr(j, "law", None)
-    rb = getattr(j, "bearing_radius", None)
-    parts = [f"{j.label}: bearing {j.bearing_body}.{j.bearing_point}, journal {j.journal_body}.{j.journal_point}"]
-    if rb is not None:
-        parts.append(f"R_B = {float(rb) * 1e3:.4g} mm, c = {float(j.clearance) * 1e6:.4g} um")
-    if law is not None:
-        parts.append(f"law {law.name}, c_r = {float(law.restitution):.3g}")
-    friction = getattr(j, "friction", None)
-    if friction is not None:
-        parts.append(f"mu = {float(friction.coefficient):.3g}")
-    return ", ".join(parts)
+    text = f"{j.label}: bodies {' and '.join(j.bodies())}"
+    if isinstance(j, ClearanceJoint):
+        text = (f"{j.label}: bearing {j.bearing_body}.{j.bearing_point}, journal {j.journal_body}.{j.journal_point}, "
+                f"R_B = {float(j.bearing_radius) * 1e3:.4g} mm, c = {float(j.clearance) * 1e6:.4g} um, "
+                f"law {j.law.name}, c_r = {float(j.law.restitution):.3g}, mu = {float(j.friction.coefficient):.3g}")
+    return text
