@@ -236,7 +236,8 @@ class _Reader:
         row = self.table(key, row)
         kind = row.get("type", default_type)
         if kind not in types:
-            self.fail(f"{key}.type", f"{kind!r} is not a valid type; allowed: {sorted(types)}")
+            got = "missing" if kind is None else f"{kind!r} is not a valid type"
+            self.fail(f"{key}.type", f"{got}; allowed: {sorted(types)}")
         cls, names = types[kind]
         extra = {"type", *skip}
         self.keys(key, row, {*names, *extra}, [n for n in names if n in REQUIRED])
