@@ -1,4 +1,5 @@
-"""Files in and out: time series CSV, JSON, and measured data (:func:`read_measurements`).
+"""Files in and out: time series CSV, JSON, and measured data (:func:`read_measurements`); the
+same tables as pandas DataFrames (:func:`timeseries_frame`, :meth:`Measurements.to_dataframe`).
 
 Output CSV columns (:func:`timeseries_columns`), units in the names:
 
@@ -13,6 +14,7 @@ with clearance joints; with several joints they get the suffixes ``_1``, ``_2``.
 from __future__ import annotations
 
 import csv
+import importlib
 import math
 import os
 import warnings
@@ -67,6 +69,33 @@ def timeseries_columns(mech: Mechanism) -> list[str]:
         suffix = f"_{j + 1}" if k > 1 else ""
         cols.extend(c + suffix for c in CONTACT_COLUMNS)
     return cols
+
+
+#: Unit of each time-series column (the suffix of its name), for DataFrame attributes.
+COLUMN_UNITS = {"time_s": "s", "crank_angle_rad": "rad", "slider_pos_m": "m", "slider_vel_m_s": "m/s",
+                "slider_acc_m_s2": "m/s^2", "ecc_x_m": "m", "ecc_y_m": "m", "penetration_m": "m",
+                "contact_force_n": "N", "friction_force_n": "N"}
+
+
+def _pandas():
+    """pandas, imported on first use (it adds about 0.6 s to ``import jaxclear``)."""
+    return importlib.import_module("pandas")
+
+
+def _frame(cols: dict, index: str):
+    """DataFrame of ``cols`` indexed by column ``index``; ``df.attrs["units"]``: column -> unit."""
+    pd = _pandas()
+    df = pd.DataFrame({k: v for k, v in cols.items() if k != index}, index=pd.Index(cols[index], name=index))
+    df.attrs["units"] = {c: COLUMN_UNITS.get(c, COLUMN_UNITS.get(c.rsplit("_", 1)[0], "")) for c in cols}
+    return df
+
+
+def timeseries_frame(mech: Mechanism, sol: Solution):
+    """The sampled solution as a :class:`pandas.DataFrame` indexed by ``time_s``: the columns of
+    :func:`write_timeseries_csv` (crank angle, slider position/velocity/acceleration, per
+    clearance joint eccentricity, penetration, contact and friction force), SI units in the
+    names and in ``df.attrs["units"]``."""
+    return _frame(timeseries_table(mech, sol), "time_s")
 
 
 def write_timeseries_csv(path, mech: Mechanism, sol: Solution) -> str:
@@ -139,6 +168,13 @@ class Measurements:
         """Names of the columns present."""
         names = REQUIRED_MEASUREMENT_COLUMNS + OPTIONAL_MEASUREMENT_COLUMNS
         return [n for n in names if getattr(self, n) is not None]
+
+    def to_dataframe(self):
+        """The record as a :class:`pandas.DataFrame` indexed by ``time_s`` (the columns present;
+        units in the names and in ``df.attrs["units"]``; the metadata in ``df.attrs["metadata"]``)."""
+        df = _frame({n: getattr(self, n) for n in self.columns}, "time_s")
+        df.attrs["metadata"] = dict(self.metadata)
+        return df
 
 
 def _parse_metadata(text: str, metadata: dict):

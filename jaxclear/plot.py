@@ -283,11 +283,15 @@ def plot_bifurcation(path, parameter, points, xlabel: str = "parameter", ylabel:
     return _save(fig, path)
 
 
-def plot_poincare(path, points, colors=None, color_label: str = "", clearance=None) -> Figure:
+def plot_poincare(path, points, colors=None, color_label: str = "", clearance=None, labels=None,
+                  title: str = "", marker_index=None) -> Figure:
     """Poincare sections of one or several runs: ``points`` (n_runs, n_section, 4) journal states
     (e_x, e_y [m], v_x, v_y [m/s]) once per crank revolution. Left: the journal-centre position
-    [mm] inside the clearance circle(s) (``clearance`` [m], one per run or one value); right:
-    the (e_x, v_x) plane. Runs are coloured by ``colors`` (e.g. a swept parameter)."""
+    [mm] inside the whole clearance circle(s) (``clearance`` [m], one per run or one value);
+    right: the (e_x, v_x) plane. Runs are coloured by ``colors`` (e.g. a swept parameter);
+    ``labels`` (one per run) make a legend, ``title`` a figure title; ``marker_index`` (one
+    integer per run, default the run's position) picks each run's marker, e.g. the index of a
+    second swept parameter's value."""
     from matplotlib import colormaps
     from matplotlib.colors import Normalize
 
@@ -295,42 +299,47 @@ def plot_poincare(path, points, colors=None, color_label: str = "", clearance=No
     if pts.ndim == 2:
         pts = pts[None]
     n = pts.shape[0]
-    fig = Figure(figsize=(11.0, 5.0), layout="constrained")
+    fig = Figure(figsize=(12.0, 5.6), layout="constrained")
     ax1, ax2 = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)
     cmap = colormaps["viridis"]
     cvals = np.arange(n, dtype=float) if colors is None else np.asarray(colors, dtype=float)
     norm = Normalize(vmin=float(np.nanmin(cvals)), vmax=float(np.nanmax(cvals)) if n > 1 else float(np.nanmin(cvals)) + 1)
+    markers = "osD^vP*X"
     for r in range(n):
         color = cmap(norm(cvals[r]))
-        ax1.plot(1e3 * pts[r, :, 0], 1e3 * pts[r, :, 1], ls="none", marker="o", ms=3.0, color=color)
-        ax2.plot(1e3 * pts[r, :, 0], pts[r, :, 2], ls="none", marker="o", ms=3.0, color=color)
-    if clearance is not None:  # the clearance circle(s), the view kept on the points
+        m = r if marker_index is None else int(marker_index[r])
+        style = dict(ls="none", marker=markers[m % len(markers)], ms=4.0, color=color, mec="black", mew=0.3)
+        ax1.plot(1e3 * pts[r, :, 0], 1e3 * pts[r, :, 1], label=None if labels is None else labels[r], **style)
+        ax2.plot(1e3 * pts[r, :, 0], pts[r, :, 2], **style)
+    if clearance is not None:  # the whole clearance circle(s), the points inside
         theta = np.linspace(0.0, 2.0 * np.pi, 721)
-        xs, ys = 1e3 * pts[..., 0], 1e3 * pts[..., 1]
-        finite = np.isfinite(xs) & np.isfinite(ys)
         cs = np.unique(np.atleast_1d(np.asarray(clearance, dtype=float)))
         for c in cs:
-            ax1.plot(1e3 * c * np.cos(theta), 1e3 * c * np.sin(theta), color="0.5", lw=0.8)
-        if finite.any():
-            lo_x, hi_x, lo_y, hi_y = xs[finite].min(), xs[finite].max(), ys[finite].min(), ys[finite].max()
-            pad = max(0.03 * 1e3 * float(cs.max()), 0.1 * max(hi_x - lo_x, hi_y - lo_y))
-            ax1.set_xlim(lo_x - pad, hi_x + pad)
-            ax1.set_ylim(lo_y - pad, hi_y + pad)
+            ax1.plot(1e3 * c * np.cos(theta), 1e3 * c * np.sin(theta), color="0.4", lw=0.8)
+        xs, ys = 1e3 * pts[..., 0], 1e3 * pts[..., 1]
+        finite = np.isfinite(xs) & np.isfinite(ys)
+        reach = max([1e3 * float(cs.max())] + ([float(np.hypot(xs, ys)[finite].max())] if finite.any() else []))
+        ax1.set_xlim(-1.1 * reach, 1.1 * reach)
+        ax1.set_ylim(-1.1 * reach, 1.1 * reach)
     ax1.set_aspect("equal", adjustable="box")
     ax1.set_xlabel("journal e$_x$ [mm]")
     ax1.set_ylabel("journal e$_y$ [mm]")
-    ax1.set_title("journal centre, once per crank revolution", fontsize=10)
+    ax1.set_title("journal centre in the clearance circle, once per crank revolution", fontsize=10)
     ax2.set_xlabel("journal e$_x$ [mm]")
     ax2.set_ylabel("journal v$_x$ relative to bearing [m/s]")
     ax2.set_title("Poincare section (e$_x$, v$_x$)", fontsize=10)
     for ax in (ax1, ax2):
         ax.grid(True, alpha=0.3)
         ax.xaxis.set_major_locator(MaxNLocator(5))
+    if labels is not None and n <= 12:
+        fig.legend(fontsize=8, loc="outside lower center", ncols=min(n, 3), frameon=False)
     if n > 1:
         from matplotlib.cm import ScalarMappable
 
         cb = fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=[ax1, ax2])
         cb.set_label(color_label)
+    if title:
+        fig.suptitle(title, fontsize=10)
     return _save(fig, path)
 
 

@@ -1,6 +1,6 @@
 """Reference mechanisms, each with its source. Values are presets to start from, not truths
-to tune to (spec section 7). Every preset takes keyword overrides; :func:`preset` builds one
-by name."""
+to tune to (the values commonly reported in the papers named in each docstring). Every preset
+takes keyword overrides; :func:`preset` builds one by name."""
 
 from __future__ import annotations
 
@@ -125,7 +125,7 @@ def flores_2011_rig(
 ):
     """The experimental slider-crank rig of Flores, Koshy, Lankarani, Ambrósio, Claro, "Numerical
     and experimental investigation on multibody systems with revolute clearance joints",
-    Nonlinear Dyn. 65 (2011) 383-398 (approximate values, spec section 7): crank 0.05 m with
+    Nonlinear Dyn. 65 (2011) 383-398 (approximate values; the rig's full data are not published): crank 0.05 m with
     flywheel (17.9 kg, 0.46 kg m^2), rod 0.30 m (1.13 kg, 0.0153 kg m^2), slider 1.01 kg;
     clearance in the rod-slider joint (0.25 to 1.0 mm studied); about 200 rpm. Bearing radius,
     joint length, slider inertia (irrelevant: the slider does not rotate) and friction are our

@@ -230,7 +230,7 @@ def test_write_json_nonfinite(tmp_path):
 
 
 # --------------------------------------------------------------------------------------
-# read_measurements (spec section 8)
+# read_measurements (the measured-data format of docs/theory/fit.md)
 # --------------------------------------------------------------------------------------
 
 

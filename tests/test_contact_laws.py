@@ -1,5 +1,6 @@
-"""Contact laws against truths that are not jaxclear's: the impact relation of spec section 6 and
-its table, the closed form of the foundation integral (spec section 4), an independent NumPy
+"""Contact laws against truths that are not jaxclear's: the impact relation of the dissipative
+Hertz family and its table (docs/theory/impact-memory.md), the closed form of the foundation
+integral (docs/theory/hybrid.md), an independent NumPy
 integration for non-circular profiles, the clipped linear oscillator in closed form, and
 hand-evaluated friction laws."""
 
@@ -11,7 +12,7 @@ import numpy as np
 import pytest
 from conftest import free_journal
 from scipy.optimize import brentq
-from test_engine import C_R, SPEC_TABLE, effective_restitution_exact, simulated_restitution
+from test_engine import C_R, RESTITUTION_TABLE, effective_restitution_exact, simulated_restitution
 
 import jaxclear as jc
 from jaxclear.elements import kinematics
@@ -21,16 +22,16 @@ from jaxclear.contact import HYSTERESIS_FACTORS
 
 RB, RJ, L = 0.010, 0.0095, 0.010
 C = RB - RJ
-KF = 2.787e11  # spec section 4, steel
+KF = 2.787e11  # Winkler modulus of steel, E(1-nu)/((1+nu)(1-2nu)) with E = 207 GPa, nu = 0.3
 
 
 # ---------------------------------------------------------------- effective restitution
 
 
-@pytest.mark.parametrize("law", sorted(SPEC_TABLE))
+@pytest.mark.parametrize("law", sorted(RESTITUTION_TABLE))
 def test_single_impact_every_law_matches_table(law):
-    """All columns and rows of the spec table, within 2e-3 (the table is rounded to 1e-3)."""
-    for c_r, expected in zip(C_R, SPEC_TABLE[law]):
+    """All columns and rows of the restitution table, within 2e-3 (the table is rounded to 1e-3)."""
+    for c_r, expected in zip(C_R, RESTITUTION_TABLE[law]):
         got = simulated_restitution(law, c_r)
         assert abs(got - expected) < 2e-3, (law, c_r, got, expected)
 
@@ -116,7 +117,7 @@ def test_foundation_modulus_of_steel():
 
 @pytest.mark.parametrize("delta,ref", [(1e-7, 141.2), (1e-6, 4459.0), (1e-5, 1.394e5)])
 def test_closed_form_reference_values(delta, ref):
-    """The spec's reference values (L = 10 mm, h = c) to their printed 4 digits."""
+    """The closed form's reference values (docs/theory/hybrid.md; L = 10 mm, h = c) to their printed 4 digits."""
     f = float(small_gap_force(C + delta, C, foundation_modulus(jc.STEEL), C, RJ, L))
     assert abs(f / ref - 1) < 5e-4
 

@@ -1,5 +1,6 @@
 """Engine physics checked against truths that do not come from jaxclear: closed forms, energy
-balances, the impact relation of spec section 6, and an independent SciPy implementation."""
+balances, the impact relation of the dissipative Hertz family
+(docs/theory/impact-memory.md), and an independent SciPy implementation."""
 
 import math
 
@@ -89,7 +90,8 @@ def test_friction_only_dissipates():
 
 
 def effective_restitution_exact(chi):
-    """Solve -chi e - ln(1 - chi e) = chi - ln(1 + chi) for e (spec section 6), independently
+    """Solve -chi e - ln(1 - chi e) = chi - ln(1 + chi) for e (the impact relation,
+    docs/theory/impact-memory.md), independently
     of jaxclear (SciPy's brentq). Valid for every law of the dissipative-Hertz family."""
     if chi == 0:
         return 1.0
@@ -108,7 +110,7 @@ def simulated_restitution(law, c_r, speed=1.0):
     return -float(sol.qdot[-1, 0]) / speed
 
 
-SPEC_TABLE = {  # spec section 6, effective restitution for nominal c_r
+RESTITUTION_TABLE = {  # effective restitution for nominal c_r = 0.1 ... 0.9 (docs/theory/impact-memory.md)
     "hunt-crossley": [0.516, 0.581, 0.663, 0.768, 0.909],
     "herbert-mcwhannell": [0.491, 0.520, 0.594, 0.723, 0.901],
     "lee-wang": [0.687, 0.739, 0.799, 0.869, 0.952],
@@ -120,7 +122,7 @@ SPEC_TABLE = {  # spec section 6, effective restitution for nominal c_r
 C_R = [0.1, 0.3, 0.5, 0.7, 0.9]
 
 
-@pytest.mark.parametrize("c_r,expected", list(zip(C_R, SPEC_TABLE["lankarani-nikravesh"])))
+@pytest.mark.parametrize("c_r,expected", list(zip(C_R, RESTITUTION_TABLE["lankarani-nikravesh"])))
 def test_single_impact_lankarani_nikravesh_matches_table(c_r, expected):
     """Exit over entry normal speed of one central impact; 2e-3 is the issue's tolerance (the
     table itself is rounded to 1e-3)."""
@@ -228,8 +230,8 @@ def test_two_clearance_joints_each_keep_their_own_impact_memory():
     np.testing.assert_array_equal(np.asarray(sol.impacts), [1.0, 1.0])
     e0 = -float(sol.qdot[-1, 0]) / 1.0
     e1 = -float(sol.qdot[-1, 3]) / 0.6
-    assert abs(e0 - SPEC_TABLE["lankarani-nikravesh"][1]) < 2e-3
-    assert abs(e1 - SPEC_TABLE["lankarani-nikravesh"][3]) < 2e-3
+    assert abs(e0 - RESTITUTION_TABLE["lankarani-nikravesh"][1]) < 2e-3
+    assert abs(e1 - RESTITUTION_TABLE["lankarani-nikravesh"][3]) < 2e-3
 
 
 def test_slider_crank_with_two_clearance_joints():

@@ -266,8 +266,8 @@ def _hybrid_loss(settings):
 
 @pytest.mark.slow
 def test_hybrid_foundation_modulus_gradient_forward_mode():
-    """The seed paper's hybrid law (stiffness = foundation modulus K_f): forward mode against
-    central differences on the free journal's impact. Tolerance 5e-3, not 1e-3: d/dK_f from
+    """The hybrid law (stiffness = foundation modulus K_f): forward mode against central
+    differences on the free journal's impact. Tolerance 5e-3, not 1e-3: d/dK_f from
     forward mode is -0.0090526 while the central differences converge to -0.0090676 (the same to
     5 digits for steps 1e-2 to 1e-5 and at rtol 1e-12), a 0.17 % discrepancy that the LN law does
     not show. Its cause in the hybrid law's code is not identified (reported)."""

@@ -156,7 +156,9 @@ def test_grid_and_list_layout():
     assert other.sweep_hash() != cfg.sweep_hash()
     # the example config is valid
     ex = sweep.load_config(ROOT / "examples" / "sweep.toml")
-    assert ex.n_runs == 12 and ex.section == (200, 400)
+    assert ex.n_runs == 12 and ex.section == (400, 600, 800, 1000, 1200)
+    # it teaches: several chunks (progress, resume) and several Poincare points per run
+    assert ex.n_runs // ex.chunk_size >= 4 and len(ex.section) > 1
 
 
 def test_auto_chunk_size():
@@ -385,6 +387,22 @@ def _check_resume_guards(e2e, tmp_path):
         sweep._repair_csv(str(path), ["run", "a"])
 
 
+def _check_labelled_results(e2e):
+    """``results.nc`` is written beside ``runs.csv`` and holds the table (a list sweep: one
+    ``run`` dimension, the parameters as coordinates); the DataFrame has the table's rows."""
+    cfg, res, *_ = e2e
+    ds = sweep.open_dataset(Path(cfg.out) / sweep.NETCDF_NAME)
+    assert ds["peak_contact_force_n"].dims == ("run",)
+    for name in E2E:
+        np.testing.assert_array_equal(ds[name].values, E2E[name])
+    for col in ("peak_contact_force_n", "energy_dissipated_j", "t_end_s", "status", "num_steps"):
+        np.testing.assert_array_equal(ds[col].values, res.table[col])
+    np.testing.assert_array_equal(ds["poincare"].values, res.poincare)
+    assert ds["peak_contact_force_n"].attrs["units"] == "N" and ds["clearance"].attrs["units"] == "m"
+    df = res.to_dataframe()
+    assert list(df.index) == list(range(5)) and df.loc[3, "status"] == 1
+
+
 def test_in_process_sweep(tmp_path):
     """One sweep of 5 runs in chunks of 2 (the last padded) with a failing run, then every check
     on it (one test, so that parallel test workers do not each compile it)."""
@@ -394,6 +412,7 @@ def test_in_process_sweep(tmp_path):
     _check_failed_run_is_flagged_and_does_not_poison_the_others(e2e)
     _check_metric_values_are_physical(e2e)
     _check_poincare_and_trajectories(e2e)
+    _check_labelled_results(e2e)
     _check_resume_guards(e2e, tmp_path)
 
 

@@ -50,7 +50,7 @@ SUMMARY_KEYS: dict[str, str] = {
 #: Keys of :func:`run_metrics`, in output order, with their units. Contact keys appear only for
 #: a mechanism with clearance joints, slider keys only with a ``slider`` role, the
 #: acceleration-deviation keys only when the ideal-joint acceleration is given, the per-revolution
-#: energy only with a crank (:func:`jaxclear.mechanism.crank_driver`).
+#: energy only with a crank (:func:`jaxclear.model.crank_driver`).
 RUN_METRIC_KEYS: dict[str, str] = {
     "peak_contact_force_n": "N",
     "rms_contact_force_n": "N",

@@ -79,7 +79,7 @@ def load(args):
 
 
 def settings_from(args, mech):
-    """The run's :class:`~jaxclear.solve.Settings` from the integration options (checked first
+    """The run's :class:`~jaxclear.integrate.Settings` from the integration options (checked first
     under their flag names)."""
     if args.t_end is not None:
         check_range("--t-end", args.t_end, low=0.0, low_open=True, unit="s")

@@ -5,9 +5,9 @@ from __future__ import annotations
 import argparse
 import os
 
-from ..sweep import CSV_NAME, MANIFEST_NAME, bifurcation, heatmap, load_config, poincare_plot, run_sweep
+from ..sweep import CSV_NAME, MANIFEST_NAME, NETCDF_NAME, bifurcation, heatmap, load_config, poincare_plot, run_sweep
 
-HELP = "run a parameter sweep from a TOML file (CSV, NPZ, PNG)"
+HELP = "run a parameter sweep from a TOML file (CSV, NetCDF, NPZ, PNG)"
 DESCRIPTION = """\
 Run a parameter sweep described by a TOML file (see examples/sweep.toml): a grid or a list
 over any numeric parameters, batched with jax.vmap over all local devices, compiled once,
@@ -15,6 +15,7 @@ written chunk by chunk to the output folder:
   runs.csv                one row per run: index, parameters, metrics, status, status message
   manifest.json           the sweep's definition and hash (a re-run resumes the same sweep)
   chunks/chunk_NNNNNN.npz Poincare points (and time series with --trajectories)
+  results.nc              everything as a labelled dataset (NetCDF; xarray.open_dataset reads it)
   heatmap_METRIC.png      2-parameter grids: heat maps of the main metrics
   bifurcation_NAME.png    1-parameter sweeps: bifurcation diagram (Poincare e_x per revolution)
   poincare.png            Poincare sections of every run
@@ -51,7 +52,7 @@ def run(args) -> int:
     res = run_sweep(cfg, restart=args.restart)
     table = res.table
     failed = int(sum(1 for s in table["status"] if s != 0))
-    files = [os.path.join(cfg.out, CSV_NAME), os.path.join(cfg.out, MANIFEST_NAME)]
+    files = [os.path.join(cfg.out, n) for n in (CSV_NAME, MANIFEST_NAME, NETCDF_NAME)]
     if not args.no_plots and len(table["run"]):
         files += _plots(cfg, res, grid=mode == "grid")
     print(f"done: {len(table['run'])} of {cfg.n_runs} runs on disk ({res.computed} computed now), {failed} failed")

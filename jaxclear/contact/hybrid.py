@@ -23,7 +23,7 @@ point forces clipped at zero before they are summed.
 Placement of the points (both legitimate readings of the model):
 
 * ``fixed``: ``n_elements`` equal elements over the whole journal circumference, body-fixed
-  (what the paper describes); needs hundreds of points because the contact arc spans only a
+  (what the hybrid paper describes); needs hundreds of points because the contact arc spans only a
   few degrees;
 * ``arc``: the elements cover the current contact arc :math:`[\theta_n - \theta_c, \theta_n +
   \theta_c]` of the two circles (exact geometry:
@@ -105,8 +105,8 @@ class HybridLaw(AbstractNormalLaw):
     Attributes:
         restitution: :math:`c_r \\in (0, 1]` (Qin-Lu damping factor).
         foundation_modulus: :math:`K_f` [Pa] of the journal layer, or ``None`` (from its material).
-        thickness: compliant layer thickness h [m] > 0 (``None``: the clearance c; the paper's
-            value is unknown).
+        thickness: compliant layer thickness h [m] > 0 (``None``: the clearance c; the hybrid
+            paper does not give its value).
         n_elements, n_gauss: elements and Gauss points per element (static, >= 1).
         placement: ``"fixed"`` or ``"arc"`` (static).
         damping: ``"joint"`` or ``"point"`` (static).
@@ -336,7 +336,7 @@ def matched_thickness(law: HybridLaw, radius_bearing, radius_journal, length, st
     :math:`K\delta^n` at the penetration ``delta_ref`` [m] (the hybrid force scales as 1/h).
 
     Used to compare the hybrid model with a Hertz-family law at equal stiffness, so that the two
-    differ in damping and force shape only (the paper does not give its h).
+    differ in damping and force shape only (the hybrid paper does not give its h).
     """
     c = radius_bearing - radius_journal
     e = c + delta_ref

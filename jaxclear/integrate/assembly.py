@@ -40,7 +40,7 @@ def minimum_norm_correction(d, r):
     finite for redundant (rank-deficient but consistent) constraints, which the eager checks
     then name; for independent constraints it changes the result by a relative
     :math:`\epsilon/\sigma_{min}^2`, removed by the Newton iterations (positions) and by one
-    refinement step (velocities). The solve is :func:`~jaxclear.dynamics.spd_solve`, an unrolled
+    refinement step (velocities). The solve is :func:`~jaxclear.integrate.dynamics.spd_solve`, an unrolled
     elimination: no LAPACK call, so a vmapped batch of assemblies (sweeps) never reaches jaxlib's
     batched CPU LAPACK kernels."""
     dd = jnp.sum(d[:, None, :] * d[None, :, :], axis=-1)

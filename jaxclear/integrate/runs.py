@@ -1,11 +1,11 @@
 """How long to simulate and what to compare with: run settings in crank revolutions, and a
 simulation paired with its ideal-joint reference.
 
-* :func:`revolution_settings`: :class:`~jaxclear.solve.Settings` for ``revolutions`` crank
+* :func:`revolution_settings`: :class:`~jaxclear.integrate.Settings` for ``revolutions`` crank
   revolutions (or a time ``t_end`` [s]), with :data:`SAMPLES_PER_REVOLUTION` output samples per
   revolution unless ``n_out`` is given.
 * :func:`simulate_with_ideal`: the simulation of a mechanism and, when it has clearance
-  joints, of its ideal-joint counterpart (:meth:`~jaxclear.mechanism.Mechanism.ideal`) on the
+  joints, of its ideal-joint counterpart (:meth:`~jaxclear.model.Mechanism.ideal`) on the
   same settings and output grid, with wall times; the reference that the clearance perturbs
   (e.g. the overlay of the slider-acceleration plot).
 """
@@ -34,7 +34,7 @@ DEFAULT_SAMPLES = 2001
 
 def revolutions_of(mech: Mechanism, t_end: float) -> float | None:
     """Crank revolutions [-] in ``t_end`` seconds, or None when the mechanism has no crank
-    driver (:func:`~jaxclear.mechanism.crank_driver`) or its crank is at rest."""
+    driver (:func:`~jaxclear.model.crank_driver`) or its crank is at rest."""
     crank = crank_driver(mech)
     if crank is None or float(crank[1].speed) == 0.0:
         return None
@@ -44,7 +44,7 @@ def revolutions_of(mech: Mechanism, t_end: float) -> float | None:
 def revolution_settings(mech: Mechanism, revolutions: float | None = 3.0, *, t_end: float | None = None,
                         n_out: int | None = None, samples_per_revolution: int = SAMPLES_PER_REVOLUTION,
                         **settings_kwargs) -> Settings:
-    """:class:`~jaxclear.solve.Settings` for ``revolutions`` crank revolutions.
+    """:class:`~jaxclear.integrate.Settings` for ``revolutions`` crank revolutions.
 
     Args:
         mech: the mechanism; its crank driver's speed sets the period ``2 pi / |omega|`` [s].
@@ -55,7 +55,7 @@ def revolution_settings(mech: Mechanism, revolutions: float | None = 3.0, *, t_e
             ``max(round(samples_per_revolution * revolutions), MIN_SAMPLES) + 1``, or
             :data:`DEFAULT_SAMPLES` when the revolutions are undefined.
         samples_per_revolution: output samples per crank revolution [-] for the default ``n_out``.
-        **settings_kwargs: the other fields of :func:`jaxclear.solve.settings` (``solver``,
+        **settings_kwargs: the other fields of :func:`jaxclear.integrate.settings` (``solver``,
             ``rtol``, ``atol``, ``max_steps``, ``progress``...).
 
     Raises:
@@ -90,7 +90,7 @@ class RunWithIdeal(NamedTuple):
 
 
 def timed_simulate(mech: Mechanism, s: Settings) -> tuple[Solution, float]:
-    """:func:`jaxclear.solve.simulate` and its wall time [s] (until the results are ready,
+    """:func:`jaxclear.integrate.simulate` and its wall time [s] (until the results are ready,
     including JIT compilation on the first call)."""
     t0 = time.perf_counter()
     sol = jax.block_until_ready(simulate(mech, s))

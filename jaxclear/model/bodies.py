@@ -33,8 +33,8 @@ class Body(eqx.Module):
         mass: m [kg] > 0.
         inertia: J [kg m^2] > 0 about the centroid.
         points: named body-fixed points [m], relative to the centroid.
-        position: initial guess of [x, y, phi] [m, m, rad] for the position solve.
-        velocity: initial guess of [xdot, ydot, phidot]; corrected to satisfy the constraints.
+        position: initial guess of (x [m], y [m], phi [rad]) for the position solve.
+        velocity: initial guess of (xdot, ydot, phidot); corrected to satisfy the constraints.
     """
 
     name: str = eqx.field(static=True)

@@ -22,6 +22,9 @@ Modules:
 * :mod:`~jaxclear.sweep.store`: ``runs.csv``, ``manifest.json``, ``chunks/*.npz``;
 * :mod:`~jaxclear.sweep.driver`: :func:`run_sweep`;
 * :mod:`~jaxclear.sweep.results`: :class:`SweepResult`, :func:`read_results`;
+* :mod:`~jaxclear.sweep.labels`: units and names of the columns;
+* :mod:`~jaxclear.sweep.dataset`: the results as an ``xarray.Dataset`` / ``pandas.DataFrame``,
+  ``OUT/results.nc`` (:func:`open_dataset`; loaded on first use, like the figures);
 * :mod:`~jaxclear.sweep.figures`: :func:`heatmap`, :func:`bifurcation`, :func:`poincare_plot`
   (loaded on first use, so that ``import jaxclear`` does not import matplotlib).
 
@@ -33,7 +36,7 @@ Metrics per run: :func:`jaxclear.analysis.metrics.run_metrics` over the window a
 (``jc.preset(..., ideal=True)`` or ``Mechanism.ideal()``, same speed, same time grid, vmapped
 alongside). Poincare points: the journal state (eccentricity ``e_x, e_y`` [m] and its rate
 ``v_x, v_y`` [m/s], journal centre relative to bearing centre,
-:func:`jaxclear.clearance.journal_state`) at every whole crank revolution after the transient.
+:func:`jaxclear.elements.journal_state`) at every whole crank revolution after the transient.
 
 No LAPACK in the compiled chunk (measured 2026-11-23, jax 0.10.2, 2 shared CPU cores). Earlier
 versions ran the ideal-joint runs only after every clearance run of the batch had finished and
@@ -88,19 +91,25 @@ from .store import (
     CSV_NAME,
     FORMAT_VERSION,
     MANIFEST_NAME,
+    NETCDF_NAME,
     POINCARE_COORDS,
     _repair_csv,
     csv_columns,
 )
+from .labels import column_unit, long_name
 from .values import RANGE_KEYS
 
 #: Names served by :mod:`jaxclear.sweep.figures`, imported on first access (matplotlib).
 _FIGURES = ("heatmap", "bifurcation", "poincare_plot", "poincare_coordinate", "axis_label", "metric_label")
+#: Names served by :mod:`jaxclear.sweep.dataset`, imported on first access (xarray, pandas).
+_DATASET = ("open_dataset", "write_netcdf")
 
 
 def __getattr__(name):
     if name in _FIGURES:
         return getattr(importlib.import_module(".figures", __name__), name)
+    if name in _DATASET:
+        return getattr(importlib.import_module(".dataset", __name__), name)
     if name == "TRACE_COUNT":  # the old spelling: a number read from the module
         warnings.warn("jaxclear.sweep.TRACE_COUNT is deprecated; read jaxclear.sweep.TRACES.value",
                       DeprecationWarning, stacklevel=2)
@@ -128,6 +137,11 @@ __all__ = [
     "poincare_coordinate",
     "axis_label",
     "metric_label",
+    "open_dataset",
+    "write_netcdf",
+    "NETCDF_NAME",
+    "column_unit",
+    "long_name",
     "TRACES",
     "TraceCounter",
     "POINCARE_COORDS",

@@ -9,6 +9,7 @@ every process feeds its own shards and process 0 alone writes the files.
 
 from __future__ import annotations
 
+import importlib
 import os
 
 import jax
@@ -51,7 +52,8 @@ def _compute(cfg: SweepConfig, plan: Plan, c: int, chunk: int) -> tuple[int, dic
 
 def run_sweep(cfg: SweepConfig, out: str | None = None, restart: bool = False,
               progress: bool | None = None) -> SweepResult:
-    """Run (or resume) a sweep; returns its results read back from disk.
+    """Run (or resume) a sweep; returns its results read back from disk. When it finishes,
+    ``OUT/results.nc`` holds them as a labelled dataset (:meth:`SweepResult.to_xarray`).
 
     Args:
         cfg: a validated :class:`SweepConfig` (errors were raised when it was built).
@@ -82,4 +84,6 @@ def run_sweep(cfg: SweepConfig, out: str | None = None, restart: bool = False,
                            computed)
     res = read_results(out)
     res.computed = computed
+    dataset = importlib.import_module(".dataset", __package__)  # xarray: loaded only by a sweep
+    dataset.write_netcdf(res.to_xarray(), os.path.join(out, dataset.NETCDF_NAME))
     return res

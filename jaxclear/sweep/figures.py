@@ -1,53 +1,77 @@
 """Sweep figures (PNG, thin wrappers over :mod:`jaxclear.plot`): a metric's heat map over a 2-D
 grid, the bifurcation diagram of the Poincare section against a parameter, and the Poincare
-sections themselves. Lengths are shown in mm, other quantities in SI units."""
+sections themselves. Axis labels and units come from the labelled dataset
+(:meth:`SweepResult.to_xarray`); lengths are shown in mm, other quantities in SI units."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 
-from .. import params
-from .._errors import JaxclearError, ParameterError
-from ..analysis.metrics import RUN_METRIC_KEYS
+from .._errors import ParameterError
 from ..plot import plot_bifurcation, plot_heatmap, plot_poincare
+from .labels import column_unit, long_name
 from .results import SweepResult
 from .store import POINCARE_COORDS
 
-#: (axis label, scale from SI) of the common parameters.
-_UNITS = {"clearance": ("clearance [mm]", 1e3), "speed_rpm": ("crank speed [rpm]", 1.0),
-          "speed": ("crank speed [rad/s]", 1.0), "restitution": ("restitution c_r [-]", 1.0),
-          "friction": ("friction coefficient [-]", 1.0), "length": ("joint length [mm]", 1e3)}
+#: Shorter axis names than the parameters' descriptions.
+_SHORT = {"clearance": "clearance", "restitution": "restitution c_r", "friction": "friction coefficient",
+          "speed_rpm": "crank speed", "speed": "crank speed", "length": "joint length"}
+
+
+def _label(name: str, unit: str, text: str) -> tuple[str, float]:
+    """(label, scale from SI): metres shown in mm, a dimensionless unit as [-]."""
+    if unit == "m":
+        return f"{text} [mm]", 1e3
+    return f"{text} [{'-' if unit in ('', '1') else unit}]", 1.0
 
 
 def axis_label(name: str) -> tuple[str, float]:
-    """(label, scale) of a parameter for plots: clearance in mm, others in SI."""
-    base = name.split("@")[0]
-    if base in _UNITS:
-        return _UNITS[base]
-    try:
-        unit = params.info(name).unit
-    except JaxclearError:
-        unit = ""
-    return (f"{name} [{unit or '-'}]", 1.0)
+    """(label, scale) of a parameter or metric for plots: lengths in mm, others in SI."""
+    return _label(name, column_unit(name), _SHORT.get(name.split("@")[0], long_name(name)))
 
 
 def metric_label(metric: str) -> str:
-    """``peak_contact_force_n`` -> ``peak contact force [N]`` (unit from ``RUN_METRIC_KEYS``)."""
-    unit = RUN_METRIC_KEYS.get(metric, "-")
-    text = metric
-    for suffix in ("_n", "_m", "_j", "_m_s2", "_s"):
-        if text.endswith(suffix):
-            text = text[: -len(suffix)]
-            break
-    return f"{text.replace('_', ' ')} [{unit}]"
+    """``peak_contact_force_n`` -> ``peak contact force [N]`` (the dataset's units)."""
+    unit = column_unit(metric)
+    return f"{long_name(metric)} [{'-' if unit in ('', '1') else unit}]"
 
 
-def heatmap(res: SweepResult, metric: str, x: str, y: str, path=None, log: bool | None = None):
-    """PNG heat map of ``metric`` over a 2-D grid sweep (``x`` and ``y`` swept parameters)."""
-    z = res.grid(metric, x, y)
+def _fixed(res: SweepResult) -> str:
+    """The mechanism's fixed settings from the manifest: ``preset; name value, ...``."""
+    mech = dict(res.manifest.get("config", {}).get("mechanism", {}))
+    preset = mech.pop("preset", mech.pop("mechanism", ""))
+    mech.pop("leaves_sha256", None), mech.pop("ideal_leaves_sha256", None)
+    parts = [f"{k} {json.dumps(v) if isinstance(v, (dict, list)) else v}" for k, v in sorted(mech.items())]
+    return "; ".join([p for p in [str(preset), ", ".join(parts)] if p])
+
+
+def heatmap(res: SweepResult, metric: str, x: str, y: str, path=None, log: bool | None = None,
+            sel: dict | None = None):
+    """PNG heat map of ``metric`` over a grid sweep: ``x`` and ``y`` swept parameters; ``sel``
+    picks one value of every other swept parameter (``{"friction": 0.1}``)."""
+    if res.mode != "grid":
+        raise ParameterError("a 2-D map needs a grid sweep (this one is a list)")
+    for n in (x, y):
+        if n not in res.axes:
+            raise ParameterError(f"{n!r} is not a swept parameter; swept: {list(res.axes)}")
+    if metric not in res.table:
+        raise ParameterError(f"unknown metric {metric!r}; columns: {list(res.table)}")
+    da = res.to_xarray()[metric]
+    if sel:
+        da = da.sel(sel, method="nearest")
+    extra = [d for d in da.dims if d not in (x, y)]
+    if extra:
+        raise ParameterError(f"the sweep also varies {extra}: pick one value of each with sel={{name: value}}")
+    da = da.transpose(y, x)
     (xl, xs), (yl, ys) = axis_label(x), axis_label(y)
-    return plot_heatmap(path, res.axes[x] * xs, res.axes[y] * ys, z, xlabel=xl, ylabel=yl,
-                        zlabel=metric_label(metric), log=log, title=f"{metric_label(metric)} over {x} x {y} ({metric})")
+    fixed = _fixed(res)
+    title = f"{metric_label(metric)} over {x} x {y}" + (f"\n{fixed}" if fixed else "")
+    if sel:
+        title += "; " + ", ".join(f"{k} = {v:g}" for k, v in sel.items())
+    return plot_heatmap(path, da[x].values * xs, da[y].values * ys, da.values, xlabel=xl, ylabel=yl,
+                        zlabel=metric_label(metric), log=log, title=title)
 
 
 def bifurcation(res: SweepResult, parameter: str, coordinate: str = "e_x", joint: int = 0, path=None):
@@ -77,8 +101,11 @@ def poincare_coordinate(points: np.ndarray, coordinate: str, joint: int = 0) -> 
 
 
 def poincare_plot(res: SweepResult, runs=None, joint: int = 0, path=None, color_by: str | None = None):
-    """PNG Poincare sections of the given runs (default all): journal position in the clearance
-    circle and the (e_x, v_x) plane, one point per crank revolution after the transient."""
+    """PNG Poincare sections of the given runs (default all): journal position in the whole
+    clearance circle and the (e_x, v_x) plane, one point per crank revolution after the
+    transient. Runs are coloured by ``color_by`` (default the first swept parameter), marked by
+    the value of the next swept parameter and labelled with every swept parameter's value; the
+    title names the fixed settings."""
     runs = np.arange(len(res.table["run"])) if runs is None else np.asarray(runs)
     color_by = color_by or res.names[0]
     label, scale = axis_label(color_by)
@@ -89,5 +116,19 @@ def poincare_plot(res: SweepResult, runs=None, joint: int = 0, path=None, color_
         clearance = res.base_clearance[joint]
     else:
         clearance = None
+    labels = []
+    for r in runs:
+        parts = []
+        for n in res.names:
+            text, s = axis_label(n)
+            unit = text[text.rfind("[") + 1: -1]
+            parts.append(f"{_SHORT.get(n, n)} {res.table[n][r] * s:g}{'' if unit == '-' else ' ' + unit}")
+        labels.append(", ".join(parts))
+    other = [n for n in res.names if n != color_by]
+    marker_index = None
+    if other:  # one marker per value of the next swept parameter (e.g. the restitution)
+        values = np.unique(res.table[other[0]])
+        marker_index = np.searchsorted(values, res.table[other[0]][runs])
     return plot_poincare(path, res.poincare[runs, :, joint, :], colors=res.table[color_by][runs] * scale,
-                         color_label=label, clearance=clearance)
+                         color_label=label, clearance=clearance, labels=labels, title=_fixed(res),
+                         marker_index=marker_index)

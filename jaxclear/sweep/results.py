@@ -1,13 +1,16 @@
 """Reading a sweep folder back: :class:`SweepResult` (the CSV table, the Poincare points, the
-grid axes) and :func:`read_chunks` (the NPZ arrays, e.g. the time series)."""
+grid axes; as labelled data with :meth:`SweepResult.to_xarray` and
+:meth:`SweepResult.to_dataframe`) and :func:`read_chunks` (the NPZ arrays, e.g. the time
+series)."""
 
 from __future__ import annotations
 
 import csv
+import importlib
 import io as _io
 import json
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -29,7 +32,8 @@ class SweepResult:
             after the transient.
         axes: each parameter's grid values. mode: ``"grid"`` or ``"list"``. computed: runs
             computed by this call (the others were already on disk). base_clearance: radial
-            clearance [m] of each clearance joint of the unswept mechanism.
+            clearance [m] of each clearance joint of the unswept mechanism. manifest: the
+            folder's ``manifest.json`` (the sweep's definition).
     """
 
     out: str
@@ -40,10 +44,12 @@ class SweepResult:
     mode: str
     computed: int = 0
     base_clearance: tuple = ()
+    manifest: dict = field(default_factory=dict)
 
     def grid(self, metric: str, x: str, y: str) -> np.ndarray:
         """Metric as a (len(y axis), len(x axis)) array over a two-parameter grid sweep (NaN
-        where no run is on disk)."""
+        where no run is on disk). Unlabelled; ``to_xarray()[metric]`` is the same map with its
+        axes, values and units attached."""
         if self.mode != "grid":
             raise ParameterError("a 2-D map needs a grid sweep (this one is a list)")
         for n in (x, y):
@@ -58,6 +64,18 @@ class SweepResult:
             j = int(np.argmin(np.abs(xs - self.table[x][r])))
             z[i, j] = self.table[metric][r]
         return z
+
+    def to_xarray(self):
+        """The results as an :class:`xarray.Dataset`: for a grid sweep the swept parameters are
+        dimensions (their values the coordinates), for a list sweep the dimension is ``run``;
+        the metrics, ``status`` and the Poincare points are variables with ``units`` and
+        ``long_name`` attributes (:mod:`jaxclear.sweep.dataset`)."""
+        return _dataset().to_dataset(self.table, self.names, self.axes, self.mode, self.poincare, self.manifest)
+
+    def to_dataframe(self):
+        """The results as a :class:`pandas.DataFrame`: one row per run (index ``run``), the
+        parameters and metrics as columns, ``df.attrs["units"]`` their units."""
+        return _dataset().to_dataframe(self.table, self.names)
 
     def trajectories(self) -> dict:
         """The stored time series (``trajectories = true``): key -> (n_runs, ...) arrays."""
@@ -99,7 +117,13 @@ def read_results(out) -> SweepResult:
     cfg = manifest["config"]
     axes = {n: np.asarray(v, dtype=float) for n, v in cfg["parameters"].items()}
     return SweepResult(out, table, tuple(manifest["names"]), poincare, axes, cfg["mode"],
-                       base_clearance=tuple(manifest.get("base_clearance_m", ())))
+                       base_clearance=tuple(manifest.get("base_clearance_m", ())), manifest=manifest)
+
+
+def _dataset():
+    """:mod:`jaxclear.sweep.dataset`, imported on first use (xarray and pandas add about 1 s to
+    ``import jaxclear``)."""
+    return importlib.import_module(".dataset", __package__)
 
 
 def read_chunks(out, prefix: str = "") -> dict:

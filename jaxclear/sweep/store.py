@@ -28,6 +28,8 @@ from .config import SweepConfig
 CSV_NAME = "runs.csv"
 MANIFEST_NAME = "manifest.json"
 CHUNK_DIR = "chunks"
+#: The labelled dataset (:mod:`jaxclear.sweep.dataset`), rewritten when a sweep finishes.
+NETCDF_NAME = "results.nc"
 FORMAT_VERSION = 1
 
 #: Poincare coordinates, in the order of the last axis of the ``poincare`` arrays.
