@@ -3,23 +3,15 @@ its unit (usable in fits: gradients flow through it).
 
 Names are fields separated by ``:``; options ``key=value`` or flags may follow in any order.
 
-=====================================================  ==========================================
-name                                                   signal
-=====================================================  ==========================================
-``time``                                               output times [s]
-``body:B:x|y|phi[:pos|vel|acc]``                       a body coordinate or its 1st/2nd derivative
-``point:B:P:pos|vel|acc[:x|y|norm][:frame=F]``         a named point's position, velocity or
-                                                       acceleration; components along the global
-                                                       axes or, with ``frame=F``, along body F's
-                                                       axes (default component ``x``)
-``...:acc:...:specific``                               acceleration minus gravity, :math:`a - g`:
-                                                       what an accelerometer reads (specific force)
-``reaction:J[:x|y|moment|norm][:on=B][:frame=F]``      force [N] (or moment about the centroid
-                                                       [N m]) of ideal joint or driver ``J`` on body
-                                                       ``B`` (default its second body)
-``joint:K:ecc_x|ecc_y|ecc|penetration|normal_force|    clearance joint ``K`` (index or name)
-friction_force|mode``
-=====================================================  ==========================================
+* ``time``: output times [s];
+* ``body:B:x|y|phi[:pos|vel|acc]``: a body coordinate or its first or second derivative;
+* ``point:B:P:pos|vel|acc[:x|y|norm][:frame=F]``: a named point's position, velocity or
+  acceleration, components along the global axes or, with ``frame=F``, along body F's axes
+  (default component ``x``); ``...:acc:...:specific``: acceleration minus gravity,
+  :math:`a - g`, what an accelerometer reads (specific force);
+* ``reaction:J[:x|y|moment|norm][:on=B][:frame=F]``: force [N] (or moment about the centroid
+  [N m]) of ideal joint or driver ``J`` on body ``B`` (default its second body);
+* ``joint:K:ecc_x|ecc_y|ecc|penetration|normal_force|friction_force|mode``: clearance joint ``K``.
 
 ``J`` is an index into ``mech.constraints`` (joints, then drivers) or a label such as
 ``Revolute(ground-crank)``; ``K`` an index into ``mech.clearance_joints`` or a joint's name.
