@@ -35,6 +35,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxclear import params
+from jaxclear.fitting import slider_power_loss
 from jaxclear.analysis.sensor import Accelerometer
 
 NAMES = ("stiffness", "restitution", "friction", "clearance", "mass:slider", "speed_rpm")
@@ -62,12 +63,7 @@ def gradient_ratio(revolutions: float, n_params: int, checkpoints: int | None, r
     s = jc.settings(t_end, n_out=int(2000 * revolutions) + 1, rtol=rtol, atol=rtol * 1e-3, checkpoints=checkpoints)
 
     def make(settings):
-        def f(x):
-            m = params.replace_many(mech, {n: x[i] * units[i] for i, n in enumerate(names)})
-            sol = jc.simulate(m, settings)
-            return jnp.mean(sol.coordinate(m, "slider", "x", derivative=2) ** 2) / 1e8
-
-        return f
+        return slider_power_loss(mech, names, units, settings)
 
     x0 = jnp.asarray([float(params.get(mech, n)) for n in names]) / units
     primal = eqx.filter_jit(make(s))

@@ -344,7 +344,7 @@ def plot_poincare(path, points, colors=None, color_label: str = "", clearance=No
 
 
 def plot_fit(path, result) -> Figure:
-    """The fit plot of a :class:`jaxclear.fit.FitResult`: measured and fitted sensor signal
+    """The fit plot of a :class:`jaxclear.fitting.FitResult`: measured and fitted sensor signal
     [m/s^2] against time [ms] (the model at the start values dashed), window starts marked,
     and the residual measured - fitted below it with its +-2 sigma band."""
     t = 1e3 * np.asarray(result.t, dtype=float)

@@ -32,6 +32,7 @@ from conftest import free_journal
 
 import jaxclear as jc
 from jaxclear import params
+from jaxclear.fitting import slider_power_loss
 
 FD_RTOL = 1e-3  # see module docstring
 FD_STEP = 1e-4  # relative central-difference step
@@ -227,12 +228,7 @@ def test_slider_crank_gradients_all_parameters():
     s = jc.settings(1.0e-3, n_out=201, rtol=1e-10, atol=1e-13)
 
     def make(settings):
-        def f(x):
-            m = params.replace_many(mech, {n: x[i] * units[i] for i, n in enumerate(names)})
-            sol = jc.simulate(m, settings)
-            return jnp.mean(sol.coordinate(m, "slider", "x", derivative=2) ** 2) / 1e8
-
-        return f
+        return slider_power_loss(mech, names, units, settings)
 
     x0 = np.array([float(params.get(mech, n)) for n in names]) / units
     f = eqx.filter_jit(make(s))

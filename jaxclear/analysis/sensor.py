@@ -1,6 +1,6 @@
 r"""What a measured acceleration record is compared with: the accelerometer model, and putting
 the simulation on the record's clock (records read by :func:`jaxclear.io.read_measurements`;
-used by :mod:`jaxclear.fit`).
+used by :mod:`jaxclear.fitting`).
 
 Accelerometer model
 -------------------

@@ -7,7 +7,7 @@ import os
 import warnings
 
 from .._errors import ParameterError
-from ..fit import fit
+from ..fitting import fit
 from ..presets import preset
 from ..analysis.sensor import Accelerometer
 from .common import add_mechanism_options, mechanism_overrides, name_value
@@ -21,7 +21,7 @@ jaxclear.io.read_measurements) and write:
   fit.png               measured vs fitted acceleration and the residuals
   fit_checkpoint.json   the fit's state after every iteration: the same command resumes it
 The first sample is the preset's start (crank angle 0, journal centred, velocities from the
-ideal kinematics). The loss is on short windows from that state (see jaxclear.fit).
+ideal kinematics). The loss is on short windows from that state (see jaxclear.fitting).
 Example: jaxclear fit data.csv --free stiffness,restitution --start stiffness=2e11 \\
          --start restitution=0.6 --sensor-cutoff-hz 20000 --out fit-out"""
 

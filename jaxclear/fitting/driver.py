@@ -1,0 +1,190 @@
+"""The driver: :func:`fit` builds the problem, runs the plan with checkpoints, estimates the
+uncertainty at the optimum and returns a :class:`FitResult` (method: :mod:`jaxclear.fitting`)."""
+
+from __future__ import annotations
+
+import time
+import warnings
+from typing import Callable, Sequence
+
+import jax.numpy as jnp
+import numpy as np
+import optax
+from tqdm.auto import tqdm
+
+from ..model import Mechanism
+from ..analysis.sensor import Accelerometer
+from .parameters import DEFAULT_FREE, law_name, values_of
+from .plan import DEFAULT_HORIZONS, final_stage
+from .problem import FitProblem, build_problem
+from .result import FitResult
+from .run import fresh_state, run_plan
+from .solver import make_optimizer, stack_jacobian
+from .state import Checkpoint, FitState
+from .uncertainty import Uncertainty, estimate_uncertainty
+from .window import evaluate_window_jit
+
+
+def fit(
+    data,
+    mech: Mechanism,
+    free: Sequence[str] = DEFAULT_FREE,
+    start: dict | None = None,
+    *,
+    sensor: Accelerometer | None = None,
+    window: float | None = None,
+    windows: int = 1,
+    horizons: Sequence[float] = DEFAULT_HORIZONS,
+    coarse: str | None = "velocity",
+    starts: int = 1,
+    optimizer: optax.GradientTransformation | str | None = None,
+    max_iter: int = 30,
+    ftol: float = 1e-6,
+    xtol: float = 1e-5,
+    rtol: float = 1e-8,
+    atol: float = 1e-11,
+    max_steps: int = 200_000,
+    align: str = "time",
+    time_offset: float = 0.0,
+    out=None,
+    resume: bool = True,
+    progress: bool = True,
+    callback: Callable | None = None,
+) -> FitResult:
+    """Fit the ``free`` parameters of ``mech`` to a measured slider acceleration (method:
+    :mod:`jaxclear.fitting`).
+
+    Args:
+        data: a :class:`jaxclear.io.Measurements` or the path of a record CSV.
+        mech: the mechanism with every known value set (the free ones are replaced).
+        free: names of the fitted parameters (:mod:`jaxclear.params` names, ``sensor_gain``,
+            ``sensor_bias``); default stiffness and restitution.
+        start: ``name: value`` start values (SI; default: the mechanism's / sensor's values).
+        sensor: the accelerometer model (default: no filter, gain 1, bias 0, oversample 4).
+        window: window length [s] (default a quarter crank revolution, at most the record).
+        windows: number of back-to-back windows; windows after the first have the journal
+            state at their start as extra unknowns.
+        horizons: fractions of the window fitted in turn (continuation), ending at 1.
+        coarse: ``"velocity"`` (default): the first stage (and the first stage of every window's
+            state) fits the integrated signal; None: acceleration only.
+        starts: number of starts for the first stage.
+        optimizer: None / ``"levenberg-marquardt"`` (default: :class:`optimistix.LevenbergMarquardt`),
+            ``"adam"``, ``"adam:LR"``, an optax transformation or an optimistix solver
+            (:func:`jaxclear.fitting.make_optimizer`).
+        max_iter, ftol, xtol: stopping rules per stage (:mod:`jaxclear.fitting.solver`).
+        rtol, atol, max_steps: integration settings of the model (forward-mode Jacobians).
+        align, time_offset: how record times map to simulation time
+            (:func:`jaxclear.analysis.sensor.record_times`).
+        out: folder for the checkpoint (``fit_checkpoint.json``); None: no checkpoint.
+        resume: continue from a matching checkpoint in ``out``.
+        progress: show a tqdm progress bar.
+        callback: called as ``callback(record)`` after every iteration (record: dict with
+            ``stage``, ``iteration``, ``loss``, ``values``).
+
+    Raises:
+        ParameterError: unknown free parameter, start value outside its bounds, record shorter
+            than the windows, mechanism without a slider or a crank driver where one is needed,
+            the model cannot be simulated at the start values.
+    """
+    t_wall = time.perf_counter()
+    opt = make_optimizer(optimizer, ftol, xtol)
+    settings = dict(max_iter=max_iter, ftol=ftol, xtol=xtol, rtol=rtol, atol=atol, max_steps=max_steps, align=align,
+                    time_offset=time_offset, optimizer=opt.name)
+    problem = build_problem(data, mech, free, start, sensor, window, windows, horizons, coarse, starts, settings)
+    ckpt = Checkpoint(out, problem.checkpoint_key(), problem.checkpoint_config(),
+                      clock=lambda: wall_before + time.perf_counter() - t_wall)
+    saved = ckpt.load() if resume else None
+    st = saved if saved is not None else fresh_state(problem)
+    wall_before = st.wall
+    bar = _progress_bar(problem, st) if progress else None
+
+    def report(record: dict):
+        if bar is not None:
+            bar.update(1)
+            bar.set_description(record["stage"])
+            bar.set_postfix({"loss": f"{record['loss']:.4g}", **{n: f"{v:.4g}" for n, v in record["values"].items()}})
+        if callback is not None:
+            callback(record)
+
+    try:
+        st = run_plan(problem, opt, st, ckpt, report)
+    finally:
+        if bar is not None:
+            bar.total = bar.n
+            bar.refresh()
+            bar.close()
+    return _result(problem, st, wall_before + time.perf_counter() - t_wall, saved is not None)
+
+
+def _progress_bar(problem: FitProblem, st: FitState):
+    total = sum(stage.max_iter(problem.settings["max_iter"]) for stage in problem.stages)
+    return tqdm(total=total, initial=min(st.total, total), desc="fit", unit="it", leave=True)
+
+
+def _evaluate_all(problem: FitProblem, theta, states, guesses):
+    """Per window at horizon 1: residual, Jacobians and signal (the compiled window function)."""
+    out = []
+    for k in range(problem.windows):
+        win = problem.window_input(k, 1.0, False, guesses)
+        r, jt, js, y, _ = evaluate_window_jit(problem.model, jnp.asarray(theta), jnp.asarray(states[k]), win)
+        out.append((np.asarray(r), np.asarray(jt), np.asarray(js), np.asarray(y)))
+    return out
+
+
+def _final_jacobian(problem: FitProblem, evals) -> tuple[np.ndarray, np.ndarray]:
+    """Stacked residual ``(W n_pad,)`` and Jacobian over the parameters and window states 2..W."""
+    stage = final_stage(problem.windows)
+    r = np.concatenate([e[0] for e in evals])
+    jac = stack_jacobian([e[1] for e in evals], [e[2] for e in evals], True, stage.states)
+    return r, np.asarray(jac)
+
+
+def _plot_series(problem: FitProblem, evals, initial) -> dict:
+    """Fitted samples of every window for the plot: t (simulation time), measured, fitted, initial."""
+    parts = {"t": [], "measured": [], "fitted": [], "initial": []}
+    win = problem.win
+    for k, n_k in enumerate(win.counts):
+        keep = win.valid[k, :n_k] > 0
+        parts["t"].append((win.t_rel[k, :n_k] + win.starts[k])[keep])
+        parts["measured"].append(win.data[k, :n_k][keep])
+        parts["fitted"].append(evals[k][3][:n_k][keep])
+        parts["initial"].append(initial[k][3][:n_k][keep])
+    return {name: np.concatenate(v) for name, v in parts.items()}
+
+
+def _result(problem: FitProblem, st: FitState, wall: float, resumed: bool) -> FitResult:
+    """The :class:`FitResult` at the state's optimum (uncertainty on all windows, all samples)."""
+    theta, states = np.asarray(st.theta, dtype=float), np.asarray(st.states, dtype=float)
+    evals = _evaluate_all(problem, theta, states, st.guesses)
+    r, jac = _final_jacobian(problem, evals)
+    mask = np.concatenate([problem.win.mask(k, 1.0) for k in range(problem.windows)])
+    unc: Uncertainty = estimate_uncertainty(r, jac, mask, problem.win.scale, theta, problem.free)
+    converged = st.stop_reason not in ("", "max_iter")
+    warn = list(unc.warnings)
+    if not converged:
+        warn.append(f"the last stage stopped on max_iter = {problem.settings['max_iter']} before meeting ftol/xtol")
+    for w in warn:
+        warnings.warn(w, stacklevel=3)
+    n_pad = problem.win.n_pad
+    window_losses = [float(np.mean(r[k * n_pad:(k + 1) * n_pad][problem.win.mask(k, 1.0) > 0] ** 2))
+                     for k in range(problem.windows)]
+    initial = _evaluate_all(problem, problem.z_starts[0], states, st.guesses)
+    s = problem.settings
+    return FitResult(
+        estimates=unc.estimates, std=unc.std, loss=float(np.mean(r[mask > 0] ** 2)), iterations=int(st.total),
+        evaluations=int(st.evaluations), wall_time_s=wall,
+        start=dict(zip(problem.free, values_of(problem.free, problem.z0, problem.win.scale))),
+        correlation=unc.correlation, noise_sigma_m_s2=unc.sigma, residual_rms_m_s2=unc.rms,
+        residual_autocorrelation=unc.autocorrelation, n_samples=unc.n_samples, n_unknowns=unc.n_unknowns,
+        converged=converged, stop_reason=st.stop_reason, history=list(st.history),
+        **_plot_series(problem, evals, initial), window_starts=[float(t) for t in problem.win.starts],
+        window_length_s=problem.win.length, free=problem.free, fixed=problem.fixed,
+        settings={"window_s": problem.win.length, "windows": problem.windows, "horizons": list(problem.horizons),
+                  "coarse": s["coarse"], "starts": s["starts"], "max_iter": s["max_iter"], "ftol": s["ftol"],
+                  "xtol": s["xtol"], "rtol": s["rtol"], "atol": s["atol"], "align": s["align"],
+                  "sensor": problem.sensor.describe(), "oversample": problem.sensor.oversample,
+                  "record": problem.meas.path, "record_samples": len(problem.t_rec), "sample_spacing_s": s["dt"],
+                  "data_rms_m_s2": problem.win.scale, "mechanism": problem.mech.name,
+                  "law": law_name(problem.mech), "resumed": resumed, "optimizer": s["optimizer"]},
+        warnings=warn, window_states=[list(map(float, v)) for v in states[1:]], window_losses=window_losses)
+

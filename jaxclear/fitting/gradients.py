@@ -1,0 +1,73 @@
+"""Gradients of a scalar of a simulation with respect to named parameters, and the scalar
+the gradient tests and benchmarks share."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Callable, Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import params
+from .._errors import ParameterError
+from ..model import Mechanism
+from ..integrate import Settings, jit, simulate
+from .parameters import check_name
+
+
+def parameter_grad(loss: Callable, mech: Mechanism, names: Sequence[str], s: Settings, mode: str = "reverse"):
+    """Value and gradient of ``loss(solution, mechanism)`` (a scalar) with respect to the named
+    parameters (:mod:`jaxclear.params`), through diffrax.
+
+    ``mode="reverse"``: ``jax.value_and_grad`` with ``s.adjoint`` (default ``"recursive"``:
+    RecursiveCheckpointAdjoint, memory bounded by ``s.checkpoints``); ``mode="forward"``:
+    ``jax.jacfwd`` with ``adjoint="forward"`` (cheaper for few parameters). Returns
+    ``(value, {name: d loss / d name})``. Compiles on every call: for repeated use, build your
+    own ``eqx.filter_jit`` of the same function.
+    """
+    names = tuple(names)
+    for n in names:
+        check_name(mech, n)
+    if mode not in ("reverse", "forward"):
+        raise ParameterError(f"mode = {mode!r}; valid: 'reverse', 'forward'")
+    if mode == "forward":
+        s = dataclasses.replace(s, adjoint="forward")
+    elif s.adjoint == "forward":
+        s = dataclasses.replace(s, adjoint="recursive")
+    x0 = jnp.asarray([params.get(mech, n) for n in names], dtype=float)
+
+    def f(x):
+        m = params.replace_many(mech, dict(zip(names, x)))
+        value = loss(simulate(m, s), m)
+        return value, value
+
+    if mode == "reverse":
+        g, value = jit(jax.grad(f, has_aux=True))(x0)
+    else:
+        g, value = jit(jax.jacfwd(f, has_aux=True))(x0)
+    return float(value), {n: float(g[i]) for i, n in enumerate(names)}
+
+
+def slider_power_loss(mech: Mechanism, names: Sequence[str], units, s: Settings, slider: str = "slider",
+                      scale: float = 1e8) -> Callable:
+    r"""``f(x)``: the mean square slider acceleration of a simulation, divided by ``scale``
+    [m^2/s^4], as a function of the scaled parameters ``x`` ``(len(names),)``: parameter ``i``
+    is ``x[i] * units[i]`` (SI), so that ``x`` is of order 1.
+
+    .. math:: f(x) = \frac{1}{T\,s} \sum_{t=0}^{T-1} \ddot x_{slider}(t)^2
+
+    over the ``T = s.n_out`` output times. A scalar that depends smoothly on every parameter
+    through the impacts; used to compare reverse mode, forward mode and finite differences
+    (tests) and to time them (benchmarks). Differentiate it with ``jax.grad`` (any adjoint) or
+    ``jax.jacfwd`` (``adjoint="forward"``)."""
+    names = tuple(names)
+    units = np.asarray(units, dtype=float)
+
+    def f(x):
+        m = params.replace_many(mech, {n: x[i] * units[i] for i, n in enumerate(names)})
+        sol = simulate(m, s)
+        return jnp.mean(sol.coordinate(m, slider, "x", derivative=2) ** 2) / scale
+
+    return f

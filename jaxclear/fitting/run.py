@@ -1,0 +1,164 @@
+"""Running the plan: stage after stage, each solved step by step (:mod:`.solver`), the fit's
+state checkpointed after every step, so that a killed fit resumes where it stopped."""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import jax.numpy as jnp
+import numpy as np
+
+from .._errors import ParameterError
+from .parameters import values_of
+from .plan import Stage
+from .problem import FitProblem
+from .solver import (
+    Optimizer,
+    StageResidual,
+    StageRun,
+    column_scale,
+    solver_leaves,
+    stack_jacobian,
+    stage_arguments,
+)
+from .state import Checkpoint, FitState
+from .window import evaluate_window_jit, state_to_z
+
+
+def fresh_state(problem: FitProblem) -> FitState:
+    """The state before the first stage."""
+    w = problem.windows
+    return FitState().replace(theta=problem.z0.tolist(), states=[problem.state0.tolist()] * w,
+                              guesses=[[problem.guess0[0].tolist(), problem.guess0[1].tolist()]] * w)
+
+
+def split(problem: FitProblem, st: FitState, stage: Stage, x) -> tuple:
+    """``(theta (P,), states (W, 4 n_c))`` with the stage's unknowns ``x`` put in place."""
+    p, n_state = len(problem.free), len(problem.state0)
+    theta = np.array(st.theta, dtype=float)
+    states = np.array(st.states, dtype=float)
+    i = 0
+    if stage.theta:
+        theta, i = np.asarray(x[:p], dtype=float), p
+    for k in stage.states:
+        states[k] = x[i: i + n_state]
+        i += n_state
+    return theta, states
+
+
+def join(st: FitState, stage: Stage) -> np.ndarray:
+    """The stage's unknowns ``x``: ``theta`` if free, then the free window states."""
+    parts = [np.asarray(st.theta, dtype=float)] if stage.theta else []
+    parts += [np.asarray(st.states[k], dtype=float) for k in stage.states]
+    return np.concatenate(parts) if parts else np.zeros(0)
+
+
+def window_end(problem: FitProblem, st: FitState, k: int):
+    """``(q, qdot, journal state)`` at the end of window ``k`` simulated at the current values."""
+    win = problem.window_input(k, 1.0, False, st.guesses)
+    _, _, _, _, (q1, qd1, end, _) = evaluate_window_jit(problem.model, jnp.asarray(st.theta),
+                                                         jnp.asarray(st.states[k]), win)
+    return np.asarray(q1), np.asarray(qd1), np.asarray(end)
+
+
+def begin_stage(problem: FitProblem, st: FitState) -> FitState:
+    """Starting values of a stage not yet begun: its start, the best start after the starts, or
+    (window-state stages) the end of the previous window's simulation."""
+    stage = problem.stages[st.stage]
+    if stage.start >= 0:
+        st = st.replace(theta=problem.z_starts[stage.start].tolist())
+    elif st.stage > 0 and problem.stages[st.stage - 1].start >= 0:
+        st = st.replace(theta=st.best_start()["theta"])
+    if not stage.theta and stage.states:
+        k = stage.states[0]
+        q1, qd1, end = window_end(problem, st, k - 1)
+        guesses, states = list(st.guesses), list(st.states)
+        guesses[k] = [q1.tolist(), qd1.tolist()]
+        states[k] = state_to_z(end, problem.clearances, problem.velocity_scale).tolist()
+        st = st.replace(guesses=guesses, states=states)
+    return st
+
+
+def stage_jacobian(problem: FitProblem, st: FitState, stage: Stage) -> np.ndarray:
+    """Jacobian of the stage's residual over its unknowns at the state's values."""
+    jts, jss = [], []
+    for k in stage.windows:
+        win = problem.window_input(k, stage.horizon, stage.integrate, st.guesses)
+        _, jt, js, _, _ = evaluate_window_jit(problem.model, jnp.asarray(st.theta), jnp.asarray(st.states[k]), win)
+        jts.append(jt)
+        jss.append(js)
+    return np.asarray(stack_jacobian(jts, jss, stage.theta, _free_rows(stage)))
+
+
+def _free_rows(stage: Stage) -> tuple:
+    return tuple(stage.windows.index(k) for k in stage.states)
+
+
+def stage_run(problem: FitProblem, opt: Optimizer, st: FitState, stage: Stage) -> tuple[StageRun, FitState]:
+    """The solver run of the stage: fresh (its unknowns scaled by :func:`column_scale` of the
+    Jacobian at the start; 1 for first-order optimisers) or from the state's saved solver leaves."""
+    if st.x is None:
+        x = join(st, stage)
+        scale = column_scale(stage_jacobian(problem, st, stage)) if opt.least_squares else np.ones_like(x)
+        st = st.replace(column_scale=scale.tolist())
+        u = x * scale
+    else:
+        u = np.asarray(st.x, dtype=float)
+    wins = [problem.window_input(k, stage.horizon, stage.integrate, st.guesses) for k in stage.windows]
+    fn = StageResidual(problem.model, jnp.asarray(st.column_scale, dtype=float), stage.theta, _free_rows(stage))
+    args = stage_arguments(st.theta, [st.states[k] for k in stage.windows], wins)
+    return StageRun(opt, fn, args, u, st.solver), st
+
+
+def _cannot_simulate(problem: FitProblem, theta) -> ParameterError:
+    values = dict(zip(problem.free, values_of(problem.free, theta, problem.win.scale)))
+    return ParameterError(f"the model cannot be simulated at the values {values} (solver failure or non-finite "
+                          "state); choose other start values")
+
+
+def run_stage(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoint,
+              report: Callable[[dict], None]) -> FitState:
+    """Solve the current stage to its stop reason; returns the state at the next stage."""
+    if st.iteration == 0 and st.x is None:
+        st = begin_stage(problem, st)
+    stage = problem.stages[st.stage]
+    run, st = stage_run(problem, opt, st, stage)
+    s = problem.settings
+    limit, tol_f = stage.max_iter(s["max_iter"]), stage.ftol(s["ftol"])
+    n_fit = max(float(sum(problem.win.mask(k, stage.horizon).sum() for k in stage.windows)), 1.0)
+    reason, loss = ("max_iter", float("nan")) if st.iteration >= limit else ("", float("nan"))
+    while not reason:
+        fresh = st.x is None
+        rep = run.step(st.iteration, limit, tol_f, s["xtol"])
+        if fresh and not np.isfinite(rep.loss):
+            raise _cannot_simulate(problem, split(problem, st, stage, join(st, stage))[0])
+        theta, states = split(problem, st, stage, rep.x)
+        st = st.replace(x=rep.u.tolist(), solver=solver_leaves(rep.arrays), theta=theta.tolist(),
+                        states=states.tolist(), evaluations=st.evaluations + 1)
+        loss, reason = rep.loss, rep.reason
+        if rep.counted:
+            record = {"stage": stage.name, "iteration": st.total + 1, "loss": loss / n_fit,
+                      "values": dict(zip(problem.free, values_of(problem.free, theta, problem.win.scale)))}
+            st = st.replace(iteration=st.iteration + 1, total=st.total + 1, history=st.history + (record,))
+        ckpt.save(st)
+        if rep.counted:
+            report(record)
+    if stage.start >= 0:
+        st = st.with_start_result(stage.start, loss, st.theta, reason)
+    if stage.final:
+        st = st.replace(stop_reason=reason)
+    st = st.replace(stage=st.stage + 1, iteration=0, x=None, column_scale=None, solver=None)
+    ckpt.save(st)
+    return st
+
+
+def run_plan(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoint,
+             report: Callable[[dict], None]) -> FitState:
+    """All remaining stages; then, if the last stage is a start (one horizon, one window, no
+    coarse stage), the best start is the result."""
+    while st.stage < len(problem.stages):
+        st = run_stage(problem, opt, st, ckpt, report)
+    if problem.stages[-1].start >= 0:
+        best = st.best_start()
+        st = st.replace(theta=best["theta"], stop_reason=best["reason"])
+    return st

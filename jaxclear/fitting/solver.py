@@ -1,0 +1,299 @@
+r"""The solver loop of one stage: optimistix's Levenberg-Marquardt, one step at a time.
+
+The stage's residual ``r(x)`` ``(N,)`` (the windows' residuals stacked) is minimised in the
+sense ``min 0.5 |r(x)|^2`` over the stage's unknowns ``x`` (``theta_z`` and/or window states)
+by :class:`optimistix.LevenbergMarquardt`: Gauss-Newton steps damped by
+``(J^T J + lambda I) dx = -J^T r`` with ``lambda = 1 / step size`` of a classical trust region
+(accepted when the actual over the predicted decrease exceeds 0.01; the trust region grows by
+3.5 when it exceeds 0.99 and shrinks by 4 when it is below 0.01).
+
+The Jacobian ``J = dr/dx`` is computed in forward mode (``jax.jacfwd``: a handful of columns,
+hundreds of rows) and handed to optimistix materialised: the residual function returns
+``r(x0) + J(x0) (x - x0)`` with ``x0 = stop_gradient(x)``, whose value is ``r(x)`` and whose
+linearisation (which optimistix takes with ``jax.linearize``) is the matrix ``J``. So one
+Levenberg-Marquardt step costs one forward-mode simulation per window, and the linear solves
+(QR) and trust-region updates act on an ``N x P`` matrix.
+
+The solver works in scaled unknowns ``u = D x`` (:func:`column_scale`: ``D_j = sqrt(1e-3)
+|J_{:,j}|`` at the stage's start), so that optimistix's ``lambda I`` damping, which starts at
+``lambda = 1``, acts like Marquardt's scale-invariant ``mu diag(J^T J)`` with ``mu = 1e-3``.
+
+The loop calls ``solver.step`` and ``solver.terminate`` itself (compiled with
+:class:`jaxclear.solve.jit`, an ``equinox.filter_jit``), so that the fit's state, including the
+solver state's array leaves, is checkpointed after every step, and a killed fit resumes bit for
+bit. An optax first-order optimiser can be used instead through
+:class:`optimistix.OptaxMinimiser` on ``0.5 |r|^2`` (with ``D = 1``: the learning rate is in
+the transformed parameters).
+
+Stopping (per stage, besides optimistix's own Cauchy criterion): ``max_iter`` iterations
+(accepted steps); an accepted step lowering the loss by less than ``ftol`` (relative); an
+accepted step below ``xtol`` in every coordinate; a rejected trial below ``xtol`` or whose
+predicted relative decrease is below ``ftol`` (nothing left to gain: MINPACK's rule); a trust
+region below 1e-10.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+import optimistix as optx
+
+from .._errors import ParameterError
+from ..integrate import jit
+from .window import WindowInput, WindowModel, evaluate_window
+
+#: Smallest trust-region size (``1 / lambda``) before a stage is declared stalled.
+MIN_STEP_SIZE = 1e-10
+_OPTIONS = {"jac": "fwd"}
+_TAGS = frozenset()
+
+
+class StageArgs(eqx.Module):
+    """Data of a stage: the fixed ``theta`` ``(P,)``, the start states of its windows ``(W_s,
+    4 n_c)`` (fixed rows used, free rows replaced by ``x``) and the windows' inputs."""
+
+    theta: jax.Array
+    states: jax.Array
+    windows: tuple
+
+
+class StageResidual(eqx.Module):
+    """``u -> (r, y)`` of a stage: residual ``(W_s n_pad,)`` and signals ``(W_s, n_pad)`` of the
+    solver's unknowns ``u = D x`` (``D = column_scale``, see :func:`column_scale`)."""
+
+    model: WindowModel
+    column_scale: jax.Array
+    theta_free: bool = eqx.field(static=True)
+    free_rows: tuple = eqx.field(static=True)  # rows (into the stage's windows) whose state is free
+
+    def evaluate(self, x, args: StageArgs):
+        """Residual, Jacobian ``(N, len(x))`` and signals at ``x`` (forward mode)."""
+        p = args.theta.shape[0]
+        n_state = args.states.shape[1]
+        theta = x[:p] if self.theta_free else args.theta
+        offset = p if self.theta_free else 0
+        rs, jts, jss, ys = [], [], [], []
+        for row, win in enumerate(args.windows):
+            state = args.states[row]
+            if row in self.free_rows:
+                i = offset + self.free_rows.index(row) * n_state
+                state = x[i: i + n_state]
+            r, jt, js, y, _ = evaluate_window(self.model, theta, state, win)
+            rs.append(r)
+            jts.append(jt)
+            jss.append(js)
+            ys.append(y)
+        return jnp.concatenate(rs), stack_jacobian(jts, jss, self.theta_free, self.free_rows), jnp.stack(ys)
+
+    def __call__(self, u, args: StageArgs):
+        u0 = jax.lax.stop_gradient(u)
+        r, jac, ys = self.evaluate(u0 / self.column_scale, args)
+        return r + (jac / self.column_scale) @ (u - u0), ys
+
+
+def column_scale(jac: np.ndarray, damping: float = 1e-3) -> np.ndarray:
+    r"""``D`` ``(P,)`` with ``u = D x`` the solver's unknowns: ``D_j = sqrt(damping) |J_{:,j}|``
+    (column norms of the Jacobian at the stage's start, floored at 1e-12 of the largest).
+
+    optimistix damps with ``lambda I`` and starts at ``lambda = 1``; in ``u`` the Gauss-Newton
+    matrix has the diagonal ``1 / damping``, so the first steps are damped like Marquardt's
+    ``(J^T J + mu diag(J^T J))`` with ``mu = damping`` (Marquardt 1963), whatever the units of
+    the unknowns and of the residual."""
+    norms = np.sqrt(np.sum(np.asarray(jac, dtype=float) ** 2, axis=0))
+    norms = np.maximum(norms, 1e-12 * max(float(np.max(norms, initial=0.0)), 1e-300))
+    return math.sqrt(damping) * norms
+
+
+def stack_jacobian(jts, jss, theta_free: bool, free_rows: tuple):
+    """Jacobian ``(W_s n_pad, P_stage)`` of the stacked residual of ``W_s`` windows: the windows'
+    ``dr/dtheta`` ``(n_pad, P)`` stacked (if ``theta_free``), then one block column ``(W_s n_pad,
+    4 n_c)`` per free window state (``free_rows``), non-zero only on that window's rows."""
+    n_pad = jts[0].shape[0]
+    n = n_pad * len(jts)
+    blocks = [jnp.concatenate(jts, axis=0)] if theta_free else []
+    for row in free_rows:
+        col = jnp.zeros((n, jss[row].shape[1]), jnp.result_type(jss[row]))
+        blocks.append(col.at[row * n_pad:(row + 1) * n_pad].set(jss[row]))
+    return jnp.concatenate(blocks, axis=1) if blocks else jnp.zeros((n, 0))
+
+
+class HalfSquares(eqx.Module):
+    """``0.5 |r(x)|^2`` of a :class:`StageResidual`, for first-order minimisers."""
+
+    residual: StageResidual
+
+    def __call__(self, x, args: StageArgs):
+        r, ys = self.residual(x, args)
+        return 0.5 * jnp.sum(r**2), (r, ys)
+
+
+class Optimizer(NamedTuple):
+    """The stage solver: an optimistix solver, its name, and whether it is least squares."""
+
+    solver: optx.LevenbergMarquardt | optx.OptaxMinimiser
+    name: str
+    least_squares: bool
+
+
+_LM_CACHE: dict = {}
+
+
+def lm_solver(rtol: float, atol: float) -> optx.LevenbergMarquardt:
+    """One :class:`optimistix.LevenbergMarquardt` per tolerance pair (so compilations are shared)."""
+    key = (float(rtol), float(atol))
+    if key not in _LM_CACHE:
+        _LM_CACHE[key] = optx.LevenbergMarquardt(rtol=key[0], atol=key[1])
+    return _LM_CACHE[key]
+
+
+def make_optimizer(spec=None, ftol: float = 1e-6, xtol: float = 1e-5) -> Optimizer:
+    """The stage solver from ``None`` / ``"levenberg-marquardt"`` / ``"lm"`` (the default:
+    :class:`optimistix.LevenbergMarquardt` with Cauchy tolerances ``rtol=ftol``,
+    ``atol=xtol``), ``"adam"`` or ``"adam:LR"`` (learning rate in the transformed parameters,
+    default 0.02), an optax transformation (run by :class:`optimistix.OptaxMinimiser`; named by
+    its type, a checkpoint cannot tell two of them apart), or an
+    :class:`optimistix.LevenbergMarquardt` of your own tolerances. The deprecated
+    :func:`jaxclear.fitting.levenberg_marquardt` transformation selects the default."""
+    if spec is None or spec in ("levenberg-marquardt", "lm") or getattr(spec, "_jaxclear_legacy_lm", False):
+        return Optimizer(lm_solver(ftol, xtol), "levenberg-marquardt", True)
+    if isinstance(spec, str):
+        name, _, lr = spec.partition(":")
+        if name == "adam":
+            try:
+                rate = float(lr) if lr else 0.02
+            except ValueError:
+                raise ParameterError(f"optimizer {spec!r}: the learning rate after ':' must be a number") from None
+            return Optimizer(optx.OptaxMinimiser(optax.adam(rate), rtol=ftol, atol=xtol), f"adam:{rate:g}", False)
+        raise ParameterError(f"unknown optimizer {spec!r}; valid: 'levenberg-marquardt', 'adam', 'adam:LR'")
+    if isinstance(spec, optx.LevenbergMarquardt):
+        return Optimizer(spec, f"optimistix:LevenbergMarquardt(rtol={spec.rtol:g}, atol={spec.atol:g})", True)
+    name = f"custom:{type(spec).__name__}:{getattr(spec.update, '__qualname__', '')}"
+    return Optimizer(optx.OptaxMinimiser(spec, rtol=ftol, atol=xtol), name, False)
+
+
+def _objective(opt: Optimizer, fn: StageResidual):
+    return fn if opt.least_squares else HalfSquares(fn)
+
+
+def _template(solver, fn, y, args):
+    f_struct, aux_struct = eqx.filter_eval_shape(fn, y, args)
+    return solver.init(fn, y, args, _OPTIONS, f_struct, aux_struct, _TAGS)
+
+
+@jit
+def _init(solver, fn, y, args):
+    """Array leaves of a fresh solver state."""
+    return eqx.filter(_template(solver, fn, y, args), eqx.is_array)
+
+
+@jit
+def _step(solver, fn, y, args, arrays):
+    """One ``solver.step`` then ``solver.terminate`` from the state's array leaves (the static
+    part is rebuilt by ``init`` inside the trace, so every step of every stage of the same shape
+    shares one compilation). Also returns the decrease of ``0.5 |r|^2`` the Gauss-Newton model
+    predicted for the trial point this step evaluates."""
+    state = eqx.combine(arrays, eqx.filter(_template(solver, fn, y, args), eqx.is_array, inverse=True))
+    if isinstance(solver, optx.LevenbergMarquardt):  # predicted decrease of the trial evaluated now
+        predicted = -solver.search.predict_reduction(state.y_eval - y, state.f_info)
+    else:
+        predicted = jnp.zeros(())
+    y, state, aux = solver.step(fn, y, args, _OPTIONS, state, _TAGS)
+    done, _ = solver.terminate(fn, y, args, _OPTIONS, state, _TAGS)
+    return y, eqx.filter(state, eqx.is_array), aux, done, predicted
+
+
+def solver_leaves(arrays) -> list:
+    """The solver state's array leaves as nested lists (for the checkpoint)."""
+    return [np.asarray(v).tolist() for v in jax.tree_util.tree_leaves(arrays)]
+
+
+def restore(template, leaves):
+    """Solver state arrays of ``template``'s structure from saved ``leaves``."""
+    flat, treedef = jax.tree_util.tree_flatten(template)
+    return jax.tree_util.tree_unflatten(treedef, [jnp.asarray(v, dtype=t.dtype) for v, t in zip(leaves, flat)])
+
+
+class StepReport(NamedTuple):
+    """After a step: the accepted solver unknowns ``u`` and ``x = u / D``, the loss ``|r|^2``
+    there, whether the step counts as an iteration, the stop reason ('' to go on) and the
+    solver arrays. An iteration is a Levenberg-Marquardt update in the classical sense: an
+    accepted step (its rejected trials, with more damping, belong to it), or the last update
+    that finds no decreasing step; for first-order optimisers every step. Every step but the
+    first (the evaluation of the start) evaluates one trial point."""
+
+    u: np.ndarray
+    x: np.ndarray
+    loss: float
+    counted: bool
+    reason: str
+    arrays: object
+
+
+class StageRun:
+    """The steps of one stage from the solver unknowns ``u`` (fresh, or the saved solver leaves
+    of a killed run): :meth:`step` until a stop reason."""
+
+    def __init__(self, opt: Optimizer, fn: StageResidual, args: StageArgs, u, leaves=None):
+        self.opt, self.fn, self.args = opt, _objective(opt, fn), args
+        self.scale = np.asarray(fn.column_scale)
+        self.y = jnp.asarray(u, dtype=float)
+        arrays = _init(opt.solver, self.fn, self.y, args)
+        self.arrays = arrays if leaves is None else restore(arrays, leaves)
+
+    def step(self, iteration: int, limit: int, tol_f: float, xtol: float) -> StepReport:
+        """One solver step; ``iteration``: iterations so far in this stage, ``limit`` their most."""
+        before, old = np.asarray(self.y), self.arrays
+        y, arrays, aux, done, predicted = _step(self.opt.solver, self.fn, self.y, self.args, self.arrays)
+        self.y, self.arrays = y, arrays
+        u = np.asarray(y)
+        if not self.opt.least_squares:
+            return self._after_minimiser(before, u, arrays, aux, bool(done), iteration, limit, xtol)
+        loss = float(jnp.sum(arrays.f_info.residual**2))
+        if int(old.num_steps) == 0:
+            return StepReport(u, u / self.scale, loss, False, "" if np.isfinite(loss) else "not finite", arrays)
+        loss_before = float(jnp.sum(old.f_info.residual**2))
+        accepted = int(arrays.num_accepted_steps) > int(old.num_accepted_steps)
+        trial = float(np.max(np.abs((np.asarray(old.y_eval) - before) / self.scale), initial=0.0))
+        rel = (loss_before - loss) / max(loss_before, 1e-300)
+        rel_predicted = float(predicted) / max(0.5 * loss_before, 1e-300)
+        reason = ""
+        if accepted and 0 <= rel < tol_f:
+            reason = f"relative loss decrease {rel:.2g} < ftol {tol_f:g}"
+        elif accepted and trial < xtol:
+            reason = f"step {trial:.2g} < xtol {xtol:g}"
+        elif not accepted and (trial < xtol or rel_predicted < tol_f):
+            reason = (f"no decreasing step (rejected trial: step {trial:.2g}, predicted relative decrease "
+                      f"{rel_predicted:.2g}; converged within the solver's noise)")
+        elif float(arrays.search_state.step_size) < MIN_STEP_SIZE:
+            reason = "no decreasing step (trust region collapsed)"
+        elif done:
+            reason = "optimistix: Cauchy criterion met"
+        elif accepted and iteration + 1 >= limit:
+            reason = "max_iter"
+        return StepReport(u, u / self.scale, loss, accepted or bool(reason), reason, arrays)
+
+    def _after_minimiser(self, before, u, arrays, aux, done, iteration, limit, xtol) -> StepReport:
+        loss = float(jnp.sum(aux[0] ** 2))  # at the point before the step
+        if not np.isfinite(loss):
+            return StepReport(before, before / self.scale, loss, True, "the model failed along the step", arrays)
+        dx = float(np.max(np.abs((u - before) / self.scale), initial=0.0))
+        reason = ""
+        if dx < xtol:
+            reason = f"step {dx:.2g} < xtol {xtol:g}"
+        elif done:
+            reason = "optimistix: Cauchy criterion met"
+        elif iteration + 1 >= limit:
+            reason = "max_iter"
+        return StepReport(u, u / self.scale, loss, True, reason, arrays)
+
+
+def stage_arguments(theta, states, windows: list[WindowInput]) -> StageArgs:
+    """:class:`StageArgs` from ``theta`` ``(P,)``, the stage windows' states and inputs."""
+    return StageArgs(jnp.asarray(theta, dtype=float), jnp.asarray(np.asarray(states, dtype=float)), tuple(windows))
+

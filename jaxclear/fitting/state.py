@@ -1,0 +1,153 @@
+"""The state of a fit and its checkpoint.
+
+:class:`FitState` is everything a fit needs to continue after a kill: the stage and iteration,
+the accepted unknowns and the optimistix solver state of the current stage (its array leaves),
+the parameters and window states reached so far, the results of the starts and the history.
+It is immutable (an ``equinox.Module``): every iteration makes a new one with :meth:`replace`.
+
+The checkpoint ``out/fit_checkpoint.json`` holds ``{"key", "config", "state"}``: ``key`` is a
+fingerprint of the record, the mechanism and sensor leaves and every setting, so a fit started
+again with the same inputs resumes where it stopped and other inputs start afresh. Floats are
+written with Python's shortest round-trip repr, so a resumed fit continues from bit-identical
+numbers. The file is replaced atomically (:func:`jaxclear._storage.atomic_write_json`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+
+import equinox as eqx
+import numpy as np
+
+from .._storage import atomic_write_json, fingerprint
+
+CHECKPOINT_NAME = "fit_checkpoint.json"
+
+
+def _plain(value):
+    """Tuples of floats/ints (and nested) -> JSON-ready lists."""
+    if isinstance(value, (tuple, list)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def _frozen(value):
+    """Nested lists -> nested tuples (the inverse of :func:`_plain`)."""
+    if isinstance(value, (list, tuple)):
+        return tuple(_frozen(v) for v in value)
+    return value
+
+
+class FitState(eqx.Module):
+    """Where a fit stands.
+
+    Attributes:
+        stage, iteration: index of the current stage and of the iteration within it.
+        total: iterations so far, all stages and starts (accepted steps and final updates,
+            :class:`jaxclear.fitting.solver.StepReport`).
+        evaluations: solver steps so far (each one evaluation of the model and its Jacobian).
+        x: accepted solver unknowns ``u = D x`` of the current stage (``x``: ``theta_z`` then the
+            free window states), or None before the stage has begun.
+        column_scale: ``D`` of the current stage (:func:`jaxclear.fitting.solver.column_scale`).
+        solver: array leaves of the stage's optimistix solver state (nested tuples), or None.
+        theta: ``(P,)`` unconstrained parameters reached so far.
+        states: ``(W, 4 n_c)`` unconstrained window start states.
+        guesses: per window ``((3 n_b,), (3 n_b,))`` position and velocity guesses at its start.
+        starts: per start index (str) ``{"loss", "theta", "reason"}`` of its stage.
+        history: one record per iteration ``{"stage", "iteration", "loss", "values"}``.
+        wall: wall time spent so far [s]; stop_reason: why the final stage ended.
+    """
+
+    stage: int = 0
+    iteration: int = 0
+    total: int = 0
+    evaluations: int = 0
+    x: tuple | None = None
+    column_scale: tuple | None = None
+    solver: tuple | None = None
+    theta: tuple = ()
+    states: tuple = ()
+    guesses: tuple = ()
+    starts: tuple = ()
+    history: tuple = ()
+    wall: float = 0.0
+    stop_reason: str = ""
+
+    def replace(self, **changes) -> "FitState":
+        """A copy with ``changes`` (sequences frozen to tuples)."""
+        return dataclasses.replace(self, **{k: _frozen(v) for k, v in changes.items()})
+
+    def start_results(self) -> dict:
+        """``{start index: {"loss", "theta", "reason"}}`` of the starts fitted so far."""
+        return {int(k): dict(v) for k, v in self.starts}
+
+    def with_start_result(self, index: int, loss: float, theta, reason: str) -> "FitState":
+        entry = (str(index), (("loss", float(loss)), ("theta", _frozen(np.asarray(theta).tolist())), ("reason", reason)))
+        kept = tuple(e for e in self.starts if e[0] != str(index))
+        return dataclasses.replace(self, starts=kept + (entry,))
+
+    def best_start(self) -> dict:
+        """The start with the lowest loss: ``{"loss", "theta", "reason"}``."""
+        results = self.start_results()
+        return results[min(results, key=lambda j: results[j]["loss"])]
+
+    def to_json(self) -> dict:
+        out = {f.name: _plain(getattr(self, f.name)) for f in dataclasses.fields(self)}
+        out["starts"] = {k: {"loss": dict(v)["loss"], "theta": _plain(dict(v)["theta"]), "reason": dict(v)["reason"]}
+                         for k, v in self.starts}
+        out["history"] = list(self.history)
+        return out
+
+    @classmethod
+    def from_json(cls, data: dict) -> "FitState":
+        fields = {f.name for f in dataclasses.fields(cls)}
+        values = {k: v for k, v in data.items() if k in fields}
+        values["starts"] = tuple((k, (("loss", v["loss"]), ("theta", _frozen(v["theta"])), ("reason", v["reason"])))
+                                 for k, v in data.get("starts", {}).items())
+        values["history"] = tuple(data.get("history", ()))
+        return cls(**{k: (v if k == "history" else _frozen(v)) for k, v in values.items()})
+
+
+def checkpoint_key(t_rec, y_rec, leaves, config: dict) -> str:
+    """Fingerprint of the record (times, values), the mechanism/sensor leaves and the settings."""
+    return fingerprint(np.asarray(t_rec, dtype=float), np.asarray(y_rec, dtype=float), np.asarray(leaves, dtype=float),
+                       json.dumps(config, default=str, sort_keys=True), length=20)
+
+
+class Checkpoint:
+    """The checkpoint file of a fit (``out`` None: no checkpoint); ``clock()`` gives the fit's
+    wall time so far [s], stored with every save."""
+
+    def __init__(self, out, key: str, config: dict, clock=None):
+        self.clock = clock
+        self.path = os.path.join(os.fspath(out), CHECKPOINT_NAME) if out is not None else None
+        self.key = key
+        self.config = json.loads(json.dumps(config, default=str))
+
+    def load(self) -> FitState | None:
+        """The saved state if the file exists and its key matches, else None."""
+        if self.path is None or not os.path.isfile(self.path):
+            return None
+        try:
+            with open(self.path, encoding="utf-8") as f:
+                saved = json.load(f)
+            if saved.get("key") != self.key:
+                return None
+            return FitState.from_json(saved["state"])
+        except (OSError, ValueError, KeyError, TypeError):
+            return None
+
+    def save(self, state: FitState):
+        if self.path is None:
+            return
+        if self.clock is not None:
+            state = state.replace(wall=float(self.clock()))
+        os.makedirs(os.path.dirname(self.path) or ".", exist_ok=True)
+        atomic_write_json(self.path, {"key": self.key, "config": self.config, "state": state.to_json()},
+                          indent=None, sort_keys=False)
