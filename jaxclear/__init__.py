@@ -91,7 +91,11 @@ from .model import (  # noqa: E402
     Translational,
     crank_period,
 )
-from .presets import preset, preset_names  # noqa: E402
+from .presets import preset, preset_file, preset_names  # noqa: E402
+from .mechanism_files import load_mechanism, save_mechanism  # noqa: E402
+from .drawing import animate, plot_mechanism  # noqa: E402
+from .analysis.channels import channel  # noqa: E402
+from .analysis.structure import check_mechanism  # noqa: E402
 from .sweep import SweepConfig, SweepResult, load_config, read_results, run_sweep  # noqa: E402
 from .io import Measurements, read_measurements, timeseries_frame  # noqa: E402
 from .analysis import Accelerometer  # noqa: E402

@@ -101,8 +101,12 @@ def timeseries_frame(mech: Mechanism, sol: Solution):
 def write_timeseries_csv(path, mech: Mechanism, sol: Solution) -> str:
     """Write the sampled solution as CSV (header row, then one row per sample, 12 significant
     digits). Returns the path."""
-    cols = timeseries_table(mech, sol)
-    data = np.column_stack(list(cols.values()))
+    return write_table_csv(path, timeseries_table(mech, sol))
+
+
+def write_table_csv(path, cols: dict) -> str:
+    """Write columns (name -> 1-D array, equal lengths) as CSV, 12 significant digits."""
+    data = np.column_stack([np.asarray(v, dtype=float) for v in cols.values()])
     path = os.fspath(path)
     np.savetxt(path, data, delimiter=",", header=",".join(cols), comments="", fmt="%.12g")
     return path

@@ -93,6 +93,28 @@ def plot_slider_acceleration(path, mech: Mechanism, sol: Solution, ideal_sol: So
     return _save(fig, path)
 
 
+def plot_channel(path, mech: Mechanism, sol: Solution, name: str, values, unit: str, ideal_values=None) -> Figure:
+    """One named output channel (:mod:`jaxclear.analysis.channels`) against the crank angle (or
+    time), with its ideal-joint counterpart ``ideal_values`` (same output grid) overlaid."""
+    fig = Figure(figsize=FIGSIZE)
+    ax = fig.add_subplot()
+    x, xlabel, is_angle = _abscissa(mech, sol)
+    ax.plot(x, np.asarray(values, dtype=float), color=COLORS[0], lw=0.8,
+            label="clearance joint" if mech.clearance_joints else "ideal joint")
+    if ideal_values is not None:
+        ax.plot(x, np.asarray(ideal_values, dtype=float), color="black", lw=1.6, ls="--", label="ideal joint")
+    if is_angle:
+        _angle_ticks(ax, x)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(f"{name} [{unit}]")
+    ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4))
+    ax.set_title(_title(mech, name), fontsize=10)
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="upper right")
+    fig.tight_layout()
+    return _save(fig, path)
+
+
 def plot_orbit(path, mech: Mechanism, sol: Solution) -> Figure:
     """Orbit of every force element in its clearance region, to scale [mm]: the journal centre
     inside its clearance circle (revolute and lubricated joints), the pin centre inside the

@@ -7,6 +7,7 @@ from __future__ import annotations
 import inspect
 
 import math
+from pathlib import Path
 
 import numpy as np
 
@@ -15,6 +16,7 @@ from .contact import Friction
 from .contact import make_law
 from ._errors import ParameterError, check_range
 from ._units import rpm_to_rad_s
+from .mechanism_files import save_mechanism
 from .model import GROUND, AngleDriver, Body, Mechanism, Revolute, Translational
 
 
@@ -320,3 +322,26 @@ def preset(name: str, **overrides) -> Mechanism:
             f"{sorted(inspect.signature(PRESETS[name]).parameters)}"
         )
     return PRESETS[name](**overrides)
+
+
+#: The presets as mechanism files, shipped inside the package (generated from the functions
+#: above by :func:`write_preset_files`; a test checks that each file reads back equal).
+PRESET_DIR = Path(__file__).parent / "mechanisms"
+
+
+def preset_file(name: str) -> Path:
+    """Path of the shipped mechanism file of preset ``name`` (default parameters)."""
+    if name not in PRESETS:
+        raise ParameterError(f"unknown preset {name!r}; valid presets: {preset_names()}")
+    return PRESET_DIR / f"{name}.toml"
+
+
+def write_preset_files(directory=PRESET_DIR) -> list[str]:
+    """(Re)write the shipped preset files from the preset functions; returns the paths."""
+    Path(directory).mkdir(parents=True, exist_ok=True)
+    return [
+        save_mechanism(PRESETS[name](), Path(directory) / f"{name}.toml",
+                       comment=f"Preset {name!r}, written by jaxclear.presets.write_preset_files() from "
+                               f"jaxclear.presets.{PRESETS[name].__name__} (its docstring gives the source).")
+        for name in preset_names()
+    ]

@@ -1,6 +1,8 @@
 """The ``jaxclear`` command line.
 
-    jaxclear simulate [options]          simulate a preset, write CSV, JSON and PNG plots
+    jaxclear simulate [FILE.toml] [opts] simulate a preset or a mechanism file, write CSV, JSON, PNG
+    jaxclear check FILE.toml             assemble a mechanism file, report its dof, draw it
+    jaxclear animate [FILE.toml] [opts]  write a GIF/MP4 of the mechanism moving, orbit inset
     jaxclear presets                     list the preset mechanisms
     jaxclear models [--json]             list the contact force laws
     jaxclear sweep CONFIG.toml [options] run a parameter sweep
@@ -22,11 +24,12 @@ import sys
 
 from .. import __version__
 from .._errors import JaxclearError
-from . import fit, models, presets, simulate, sweep
+from . import animate, check, fit, models, presets, simulate, sweep
 from .common import Formatter
 
 #: Commands in help order: name -> module.
-COMMANDS = {"presets": presets, "simulate": simulate, "models": models, "sweep": sweep, "fit": fit}
+COMMANDS = {"presets": presets, "check": check, "simulate": simulate, "animate": animate, "models": models,
+            "sweep": sweep, "fit": fit}
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -8,6 +8,9 @@ import argparse
 
 from ..contact.registry import law_names
 from .._errors import ParameterError
+from .. import params
+from ..mechanism_files import load_mechanism
+from ..model import Mechanism
 from ..presets import preset_names
 
 
@@ -127,3 +130,49 @@ def mechanism_overrides(args) -> dict:
     if opts:
         out["law_options"] = opts
     return out
+
+
+# ---- mechanism files -------------------------------------------------------------------
+
+#: Mechanism options that apply to a file's every clearance joint (argparse attribute -> parameter).
+FILE_OVERRIDES = {"clearance": "clearance", "restitution": "restitution", "friction": "friction",
+                  "stiffness": "stiffness"}
+
+
+def add_mechanism_file_option(p: argparse.ArgumentParser):
+    """The mechanism file: a positional ``FILE.toml`` or ``--mechanism FILE``."""
+    p.add_argument("file", nargs="?", metavar="FILE.toml",
+                   help="mechanism file (TOML, docs/mechanism-files.md); instead of --preset")
+    p.add_argument("--mechanism", metavar="FILE",
+                   help="mechanism file, the same as the positional FILE.toml (default: use --preset)")
+
+
+def mechanism_file(args) -> str | None:
+    """The mechanism file given (positional or ``--mechanism``), or None."""
+    given = [f for f in (getattr(args, "file", None), getattr(args, "mechanism", None)) if f]
+    if len(given) == 2 and given[0] != given[1]:
+        raise ParameterError(f"two mechanism files given ({given[0]!r} and --mechanism {given[1]!r}); give one")
+    return given[0] if given else None
+
+
+def load_mechanism_file(args, path: str, ideal: bool = False) -> Mechanism:
+    """A mechanism file with the physical options given on the command line applied to every
+    clearance joint (``--clearance``, ``--restitution``, ``--friction``, ``--stiffness``) and to
+    the crank (``--speed-rpm``); ``ideal``: its ideal-joint counterpart. The contact law is the
+    file's (``--model`` and the hybrid options are for presets)."""
+    mech = load_mechanism(path)
+    if getattr(args, "model", "lankarani-nikravesh") != "lankarani-nikravesh" or _hybrid_options(args):
+        raise ParameterError(f"--model and the hybrid options apply to presets; the contact law of {path!r} is set "
+                             "in the file ([clearance_joints.law] name = ...)")
+    values = {}
+    for attr, name in FILE_OVERRIDES.items():
+        if getattr(args, attr, None) is not None:
+            values.update({f"{name}@{k}": getattr(args, attr) for k in range(len(mech.clearance_joints))})
+            if not mech.clearance_joints:
+                raise ParameterError(f"--{attr} needs a clearance joint; {path!r} has none")
+    if getattr(args, "speed_rpm", None) is not None:
+        values["speed_rpm"] = args.speed_rpm
+    for name, value in values.items():
+        params.validate(mech, name, value)
+    mech = params.replace_many(mech, values)
+    return mech.ideal() if ideal else mech

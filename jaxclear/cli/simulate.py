@@ -6,16 +6,19 @@ import argparse
 import os
 
 from .. import io, plot
-from ..analysis import metrics
+from ..analysis import channels, metrics
 from ..integrate import runs
-from .._errors import check_range
+from .._errors import ParameterError, check_range
+from ..model import crank_driver
 from ..presets import preset
 from ..integrate import SOLVERS
-from .common import add_mechanism_options, fmt, int_at_least, mechanism_overrides
+from .common import (add_mechanism_file_option, add_mechanism_options, fmt, int_at_least, load_mechanism_file,
+                     mechanism_file, mechanism_overrides)
 
-HELP = "simulate a preset mechanism (CSV, JSON, PNG)"
+HELP = "simulate a preset or a mechanism file (CSV, JSON, PNG)"
 DESCRIPTION = """\
-Simulate a preset mechanism and write to the output folder:
+Simulate a preset mechanism or a mechanism file (jaxclear simulate FILE.toml) and write to the
+output folder:
   timeseries.csv          sampled time series (SI units in the column names)
   summary.json            peak contact force, impacts, penetration, solver statistics, wall time
   slider_acceleration.png slider acceleration vs crank angle, ideal joint overlaid (slider only)
@@ -29,7 +32,24 @@ friction 0, 5000 rpm."""
 
 def configure(p: argparse.ArgumentParser):
     """Add the options of ``jaxclear simulate``; returns its ``run(args) -> exit code``."""
+    add_mechanism_file_option(p)
     add_mechanism_options(p)
+    add_integration_options(p)
+    out = p.add_argument_group("output")
+    out.add_argument("--out", default="./jaxclear-out", metavar="DIR",
+                     help="output folder, created if missing (default: ./jaxclear-out)")
+    out.add_argument("--output", action="append", metavar="CHANNEL",
+                     help="output channel(s) for timeseries.csv (and one PNG each), repeatable or comma-separated, "
+                     "e.g. body:rocker:phi:acc, point:rocker:B:acc:x:frame=rocker, reaction:0:norm, "
+                     "joint:0:normal_force (names: docs/mechanism-files.md; default: the legacy columns, plus the "
+                     "output link's motion with its ideal-joint overlay for a mechanism without a slider)")
+    out.add_argument("--no-plots", action="store_true", help="write CSV and JSON only, no PNG (default: off)")
+    out.add_argument("--no-progress", action="store_true", help="hide the progress bar (default: shown)")
+    return run
+
+
+def add_integration_options(p: argparse.ArgumentParser):
+    """The integration options (time span, samples, solver, tolerances) of simulate and animate."""
     run_ = p.add_argument_group("integration")
     run_.add_argument("--revolutions", type=float, default=3.0, metavar="N",
                       help="simulated time in crank revolutions [-], > 0 (default: 3)")
@@ -47,21 +67,26 @@ def configure(p: argparse.ArgumentParser):
                       help="absolute tolerance of the adaptive step [m, rad, m/s, rad/s], > 0 (default: 1e-9)")
     run_.add_argument("--max-steps", type=int, default=400_000, metavar="N",
                       help="maximum number of solver steps [-], >= 1 (default: 400000)")
-    out = p.add_argument_group("output")
-    out.add_argument("--out", default="./jaxclear-out", metavar="DIR",
-                     help="output folder, created if missing (default: ./jaxclear-out)")
-    out.add_argument("--no-plots", action="store_true", help="write CSV and JSON only, no PNG (default: off)")
-    out.add_argument("--no-progress", action="store_true", help="hide the progress bar (default: shown)")
-    return run
 
 
-def _settings(args, mech):
+def load(args):
+    """``(mechanism, path or None, overrides)`` from a mechanism file or the preset options."""
+    path = mechanism_file(args)
+    if path is None:
+        overrides = mechanism_overrides(args)
+        return preset(args.preset, ideal=args.ideal, **overrides), None, overrides
+    return load_mechanism_file(args, path, ideal=args.ideal), path, {"mechanism_file": path}
+
+
+def settings_from(args, mech):
     """The run's :class:`~jaxclear.integrate.Settings` from the integration options (checked first
     under their flag names)."""
     if args.t_end is not None:
         check_range("--t-end", args.t_end, low=0.0, low_open=True, unit="s")
     else:
         check_range("--revolutions", args.revolutions, low=0.0, low_open=True)
+        if crank_driver(mech) is None:
+            raise ParameterError(f"{mech.name!r} has no crank (AngleDriver): give --t-end [s] instead of --revolutions")
     return runs.revolution_settings(mech, args.revolutions, t_end=args.t_end, n_out=args.n_out,
                                     solver=args.solver, rtol=args.rtol, atol=args.atol,
                                     max_steps=args.max_steps, progress=not args.no_progress)
@@ -69,9 +94,8 @@ def _settings(args, mech):
 
 def run(args) -> int:
     """Simulate, write timeseries.csv, the plots and summary.json, print the summary."""
-    overrides = mechanism_overrides(args)
-    mech = preset(args.preset, ideal=args.ideal, **overrides)
-    s = _settings(args, mech)
+    mech, path, overrides = load(args)
+    s = settings_from(args, mech)
     t_end, n_out = float(s.t_end), int(s.n_out)
     revolutions = runs.revolutions_of(mech, t_end)
     os.makedirs(args.out, exist_ok=True)
@@ -81,26 +105,48 @@ def run(args) -> int:
     revs = f" ({revolutions:g} crank revolution(s))" if revolutions is not None else ""
     print(f"jaxclear: {mech.name}, {what}; t_end = {t_end:.6g} s{revs}, {n_out} samples, "
           f"{args.solver} rtol={args.rtol:g} atol={args.atol:g}", flush=True)
-    overlay = not args.no_plots and mech.role("slider") is not None and bool(mech.clearance_joints)
+    chosen = [c.strip() for text in (args.output or []) for c in text.split(",") if c.strip()]
+    names = chosen or (channels.default_channels(mech) if path is not None or mech.role("slider") is None else [])
+    for name in names:
+        channels.unit(mech, name)  # a bad name is an error before any compute
+    wants_overlay = any(channels.parse(n).kind in channels.OVERLAY_KINDS for n in names)
+    overlay = bool(mech.clearance_joints) and (wants_overlay or (not args.no_plots and mech.role("slider") is not None))
     print("compiling and integrating (the first run includes JIT compilation)"
           + (", then the ideal-joint mechanism for the overlay" if overlay else "") + "...", flush=True)
     r = runs.simulate_with_ideal(mech, s, ideal=overlay)
 
     summary = metrics.summary(mech, r.sol, wall_time_s=r.wall_time_s)
     summary["inputs"] = {
-        "preset": args.preset, "ideal": bool(args.ideal), **overrides, "t_end_s": t_end,
+        "preset": args.preset if path is None else None, "ideal": bool(args.ideal), **overrides, "t_end_s": t_end,
         "revolutions": revolutions, "n_out": n_out, "solver": args.solver, "rtol": args.rtol,
         "atol": args.atol, "max_steps": args.max_steps,
     }
     if r.ideal_sol is not None:
         summary["ideal_wall_time_s"] = r.ideal_wall_time_s
         summary["ideal_peak_slider_acc_m_s2"] = metrics.peak_slider_acceleration(r.ideal_mech, r.ideal_sol)
-    files = [io.write_timeseries_csv(os.path.join(args.out, "timeseries.csv"), mech, r.sol)]
+    table = channels.channel_table(mech, r.sol, names, r.ideal_mech, r.ideal_sol)
+    base = {"time_s": r.sol.ts} if chosen else io.timeseries_table(mech, r.sol)
+    files = [io.write_table_csv(os.path.join(args.out, "timeseries.csv"), {**base, **table})]
     if not args.no_plots:
         files += plot.plot_simulation(args.out, mech, r.sol, r.ideal_sol, r.ideal_mech)
+        files += _plot_channels(args.out, mech, r, chosen or names[-1:])
     files.append(io.write_json(os.path.join(args.out, "summary.json"), summary))
     _print_summary(summary, files)
     return 0
+
+
+def _plot_channels(folder: str, mech, r, names: list[str]) -> list[str]:
+    """One PNG per channel (ideal-joint overlay where it applies): ``channel_<name>.png``."""
+    paths = []
+    for name in names:
+        values, unit = channels.channel_with_unit(mech, r.sol, name)
+        ideal = None
+        if r.ideal_sol is not None and channels.parse(name).kind in channels.OVERLAY_KINDS:
+            ideal = channels.channel(r.ideal_mech, r.ideal_sol, name)
+        safe = "".join(ch if ch.isalnum() else "_" for ch in name)
+        paths.append(os.path.join(folder, f"channel_{safe}.png"))
+        plot.plot_channel(paths[-1], mech, r.sol, name, values, unit, ideal)
+    return paths
 
 
 def _print_summary(s: dict, files: list[str]):

@@ -6,4 +6,4 @@ from .drivers import AbstractDriver, AngleDriver, FunctionDriver, crank_driver, 
 from .geometry import cross2, dot2, perp, rotate, safe_normal
 from .joints import AbstractConstraint, AbstractJoint, Fixed, PointOnLine, Revolute, Translational
 from .loads import AbstractLoad, PointForce, Torque, gravity_force
-from .mechanism import Mechanism, point_load, point_position, point_velocity
+from .mechanism import Mechanism, point_acceleration, point_load, point_position, point_velocity

@@ -205,6 +205,9 @@ class Mechanism(eqx.Module):
     def point_velocity(self, q, qdot, body: str, point: str):
         return point_velocity(self, q, qdot, body, point)
 
+    def point_acceleration(self, q, qdot, qddot, body: str, point: str):
+        return point_acceleration(self, q, qdot, qddot, body, point)
+
     def point_load(self, q, body: str, at, force):
         return point_load(self, q, body, at, force)
 
@@ -230,6 +233,18 @@ def point_velocity(mech: Mechanism, q, qdot, body: str, point: str) -> Vec2:
     _, phi = mech.pose(q, body)
     rd, phid = mech.twist(qdot, body)
     return rd + phid * perp(rotate(phi, mech.point(body, point)))
+
+
+def point_acceleration(mech: Mechanism, q, qdot, qddot, body: str, point: str) -> Vec2:
+    r"""Global acceleration [m/s^2] of a named body point (rigid-body kinematics):
+    :math:`\ddot r + \ddot\phi\,\mathrm{perp}(A s') - \dot\phi^2 A s'`."""
+    if body == GROUND:
+        return jnp.zeros(2, q.dtype)
+    _, phi = mech.pose(q, body)
+    _, phid = mech.twist(qdot, body)
+    rdd, phidd = mech.pose(qddot, body)
+    arm = rotate(phi, mech.point(body, point))
+    return rdd + phidd * perp(arm) - phid**2 * arm
 
 
 def point_load(mech: Mechanism, q, body: str, at, force) -> Float[Array, " n"]:

@@ -24,6 +24,7 @@ from .. import params
 from .._storage import fingerprint
 from .._errors import JaxclearError, ParameterError
 from ..model import Mechanism
+from ..mechanism_files import load_mechanism
 from ..presets import PRESETS, preset
 from ..integrate import SOLVERS, Settings
 from .values import _canonical, _number, _values
@@ -325,7 +326,8 @@ def _tree_hash(tree) -> str:
 def load_config(path, **overrides) -> SweepConfig:
     """Read a TOML sweep configuration (see ``examples/sweep.toml``) and validate it.
 
-    Tables: ``[mechanism]`` (``preset`` and preset keyword overrides), ``[grid]`` or ``[list]``
+    Tables: ``[mechanism]`` (``preset`` and preset keyword overrides, or ``file = "M.toml"``, a
+    mechanism file relative to the configuration's folder), ``[grid]`` or ``[list]``
     (the swept parameters), ``[run]`` (:data:`RUN_KEYS`), ``[output]`` (:data:`OUTPUT_KEYS`).
     Unknown tables or keys are errors. ``overrides`` replace :class:`SweepConfig` fields
     (the command-line options). Relative ``output.dir`` is relative to the current folder.
@@ -357,8 +359,15 @@ def config_from_dict(doc: dict, source: str = "<dict>", **overrides) -> SweepCon
         bad = sorted(set(got) - set(allowed))
         if bad:
             raise ParameterError(f"{source}: unknown key(s) {bad} in [{table}]; allowed: {list(allowed)}")
-    kwargs: dict = {"source": source, "preset": mech.pop("preset", "flores-slider-crank"), "preset_options": mech,
-                    "grid": doc.get("grid"), "list": doc.get("list"), **run}
+    kwargs: dict = {"source": source, "grid": doc.get("grid"), "list": doc.get("list"), **run}
+    if "file" in mech:  # a mechanism file, relative to the configuration's folder
+        if set(mech) != {"file"}:
+            raise ParameterError(f"{source}: [mechanism] with 'file' takes no other key (got {sorted(mech)}); "
+                                 "set fixed values in the mechanism file, swept ones in [grid] or [list]")
+        folder = os.path.dirname(source) if os.path.isfile(source) else ""
+        kwargs.update(preset=None, mechanism=load_mechanism(os.path.join(folder, str(mech["file"]))))
+    else:
+        kwargs.update(preset=mech.pop("preset", "flores-slider-crank"), preset_options=mech)
     for key in OUTPUT_KEYS:
         if key in out:
             kwargs["out" if key == "dir" else key] = out[key]

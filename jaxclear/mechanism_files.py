@@ -1,0 +1,375 @@
+"""Mechanism files: any planar mechanism as a TOML document (format in docs/mechanism-files.md).
+
+A file holds what :class:`~jaxclear.Mechanism` holds, in SI units: bodies (mass, inertia, named
+points, initial guesses of position and velocity), ideal joints, drivers, clearance joints (law
+by name with its parameters, friction, radii, initial offset), applied loads, gravity, ground
+points and roles. :func:`load_mechanism` reads one (the standard ``tomllib``) and validates it:
+every error names the file, the key and the allowed values. :func:`save_mechanism` writes one
+(``tomli-w``); a mechanism written and read back is equal leaf by leaf (``eqx.tree_equal``).
+
+Python functions (:class:`~jaxclear.FunctionDriver`, ``function=`` of a load) cannot be written
+to a file; saving such a mechanism raises :class:`~jaxclear.MechanismError`.
+
+This module sits beside :mod:`jaxclear.presets` (it builds laws and force elements, so it is
+above ``contact/`` and ``elements/`` in the layers).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+import os
+import re
+import tomllib
+
+import numpy as np
+import tomli_w
+
+from ._errors import JaxclearError, MechanismError, ParameterError
+from ._storage import atomic_write_text
+from ._units import rpm_to_rad_s
+from .contact import FourierProfile, Friction, Material, make_law
+from .contact.friction import FRICTION_MODELS, friction_name
+from .elements import ClearanceJoint
+from .model import AngleDriver, Body, Fixed, Mechanism, PointForce, Revolute, Torque, Translational
+
+FORMAT_VERSION = 1
+
+TOP_KEYS = ("format", "name", "gravity", "ground_points", "roles", "bodies", "joints", "drivers",
+            "clearance_joints", "loads")
+BODY_KEYS = ("name", "mass", "inertia", "points", "position", "velocity")
+#: ``type`` -> (class, keys in constructor order)
+JOINT_TYPES = {
+    "revolute": (Revolute, ("body_i", "point_i", "body_j", "point_j")),
+    "translational": (Translational, ("body_i", "point_i", "body_j", "point_j", "axis", "angle")),
+    "fixed": (Fixed, ("body_i", "point_i", "body_j", "point_j", "angle")),
+}
+DRIVER_TYPES = {"angle": (AngleDriver, ("body", "speed", "angle0", "relative_to"))}
+LOAD_TYPES = {
+    "point-force": (PointForce, ("body", "point", "force")),
+    "torque": (Torque, ("body", "torque")),
+}
+ELEMENT_TYPES = {
+    "revolute-clearance": (ClearanceJoint, (
+        "name", "bearing_body", "bearing_point", "journal_body", "journal_point", "bearing_radius",
+        "journal_radius", "length", "law", "friction", "impact_velocity_floor", "initial_offset",
+        "initial_velocity")),
+}
+#: law parameters that are tables, by the suffix of their key
+TABLE_PARAMETERS = {"_material": (Material, ("young", "poisson")), "_profile": (FourierProfile, ("cos", "sin"))}
+REQUIRED = {"body", "body_i", "point_i", "body_j", "point_j", "point", "bearing_body",
+            "bearing_point", "journal_body", "journal_point", "bearing_radius"}
+
+
+# --------------------------------------------------------------------------------------
+# writing
+# --------------------------------------------------------------------------------------
+
+
+def _number(value):
+    """An array leaf as a TOML float or list of floats (exact: Python's float repr round-trips)."""
+    arr = np.asarray(value)
+    if arr.dtype.kind in "iub":
+        return arr.tolist()
+    return np.asarray(arr, dtype=float).tolist()
+
+
+def _plain(value):
+    if isinstance(value, (str, bool, int, float)):
+        return value
+    return _number(value)
+
+
+def _fields(module, keys) -> dict:
+    return {k: _plain(getattr(module, k)) for k in keys if getattr(module, k) is not None}
+
+
+def _no_function(item, where: str):
+    if getattr(item, "function", None) is not None:
+        raise MechanismError(f"{where} ({item.label}) has a Python function: it cannot be written to a mechanism "
+                             "file (only constant forces, torques and AngleDriver speeds can)")
+
+
+def _typed(table: dict, item, where: str, skip=()) -> dict:
+    for name, (cls, keys) in table.items():
+        if type(item) is cls:
+            _no_function(item, where)
+            return {"type": name, **_fields(item, [k for k in keys if k not in skip])}
+    raise MechanismError(f"{where}: {type(item).__name__} cannot be written to a mechanism file; "
+                         f"allowed types: {[c.__name__ for c, _ in table.values()]}")
+
+
+def law_table(law) -> dict:
+    """A contact law as a table: ``name`` plus every parameter that is set (materials and
+    profiles as sub-tables)."""
+    out = {"name": law.name}
+    for f in dataclasses.fields(law):
+        value = getattr(law, f.name)
+        if f.name == "model" or value is None:
+            continue
+        if isinstance(value, (Material, FourierProfile)):
+            out[f.name] = _fields(value, [g.name for g in dataclasses.fields(value)])
+        else:
+            out[f.name] = _plain(value)
+    return out
+
+
+def friction_table(friction) -> dict:
+    """A friction law as a table: ``model``, ``coefficient`` and the model's own parameters."""
+    name = friction_name(friction)
+    if name not in FRICTION_MODELS:
+        raise MechanismError(f"friction law {type(friction).__name__} cannot be written to a mechanism file; "
+                             f"allowed models: {list(FRICTION_MODELS)}")
+    return {"model": name, "coefficient": _number(friction.coefficient),
+            **_fields(friction, FRICTION_MODELS[name][1])}
+
+
+def mechanism_dict(mech: Mechanism) -> dict:
+    """The TOML document of ``mech`` as nested dicts (what :func:`save_mechanism` writes)."""
+    doc = {"format": FORMAT_VERSION, "name": mech.name, "gravity": _number(mech.gravity)}
+    if mech.ground_points:
+        doc["ground_points"] = {k: _number(v) for k, v in mech.ground_points.items()}
+    if mech.roles:
+        doc["roles"] = dict(mech.roles)
+    doc["bodies"] = [
+        {"name": b.name, "mass": _number(b.mass), "inertia": _number(b.inertia),
+         "position": _number(b.position), "velocity": _number(b.velocity),
+         "points": {k: _number(v) for k, v in b.points.items()}}
+        for b in mech.bodies
+    ]
+    for key, items, table in (("joints", mech.joints, JOINT_TYPES), ("drivers", mech.drivers, DRIVER_TYPES),
+                              ("loads", mech.loads, LOAD_TYPES)):
+        if items:
+            doc[key] = [_typed(table, item, f"{key}[{i}]") for i, item in enumerate(items)]
+    elements = []
+    for i, el in enumerate(mech.clearance_joints):
+        row = _typed(ELEMENT_TYPES, el, f"clearance_joints[{i}]", skip=("law", "friction"))
+        row["law"], row["friction"] = law_table(el.law), friction_table(el.friction)
+        elements.append(row)
+    if elements:
+        doc["clearance_joints"] = elements
+    return doc
+
+
+_NUMBER_ARRAY = re.compile(r"\[\n((?:[ ]+[-+0-9.eEinf]+,\n)+)\]")
+
+
+def _inline_arrays(text: str) -> str:
+    """tomli-w writes one number per line; short number arrays read better on one line."""
+    return _NUMBER_ARRAY.sub(lambda m: "[" + ", ".join(v.strip().rstrip(",") for v in m.group(1).splitlines()) + "]",
+                             text)
+
+
+def dumps_mechanism(mech: Mechanism, comment: str = "") -> str:
+    """The TOML text of ``mech``; ``comment`` (lines) goes into the header."""
+    lines = [f"jaxclear mechanism file (format {FORMAT_VERSION}); SI units: m, kg, kg m^2, rad, s, N, Pa.",
+             "Format: docs/mechanism-files.md", *comment.splitlines()]
+    header = "".join(f"# {line}".rstrip() + "\n" for line in lines)
+    return header + _inline_arrays(tomli_w.dumps(mechanism_dict(mech)))
+
+
+def save_mechanism(mech: Mechanism, path, comment: str = "") -> str:
+    """Write ``mech`` to a TOML file (atomically); returns the path."""
+    return atomic_write_text(os.fspath(path), dumps_mechanism(mech, comment))
+
+
+# --------------------------------------------------------------------------------------
+# reading
+# --------------------------------------------------------------------------------------
+
+
+class _Reader:
+    """Validation context: every message starts with the file and the key."""
+
+    def __init__(self, source: str):
+        self.source = source
+
+    def fail(self, key: str, message: str, cls=MechanismError):
+        raise cls(f"{self.source}: {key}: {message}")
+
+    def table(self, key: str, value) -> dict:
+        if not isinstance(value, dict):
+            self.fail(key, f"must be a table, got {type(value).__name__}")
+        return value
+
+    def array(self, key: str, value) -> list:
+        if not isinstance(value, list):
+            self.fail(key, f"must be an array of tables ([[{key}]]), got {type(value).__name__}")
+        return value
+
+    def keys(self, key: str, table: dict, allowed, required=()):
+        for k in table:
+            if k not in allowed:
+                self.fail(f"{key}.{k}", f"unknown key; allowed keys: {sorted(allowed)}")
+        for k in required:
+            if k not in table:
+                self.fail(f"{key}.{k}", f"missing (required keys: {sorted(required)})")
+
+    def vector(self, key: str, value, size: int):
+        ok = isinstance(value, list) and len(value) == size and all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+        if not ok:
+            self.fail(key, f"must be an array of {size} numbers, got {value!r}", ParameterError)
+        return [float(v) for v in value]
+
+    def number(self, key: str, value):
+        if isinstance(value, bool) or not isinstance(value, (int, float, list)):
+            self.fail(key, f"must be a number, got {value!r}", ParameterError)
+        return value
+
+    def string(self, key: str, value):
+        if not isinstance(value, str):
+            self.fail(key, f"must be a string, got {value!r}")
+        return value
+
+    def build(self, key: str, cls, kwargs: dict):
+        """``cls(**kwargs)``, with any :class:`JaxclearError` re-raised naming the file and key."""
+        try:
+            return cls(**kwargs)
+        except JaxclearError as err:
+            raise type(err)(f"{self.source}: {key}: {err}") from None
+
+    def points(self, key: str, value) -> dict:
+        return {self.string(f"{key}", k): self.vector(f"{key}.{k}", v, 2) for k, v in self.table(key, value).items()}
+
+    def typed(self, key: str, row, types: dict, default_type: str | None = None, skip=()):
+        row = self.table(key, row)
+        kind = row.get("type", default_type)
+        if kind not in types:
+            got = "missing" if kind is None else f"{kind!r} is not a valid type"
+            self.fail(f"{key}.type", f"{got}; allowed: {sorted(types)}")
+        cls, names = types[kind]
+        extra = {"type", *skip}
+        self.keys(key, row, {*names, *extra}, [n for n in names if n in REQUIRED])
+        kwargs = {}
+        for name in names:
+            if name in row and name not in skip:
+                kwargs[name] = self.value(f"{key}.{name}", name, row[name])
+        return cls, kwargs
+
+    def value(self, key: str, name: str, value):
+        if isinstance(value, str):
+            return value
+        if name in ("axis", "force", "initial_offset", "initial_velocity"):
+            return self.vector(key, value, 2)
+        return self.number(key, value)
+
+
+def _law(r: _Reader, key: str, table) -> object:
+    table = dict(r.table(key, table))
+    if "name" not in table:
+        r.fail(f"{key}.name", "missing: the contact law's name", ParameterError)
+    name = table.pop("name")
+    kwargs = {}
+    for k, v in table.items():
+        suffix = next((s for s in TABLE_PARAMETERS if k.endswith(s)), None)
+        if suffix is not None:
+            cls, allowed = TABLE_PARAMETERS[suffix]
+            sub = r.table(f"{key}.{k}", v)
+            r.keys(f"{key}.{k}", sub, allowed)
+            kwargs[k] = r.build(f"{key}.{k}", cls, dict(sub))
+        elif isinstance(v, dict):
+            r.fail(f"{key}.{k}", f"a table is allowed only for keys ending in {list(TABLE_PARAMETERS)}")
+        else:
+            kwargs[k] = v
+    try:
+        return make_law(name, **kwargs)
+    except JaxclearError as err:
+        raise type(err)(f"{r.source}: {key}: {err}") from None
+
+
+def _friction(r: _Reader, key: str, table) -> object:
+    table = r.table(key, table)
+    allowed = set(inspect.signature(Friction).parameters)
+    r.keys(key, table, allowed)
+    return r.build(key, Friction, dict(table))
+
+
+def _element(r: _Reader, key: str, row) -> object:
+    row = r.table(key, row)
+    cls, kwargs = r.typed(key, row, ELEMENT_TYPES, "revolute-clearance", skip=("law", "friction", "clearance"))
+    if "law" in row:
+        kwargs["law"] = _law(r, f"{key}.law", row["law"])
+    if "friction" in row:
+        kwargs["friction"] = _friction(r, f"{key}.friction", row["friction"])
+    if "clearance" in row:
+        if "journal_radius" in row:
+            r.fail(f"{key}.clearance", "give either clearance or journal_radius, not both", ParameterError)
+        if "bearing_radius" not in row:
+            r.fail(f"{key}.bearing_radius", "missing (needed with clearance)", ParameterError)
+        rb, c = float(row["bearing_radius"]), float(r.number(f"{key}.clearance", row["clearance"]))
+        if not 0.0 < c < rb:
+            r.fail(f"{key}.clearance", f"{c:g} m is outside the allowed range (0, bearing_radius = {rb:g} m)",
+                   ParameterError)
+        kwargs["journal_radius"] = rb - c
+    return r.build(key, cls, kwargs)
+
+
+def _driver(r: _Reader, key: str, row) -> object:
+    row = r.table(key, row)
+    cls, kwargs = r.typed(key, row, DRIVER_TYPES, "angle", skip=("speed_rpm",))
+    if "speed_rpm" in row:
+        if "speed" in row:
+            r.fail(f"{key}.speed_rpm", "give either speed [rad/s] or speed_rpm, not both", ParameterError)
+        kwargs["speed"] = rpm_to_rad_s(float(r.number(f"{key}.speed_rpm", row["speed_rpm"])))
+    if "speed" not in kwargs:
+        r.fail(f"{key}.speed", "missing: the driver speed [rad/s] (or speed_rpm)", ParameterError)
+    return r.build(key, cls, kwargs)
+
+
+def _body(r: _Reader, key: str, row) -> Body:
+    row = r.table(key, row)
+    r.keys(key, row, BODY_KEYS, ("name", "mass", "inertia"))
+    kwargs = {"name": r.string(f"{key}.name", row["name"]),
+              "mass": r.number(f"{key}.mass", row["mass"]), "inertia": r.number(f"{key}.inertia", row["inertia"]),
+              "points": r.points(f"{key}.points", row.get("points", {}))}
+    for k in ("position", "velocity"):
+        if k in row:
+            kwargs[k] = r.vector(f"{key}.{k}", row[k], 3)
+    return r.build(key, Body, kwargs)
+
+
+def mechanism_from_dict(doc: dict, source: str = "<mechanism>") -> Mechanism:
+    """Build a :class:`~jaxclear.Mechanism` from a parsed document (``source`` names it in errors)."""
+    r = _Reader(source)
+    r.keys("(top level)", doc, TOP_KEYS, ("bodies",))
+    if doc.get("format", FORMAT_VERSION) != FORMAT_VERSION:
+        r.fail("format", f"unsupported format {doc['format']!r}; this version reads format {FORMAT_VERSION}")
+    bodies = [_body(r, f"bodies[{i}]", row) for i, row in enumerate(r.array("bodies", doc["bodies"]))]
+    joints = [r.build(f"joints[{i}]", *r.typed(f"joints[{i}]", row, JOINT_TYPES))
+              for i, row in enumerate(r.array("joints", doc.get("joints", [])))]
+    drivers = [_driver(r, f"drivers[{i}]", row) for i, row in enumerate(r.array("drivers", doc.get("drivers", [])))]
+    loads = [r.build(f"loads[{i}]", *r.typed(f"loads[{i}]", row, LOAD_TYPES))
+             for i, row in enumerate(r.array("loads", doc.get("loads", [])))]
+    elements = [_element(r, f"clearance_joints[{i}]", row)
+                for i, row in enumerate(r.array("clearance_joints", doc.get("clearance_joints", [])))]
+    roles = {k: r.string(f"roles.{k}", v) for k, v in r.table("roles", doc.get("roles", {})).items()}
+    kwargs = dict(bodies=bodies, joints=joints, drivers=drivers, clearance_joints=elements, loads=loads,
+                  ground_points=r.points("ground_points", doc.get("ground_points", {})), roles=roles,
+                  name=r.string("name", doc.get("name", "mechanism")))
+    if "gravity" in doc:
+        kwargs["gravity"] = r.vector("gravity", doc["gravity"], 2)
+    return r.build("(mechanism)", Mechanism, kwargs)
+
+
+def loads_mechanism(text: str, source: str = "<string>") -> Mechanism:
+    """Parse TOML text into a mechanism."""
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        raise MechanismError(f"{source}: not valid TOML: {err}") from None
+    return mechanism_from_dict(doc, source)
+
+
+def load_mechanism(path) -> Mechanism:
+    """Read a mechanism file (TOML, docs/mechanism-files.md)."""
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        raise MechanismError(f"mechanism file {path!r} does not exist")
+    with open(path, encoding="utf-8") as fh:
+        return loads_mechanism(fh.read(), path)
+
+
+def is_mechanism_file(name) -> bool:
+    """Whether a name given on the command line or in a sweep config is a file (``.toml``)."""
+    return os.fspath(name).endswith(".toml")

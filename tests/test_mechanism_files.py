@@ -1,0 +1,142 @@
+"""Mechanism files: round trips, the shipped presets, the short hand-written form, and
+validation messages that name the file, the key and the allowed values."""
+
+from pathlib import Path
+
+import equinox as eqx
+import pytest
+
+import jaxclear as jc
+from jaxclear.mechanism_files import dumps_mechanism, loads_mechanism
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLES = ROOT / "examples"
+
+
+def same(a, b) -> bool:
+    """Same tree structure (names, which laws: static fields) and every leaf bit-equal."""
+    return bool(eqx.tree_equal(a, b))
+
+
+@pytest.mark.parametrize("name", jc.preset_names())
+@pytest.mark.parametrize("overrides", [{}, {"ideal": True}, {"law": "hybrid", "friction": 0.05},
+                                       {"law": "liu"}, {"law": "kelvin-voigt", "stiffness": 3e8}])
+def test_round_trip_is_equal_leaf_by_leaf(tmp_path, name, overrides):
+    mech = jc.preset(name, **overrides)
+    path = tmp_path / "m.toml"
+    jc.save_mechanism(mech, path)
+    back = jc.load_mechanism(path)
+    assert same(mech, back)  # same structure (names, laws), every leaf bit-equal
+
+
+def test_round_trip_with_profiles_loads_and_translational_options(tmp_path):
+    base = jc.preset("four-bar")
+    law = jc.make_law("hybrid", placement="fixed", n_elements=12, journal_profile=jc.oval(2e-5, 0.3),
+                      thickness=1e-3, restitution=0.7)
+    joint = eqx.tree_at(lambda m: m.clearance_joints[0].law, base, law)
+    mech = jc.Mechanism(joint.bodies, joint.joints, joint.drivers, joint.clearance_joints,
+                        loads=[jc.PointForce("rocker", "B", (1.0, -2.0)), jc.Torque("coupler", 0.3)],
+                        gravity=(0.1, -9.0), ground_points=dict(joint.ground_points), name="x",
+                        roles={"output": "rocker"})
+    assert same(mech, loads_mechanism(dumps_mechanism(mech)))
+
+
+@pytest.mark.parametrize("name", jc.preset_names())
+def test_shipped_preset_files_equal_the_preset_functions(name):
+    assert jc.preset_file(name).is_file()
+    assert same(jc.load_mechanism(jc.preset_file(name)), jc.preset(name))
+
+
+@pytest.mark.parametrize("path", sorted(EXAMPLES.glob("*.toml")))
+def test_example_files_load(path):
+    if path.name == "sweep.toml":
+        pytest.skip("a sweep configuration, not a mechanism")
+    mech = jc.load_mechanism(path)
+    assert mech.clearance_joints
+
+
+SHORT = """
+name = "short"
+[ground_points]
+O = [0.0, 0.0]
+[[bodies]]
+name = "crank"
+mass = 1
+inertia = 0.01
+points = { O = [-0.05, 0.0], A = [0.05, 0.0] }
+position = [0.05, 0.0, 0.0]
+[[bodies]]
+name = "bob"
+mass = 0.5
+inertia = 0.001
+points = { c = [0.0, 0.0] }
+position = [0.1, 0.0, 0.0]
+[[joints]]
+type = "revolute"
+body_i = "ground"
+point_i = "O"
+body_j = "crank"
+point_j = "O"
+[[drivers]]
+body = "crank"
+speed_rpm = 60
+[[clearance_joints]]
+bearing_body = "crank"
+bearing_point = "A"
+journal_body = "bob"
+journal_point = "c"
+bearing_radius = 0.01
+clearance = 0.0005
+law = { name = "hunt-crossley", restitution = 0.8 }
+friction = { model = "coulomb", coefficient = 0.1 }
+"""
+
+
+def test_short_form_defaults_and_alternative_keys():
+    mech = loads_mechanism(SHORT)
+    joint = mech.clearance_joints[0]
+    assert float(joint.clearance) == pytest.approx(5e-4, rel=1e-12)
+    assert float(mech.drivers[0].speed) == pytest.approx(2 * 3.141592653589793, rel=1e-12)
+    assert joint.law.name == "hunt-crossley" and float(joint.law.restitution) == 0.8
+    assert type(joint.friction).__name__ == "CoulombFriction"
+    assert same(mech, loads_mechanism(dumps_mechanism(mech)))
+
+
+@pytest.mark.parametrize("edit, cls, words", [
+    (("mass = 1\n", "mass = -1\n"), jc.ParameterError, ["bodies[0]", "mass", "(0, inf)"]),
+    (('type = "revolute"', 'type = "hinge"'), jc.MechanismError, ["joints[0].type", "'hinge'", "revolute", "translational"]),
+    (('name = "hunt-crossley"', 'name = "hertzz"'), jc.ParameterError, ["clearance_joints[0].law", "hertzz", "lankarani-nikravesh"]),
+    (('model = "coulomb"', 'model = "viscous"'), jc.ParameterError, ["clearance_joints[0].friction", "viscous", "ambrosio"]),
+    (("clearance = 0.0005", "clearance = 0.02"), jc.ParameterError, ["clearance_joints[0].clearance", "(0, bearing_radius = 0.01 m)"]),
+    (("inertia = 0.01\n", "inertia = 0.01\ncolour = 3\n"), jc.MechanismError, ["bodies[0].colour", "allowed keys", "inertia"]),
+    (('point_j = "O"', 'point_j = "Q"'), jc.MechanismError, ["'Q'", "crank", "['A', 'O']"]),
+    (("position = [0.05, 0.0, 0.0]", "position = [0.05, 0.0]"), jc.ParameterError, ["bodies[0].position", "3 numbers"]),
+    (("speed_rpm = 60", "speed_rpm = 60\nspeed = 1.0"), jc.ParameterError, ["drivers[0].speed_rpm", "not both"]),
+])
+def test_validation_names_file_key_and_allowed_values(tmp_path, edit, cls, words):
+    path = tmp_path / "bad.toml"
+    assert edit[0] in SHORT
+    path.write_text(SHORT.replace(edit[0], edit[1], 1))
+    with pytest.raises(cls) as err:
+        jc.load_mechanism(path)
+    message = str(err.value)
+    assert str(path) in message
+    for w in words:
+        assert w in message, (w, message)
+
+
+def test_missing_file_and_bad_toml(tmp_path):
+    with pytest.raises(jc.MechanismError, match="does not exist"):
+        jc.load_mechanism(tmp_path / "nope.toml")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[[bodies]\n")
+    with pytest.raises(jc.MechanismError, match="not valid TOML"):
+        jc.load_mechanism(bad)
+
+
+def test_python_functions_cannot_be_saved():
+    mech = jc.preset("four-bar", ideal=True)
+    mech = jc.Mechanism(mech.bodies, mech.joints, mech.drivers, loads=[jc.Torque("rocker", 0.0, lambda t, q, qd: t)],
+                        ground_points=dict(mech.ground_points))
+    with pytest.raises(jc.MechanismError, match="Python function"):
+        dumps_mechanism(mech)
