@@ -61,3 +61,14 @@ def test_joints_notebook_runs(tmp_path):
     assert figures == ["joints_dry_vs_lubricated.png", "joints_guide_clearance.png"]
     text = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.outputs)
     assert "lubricated: impacts   0" in text
+
+
+def test_wear_notebook_runs(tmp_path):
+    """notebooks/wear.ipynb at small settings (2 updates, 45 elements): runs, writes its two figures."""
+    nb = execute_notebook("wear.ipynb", tmp_path)
+    errors = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs if o.output_type == "error"]
+    assert not errors
+    figures = sorted(p.name for p in (tmp_path / "figures").glob("*.png"))
+    assert figures == ["wear_profile.png", "wear_slider.png"]
+    text = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.outputs)
+    assert "largest wear depth" in text and "worn: peak |slider acceleration|" in text

@@ -7,6 +7,7 @@
     jaxclear models [--json]             list the contact force laws
     jaxclear sweep CONFIG.toml [options] run a parameter sweep
     jaxclear fit DATA.csv [options]      fit contact parameters to a measured record
+    jaxclear wear [FILE.toml] [opts]     wear a clearance joint's bearing (Archard), resumable
 
 One module per command (:mod:`.simulate`, :mod:`.presets`, :mod:`.models`, :mod:`.sweep`,
 :mod:`.fit`), each with ``HELP``, ``DESCRIPTION`` and ``configure(parser) -> run``, where
@@ -24,12 +25,12 @@ import sys
 
 from .. import __version__
 from .._errors import JaxclearError
-from . import animate, check, fit, models, presets, simulate, sweep
+from . import animate, check, fit, models, presets, simulate, sweep, wear
 from .common import Formatter
 
 #: Commands in help order: name -> module.
 COMMANDS = {"presets": presets, "check": check, "simulate": simulate, "animate": animate, "models": models,
-            "sweep": sweep, "fit": fit}
+            "sweep": sweep, "fit": fit, "wear": wear}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -80,6 +81,8 @@ def _saved(args) -> str:
     out = getattr(args, "out", None)
     if args.command == "sweep" and out:
         return f"finished chunks are saved in {out!r}; run the same command again to resume"
+    if args.command == "wear" and out:
+        return f"every finished update is saved in {out!r}; run the same command again to resume"
     if args.command == "fit" and out:
         return f"the last iteration is checkpointed in {out!r}; run the same command again to resume"
     return "nothing was saved"

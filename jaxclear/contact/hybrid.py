@@ -271,10 +271,12 @@ class HybridLaw(AbstractNormalLaw):
         return cj * c0 - sj * s0, sj * c0 + cj * s0, jnp.asarray(local), jnp.asarray(np.pi * ws)
 
     # ---- one point, then all points -------------------------------------------------
-    def _point(self, kin, cu, su, local, weight, deltadot0, modulus, thickness):
-        """Force components on the journal ``(f_x, f_y)`` from the point in direction
-        ``u = (cu, su)`` (elastic and damped), and its overlap. Written with scalar components
-        (no 2-vector dots), so that ``vmap`` over the points fuses into a few XLA kernels."""
+    def _overlap(self, kin, cu, su, local):
+        """Overlap [m] of the point in direction ``u = (cu, su)``, its rate [m/s], its slip [m/s]
+        (tangential speed of the journal's surface point relative to the bearing's material point
+        there) and its angle in the bearing body [rad]. Written with scalar components (no
+        2-vector dots), so that ``vmap`` over the points fuses into a few XLA kernels; the
+        force path does not use the slip and angle, and XLA drops them there."""
         r_j = kin.radius_journal
         if self.journal_profile is not None:
             r_j = r_j + self.journal_profile(local)
@@ -283,25 +285,61 @@ class HybridLaw(AbstractNormalLaw):
             delta = kin.ecc[0] * cu + kin.ecc[1] * su - c
             dv = kin.journal_velocity - kin.bearing_velocity
             rate = dv[0] * cu + dv[1] * su
-        else:
-            rx = kin.journal_centre[0] + r_j * cu - kin.bearing_centre[0]
-            ry = kin.journal_centre[1] + r_j * su - kin.bearing_centre[1]
-            dist2 = rx * rx + ry * ry
-            dist = jnp.sqrt(jnp.where(dist2 > 0, dist2, 1.0))
-            r_b = kin.radius_bearing
-            if self.bearing_profile is not None:
-                r_b = r_b + self.bearing_profile(jnp.arctan2(ry, rx) - kin.bearing_angle)
-            delta = dist - r_b
-            # velocity of the journal's surface point minus the bearing's material point there
-            vx = (kin.journal_velocity[0] - kin.journal_omega * r_j * su) - (kin.bearing_velocity[0] - kin.bearing_omega * ry)
-            vy = (kin.journal_velocity[1] + kin.journal_omega * r_j * cu) - (kin.bearing_velocity[1] + kin.bearing_omega * rx)
-            rate = (vx * rx + vy * ry) / dist
+            slip = -dv[0] * su + dv[1] * cu + kin.journal_omega * r_j - kin.bearing_omega * kin.radius_bearing
+            return delta, rate, slip, jnp.arctan2(su, cu) - kin.bearing_angle
+        rx = kin.journal_centre[0] + r_j * cu - kin.bearing_centre[0]
+        ry = kin.journal_centre[1] + r_j * su - kin.bearing_centre[1]
+        dist2 = rx * rx + ry * ry
+        dist = jnp.sqrt(jnp.where(dist2 > 0, dist2, 1.0))
+        beta = jnp.arctan2(ry, rx) - kin.bearing_angle
+        r_b = kin.radius_bearing
+        if self.bearing_profile is not None:
+            r_b = r_b + self.bearing_profile(beta)
+        delta = dist - r_b
+        # velocity of the journal's surface point minus the bearing's material point there
+        vx = (kin.journal_velocity[0] - kin.journal_omega * r_j * su) - (kin.bearing_velocity[0] - kin.bearing_omega * ry)
+        vy = (kin.journal_velocity[1] + kin.journal_omega * r_j * cu) - (kin.bearing_velocity[1] + kin.bearing_omega * rx)
+        return delta, (vx * rx + vy * ry) / dist, (vy * rx - vx * ry) / dist, beta
+
+    def _point_force(self, kin, delta, rate, weight, deltadot0, modulus, thickness):
+        """Normal force [N] of one point: foundation pressure times its area, damped per point
+        with ``damping="point"`` (undamped otherwise: the joint's damping scales the resultant)."""
         pressure = modulus * jnp.maximum(delta, 0.0) / thickness
-        elastic = weight * pressure * kin.radius_journal * kin.length
+        force = weight * pressure * kin.radius_journal * kin.length
         if self.damping == "point":
-            elastic = jnp.maximum(elastic * (1.0 + chi_qin_lu(self.restitution) * rate / deltadot0), 0.0)
-            elastic = jnp.where(delta > 0.0, elastic, 0.0)
-        return -elastic * cu, -elastic * su, delta
+            force = jnp.maximum(force * (1.0 + chi_qin_lu(self.restitution) * rate / deltadot0), 0.0)
+            force = jnp.where(delta > 0.0, force, 0.0)
+        return force
+
+    def _point(self, kin, cu, su, local, weight, deltadot0, modulus, thickness):
+        """Force components on the journal ``(f_x, f_y)`` from the point in direction ``u`` and
+        its overlap."""
+        delta, rate, _, _ = self._overlap(kin, cu, su, local)
+        force = self._point_force(kin, delta, rate, weight, deltadot0, modulus, thickness)
+        return -force * cu, -force * su, delta
+
+    def _joint_damping(self, kin, deltadot0):
+        """Factor :math:`\\max(1 + \\hat\\chi\\dot\\delta/\\dot\\delta^{(-)}, 0)` of ``damping="joint"``."""
+        return jnp.maximum(1.0 + chi_qin_lu(self.restitution) * kin.deltadot / deltadot0, 0.0)
+
+    def surface(self, kin, deltadot0):
+        r"""The contact field point by point, for wear (Archard): each point's angle in the bearing
+        body :math:`\beta_k` [rad], its normal force :math:`f_k = p_k w_k R_J L` [N] (pressure
+        times area, with the joint's damping factor for ``damping="joint"``) and its slip speed
+        :math:`v_{s,k}` [m/s]; each ``(N,)``. The sum of the :math:`f_k` is the pressure
+        integral, which equals the normal force up to the arc's obliquity (:math:`\cos` of the
+        point angles from the normal)."""
+        cu, su, local, weights = self._directions(kin)
+        modulus, thickness = self.modulus(), self.layer_thickness(kin)
+
+        def one(c, s, a, w):
+            delta, rate, slip, beta = self._overlap(kin, c, s, a)
+            return beta, self._point_force(kin, delta, rate, w, deltadot0, modulus, thickness), slip
+
+        beta, force, slip = jax.vmap(one)(cu, su, local, weights)
+        if self.damping == "joint":
+            force = force * self._joint_damping(kin, deltadot0)
+        return beta, force, slip
 
     def _resultant(self, kin, deltadot0):
         cu, su, local, weights = self._directions(kin)
@@ -333,7 +371,7 @@ class HybridLaw(AbstractNormalLaw):
         direction = jnp.where(nonzero, -vec / mag, kin.normal)
         mag = jnp.where(nonzero, mag, 0.0)
         if self.damping == "joint":
-            mag = jnp.maximum(mag * (1.0 + chi_qin_lu(self.restitution) * kin.deltadot / deltadot0), 0.0)
+            mag = mag * self._joint_damping(kin, deltadot0)
         if self.journal_profile is None and self.bearing_profile is None:
             direction = kin.normal
         return mag, direction

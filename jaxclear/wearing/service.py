@@ -1,0 +1,221 @@
+r"""Wear over a long service: simulate a window, wear the bearing, run the next window on the
+worn profile (:func:`wear`).
+
+Each update simulates the mechanism over the settings' span on the current profile, discards
+the first ``settle`` seconds (the start transient: every window starts from the assembled
+initial state, so that all windows share one compiled program), integrates Archard's law over
+the rest (:func:`~jaxclear.wear.archard.window_wear`), multiplies the window's wear by the
+extrapolation factor ``cycles_per_update`` (a window stands for that many identical cycles, as in
+Flores, Mech. Mach. Theory 44 (2009) 1211-1222, where wear is far too slow to simulate cycle by
+cycle) and updates the bearing (:func:`~jaxclear.wear.profile.worn`).
+
+With an output folder the work is written as it goes and resumes after a kill: after every
+update ``profile_NNNN.csv`` (node angle, cumulative depth), a row of ``updates.csv``, the
+state ``wear.json`` (atomically) and the polar figure ``profile.png``; the folder is locked
+while it runs.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+from tqdm import tqdm
+
+from .._errors import CheckpointError, ParameterError, check_range
+from .._storage import atomic_write_json, atomic_write_text, fingerprint, fsync_append, locked_folder
+from ..integrate.settings import Settings
+from ..integrate.simulate import simulate
+from ..model.mechanism import Mechanism
+from .figures import plot_wear
+from .archard import WindowWear, wear_element, window_wear
+from .profile import node_angles, prepare, worn
+
+STATE_FILE = "wear.json"
+UPDATES_FILE = "updates.csv"
+UPDATES_HEADER = "update,service_time_s,cycles,worn_volume_m3,max_depth_m,mean_depth_m,peak_force_n,max_penetration_m\n"
+
+
+@dataclasses.dataclass(frozen=True)
+class WearOptions:
+    """What a wear run does.
+
+    Attributes:
+        coefficient: Archard's dimensional wear coefficient :math:`k_w` [m^2/N], > 0.
+        updates: number of profile updates (windows) [-], >= 1.
+        cycles_per_update: extrapolation factor [-], >= 1: the window's wear is multiplied by it.
+        settle: start of each window discarded [s], >= 0 and below the settings' span.
+        joint: the clearance joint worn (index or name; ``None``: the only one).
+        n_nodes: bearing nodes [-], >= 8.
+        harmonics: Fourier terms of the worn profile [-], in [1, n_nodes / 2).
+    """
+
+    coefficient: float
+    updates: int
+    cycles_per_update: float = 1.0
+    settle: float = 0.0
+    joint: int | str | None = None
+    n_nodes: int = 180
+    harmonics: int = 24
+
+    def check(self, settings: Settings):
+        check_range("wear coefficient (coefficient)", self.coefficient, low=0.0, low_open=True, unit="m^2/N")
+        check_range("extrapolation factor (cycles_per_update)", self.cycles_per_update, low=1.0)
+        if int(self.updates) != self.updates or self.updates < 1:
+            raise ParameterError(f"updates = {self.updates} is outside the allowed range: an integer >= 1")
+        if int(self.n_nodes) != self.n_nodes or self.n_nodes < 8:
+            raise ParameterError(f"n_nodes = {self.n_nodes} is outside the allowed range: an integer >= 8")
+        if int(self.harmonics) != self.harmonics or not 1 <= self.harmonics < self.n_nodes / 2:
+            raise ParameterError(f"harmonics = {self.harmonics} is outside the allowed range: an integer in "
+                                 f"[1, n_nodes / 2 = {self.n_nodes / 2:g})")
+        span = float(settings.t_end) - settings.t_start
+        check_range("settle", self.settle, low=0.0, high=span, high_open=True, unit="s")
+
+
+@dataclasses.dataclass
+class WearHistory:
+    """Result of :func:`wear`.
+
+    Attributes:
+        mechanism: the mechanism with the bearing worn by all updates.
+        angles: bearing node angles [rad] ``(n,)``.
+        depth: cumulative wear depth at the nodes after each update [m] ``(U, n)``.
+        volume: worn volume of each update (window times the factor) [m^3] ``(U,)``.
+        service_time: service time after each update [s] ``(U,)``.
+        peak_force: largest contact force of each window [N] ``(U,)``.
+        max_penetration: largest penetration of each window [m] ``(U,)``.
+        resumed_from: updates found done in the output folder (0: a fresh run).
+    """
+
+    mechanism: Mechanism
+    angles: np.ndarray
+    depth: np.ndarray
+    volume: np.ndarray
+    service_time: np.ndarray
+    peak_force: np.ndarray
+    max_penetration: np.ndarray
+    resumed_from: int = 0
+
+
+@eqx.filter_jit
+def _window(mech, settings, index, coefficient, n_nodes, t_from):
+    sol = simulate(mech, settings)
+    w: WindowWear = window_wear(mech, sol, index, coefficient, n_nodes, t_from)
+    inside = sol.ts >= t_from
+    peak = jnp.max(jnp.where(inside, sol.normal_force[:, index], 0.0))
+    return w, peak, jnp.max(jnp.where(inside, sol.penetration[:, index], -jnp.inf))
+
+
+def _row(u: int, record: dict) -> str:
+    keys = ("service_time_s", "cycles", "worn_volume_m3", "max_depth_m", "mean_depth_m", "peak_force_n",
+            "max_penetration_m")
+    return f"{u}," + ",".join(repr(float(record[k])) for k in keys) + "\n"
+
+
+def _load_state(out: str, key: str, restart: bool) -> list[dict]:
+    path = os.path.join(out, STATE_FILE)
+    if restart or not os.path.exists(path):
+        return []
+    try:
+        with open(path, encoding="utf-8") as f:
+            state = json.load(f)
+        records = state["updates"]
+        stored_key = state["fingerprint"]
+        for r in records:
+            np.asarray(r["depth_m"], float)
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise CheckpointError(f"the wear state {path!r} is unreadable ({exc}); run again with --restart "
+                              "(restart=True) to start over") from None
+    if stored_key != key:
+        raise CheckpointError(f"the wear state in {out!r} belongs to another mechanism or other wear options; "
+                              "choose another folder or run with --restart (restart=True) to start over")
+    return records
+
+
+def _write(out: str, key: str, records: list[dict], options: WearOptions, clearance: float):
+    u = len(records) - 1
+    rec = records[-1]
+    angles = node_angles(options.n_nodes)
+    lines = ["angle_rad,depth_m\n"] + [f"{a!r},{d!r}\n" for a, d in zip(angles, rec["depth_m"])]
+    atomic_write_text(os.path.join(out, f"profile_{u:04d}.csv"), "".join(lines))
+    updates = os.path.join(out, UPDATES_FILE)
+    if u == 0 or not os.path.exists(updates):
+        atomic_write_text(updates, UPDATES_HEADER + "".join(_row(i, r) for i, r in enumerate(records)))
+    else:
+        fsync_append(updates, _row(u, rec))
+    atomic_write_json(os.path.join(out, STATE_FILE), {"fingerprint": key, "updates": records}, indent=1)
+    plot_wear(angles, np.asarray([r["depth_m"] for r in records]), np.asarray([r["service_time_s"] for r in records]),
+              clearance, os.path.join(out, "profile.png"))
+
+
+def wear(mech: Mechanism, settings: Settings, options: WearOptions, out: str | None = None, *,
+         restart: bool = False, progress: bool = True) -> WearHistory:
+    """Wear the bearing of one clearance joint of ``mech`` over ``options.updates`` windows of
+    ``settings`` (see the module docstring). ``out``: output folder (written as it goes, resumed
+    if it holds a run of the same mechanism, settings and options; ``restart`` starts over)."""
+    options.check(settings)
+    index = wear_element(mech, options.joint)
+    base = prepare(mech, index, options.harmonics)
+    window_time = float(settings.t_end) - settings.t_start - options.settle
+    t_from = settings.t_start + options.settle
+    key = fingerprint(base, settings, repr(dataclasses.replace(options, updates=0)))
+    clearance = float(mech.elements[index].clearance)
+
+    def run(records: list[dict]) -> list[dict]:
+        done = len(records)
+        if done:
+            tqdm.write(f"jaxclear wear: resuming in {out}: {done} of {options.updates} updates already done")
+        depth = np.asarray(records[-1]["depth_m"], float) if records else np.zeros(options.n_nodes)
+        bar = None
+        for u in range(done, options.updates):
+            current = worn(base, index, depth)
+            w, peak, pen = _window(current, settings, index, options.coefficient, options.n_nodes, t_from)
+            window_depth = np.asarray(w.depth)
+            if not np.all(np.isfinite(window_depth)):
+                raise ParameterError(f"update {u}: the wear depth is not finite (the window's run failed)")
+            depth = depth + options.cycles_per_update * window_depth
+            cycles = (u + 1) * options.cycles_per_update
+            records.append({
+                "service_time_s": cycles * window_time, "cycles": cycles,
+                "worn_volume_m3": options.cycles_per_update * float(w.volume), "max_depth_m": float(depth.max()),
+                "mean_depth_m": float(depth.mean()), "peak_force_n": float(peak), "max_penetration_m": float(pen),
+                "depth_m": depth.tolist(),
+            })
+            if out is not None:
+                _write(out, key, records, options, clearance)
+            if bar is None:  # the bar starts after the first (compiling) update
+                bar = tqdm(total=options.updates, initial=u + 1, unit="update", desc="wear", disable=not progress)
+            else:
+                bar.update(1)
+            if float(depth.max()) >= clearance:
+                bar.close()
+                raise ParameterError(
+                    f"after update {u} the wear depth {depth.max():.3g} m exceeds the clearance {clearance:.3g} m: "
+                    "the extrapolation factor (cycles_per_update) is too large for a profile update this coarse")
+        if bar is not None:
+            bar.close()
+        return records
+
+    if out is None:
+        records = run([])
+        resumed = 0
+    else:
+        with locked_folder(out, "wear output folder"):
+            records = _load_state(out, key, restart)
+            resumed = len(records)
+            records = run(records[: options.updates])
+    depth = np.asarray([r["depth_m"] for r in records], float)
+    return WearHistory(
+        mechanism=worn(base, index, depth[-1]),
+        angles=node_angles(options.n_nodes),
+        depth=depth,
+        volume=np.asarray([r["worn_volume_m3"] for r in records]),
+        service_time=np.asarray([r["service_time_s"] for r in records]),
+        peak_force=np.asarray([r["peak_force_n"] for r in records]),
+        max_penetration=np.asarray([r["max_penetration_m"] for r in records]),
+        resumed_from=resumed,
+    )
