@@ -30,7 +30,7 @@ from ._storage import atomic_write_text
 from ._units import rpm_to_rad_s
 from .contact import FourierProfile, Friction, Material, make_law
 from .contact.friction import FRICTION_MODELS, friction_name
-from .elements import ClearanceJoint
+from .elements import FILMS, ClearanceJoint, LubricatedJoint, PinSlotJoint, TranslationalClearanceJoint
 from .model import AngleDriver, Body, Fixed, Mechanism, PointForce, Revolute, Torque, Translational
 
 FORMAT_VERSION = 1
@@ -49,16 +49,30 @@ LOAD_TYPES = {
     "point-force": (PointForce, ("body", "point", "force")),
     "torque": (Torque, ("body", "torque")),
 }
+_JOURNAL = ("name", "bearing_body", "bearing_point", "journal_body", "journal_point", "bearing_radius",
+            "journal_radius")
+_TAIL = ("law", "friction", "impact_velocity_floor", "initial_offset", "initial_velocity")
 ELEMENT_TYPES = {
-    "revolute-clearance": (ClearanceJoint, (
-        "name", "bearing_body", "bearing_point", "journal_body", "journal_point", "bearing_radius",
-        "journal_radius", "length", "law", "friction", "impact_velocity_floor", "initial_offset",
-        "initial_velocity")),
+    "revolute-clearance": (ClearanceJoint, (*_JOURNAL, "length", *_TAIL)),
+    "lubricated": (LubricatedJoint, (*_JOURNAL, "width", "viscosity", "film", "blend_start", "blend_end", *_TAIL)),
+    "pin-slot": (PinSlotJoint, (*_JOURNAL, "slot_length", "axis", "length", "ideal", *_TAIL)),
+    "translational-clearance": (TranslationalClearanceJoint, (
+        "name", "guide_body", "guide_point", "slider_body", "slider_point", "slider_length", "slider_height",
+        "guide_width", "axis", "angle", "corner_radius", *_TAIL)),
 }
+#: file key -> constructor argument, where they differ (the lubricated joint's film width is its ``length``)
+ELEMENT_RENAMES = {"lubricated": {"width": "length"}}
+#: keys whose value is one of a few strings
+CHOICES = {"film": FILMS, "ideal": ("revolute", "line")}
+#: keys whose value is a string (every other value is a number or an array of numbers)
+STRING_KEYS = {"name", "body", "point", "body_i", "point_i", "body_j", "point_j", "bearing_body", "bearing_point",
+               "journal_body", "journal_point", "guide_body", "guide_point", "slider_body", "slider_point",
+               "relative_to", *CHOICES}
 #: law parameters that are tables, by the suffix of their key
 TABLE_PARAMETERS = {"_material": (Material, ("young", "poisson")), "_profile": (FourierProfile, ("cos", "sin"))}
 REQUIRED = {"body", "body_i", "point_i", "body_j", "point_j", "point", "bearing_body",
-            "bearing_point", "journal_body", "journal_point", "bearing_radius"}
+            "bearing_point", "journal_body", "journal_point", "bearing_radius", "guide_body", "guide_point",
+            "slider_body", "slider_point"}
 
 
 # --------------------------------------------------------------------------------------
@@ -80,8 +94,9 @@ def _plain(value):
     return _number(value)
 
 
-def _fields(module, keys) -> dict:
-    return {k: _plain(getattr(module, k)) for k in keys if getattr(module, k) is not None}
+def _fields(module, keys, renames=None) -> dict:
+    attr = renames or {}
+    return {k: _plain(getattr(module, attr.get(k, k))) for k in keys if getattr(module, attr.get(k, k)) is not None}
 
 
 def _no_function(item, where: str):
@@ -90,11 +105,11 @@ def _no_function(item, where: str):
                              "file (only constant forces, torques and AngleDriver speeds can)")
 
 
-def _typed(table: dict, item, where: str, skip=()) -> dict:
+def _typed(table: dict, item, where: str, skip=(), renames=None) -> dict:
     for name, (cls, keys) in table.items():
         if type(item) is cls:
             _no_function(item, where)
-            return {"type": name, **_fields(item, [k for k in keys if k not in skip])}
+            return {"type": name, **_fields(item, [k for k in keys if k not in skip], (renames or {}).get(name))}
     raise MechanismError(f"{where}: {type(item).__name__} cannot be written to a mechanism file; "
                          f"allowed types: {[c.__name__ for c, _ in table.values()]}")
 
@@ -143,7 +158,7 @@ def mechanism_dict(mech: Mechanism) -> dict:
             doc[key] = [_typed(table, item, f"{key}[{i}]") for i, item in enumerate(items)]
     elements = []
     for i, el in enumerate(mech.clearance_joints):
-        row = _typed(ELEMENT_TYPES, el, f"clearance_joints[{i}]", skip=("law", "friction"))
+        row = _typed(ELEMENT_TYPES, el, f"clearance_joints[{i}]", skip=("law", "friction"), renames=ELEMENT_RENAMES)
         row["law"], row["friction"] = law_table(el.law), friction_table(el.friction)
         elements.append(row)
     if elements:
@@ -248,8 +263,12 @@ class _Reader:
         return cls, kwargs
 
     def value(self, key: str, name: str, value):
-        if isinstance(value, str):
+        if name in CHOICES:
+            if value not in CHOICES[name]:
+                self.fail(key, f"{value!r} is not allowed; allowed: {list(CHOICES[name])}", ParameterError)
             return value
+        if name in STRING_KEYS:
+            return self.string(key, value)
         if name in ("axis", "force", "initial_offset", "initial_velocity"):
             return self.vector(key, value, 2)
         return self.number(key, value)
@@ -287,22 +306,46 @@ def _friction(r: _Reader, key: str, table) -> object:
 
 def _element(r: _Reader, key: str, row) -> object:
     row = r.table(key, row)
+    kind = row.get("type", "revolute-clearance")
     cls, kwargs = r.typed(key, row, ELEMENT_TYPES, "revolute-clearance", skip=("law", "friction", "clearance"))
+    for file_key, argument in ELEMENT_RENAMES.get(kind, {}).items():
+        if file_key in kwargs:
+            kwargs[argument] = kwargs.pop(file_key)
     if "law" in row:
         kwargs["law"] = _law(r, f"{key}.law", row["law"])
     if "friction" in row:
         kwargs["friction"] = _friction(r, f"{key}.friction", row["friction"])
     if "clearance" in row:
-        if "journal_radius" in row:
-            r.fail(f"{key}.clearance", "give either clearance or journal_radius, not both", ParameterError)
-        if "bearing_radius" not in row:
-            r.fail(f"{key}.bearing_radius", "missing (needed with clearance)", ParameterError)
-        rb, c = float(row["bearing_radius"]), float(r.number(f"{key}.clearance", row["clearance"]))
-        if not 0.0 < c < rb:
-            r.fail(f"{key}.clearance", f"{c:g} m is outside the allowed range (0, bearing_radius = {rb:g} m)",
-                   ParameterError)
-        kwargs["journal_radius"] = rb - c
+        c = float(r.number(f"{key}.clearance", row["clearance"]))
+        if cls is TranslationalClearanceJoint:
+            _guide_from_clearance(r, key, row, c, kwargs)
+        else:
+            _journal_from_clearance(r, key, row, c, kwargs)
     return r.build(key, cls, kwargs)
+
+
+def _journal_from_clearance(r: _Reader, key: str, row: dict, c: float, kwargs: dict):
+    """``clearance`` c instead of ``journal_radius``: R_J = R_B - c, c in (0, R_B)."""
+    if "journal_radius" in row:
+        r.fail(f"{key}.clearance", "give either clearance or journal_radius, not both", ParameterError)
+    rb = float(row["bearing_radius"])
+    if not 0.0 < c < rb:
+        r.fail(f"{key}.clearance", f"{c:g} m is outside the allowed range (0, bearing_radius = {rb:g} m)",
+               ParameterError)
+    kwargs["journal_radius"] = rb - c
+
+
+def _guide_from_clearance(r: _Reader, key: str, row: dict, c: float, kwargs: dict):
+    """``clearance`` c per side instead of ``guide_width``: W = b + 2c, c > 0 (needs ``slider_height`` b)."""
+    if "guide_width" in row:
+        r.fail(f"{key}.clearance", "give either clearance (per side) or guide_width, not both", ParameterError)
+    if "slider_height" not in row:
+        r.fail(f"{key}.slider_height", "missing (needed with clearance: guide_width = slider_height + 2 clearance)",
+               ParameterError)
+    if not c > 0.0:
+        r.fail(f"{key}.clearance", f"{c:g} m is outside the allowed range (0, inf) m (clearance per side)",
+               ParameterError)
+    kwargs["guide_width"] = float(row["slider_height"]) + 2.0 * c
 
 
 def _driver(r: _Reader, key: str, row) -> object:
