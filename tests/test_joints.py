@@ -270,6 +270,85 @@ def test_translational_bad_input_is_named(kw, match):
         jc.TranslationalClearanceJoint(jc.GROUND, "g", "slider", "S", **args)
 
 
+@pytest.mark.parametrize("kw,match", [
+    ({"guide_width": -0.03}, "guide_width"),
+    ({"slider_height": 0.0}, "slider_height"),
+    ({"corner_radius": 0.0}, "corner_radius"),
+    ({"impact_velocity_floor": -1.0}, "impact_velocity_floor"),
+    ({"axis": (0.0, 0.0)}, "axis"),
+])
+def test_translational_more_bad_input_is_named(kw, match):
+    args = {"slider_length": 0.05, "slider_height": 0.03, "guide_width": 0.0302} | kw
+    with pytest.raises(jc.ParameterError, match=match):
+        jc.TranslationalClearanceJoint(jc.GROUND, "g", "slider", "S", **args)
+
+
+CODE = {name: int(getattr(jc.RESULTS, name)._value) for name in jc.RESULTS._name_to_item}
+
+
+def _codes(mech, where, values):
+    """Status codes of ``mech.check()`` with the leaf at ``where`` set to each of ``values``,
+    evaluated once eagerly (first value) and under jit(vmap) (all)."""
+    def code(v):
+        return eqx.tree_at(where, mech, v).check()._value
+
+    eager = eqx.tree_at(where, mech, jnp.asarray(values[0])).check()
+    traced = jax.jit(jax.vmap(code))(jnp.asarray(values, dtype=float))
+    assert int(eager._value) == int(traced[0])
+    return [int(c) for c in traced]
+
+
+@pytest.mark.parametrize("where, bad, entry", [
+    (lambda m: m.clearance_joints[0].guide_width, 0.029, "invalid_clearance"),  # the slider does not fit
+    (lambda m: m.clearance_joints[0].slider_height, 0.031, "invalid_clearance"),
+    (lambda m: m.clearance_joints[0].slider_length, 0.0, "invalid_clearance"),
+    (lambda m: m.clearance_joints[0].corner_radius, -1e-3, "invalid_parameter"),
+    (lambda m: m.clearance_joints[0].impact_velocity_floor, 0.0, "invalid_parameter"),
+    (lambda m: m.clearance_joints[0].angle, math.nan, "invalid_parameter"),
+    (lambda m: m.clearance_joints[0].law.stiffness, -1.0, "invalid_stiffness"),
+    (lambda m: m.clearance_joints[0].law.restitution, 1.5, "invalid_restitution"),
+    (lambda m: m.clearance_joints[0].friction.coefficient, -0.1, "invalid_friction"),
+])
+def test_translational_check_names_bad_numbers_inside_jit_and_vmap(where, bad, entry):
+    """The constructor refuses these values (tests above); a value that reaches the joint as a
+    traced leaf (a sweep, a fit) gets the named status instead, eagerly and under jit(vmap),
+    the valid members of the batch untouched."""
+    mech = jc.preset("slider-crank-guide-clearance")
+    good = float(where(mech))
+    assert _codes(mech, where, [bad, good]) == [CODE[entry], 0]
+
+
+@pytest.mark.parametrize("field, bad", [
+    ("viscosity", 0.0), ("viscosity", -0.4), ("length", 0.0),  # the film width
+    ("blend_start", 0.0), ("blend_start", 1.0), ("blend_end", 1.2),
+    ("blend_start", 0.995),  # above blend_end = 0.99: wrong order
+])
+def test_lubricated_check_names_bad_numbers_inside_jit_and_vmap(field, bad):
+    mech = jc.preset("flores-slider-crank", viscosity=0.4)
+    where = lambda m: getattr(m.clearance_joints[0], field)  # noqa: E731
+    assert _codes(mech, where, [bad, float(where(mech))]) == [CODE["invalid_parameter"], 0]
+
+
+def test_pin_slot_check_names_a_negative_slot_length_inside_jit_and_vmap():
+    mech = jc.preset("slider-crank-pin-slot")
+    where = lambda m: m.clearance_joints[0].slot_length  # noqa: E731
+    assert _codes(mech, where, [-1e-3, 0.0, 1e-3]) == [CODE["invalid_parameter"], 0, 0]
+
+
+def test_translational_penetration_limit_reports_a_block_sinking_through_its_guide():
+    """The limit is a tenth of the corner radius (0.1 mm for the 1 mm corner). With K = 1 N/m^1.5
+    (a law far too soft) the resting block sinks under gravity: after 10 ms of free fall it is
+    g t^2 / 2 = 0.49 mm deep, beyond the limit, so the run ends penetration_too_deep; with the
+    physical K it stays ok."""
+    mech = _block(offset=(-1e-4 + 1e-6, 0.0))
+    joint = mech.clearance_joints[0]
+    assert float(joint.penetration_limit()) == pytest.approx(1e-4, rel=1e-12)
+    soft = eqx.tree_at(lambda m: m.clearance_joints[0].law.stiffness, mech, jnp.asarray(1.0))
+    s = jc.settings(0.01, n_out=3, throw=False)
+    assert int(jc.simulate(soft, s).status) == CODE["penetration_too_deep"]
+    assert int(jc.simulate(mech, s).status) == 0
+
+
 def test_named_parameters_address_the_translational_joint():
     mech = jc.preset("slider-crank-guide-clearance")
     np.testing.assert_allclose(float(jc.params.get(mech, "clearance")), 1e-4)

@@ -69,7 +69,7 @@ import math
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._errors import ParameterError, check_range, is_concrete
+from .._errors import RESULTS, ParameterError, check_range, first_failure, in_range, is_concrete
 from .._types import ArrayLike, Scalar, Vec2
 from ..contact.base import AbstractFriction, AbstractNormalLaw
 from ..contact.friction import Friction
@@ -222,6 +222,18 @@ class LubricatedJoint(AbstractJournalJoint):
     def width(self):
         """Film width L [m] (the joint's ``length``)."""
         return self.length
+
+    def check(self) -> RESULTS:
+        """The journal joint's checks (radii, clearance, width = length > 0, floor, laws), then
+        viscosity > 0 and blend bounds :math:`0 < \\varepsilon_0 < \\varepsilon_1 < 1`
+        (``invalid_parameter``)."""
+        film = (
+            in_range(self.viscosity, low=0.0, low_open=True)
+            & in_range(self.blend_start, low=0.0, high=1.0, low_open=True, high_open=True)
+            & in_range(self.blend_end, low=0.0, high=1.0, low_open=True, high_open=True)
+            & in_range(self.blend_end - self.blend_start, low=0.0, low_open=True)
+        )
+        return first_failure(super().check(), (film, RESULTS.invalid_parameter))
 
     def kinematics(self, mech: Mechanism, q, qdot):
         return kinematics(mech, self, q, qdot)

@@ -27,7 +27,7 @@ from __future__ import annotations
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._errors import ParameterError, check_range, is_concrete
+from .._errors import RESULTS, ParameterError, check_range, first_failure, in_range, is_concrete
 from .._types import ArrayLike, Scalar, Vec2
 from ..contact.base import AbstractFriction, AbstractNormalLaw, ContactKinematics
 from ..contact.friction import Friction
@@ -130,6 +130,12 @@ class PinSlotJoint(AbstractJournalJoint):
         self.initial_velocity = jnp.asarray(initial_velocity, dtype=float).reshape(2)
         self.ideal = ideal
         self.name = name
+
+    def check(self) -> RESULTS:
+        """The journal joint's checks (radii, clearance, length, floor, laws), then
+        slot_length >= 0 and a non-zero finite axis (``invalid_parameter``)."""
+        slot = in_range(self.slot_length, low=0.0) & in_range(jnp.sum(self.axis * self.axis), low=0.0, low_open=True)
+        return first_failure(super().check(), (slot, RESULTS.invalid_parameter))
 
     def clearance_region(self, n: int = 361):
         r"""The stadium the pin centre may roam without contact, around the slot centre with the
