@@ -54,7 +54,8 @@ _JOURNAL = ("name", "bearing_body", "bearing_point", "journal_body", "journal_po
 _TAIL = ("law", "friction", "impact_velocity_floor", "initial_offset", "initial_velocity")
 ELEMENT_TYPES = {
     "revolute-clearance": (ClearanceJoint, (*_JOURNAL, "length", *_TAIL)),
-    "lubricated": (LubricatedJoint, (*_JOURNAL, "width", "viscosity", "film", "blend_start", "blend_end", *_TAIL)),
+    "lubricated": (LubricatedJoint, (*_JOURNAL, "width", "viscosity", "film", "blend_start", "blend_end",
+                                     "journal_profile", "bearing_profile", "n_elements", "n_gauss", *_TAIL)),
     "pin-slot": (PinSlotJoint, (*_JOURNAL, "slot_length", "axis", "length", "ideal", *_TAIL)),
     "translational-clearance": (TranslationalClearanceJoint, (
         "name", "guide_body", "guide_point", "slider_body", "slider_point", "slider_length", "slider_height",
@@ -91,6 +92,8 @@ def _number(value):
 def _plain(value):
     if isinstance(value, (str, bool, int, float)):
         return value
+    if isinstance(value, FourierProfile):
+        return _fields(value, ("cos", "sin"))
     return _number(value)
 
 
@@ -271,6 +274,10 @@ class _Reader:
             return self.string(key, value)
         if name in ("axis", "force", "initial_offset", "initial_velocity"):
             return self.vector(key, value, 2)
+        if name.endswith("_profile"):  # a profile of a force element (laws: see _law)
+            sub = self.table(key, value)
+            self.keys(key, sub, TABLE_PARAMETERS["_profile"][1])
+            return self.build(key, FourierProfile, dict(sub))
         return self.number(key, value)
 
 

@@ -68,6 +68,8 @@ def _lubricated(**kw):
     _lubricated(length=0.02, viscosity=1.5, film="half-fixed", blend_start=0.9, blend_end=0.97,
                 law=jc.make_law("hunt-crossley", restitution=0.7), friction=jc.Friction(0.05, model="coulomb"),
                 initial_offset=(1e-4, -2e-4), initial_velocity=(0.01, 0.0), name="oil"),
+    _lubricated(journal_profile=jc.oval(2e-5, 0.3), bearing_profile=jc.FourierProfile([0.0, 0.0, 1e-5]),
+                n_elements=60, n_gauss=3, film="full"),
     jc.preset("slider-crank-pin-slot", slot_length=0.0),
     eqx.tree_at(lambda m: m.clearance_joints, jc.preset("slider-crank-pin-slot"), (jc.PinSlotJoint(
         "slider", "B", "rod", "B", 0.01, 0.0094, slot_length=5e-3, axis=(0.6, 0.8), ideal="line",
@@ -77,7 +79,7 @@ def _lubricated(**kw):
         jc.TranslationalClearanceJoint(jc.GROUND, "rail", "slider", "B", 0.04, 0.02, 0.0206, axis=(1.0, 0.0),
                                        angle=0.0, corner_radius=2e-3, initial_offset=(1e-4, 1e-3),
                                        initial_velocity=(0.0, 0.5), name="g2"),)),
-], ids=["lubricated", "lubricated-options", "pin-slot-round-hole", "pin-slot-line", "guide", "guide-options"])
+], ids=["lubricated", "lubricated-options", "lubricated-profiles", "pin-slot-round-hole", "pin-slot-line", "guide", "guide-options"])
 def test_new_force_elements_round_trip(tmp_path, mech):
     path = tmp_path / "m.toml"
     jc.save_mechanism(mech, path)
