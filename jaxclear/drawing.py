@@ -132,7 +132,8 @@ class _Artist:
             if isinstance(j, TranslationalClearanceJoint):  # the slider's lateral offset in its guide
                 phi = 0.0 if seat_body == GROUND else q[3 * self.mech.body_index(seat_body) + 2]
                 ax = np.asarray(j.axis, float)
-                normal = np.array([-np.sin(phi) * ax[0] - np.cos(phi) * ax[1], np.cos(phi) * ax[0] - np.sin(phi) * ax[1]])
+                c, s = np.cos(phi), np.sin(phi)
+                normal = np.array([-s * ax[0] - c * ax[1], c * ax[0] - s * ax[1]])  # perp of the guide axis
                 ecc = float(np.dot(pj - pb, normal)) * normal
                 pb = pj - ecc
             else:
