@@ -1,9 +1,10 @@
 """Mechanism files: any planar mechanism as a TOML document (format in docs/mechanism-files.md).
 
 A file holds what :class:`~jaxclear.Mechanism` holds, in SI units: bodies (mass, inertia, named
-points, initial guesses of position and velocity), ideal joints, drivers, clearance joints (law
-by name with its parameters, friction, radii, initial offset), applied loads, gravity, ground
-points and roles. :func:`load_mechanism` reads one (the standard ``tomllib``) and validates it:
+points, initial guesses of position and velocity), ideal joints, drivers, force elements (revolute
+clearance, lubricated, pin-in-slot and translational clearance joints: geometry, law by name with
+its parameters, friction, film, profiles, initial offset), applied loads, gravity, ground points
+and roles. :func:`load_mechanism` reads one (the standard ``tomllib``) and validates it:
 every error names the file, the key and the allowed values. :func:`save_mechanism` writes one
 (``tomli-w``); a mechanism written and read back is equal leaf by leaf (``eqx.tree_equal``).
 
@@ -30,7 +31,7 @@ from ._storage import atomic_write_text
 from ._units import rpm_to_rad_s
 from .contact import FourierProfile, Friction, Material, make_law
 from .contact.friction import FRICTION_MODELS, friction_name
-from .elements import FILMS, ClearanceJoint, LubricatedJoint, PinSlotJoint, TranslationalClearanceJoint
+from .elements import FILMS, IDEALS, ClearanceJoint, LubricatedJoint, PinSlotJoint, TranslationalClearanceJoint
 from .model import AngleDriver, Body, Fixed, Mechanism, PointForce, Revolute, Torque, Translational
 
 FORMAT_VERSION = 1
@@ -64,7 +65,7 @@ ELEMENT_TYPES = {
 #: file key -> constructor argument, where they differ (the lubricated joint's film width is its ``length``)
 ELEMENT_RENAMES = {"lubricated": {"width": "length"}}
 #: keys whose value is one of a few strings
-CHOICES = {"film": FILMS, "ideal": ("revolute", "line")}
+CHOICES = {"film": FILMS, "ideal": IDEALS}
 #: keys whose value is a string (every other value is a number or an array of numbers)
 STRING_KEYS = {"name", "body", "point", "body_i", "point_i", "body_j", "point_j", "bearing_body", "bearing_point",
                "journal_body", "journal_point", "guide_body", "guide_point", "slider_body", "slider_point",

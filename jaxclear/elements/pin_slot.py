@@ -39,6 +39,10 @@ from ..model.mechanism import Mechanism, point_position, point_velocity
 from .revolute_clearance import AbstractJournalJoint, check_journal_geometry, contact_forces
 
 
+#: The ideal joints a pin-in-slot joint can stand for (``ideal``; class docstring).
+IDEALS = ("revolute", "line")
+
+
 def nearest_on_segment(r: Vec2, u: Vec2, slot_length) -> Scalar:
     r""":math:`s^* = \mathrm{clip}(\mathbf r\cdot u, -\ell/2, \ell/2)` [m]."""
     half = 0.5 * slot_length
@@ -96,7 +100,7 @@ class PinSlotJoint(AbstractJournalJoint):
         ideal: str = "revolute",
         name: str = "pin-slot",
     ):
-        if ideal not in ("revolute", "line"):
+        if ideal not in IDEALS:
             raise ParameterError(f"ideal = {ideal!r}; valid: 'revolute' (pin at the slot centre), 'line' (pin on the "
                                  "slot's line)")
         check_range("slot_length", slot_length, low=0.0, unit="m")
