@@ -66,12 +66,10 @@ PRESET_FILES = ROOT / "jaxclear" / "mechanisms"
 
 
 def _element_file(tmp_path, kind: str) -> Path:
-    """A mechanism file with one force element of ``kind`` (the shipped preset files, and the
-    lubricated benchmark written by save_mechanism)."""
+    """A mechanism file with one force element of ``kind``: the shipped preset files and the
+    lubricated benchmark of examples/."""
     if kind == "lubricated":
-        path = tmp_path / "lubricated-slider-crank.toml"
-        jc.save_mechanism(jc.preset("flores-slider-crank", viscosity=0.4), path)
-        return path
+        return ROOT / "examples" / "lubricated-slider-crank.toml"
     return PRESET_FILES / f"{kind}.toml"
 
 

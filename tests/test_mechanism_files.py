@@ -153,6 +153,10 @@ def test_example_files_load(path):
     assert mech.clearance_joints
 
 
+def test_lubricated_example_is_the_preset_with_an_oil_film():
+    assert same(jc.load_mechanism(EXAMPLES / "lubricated-slider-crank.toml"), _lubricated())
+
+
 SHORT = """
 name = "short"
 [ground_points]
