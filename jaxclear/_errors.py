@@ -58,17 +58,20 @@ class RESULTS(eqx.Enumeration):
     invalid_stiffness = "invalid parameter: contact stiffness (K, E*, foundation modulus) must be finite and > 0"
     invalid_clearance = (
         "invalid parameter: radii must be finite and > 0 with journal_radius < bearing_radius "
-        "(clearance c = R_B - R_J in (0, R_B))"
+        "(clearance c = R_B - R_J in (0, R_B)); a slider block must fit its guide (slider_length, "
+        "slider_height > 0, slider_height < guide_width)"
     )
     invalid_friction = "invalid parameter: friction coefficient must be finite and >= 0"
     invalid_mass = "invalid parameter: every body's mass and inertia must be finite and > 0"
     invalid_parameter = (
         "invalid parameter: another law or element number outside its range (exponent > 0, "
         "length > 0, impact_velocity_floor > 0, Young's modulus > 0, Poisson ratio in (-1, 0.5), "
-        "friction speeds > 0, all finite)"
+        "friction speeds > 0, viscosity > 0, 0 < blend_start < blend_end < 1, slot_length >= 0, "
+        "corner_radius > 0, axis non-zero, all finite)"
     )
     penetration_too_deep = (
-        "penetration deeper than a tenth of the journal radius: the contact law is outside its "
+        "penetration deeper than a tenth of the journal radius (of the corner radius in a "
+        "translational joint): the contact law is outside its "
         "validity (stiffness far too small, or a lock-up)"
     )
 

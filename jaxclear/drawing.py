@@ -6,7 +6,9 @@ body has three or more points, a square for a body with one point, e.g. a slider
 revolute joints as small circles, translational joints as their guide line, ground points as
 triangles. A clearance joint is drawn magnified: its bearing as a circle of fixed drawing
 radius and its journal inside it at the eccentricity multiplied by ``magnify``, so that a
-clearance of half a millimetre in a linkage of decimetres is visible; the factor is printed.
+clearance of half a millimetre in a linkage of decimetres is visible; the factor is printed. A
+translational clearance joint is drawn the same way at its slider point, the eccentricity being
+the slider's lateral offset from the guide line.
 
 Figures use :class:`matplotlib.figure.Figure` (no pyplot state). Animations use matplotlib's
 Pillow writer for ``.gif`` (Pillow comes with matplotlib) and its FFMpeg writer for ``.mp4``
@@ -24,6 +26,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 
 from ._errors import ParameterError
+from .elements import TranslationalClearanceJoint
 from .integrate import Solution
 from .model import GROUND, Mechanism, Translational
 from .model.joints import AbstractJoint
@@ -124,8 +127,17 @@ class _Artist:
             ends = np.array([p - 2 * self.size * d, p + 2 * self.size * d])
             guide.set_data(ends[:, 0], ends[:, 1])
         for j, bearing, journal in self.clearances:
-            pb = pts[j.bearing_body][j.bearing_point]
-            ecc = pts[j.journal_body][j.journal_point] - pb
+            (seat_body, seat_point), (body, point) = j.points()
+            pb, pj = pts[seat_body][seat_point], pts[body][point]
+            if isinstance(j, TranslationalClearanceJoint):  # the slider's lateral offset in its guide
+                phi = 0.0 if seat_body == GROUND else q[3 * self.mech.body_index(seat_body) + 2]
+                ax = np.asarray(j.axis, float)
+                c, s = np.cos(phi), np.sin(phi)
+                normal = np.array([-s * ax[0] - c * ax[1], c * ax[0] - s * ax[1]])  # perp of the guide axis
+                ecc = float(np.dot(pj - pb, normal)) * normal
+                pb = pj - ecc
+            else:
+                ecc = pj - pb
             bearing.center = tuple(pb)
             journal.center = tuple(pb + self.magnify * ecc)
 

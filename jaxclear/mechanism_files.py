@@ -1,9 +1,10 @@
 """Mechanism files: any planar mechanism as a TOML document (format in docs/mechanism-files.md).
 
 A file holds what :class:`~jaxclear.Mechanism` holds, in SI units: bodies (mass, inertia, named
-points, initial guesses of position and velocity), ideal joints, drivers, clearance joints (law
-by name with its parameters, friction, radii, initial offset), applied loads, gravity, ground
-points and roles. :func:`load_mechanism` reads one (the standard ``tomllib``) and validates it:
+points, initial guesses of position and velocity), ideal joints, drivers, force elements (revolute
+clearance, lubricated, pin-in-slot and translational clearance joints: geometry, law by name with
+its parameters, friction, film, profiles, initial offset), applied loads, gravity, ground points
+and roles. :func:`load_mechanism` reads one (the standard ``tomllib``) and validates it:
 every error names the file, the key and the allowed values. :func:`save_mechanism` writes one
 (``tomli-w``); a mechanism written and read back is equal leaf by leaf (``eqx.tree_equal``).
 
@@ -30,7 +31,7 @@ from ._storage import atomic_write_text
 from ._units import rpm_to_rad_s
 from .contact import FourierProfile, Friction, Material, make_law
 from .contact.friction import FRICTION_MODELS, friction_name
-from .elements import ClearanceJoint
+from .elements import FILMS, IDEALS, ClearanceJoint, LubricatedJoint, PinSlotJoint, TranslationalClearanceJoint
 from .model import AngleDriver, Body, Fixed, Mechanism, PointForce, Revolute, Torque, Translational
 
 FORMAT_VERSION = 1
@@ -49,16 +50,31 @@ LOAD_TYPES = {
     "point-force": (PointForce, ("body", "point", "force")),
     "torque": (Torque, ("body", "torque")),
 }
+_JOURNAL = ("name", "bearing_body", "bearing_point", "journal_body", "journal_point", "bearing_radius",
+            "journal_radius")
+_TAIL = ("law", "friction", "impact_velocity_floor", "initial_offset", "initial_velocity")
 ELEMENT_TYPES = {
-    "revolute-clearance": (ClearanceJoint, (
-        "name", "bearing_body", "bearing_point", "journal_body", "journal_point", "bearing_radius",
-        "journal_radius", "length", "law", "friction", "impact_velocity_floor", "initial_offset",
-        "initial_velocity")),
+    "revolute-clearance": (ClearanceJoint, (*_JOURNAL, "length", *_TAIL)),
+    "lubricated": (LubricatedJoint, (*_JOURNAL, "width", "viscosity", "film", "blend_start", "blend_end",
+                                     "journal_profile", "bearing_profile", "n_elements", "n_gauss", *_TAIL)),
+    "pin-slot": (PinSlotJoint, (*_JOURNAL, "slot_length", "axis", "length", "ideal", *_TAIL)),
+    "translational-clearance": (TranslationalClearanceJoint, (
+        "name", "guide_body", "guide_point", "slider_body", "slider_point", "slider_length", "slider_height",
+        "guide_width", "axis", "angle", "corner_radius", *_TAIL)),
 }
+#: file key -> constructor argument, where they differ (the lubricated joint's film width is its ``length``)
+ELEMENT_RENAMES = {"lubricated": {"width": "length"}}
+#: keys whose value is one of a few strings
+CHOICES = {"film": FILMS, "ideal": IDEALS}
+#: keys whose value is a string (every other value is a number or an array of numbers)
+STRING_KEYS = {"name", "body", "point", "body_i", "point_i", "body_j", "point_j", "bearing_body", "bearing_point",
+               "journal_body", "journal_point", "guide_body", "guide_point", "slider_body", "slider_point",
+               "relative_to", *CHOICES}
 #: law parameters that are tables, by the suffix of their key
 TABLE_PARAMETERS = {"_material": (Material, ("young", "poisson")), "_profile": (FourierProfile, ("cos", "sin"))}
 REQUIRED = {"body", "body_i", "point_i", "body_j", "point_j", "point", "bearing_body",
-            "bearing_point", "journal_body", "journal_point", "bearing_radius"}
+            "bearing_point", "journal_body", "journal_point", "bearing_radius", "guide_body", "guide_point",
+            "slider_body", "slider_point"}
 
 
 # --------------------------------------------------------------------------------------
@@ -77,11 +93,14 @@ def _number(value):
 def _plain(value):
     if isinstance(value, (str, bool, int, float)):
         return value
+    if isinstance(value, FourierProfile):
+        return _fields(value, ("cos", "sin"))
     return _number(value)
 
 
-def _fields(module, keys) -> dict:
-    return {k: _plain(getattr(module, k)) for k in keys if getattr(module, k) is not None}
+def _fields(module, keys, renames=None) -> dict:
+    attr = renames or {}
+    return {k: _plain(getattr(module, attr.get(k, k))) for k in keys if getattr(module, attr.get(k, k)) is not None}
 
 
 def _no_function(item, where: str):
@@ -90,11 +109,11 @@ def _no_function(item, where: str):
                              "file (only constant forces, torques and AngleDriver speeds can)")
 
 
-def _typed(table: dict, item, where: str, skip=()) -> dict:
+def _typed(table: dict, item, where: str, skip=(), renames=None) -> dict:
     for name, (cls, keys) in table.items():
         if type(item) is cls:
             _no_function(item, where)
-            return {"type": name, **_fields(item, [k for k in keys if k not in skip])}
+            return {"type": name, **_fields(item, [k for k in keys if k not in skip], (renames or {}).get(name))}
     raise MechanismError(f"{where}: {type(item).__name__} cannot be written to a mechanism file; "
                          f"allowed types: {[c.__name__ for c, _ in table.values()]}")
 
@@ -143,7 +162,7 @@ def mechanism_dict(mech: Mechanism) -> dict:
             doc[key] = [_typed(table, item, f"{key}[{i}]") for i, item in enumerate(items)]
     elements = []
     for i, el in enumerate(mech.clearance_joints):
-        row = _typed(ELEMENT_TYPES, el, f"clearance_joints[{i}]", skip=("law", "friction"))
+        row = _typed(ELEMENT_TYPES, el, f"clearance_joints[{i}]", skip=("law", "friction"), renames=ELEMENT_RENAMES)
         row["law"], row["friction"] = law_table(el.law), friction_table(el.friction)
         elements.append(row)
     if elements:
@@ -248,10 +267,18 @@ class _Reader:
         return cls, kwargs
 
     def value(self, key: str, name: str, value):
-        if isinstance(value, str):
+        if name in CHOICES:
+            if value not in CHOICES[name]:
+                self.fail(key, f"{value!r} is not allowed; allowed: {list(CHOICES[name])}", ParameterError)
             return value
+        if name in STRING_KEYS:
+            return self.string(key, value)
         if name in ("axis", "force", "initial_offset", "initial_velocity"):
             return self.vector(key, value, 2)
+        if name.endswith("_profile"):  # a profile of a force element (laws: see _law)
+            sub = self.table(key, value)
+            self.keys(key, sub, TABLE_PARAMETERS["_profile"][1])
+            return self.build(key, FourierProfile, dict(sub))
         return self.number(key, value)
 
 
@@ -287,22 +314,46 @@ def _friction(r: _Reader, key: str, table) -> object:
 
 def _element(r: _Reader, key: str, row) -> object:
     row = r.table(key, row)
+    kind = row.get("type", "revolute-clearance")
     cls, kwargs = r.typed(key, row, ELEMENT_TYPES, "revolute-clearance", skip=("law", "friction", "clearance"))
+    for file_key, argument in ELEMENT_RENAMES.get(kind, {}).items():
+        if file_key in kwargs:
+            kwargs[argument] = kwargs.pop(file_key)
     if "law" in row:
         kwargs["law"] = _law(r, f"{key}.law", row["law"])
     if "friction" in row:
         kwargs["friction"] = _friction(r, f"{key}.friction", row["friction"])
     if "clearance" in row:
-        if "journal_radius" in row:
-            r.fail(f"{key}.clearance", "give either clearance or journal_radius, not both", ParameterError)
-        if "bearing_radius" not in row:
-            r.fail(f"{key}.bearing_radius", "missing (needed with clearance)", ParameterError)
-        rb, c = float(row["bearing_radius"]), float(r.number(f"{key}.clearance", row["clearance"]))
-        if not 0.0 < c < rb:
-            r.fail(f"{key}.clearance", f"{c:g} m is outside the allowed range (0, bearing_radius = {rb:g} m)",
-                   ParameterError)
-        kwargs["journal_radius"] = rb - c
+        c = float(r.number(f"{key}.clearance", row["clearance"]))
+        if cls is TranslationalClearanceJoint:
+            _guide_from_clearance(r, key, row, c, kwargs)
+        else:
+            _journal_from_clearance(r, key, row, c, kwargs)
     return r.build(key, cls, kwargs)
+
+
+def _journal_from_clearance(r: _Reader, key: str, row: dict, c: float, kwargs: dict):
+    """``clearance`` c instead of ``journal_radius``: R_J = R_B - c, c in (0, R_B)."""
+    if "journal_radius" in row:
+        r.fail(f"{key}.clearance", "give either clearance or journal_radius, not both", ParameterError)
+    rb = float(row["bearing_radius"])
+    if not 0.0 < c < rb:
+        r.fail(f"{key}.clearance", f"{c:g} m is outside the allowed range (0, bearing_radius = {rb:g} m)",
+               ParameterError)
+    kwargs["journal_radius"] = rb - c
+
+
+def _guide_from_clearance(r: _Reader, key: str, row: dict, c: float, kwargs: dict):
+    """``clearance`` c per side instead of ``guide_width``: W = b + 2c, c > 0 (needs ``slider_height`` b)."""
+    if "guide_width" in row:
+        r.fail(f"{key}.clearance", "give either clearance (per side) or guide_width, not both", ParameterError)
+    if "slider_height" not in row:
+        r.fail(f"{key}.slider_height", "missing (needed with clearance: guide_width = slider_height + 2 clearance)",
+               ParameterError)
+    if not c > 0.0:
+        r.fail(f"{key}.clearance", f"{c:g} m is outside the allowed range (0, inf) m (clearance per side)",
+               ParameterError)
+    kwargs["guide_width"] = float(row["slider_height"]) + 2.0 * c
 
 
 def _driver(r: _Reader, key: str, row) -> object:

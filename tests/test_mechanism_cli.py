@@ -58,3 +58,77 @@ def test_sweep_config_names_a_file(tmp_path):
     assert bool(eqx.tree_equal(cfg.base_mechanism, jc.load_mechanism(FOUR_BAR)))
     with pytest.raises(jc.ParameterError, match="takes no other key"):
         config_from_dict({**doc, "mechanism": {"file": "m.toml", "law": "hertz"}}, source=str(cfg_path))
+
+
+# ---- the new force elements in files: lubricated, pin-in-slot, translational clearance --------
+
+PRESET_FILES = ROOT / "jaxclear" / "mechanisms"
+
+
+def _element_file(tmp_path, kind: str) -> Path:
+    """A mechanism file with one force element of ``kind``: the shipped preset files and the
+    lubricated benchmark of examples/."""
+    if kind == "lubricated":
+        return ROOT / "examples" / "lubricated-slider-crank.toml"
+    return PRESET_FILES / f"{kind}.toml"
+
+
+@pytest.mark.parametrize("kind, words", [
+    ("lubricated", ["c = 500 um", "viscosity 0.4 Pa s", "width 10 mm"]),
+    ("slider-crank-pin-slot", ["c = 500 um", "slot length 1 mm"]),
+    ("slider-crank-guide-clearance", ["translational clearance joint guide", "c = 100 um per side",
+                                      "guide width 30.2 mm"]),
+])
+def test_check_a_file_with_each_new_element(tmp_path, capsys, kind, words):
+    """Each slider-crank keeps its slider's two coordinates free beside the crank's driven one: the
+    journal's eccentricity (2) or, for the guide clearance, the block's lateral offset and tilt (2)."""
+    path = _element_file(tmp_path, kind)
+    assert main(["check", str(path), "--out", str(tmp_path)]) == 0
+    text = capsys.readouterr().out
+    report = json.loads((tmp_path / "check.json").read_text())
+    assert (report["dof"], report["mobility"], report["driven_mobility"]) == (2, 1, 0)
+    assert report["assembly_residual"] < 1e-10
+    for w in words:
+        assert w in text, (w, text)
+    assert (tmp_path / "mechanism.png").read_bytes()[:8] == PNG
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", ["lubricated", "slider-crank-pin-slot", "slider-crank-guide-clearance"])
+def test_simulate_a_file_with_each_new_element(tmp_path, kind):
+    """`jaxclear simulate FILE.toml` on 2 ms of each mechanism (about 2 minutes each on 2 cores,
+    mostly compilation): status ok, the element's columns in the time series."""
+    out = tmp_path / "out"
+    assert main(["simulate", str(_element_file(tmp_path, kind)), "--t-end", "0.002", "--n-out", "5", "--no-plots",
+                 "--no-progress", "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] in (0, "ok"), summary
+    assert len((out / "timeseries.csv").read_text().strip().splitlines()) == 1 + 5
+
+
+@pytest.mark.parametrize("kind", ["lubricated", "slider-crank-pin-slot", "slider-crank-guide-clearance"])
+def test_sweep_config_names_a_file_with_each_new_element(tmp_path, kind):
+    path = _element_file(tmp_path, kind)
+    (tmp_path / "m.toml").write_text(path.read_text())
+    doc = {"mechanism": {"file": "m.toml"}, "grid": {"restitution": [0.5, 0.9]}, "run": {"revolutions": 1}}
+    cfg_path = tmp_path / "sweep.toml"
+    cfg_path.write_text("")
+    cfg = config_from_dict(doc, source=str(cfg_path))
+    assert bool(eqx.tree_equal(cfg.base_mechanism, jc.load_mechanism(path)))
+
+
+@pytest.mark.slow
+def test_sweep_over_a_guide_clearance_file(tmp_path):
+    """`jaxclear sweep` with [mechanism] file = the guide-clearance slider-crank: two restitutions,
+    0.05 revolutions (3 ms), both runs ok in runs.csv."""
+    (tmp_path / "m.toml").write_text(_element_file(tmp_path, "slider-crank-guide-clearance").read_text())
+    (tmp_path / "sweep.toml").write_text(
+        '[mechanism]\nfile = "m.toml"\n[grid]\nrestitution = [0.5, 0.9]\n'
+        "[run]\nrevolutions = 0.05\nsamples_per_revolution = 100\nideal_reference = false\n[output]\nchunk_size = 2\n")
+    out = tmp_path / "out"
+    assert main(["sweep", str(tmp_path / "sweep.toml"), "--out", str(out), "--no-plots"]) == 0
+    rows = (out / "runs.csv").read_text().strip().splitlines()
+    assert len(rows) == 1 + 2
+    header = rows[0].split(",")
+    status = [r.split(",")[header.index("status")] for r in rows[1:]]
+    assert status == ["0", "0"], rows

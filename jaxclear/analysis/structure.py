@@ -22,7 +22,7 @@ import numpy as np
 
 from ..integrate.assembly import RANK_TOL, check_assembly
 from ..integrate.settings import settings
-from ..elements import ClearanceJoint
+from ..elements import AbstractJournalJoint, LubricatedJoint, PinSlotJoint, TranslationalClearanceJoint
 from ..model import AngleDriver, Mechanism
 
 
@@ -71,8 +71,16 @@ def _driver_text(d) -> str:
 
 def _joint_text(j) -> str:
     text = f"{j.label}: bodies {' and '.join(j.bodies())}"
-    if isinstance(j, ClearanceJoint):
+    laws = f"law {j.law.name}, c_r = {float(j.law.restitution):.3g}, mu = {float(j.friction.coefficient):.3g}"
+    if isinstance(j, AbstractJournalJoint):
         text = (f"{j.label}: bearing {j.bearing_body}.{j.bearing_point}, journal {j.journal_body}.{j.journal_point}, "
-                f"R_B = {float(j.bearing_radius) * 1e3:.4g} mm, c = {float(j.clearance) * 1e6:.4g} um, "
-                f"law {j.law.name}, c_r = {float(j.law.restitution):.3g}, mu = {float(j.friction.coefficient):.3g}")
+                f"R_B = {float(j.bearing_radius) * 1e3:.4g} mm, c = {float(j.clearance) * 1e6:.4g} um, {laws}")
+        if isinstance(j, LubricatedJoint):
+            text += f", oil film: viscosity {float(j.viscosity):.4g} Pa s, width {float(j.width) * 1e3:.4g} mm"
+        if isinstance(j, PinSlotJoint):
+            text += f", slot length {float(j.slot_length) * 1e3:.4g} mm"
+    elif isinstance(j, TranslationalClearanceJoint):
+        text = (f"{j.label}: guide {j.guide_body}.{j.guide_point}, slider {j.slider_body}.{j.slider_point}, block "
+                f"{float(j.slider_length) * 1e3:.4g} x {float(j.slider_height) * 1e3:.4g} mm, guide width "
+                f"{float(j.guide_width) * 1e3:.4g} mm, c = {float(j.clearance) * 1e6:.4g} um per side, {laws}")
     return text

@@ -67,6 +67,17 @@ def small_gap_force(e, clearance, modulus, thickness, radius_journal, length):
     return jnp.where(inside, modulus * radius_journal * length / thickness * (e * theta_c - clearance * jnp.sin(theta_c)), 0.0)
 
 
+def gauss_nodes(n_elements: int, n_gauss: int):
+    """Composite Gauss-Legendre rule on [-1, 1]: ``n_elements`` equal elements of ``n_gauss``
+    points each; node positions and weights (NumPy, each (n_elements * n_gauss,)). Exact for
+    polynomials of degree < 2 ``n_gauss`` on every element."""
+    xi, w = np.polynomial.legendre.leggauss(int(n_gauss))
+    edges = np.linspace(-1.0, 1.0, int(n_elements) + 1)
+    half = 0.5 * (edges[1:] - edges[:-1])
+    mid = 0.5 * (edges[1:] + edges[:-1])
+    return (mid[:, None] + half[:, None] * xi[None, :]).ravel(), (half[:, None] * w[None, :]).ravel()
+
+
 class FourierProfile(eqx.Module):
     r"""Radial deviation from the nominal circle, :math:`\Delta R(\theta) = \sum_m a_m\cos m\theta
     + b_m\sin m\theta` [m] (``m = 1..M``; the mean is the nominal radius). ``cos`` and ``sin``
@@ -215,14 +226,7 @@ class HybridLaw(AbstractNormalLaw):
 
     # ---- quadrature -----------------------------------------------------------------
     def _nodes_numpy(self):
-        xi, w = np.polynomial.legendre.leggauss(self.n_gauss)
-        # elements of equal width on [-1, 1]: node positions and weights on the unit interval
-        edges = np.linspace(-1.0, 1.0, self.n_elements + 1)
-        half = 0.5 * (edges[1:] - edges[:-1])
-        mid = 0.5 * (edges[1:] + edges[:-1])
-        s = (mid[:, None] + half[:, None] * xi[None, :]).ravel()
-        ws = (half[:, None] * w[None, :]).ravel()
-        return s, ws
+        return gauss_nodes(self.n_elements, self.n_gauss)
 
     def _nodes(self):
         s, ws = self._nodes_numpy()

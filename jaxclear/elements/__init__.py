@@ -3,7 +3,7 @@ clearance joint and the impact-memory rule it shares with future elements."""
 
 from .base import AbstractForceElement, ContactOutput
 from .memory import ContactMemory, hermite_crossing, onset_update
-from .lubricated import FILMS, LubricatedJoint, film_force, film_integrals
-from .pin_slot import PinSlotJoint
+from .lubricated import FILMS, LubricatedJoint, film_force, film_integrals, gauss_film_force
+from .pin_slot import IDEALS, PinSlotJoint
 from .translational_clearance import CornerMemory, TranslationalClearanceJoint
 from .revolute_clearance import AbstractJournalJoint, ClearanceJoint, contact_forces, joint_forces, journal_state, kinematics

@@ -27,7 +27,7 @@ from __future__ import annotations
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._errors import ParameterError, check_range, is_concrete
+from .._errors import RESULTS, ParameterError, check_range, first_failure, in_range, is_concrete
 from .._types import ArrayLike, Scalar, Vec2
 from ..contact.base import AbstractFriction, AbstractNormalLaw, ContactKinematics
 from ..contact.friction import Friction
@@ -37,6 +37,10 @@ from ..model.geometry import perp, rotate, safe_normal
 from ..model.joints import PointOnLine
 from ..model.mechanism import Mechanism, point_position, point_velocity
 from .revolute_clearance import AbstractJournalJoint, check_journal_geometry, contact_forces
+
+
+#: The ideal joints a pin-in-slot joint can stand for (``ideal``; class docstring).
+IDEALS = ("revolute", "line")
 
 
 def nearest_on_segment(r: Vec2, u: Vec2, slot_length) -> Scalar:
@@ -96,7 +100,7 @@ class PinSlotJoint(AbstractJournalJoint):
         ideal: str = "revolute",
         name: str = "pin-slot",
     ):
-        if ideal not in ("revolute", "line"):
+        if ideal not in IDEALS:
             raise ParameterError(f"ideal = {ideal!r}; valid: 'revolute' (pin at the slot centre), 'line' (pin on the "
                                  "slot's line)")
         check_range("slot_length", slot_length, low=0.0, unit="m")
@@ -130,6 +134,12 @@ class PinSlotJoint(AbstractJournalJoint):
         self.initial_velocity = jnp.asarray(initial_velocity, dtype=float).reshape(2)
         self.ideal = ideal
         self.name = name
+
+    def check(self) -> RESULTS:
+        """The journal joint's checks (radii, clearance, length, floor, laws), then
+        slot_length >= 0 and a non-zero finite axis (``invalid_parameter``)."""
+        slot = in_range(self.slot_length, low=0.0) & in_range(jnp.sum(self.axis * self.axis), low=0.0, low_open=True)
+        return first_failure(super().check(), (slot, RESULTS.invalid_parameter))
 
     def clearance_region(self, n: int = 361):
         r"""The stadium the pin centre may roam without contact, around the slot centre with the

@@ -45,7 +45,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._errors import ParameterError, check_range, is_concrete
+from .._errors import RESULTS, ParameterError, check_range, first_failure, in_range, is_concrete
 from .._types import ArrayLike, Scalar, Vec2
 from ..contact.base import AbstractFriction, AbstractNormalLaw, ContactKinematics
 from ..contact.friction import Friction
@@ -206,6 +206,42 @@ class TranslationalClearanceJoint(AbstractForceElement):
         return f"translational clearance joint {self.name}"
 
     orbit_labels: ClassVar[tuple[str, str]] = ("lateral offset y", "tilt x half length")
+
+    # ---- validity (run time) -----------------------------------------------------------
+    #: A corner penetration deeper than this fraction of the corner radius is reported as
+    #: ``penetration_too_deep``: the corner is a Hertz sphere on a plane, whose contact radius
+    #: :math:`a = \sqrt{\delta r}` reaches ~0.3 r at :math:`\delta = r/10`, far outside the
+    #: small-contact assumption (Johnson, "Contact Mechanics", CUP 1985, ch. 4), the same bound
+    #: as the journal joints' (a tenth of the journal radius).
+    MAX_PENETRATION_FRACTION: ClassVar[float] = 0.1
+
+    def check(self) -> RESULTS:
+        """Traceable range check: block length, height and guide width > 0 with the block
+        fitting its guide (clearance per side :math:`(W - b)/2 > 0`) -> ``invalid_clearance``;
+        corner radius and impact_velocity_floor > 0, a non-zero finite axis and a finite angle
+        -> ``invalid_parameter``; then the corner law's and the friction law's own checks."""
+        fits = (
+            in_range(self.slider_length, low=0.0, low_open=True)
+            & in_range(self.slider_height, low=0.0, low_open=True)
+            & in_range(self.guide_width, low=0.0, low_open=True)
+            & in_range(self.clearance, low=0.0, low_open=True)
+        )
+        others = (
+            in_range(self.corner_radius, low=0.0, low_open=True)
+            & in_range(self.impact_velocity_floor, low=0.0, low_open=True)
+            & in_range(jnp.sum(self.axis * self.axis), low=0.0, low_open=True)
+            & in_range(self.angle)
+        )
+        return first_failure(
+            (fits, RESULTS.invalid_clearance),
+            (others, RESULTS.invalid_parameter),
+            self.law.check(),
+            self.friction.check(),
+        )
+
+    def penetration_limit(self):
+        """:attr:`MAX_PENETRATION_FRACTION` times the corner radius [m]."""
+        return self.MAX_PENETRATION_FRACTION * self.corner_radius
 
     def clearance_region(self, n: int = 361):
         r"""Offsets ``[y, (l/2) theta]`` with no corner in contact, to first order in the tilt:
