@@ -84,7 +84,8 @@ def run(args) -> int:
     os.makedirs(args.out, exist_ok=True)
     print(f"jaxclear fit: {args.data}, {mech.name} with {args.model}, free {', '.join(free)}; sensor: "
           f"{sensor.describe()}", flush=True)
-    print("compiling the forward-mode model (about 20 to 40 s), then fitting...", flush=True)
+    if args.no_progress:  # with the bar, fit() says it is compiling and that it resumed
+        print("compiling the forward-mode model (about 20 to 40 s), then fitting...", flush=True)
     with warnings.catch_warnings():  # the fit's warnings are printed below, once
         warnings.simplefilter("ignore", UserWarning)
         res = fit(args.data, mech, free, dict(args.start), sensor=sensor, window=args.window, windows=args.windows,
@@ -102,7 +103,8 @@ def run(args) -> int:
 def _print_result(res, files: list[str]):
     """Print the fit's outcome, the estimates with their start values and std, and warnings."""
     width = max(len(n) for n in res.estimates)
-    print(f"done in {res.wall_time_s:.1f} s wall, {res.iterations} iterations ({res.stop_reason}); "
+    resumed = " (resumed from the checkpoint)" if res.settings.get("resumed") else ""
+    print(f"done in {res.wall_time_s:.1f} s wall{resumed}, {res.iterations} iterations ({res.stop_reason}); "
           f"loss {res.loss:.4g}, residual lag-1 autocorrelation {res.residual_autocorrelation:.2f}")
     print(f"  {'parameter':<{width}}  {'start':>12}  {'estimate':>12}  {'std':>10}")
     for name, value in res.estimates.items():

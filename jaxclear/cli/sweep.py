@@ -55,7 +55,10 @@ def run(args) -> int:
     files = [os.path.join(cfg.out, n) for n in (CSV_NAME, MANIFEST_NAME, NETCDF_NAME)]
     if not args.no_plots and len(table["run"]):
         files += _plots(cfg, res, grid=mode == "grid")
-    print(f"done: {len(table['run'])} of {cfg.n_runs} runs on disk ({res.computed} computed now), {failed} failed")
+    before = len(table["run"]) - res.computed
+    resumed = f", resumed with {before} already on disk" if before > 0 else ""
+    print(f"done: {len(table['run'])} of {cfg.n_runs} runs on disk ({res.computed} computed now){resumed}, "
+          f"{failed} failed")
     print("wrote " + ", ".join(files))
     return 0
 
