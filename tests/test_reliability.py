@@ -7,9 +7,12 @@ slider-crank, 20 ms, 11 samples) so the whole module compiles the engine once.
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 import os
+import re
+from pathlib import Path
 
 import equinox as eqx
 import jax
@@ -31,21 +34,32 @@ SET = jc.Settings(t_end=jnp.asarray(0.02), n_out=11, throw=False)
 CODE = {name: int(getattr(RESULTS, name)._value) for name in RESULTS._name_to_item}
 
 
+ROD, RB, C = 0.21, 0.01, 5e-4  # the preset's rod mass [kg], bearing radius [m], clearance [m]
+
+
 def _member(p):
-    """One member: p = (restitution, stiffness, friction, gravity magnitude)."""
-    m = params.replace_many(MECH, {"restitution": p[0], "stiffness": p[1], "friction": p[2]})
+    """One member: p = (restitution, stiffness, friction, gravity magnitude, rod mass [kg],
+    bearing radius [m], clearance [m]); the clearance sets the journal radius R_B - c."""
+    m = eqx.tree_at(lambda m: m.clearance_joints[0].bearing_radius, MECH, p[5])
+    m = params.replace_many(m, {"restitution": p[0], "stiffness": p[1], "friction": p[2], "mass:rod": p[4],
+                                "clearance": p[6]})
     m = eqx.tree_at(lambda m: m.gravity, m, jnp.stack([0.0 * p[3], -p[3]]))
     sol = jc.simulate(m, SET)
-    return sol.status, sol.num_steps, jnp.max(sol.penetration), jnp.all(jnp.isfinite(sol.q)) & jnp.all(
-        jnp.isfinite(sol.qdot)), sol.q[-1]
+    finite = jnp.all(jnp.isfinite(sol.q)) & jnp.all(jnp.isfinite(sol.qdot)) & jnp.all(jnp.isfinite(sol.qddot))
+    return sol.status, sol.num_steps, jnp.max(sol.penetration), finite, sol.q[-1], sol.peak_penetration[0]
 
 
 _batch = jax.jit(jax.vmap(_member))
 GOOD = (0.9, 1e10, 0.0, 9.81)
 
 
+def _rows(rows):
+    return jnp.asarray([tuple(r) + (ROD, RB, C)[len(r) - 4:] for r in rows], dtype=float)
+
+
 def _run(rows):
-    status, steps, pen, finite, q_end = _batch(jnp.asarray(rows, dtype=float))
+    """(status, steps, max output penetration, finite, q at the end) of up to 4 members."""
+    status, steps, pen, finite, q_end, _ = _batch(_rows(rows))
     return np.asarray(status), np.asarray(steps), np.asarray(pen), np.asarray(finite), np.asarray(q_end)
 
 
@@ -113,36 +127,69 @@ def test_nonfinite_state_stops_at_once_and_too_soft_contact_is_not_ok():
     assert status[2] == 0
 
 
+def test_penetration_between_output_samples_is_caught():
+    """A stiffness of 2e8 N/m^1.5 with 11 output samples over 20 ms (one per 2 ms): at the
+    samples the journal is never more than 0.6 mm deep (under the limit 0.95 mm = a tenth of
+    R_J), but the running peak over the accepted steps (impacts last ~0.1 ms) passes the limit,
+    and the status says so; a stiff 1e10 law stays ok with its peak under the limit."""
+    status, _, pen, _, _, peak = (np.asarray(x) for x in _batch(_rows([(0.9, 2e8, 0.0, 9.81), GOOD, GOOD, GOOD])))
+    limit = 0.1 * float(MECH.clearance_joints[0].journal_radius)
+    assert pen[0] < limit < peak[0]
+    assert status[0] == CODE["penetration_too_deep"]
+    assert status[1] == 0 and peak[1] < limit
+
+
 # ---- 8. property test: within and beyond the ranges, through the API and under vmap ------
 
 restitution = st.one_of(st.floats(0.05, 1.0), st.floats(-2.0, 0.0), st.floats(1.0001, 3.0), st.just(math.nan))
 stiffness = st.one_of(st.floats(1e8, 1e11), st.floats(-1e10, 0.0), st.just(math.nan), st.just(math.inf))
 friction = st.one_of(st.floats(0.0, 0.3), st.floats(-1.0, -1e-6))
+mass = st.one_of(st.floats(0.05, 1.0), st.floats(-1.0, 0.0), st.just(math.nan))
+bearing = st.one_of(st.floats(0.008, 0.02), st.floats(-0.01, 0.0), st.just(math.nan))
+clearance = st.one_of(st.floats(1e-4, 1e-3), st.floats(-1e-3, 0.0), st.floats(0.03, 0.05))
 
 
 def _valid(p):
-    return 0.0 < p[0] <= 1.0 and 0.0 < p[1] < math.inf and p[2] >= 0.0
+    e, k, mu, _, m, rb, c = p
+    return 0.0 < e <= 1.0 and 0.0 < k < math.inf and mu >= 0.0 and m > 0.0 and rb > 0.0 and 0.0 < c < rb
 
 
-@hsettings(max_examples=8, deadline=None, derandomize=True)
-@given(st.lists(st.tuples(restitution, stiffness, friction), min_size=4, max_size=4))
+def _refused_by_the_api(p) -> bool:
+    """Where objects are built with concrete values: params.validate and the constructors raise
+    a ParameterError; a bearing radius set by eqx.tree_at (no constructor) is named by
+    Mechanism.check()."""
+    e, k, mu, _, m, rb, c = p
+    m0 = eqx.tree_at(lambda m: m.clearance_joints[0].bearing_radius, MECH, jnp.asarray(rb))
+    if m0.check() != RESULTS.successful:
+        return True
+    try:
+        for name, value in {"restitution": e, "stiffness": k, "friction": mu, "mass:rod": m, "clearance": c}.items():
+            params.validate(m0, name, value)
+        jc.ContactLaw(restitution=e, stiffness=k)
+        jc.Friction(mu)
+    except jc.ParameterError:
+        return True
+    return False
+
+
+@hsettings(max_examples=10, deadline=None, derandomize=True)
+@given(st.lists(st.tuples(restitution, stiffness, friction, st.just(9.81), mass, bearing, clearance),
+                min_size=4, max_size=4))
 def test_property_valid_runs_ok_or_named_invalid_is_named(rows):
-    rows = [(*r, 9.81) for r in rows]
-    status, _, _, finite, _ = _run(rows)
-    for p, code, fin in zip(rows, status.tolist(), finite.tolist()):
+    """Restitution, stiffness, friction, a body's mass, the bearing radius and the clearance,
+    drawn within and beyond their ranges, four members under jit(vmap): a valid member ends ok
+    with finite outputs or with a named status that is not an invalid_* one; an invalid member
+    gets an invalid_* status (not integrated) and the API refuses the same values eagerly."""
+    status, steps, _, finite, _ = _run(rows)
+    for p, code, n, fin in zip(rows, status.tolist(), steps.tolist(), finite.tolist()):
         assert code in STATUS  # always a named status
         if _valid(p):
             assert code not in invalid_codes()
             if code == 0:
                 assert fin  # never a NaN with status ok
         else:
-            assert code in invalid_codes()
-        # the API refuses the same values where objects are built
-        if not _valid(p):
-            with pytest.raises(jc.ParameterError):
-                params.replace_many(MECH, {"restitution": p[0], "stiffness": p[1], "friction": p[2]})
-                jc.ContactLaw(restitution=p[0], stiffness=p[1])
-                jc.Friction(p[2])
+            assert code in invalid_codes() and n == 0
+            assert _refused_by_the_api(p)
 
 
 # ---- 3. sizes bounded up front ----------------------------------------------------------
@@ -153,6 +200,28 @@ def test_output_size_bounded_before_compiling():
         jc.Settings(t_end=1.0, n_out=10**12)
     with pytest.raises(jc.ParameterError, match="n_out"):
         jc.integrate.runs.revolution_settings(MECH, 1e9)
+
+
+def test_sweep_sizes_bounded_before_compiling():
+    """Runs, samples per run and stored time-series samples are bounded when the configuration
+    is built: the error names the option and the limit (and nothing is allocated: a 1e8-run grid
+    is refused before its table is built)."""
+    from jaxclear.sweep import config_from_dict
+    from jaxclear.sweep.config import MAX_RUNS, MAX_TRAJECTORY_SAMPLES
+    from jaxclear.integrate.settings import MAX_OUT_SAMPLES
+
+    big = {"grid": {"restitution": {"start": 0.1, "stop": 0.9, "num": 10_000},
+                    "stiffness": {"start": 1e9, "stop": 1e10, "num": 10_000}}}
+    with pytest.raises(jc.ParameterError, match=rf"100000000 runs .*\[1, {MAX_RUNS}\]"):
+        config_from_dict(big)
+    long = {"grid": {"restitution": [0.5]}, "run": {"revolutions": 10_000, "samples_per_revolution": 1000}}
+    with pytest.raises(jc.ParameterError, match=rf"run.revolutions x run.samples_per_revolution .*{MAX_OUT_SAMPLES}"):
+        config_from_dict(long)
+    stored = {"grid": {"restitution": {"start": 0.1, "stop": 0.9, "num": 100_000}}, "output": {"trajectories": True}}
+    with pytest.raises(jc.ParameterError, match=rf"--trajectories.* 100000 x 601 .*{MAX_TRAJECTORY_SAMPLES}"):
+        config_from_dict(stored)
+    stored["output"]["trajectories"] = False  # the same sweep without time series is fine
+    assert config_from_dict(stored).n_runs == 100_000
 
 
 # ---- 4. locked output folders -----------------------------------------------------------
@@ -178,6 +247,48 @@ def test_output_folder_lock_names_folder_and_holder(tmp_path):
 def test_fit_refuses_unfittable_data(data, match):
     with pytest.raises(jc.ParameterError, match=match):
         _check_data(data, "record.csv")
+
+
+def test_fit_refuses_zero_or_nonfinite_start_loss():
+    """The loss at the start values: not finite -> FitDataError naming the record and the
+    values; exactly zero at the first stage -> FitDataError naming the record (nothing to fit).
+    A later stage may start from an exact fit."""
+    from types import SimpleNamespace
+
+    from jaxclear.fitting.run import check_start_loss
+
+    stages = [SimpleNamespace(name="velocity 0.25"), SimpleNamespace(name="acceleration 1")]
+    problem = SimpleNamespace(meas=SimpleNamespace(path="rig.csv"), stages=stages, free=("restitution",),
+                              win=SimpleNamespace(scale=1.0))
+    for loss in (math.nan, math.inf):
+        with pytest.raises(jc.FitDataError, match=r"rig.csv.*not finite.*restitution"):
+            check_start_loss(problem, stages[1], loss, np.zeros(1))
+    with pytest.raises(jc.FitDataError, match=r"rig.csv.*exactly 0.*velocity 0.25"):
+        check_start_loss(problem, stages[0], 0.0, np.zeros(1))
+    check_start_loss(problem, stages[1], 0.0, np.zeros(1))
+    check_start_loss(problem, stages[0], 1e-3, np.zeros(1))
+    assert issubclass(jc.FitDataError, jc.ParameterError)
+
+
+def test_progress_bars_start_after_compilation_and_say_resumed(tmp_path, capsys):
+    """A sweep prints a 'compiling' line and starts its bar after the first chunk (so the
+    rate leaves the compilation out); a resumed sweep says so in its line and its bar."""
+    from jaxclear.sweep import SweepConfig, run_sweep
+
+    def cfg():
+        return SweepConfig(grid={"restitution": [0.5, 0.9]}, revolutions=0.01, samples_per_revolution=100,
+                           ideal_reference=False, chunk_size=1, out=str(tmp_path), progress=True)
+
+    run_sweep(cfg())
+    err = capsys.readouterr().err
+    assert "compiling" in err and err.index("compiling") < err.index("2/2")
+    assert "1/2" not in err  # the bar began at the first chunk's end
+    (tmp_path / "chunks").mkdir(exist_ok=True)
+    rows = (tmp_path / "runs.csv").read_text().splitlines()
+    (tmp_path / "runs.csv").write_text("\n".join(rows[:2]) + "\n")  # keep run 0 only
+    run_sweep(cfg())
+    err = capsys.readouterr().err
+    assert "resuming" in err and "1 of 2 runs already done" in err and "sweep (resumed)" in err
 
 
 def test_corrupt_checkpoint_is_a_named_error(tmp_path):
@@ -214,3 +325,173 @@ def _with_run(parser, run):
 def test_unknown_preset_option_is_a_jaxclear_error():
     with pytest.raises(jc.ParameterError, match="bogus"):
         jc.preset("four-bar", bogus=1)
+
+
+# ---- 7. the command line: every stated range is enforced, errors name the flag -------------
+
+_RANGE = re.compile(r"in ([\(\[])(-?[0-9.e+-]+), (-?[0-9.e+-]+|inf)([\)\]])|(>=|>) (-?[0-9.e+-]+)")
+_POSITIONAL = {"sweep": ["sweep.toml"], "fit": ["record.csv"]}
+
+
+def _stated_ranges():
+    """(command, flag, integer?, low, high, low_open, high_open) of every option whose help
+    states a numeric range ("in (0, 1]", ">= 1", "> 0")."""
+    parser = jc.cli.build_parser()
+    out = []
+    for command, sub in parser._subparsers._group_actions[0].choices.items():
+        for action in sub._actions:
+            m = _RANGE.search(action.help or "") if action.option_strings else None
+            if m is None:
+                continue
+            if m.group(1):
+                low, high = float(m.group(2)), float(m.group(3))
+                low_open, high_open = m.group(1) == "(", m.group(4) == ")"
+            else:
+                low, high, low_open, high_open = float(m.group(6)), math.inf, m.group(5) == ">", True
+            try:  # an integer option refuses a fraction
+                action.type("2.5")
+                integer = False
+            except argparse.ArgumentTypeError as err:
+                integer = "integer" in str(err)
+            out.append((command, action.option_strings[0], integer, low, high, low_open, high_open))
+    return out
+
+
+def _parses(capsys, command, flag, value) -> tuple[bool, str]:
+    try:
+        jc.cli.build_parser().parse_args([command, *_POSITIONAL.get(command, []), f"{flag}={value}"])
+    except SystemExit as exit_:
+        assert exit_.code == 2
+        return False, capsys.readouterr().err
+    return True, ""
+
+
+def test_every_stated_cli_range_is_enforced_by_the_parser(capsys):
+    """For each option whose help states a range, the parser accepts exactly that range: the
+    bounds themselves as the help says (open or closed), a step inside, a step outside, NaN and
+    infinity; a refused value is a usage error (exit 2) naming the flag."""
+    ranges = _stated_ranges()
+    flags = {(c, f) for c, f, *_ in ranges}
+    # the audit covers every numeric option with a range (a help without one would drop out here)
+    assert {("simulate", "--rtol"), ("simulate", "--n-out"), ("simulate", "--clearance"), ("fit", "--windows"),
+            ("fit", "--sensor-cutoff-hz"), ("sweep", "--chunk-size"), ("sweep", "--devices"),
+            ("animate", "--frames"), ("check", "--magnify"), ("simulate", "--gauss-points")} <= flags
+    assert len(ranges) >= 30
+    for command, flag, integer, low, high, low_open, high_open in ranges:
+        step_low = 1 if integer else max(abs(low) * 1e-9, 1e-300)
+        cases = [(low, not low_open), (low - step_low, False), (low + step_low, True), ("nan", False),
+                 ("inf", False)]
+        if math.isfinite(high):
+            step_high = 1 if integer else abs(high) * 1e-9
+            cases += [(high, not high_open), (high + step_high, False), (high - step_high, True)]
+        for value, accepted in cases:
+            text = str(int(value)) if integer and isinstance(value, float) else repr(value) if isinstance(
+                value, float) else value
+            ok, err = _parses(capsys, command, flag, text)
+            assert ok == accepted, f"{command} {flag}={text}: accepted {ok}, the help says {accepted}"
+            if not ok:
+                assert f"argument {flag}" in err and "allowed range" in err, err
+
+
+def test_dynamic_cli_bounds_name_the_flag(capsys, tmp_path):
+    """Bounds that depend on the mechanism or the machine are checked before any compilation and
+    name the flag: --clearance below the bearing radius, --devices at most those available."""
+    assert main(["simulate", "--clearance", "0.02", "--out", str(tmp_path)]) == 2
+    assert capsys.readouterr().err.startswith("error: --clearance: clearance = 0.02")
+    assert main(["sweep", "missing.toml", "--devices", str(len(jax.devices()) + 1)]) == 2
+    assert "--devices" in capsys.readouterr().err
+    assert main(["simulate", "--rtol", "2"]) == 2
+    assert "argument --rtol: 2 is outside the allowed range (0, 1)" in capsys.readouterr().err
+
+
+UNKNOWN_NAMES = {
+    "preset name": lambda: jc.preset("nope"),
+    "preset keyword": lambda: jc.preset("four-bar", bogus=1),
+    "preset law": lambda: jc.preset("flores-slider-crank", law="nope"),
+    "law option": lambda: jc.preset("flores-slider-crank", law="hybrid", law_options={"bogus": 1}),
+    "law name": lambda: jc.make_law("nope"),
+    "law keyword": lambda: jc.make_law("flores", bogus=1),
+    "friction model": lambda: jc.Friction(0.1, model="nope"),
+    "preset file": lambda: jc.preset_file("nope"),
+    "parameter": lambda: params.get(MECH, "nope"),
+    "parameter body": lambda: params.get(MECH, "mass:nobody"),
+    "parameter joint index": lambda: params.get(MECH, "restitution@5"),
+    "parameter joint suffix": lambda: params.get(MECH, "restitution@x"),
+    "replace parameter": lambda: params.replace(MECH, "nope", 1.0),
+    "replace body": lambda: params.replace(MECH, "inertia:nobody", 1.0),
+    "validate parameter": lambda: params.validate(MECH, "nope", 1.0),
+    "channel kind": lambda: jc.analysis.channels.unit(MECH, "nope:x"),
+    "channel body": lambda: jc.analysis.channels.unit(MECH, "body:nobody:x"),
+    "channel point": lambda: jc.analysis.channels.unit(MECH, "point:crank:nope:pos"),
+    "channel joint": lambda: jc.analysis.channels.unit(MECH, "joint:nope:penetration"),
+    "channel quantity": lambda: jc.analysis.channels.unit(MECH, "joint:0:nope"),
+    "channel reaction": lambda: jc.analysis.channels.unit(MECH, "reaction:nope"),
+    "sweep parameter": lambda: jc.sweep.config_from_dict({"grid": {"nope": [1.0]}}),
+    "sweep body": lambda: jc.sweep.config_from_dict({"grid": {"mass:nobody": [1.0]}}),
+    "sweep preset": lambda: jc.sweep.config_from_dict({"grid": {"restitution": [0.5]}, "mechanism": {"preset": "x"}}),
+    "sweep preset keyword": lambda: jc.sweep.config_from_dict({"grid": {"restitution": [0.5]},
+                                                               "mechanism": {"bogus": 1}}),
+    "solver": lambda: jc.Settings(t_end=jnp.asarray(1.0), solver="nope"),
+    "body": lambda: MECH.body_index("nobody"),
+    "point": lambda: MECH.point("crank", "nope"),
+    "fit free parameter": lambda: jc.fitting.parameters.check_free(MECH, ["nope"], {}),
+    "solution coordinate": lambda: jc.Solution.coordinate(None, MECH, "crank", "z"),
+}
+
+
+@pytest.mark.parametrize("what", sorted(UNKNOWN_NAMES))
+def test_every_unknown_name_is_a_jaxclear_error(what):
+    """An unknown name anywhere in the public API is a JaxclearError subclass (never a KeyError,
+    TypeError or AttributeError) whose message repeats the name."""
+    with pytest.raises(jc.JaxclearError) as info:
+        UNKNOWN_NAMES[what]()
+    assert any(bad in str(info.value) for bad in ("nope", "nobody", "bogus", "@5", "@x", "'x'", "'z'"))
+
+
+# ---- 4b. two processes, one folder ----------------------------------------------------------
+
+LOCK_TOML = """
+[grid]
+restitution = [0.5, 0.9]
+[run]
+revolutions = 0.01
+samples_per_revolution = 100
+ideal_reference = false
+[output]
+dir = "{out}"
+chunk_size = 1
+"""
+
+
+def test_second_process_on_the_same_folder_is_refused(tmp_path):
+    """Two OS processes run `jaxclear sweep` into one folder: while the first holds it (it is
+    compiling), the second exits at once with code 2 and an error naming the folder and the
+    first's pid; the first then finishes, and runs.csv holds every index exactly once."""
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "out"
+    cfg = tmp_path / "sweep.toml"
+    cfg.write_text(LOCK_TOML.format(out=out))
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(Path(__file__).parents[1]),
+                                                       os.environ.get("PYTHONPATH", "")]))
+    cmd = [sys.executable, "-m", "jaxclear", "sweep", str(cfg), "--no-plots", "--no-progress"]
+    first = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        owner = out / ".jaxclear.lock.owner"
+        deadline = time.time() + 120
+        while time.time() < deadline and first.poll() is None and not owner.exists():
+            time.sleep(0.01)
+        assert first.poll() is None and f"pid {first.pid}" in owner.read_text()
+        second = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=120)
+        assert first.poll() is None, "the first sweep ended before the second tried the folder"
+        assert second.returncode == 2
+        assert str(out) in second.stderr and f"pid {first.pid}" in second.stderr
+        stdout, stderr = first.communicate(timeout=300)
+    finally:
+        if first.poll() is None:
+            first.kill()
+    assert first.returncode == 0, stderr[-2000:]
+    rows = (out / "runs.csv").read_text().splitlines()[1:]
+    assert sorted(int(r.split(",")[0]) for r in rows) == [0, 1]
