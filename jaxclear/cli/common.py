@@ -15,6 +15,14 @@ from ..model import Mechanism
 from ..presets import preset, preset_names
 
 
+class Parser(argparse.ArgumentParser):
+    """The parser of every command: a usage error is one line, ``error: argument --flag: ...``
+    and where to find the options (exit code 2), like the library's errors."""
+
+    def error(self, message):
+        self.exit(2, f"error: {message} (options: {self.prog} --help)\n")
+
+
 class Formatter(argparse.RawDescriptionHelpFormatter):
     """Help layout of every command: descriptions kept as written, 100 columns."""
 
