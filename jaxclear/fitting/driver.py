@@ -85,8 +85,12 @@ def fit(
 
     Raises:
         ParameterError: unknown free parameter, start value outside its bounds, record shorter
-            than the windows, mechanism without a slider or a crank driver where one is needed,
-            the model cannot be simulated at the start values.
+            than the windows, mechanism without a slider or a crank driver where one is needed.
+        FitDataError (a ParameterError): the record holds non-finite or absurd samples or no
+            signal, or the loss at the start values is not finite (the model cannot be simulated
+            there) or exactly zero (nothing to fit); the message names the record.
+        OutputLockedError: another process holds ``out``.
+        CheckpointError: the checkpoint in ``out`` cannot be read.
     """
     t_wall = time.perf_counter()
     opt = make_optimizer(optimizer, ftol, xtol)
