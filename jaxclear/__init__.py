@@ -18,6 +18,7 @@ from ._errors import (  # noqa: E402
     RESULTS,
     STATUS,
     CheckpointError,
+    FitDataError,
     InitialConditionError,
     JaxclearError,
     MechanismError,

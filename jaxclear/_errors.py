@@ -23,6 +23,11 @@ class ParameterError(JaxclearError):
     """A numeric parameter lies outside its physical range."""
 
 
+class FitDataError(ParameterError):
+    """A fit cannot treat its record honestly: non-finite or absurd samples, no signal, or a loss
+    at the start values that is zero or not finite (the message names the record)."""
+
+
 class MechanismError(JaxclearError):
     """The mechanism is malformed: unknown names, redundant or missing constraints."""
 

@@ -176,7 +176,7 @@ def test_cli_fit_bad_records(tmp_path, capsys, text, match):
         (["--free", "friction"], r"friction = 0 is on the bound 0 of \(0, inf\)"),
         (["--start", "clearance=0.5e-3"], r"start value given for 'clearance', which is not a free parameter"),
         (["--start", "clearance"], r"expected NAME=VALUE"),
-        (["--windows", "0"], r"--windows = 0 must be >= 1"),
+        (["--windows", "0"], r"argument --windows: 0 is outside the allowed range \[1, inf\)"),
     ],
 )
 def test_cli_fit_bad_parameters(tmp_path, capsys, args, match):
@@ -264,7 +264,7 @@ def check_small_fit_resumes_after_an_interruption(small_record):
     assert [h["values"] for h in whole.history] == [h["values"] for h in res.history]
 
 
-def check_cli_fit_writes_json_and_plot(small_record):
+def check_cli_fit_writes_json_and_plot(small_record, capsys):
     """The command line on the same record (same compiled model): fit.json with the issue's keys,
     fit.png; a second call resumes from the finished checkpoint without iterating."""
     mech, path, folder = small_record
@@ -277,15 +277,17 @@ def check_cli_fit_writes_json_and_plot(small_record):
     assert isinstance(d["loss"], float) and d["iterations"] >= 1 and d["wall_time_s"] > 0
     assert abs(d["estimates"]["restitution"] - 0.9) < 0.02
     assert (out / "fit.png").read_bytes()[:8] == PNG
+    capsys.readouterr()
     assert main(args) == 0
     d2 = json.loads((out / "fit.json").read_text())
     assert d2["iterations"] == d["iterations"] and d2["settings"]["resumed"]
+    assert "(resumed from the checkpoint)" in capsys.readouterr().out  # the summary says it resumed
 
 
-def test_small_fit_api_and_cli(small_record):
+def test_small_fit_api_and_cli(small_record, capsys):
     """Both checks above in one test, so that a parallel run (pytest -n) compiles the model once."""
     check_small_fit_resumes_after_an_interruption(small_record)
-    check_cli_fit_writes_json_and_plot(small_record)
+    check_cli_fit_writes_json_and_plot(small_record, capsys)
 
 
 # --------------------------------------------------------------------------------------

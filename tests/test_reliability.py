@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import math
 import os
+from pathlib import Path
 
 import equinox as eqx
 import jax
@@ -31,21 +32,32 @@ SET = jc.Settings(t_end=jnp.asarray(0.02), n_out=11, throw=False)
 CODE = {name: int(getattr(RESULTS, name)._value) for name in RESULTS._name_to_item}
 
 
+ROD, RB, C = 0.21, 0.01, 5e-4  # the preset's rod mass [kg], bearing radius [m], clearance [m]
+
+
 def _member(p):
-    """One member: p = (restitution, stiffness, friction, gravity magnitude)."""
-    m = params.replace_many(MECH, {"restitution": p[0], "stiffness": p[1], "friction": p[2]})
+    """One member: p = (restitution, stiffness, friction, gravity magnitude, rod mass [kg],
+    bearing radius [m], clearance [m]); the clearance sets the journal radius R_B - c."""
+    m = eqx.tree_at(lambda m: m.clearance_joints[0].bearing_radius, MECH, p[5])
+    m = params.replace_many(m, {"restitution": p[0], "stiffness": p[1], "friction": p[2], "mass:rod": p[4],
+                                "clearance": p[6]})
     m = eqx.tree_at(lambda m: m.gravity, m, jnp.stack([0.0 * p[3], -p[3]]))
     sol = jc.simulate(m, SET)
-    return sol.status, sol.num_steps, jnp.max(sol.penetration), jnp.all(jnp.isfinite(sol.q)) & jnp.all(
-        jnp.isfinite(sol.qdot)), sol.q[-1]
+    finite = jnp.all(jnp.isfinite(sol.q)) & jnp.all(jnp.isfinite(sol.qdot)) & jnp.all(jnp.isfinite(sol.qddot))
+    return sol.status, sol.num_steps, jnp.max(sol.penetration), finite, sol.q[-1], sol.peak_penetration[0]
 
 
 _batch = jax.jit(jax.vmap(_member))
 GOOD = (0.9, 1e10, 0.0, 9.81)
 
 
+def _rows(rows):
+    return jnp.asarray([tuple(r) + (ROD, RB, C)[len(r) - 4:] for r in rows], dtype=float)
+
+
 def _run(rows):
-    status, steps, pen, finite, q_end = _batch(jnp.asarray(rows, dtype=float))
+    """(status, steps, max output penetration, finite, q at the end) of up to 4 members."""
+    status, steps, pen, finite, q_end, _ = _batch(_rows(rows))
     return np.asarray(status), np.asarray(steps), np.asarray(pen), np.asarray(finite), np.asarray(q_end)
 
 
@@ -113,36 +125,69 @@ def test_nonfinite_state_stops_at_once_and_too_soft_contact_is_not_ok():
     assert status[2] == 0
 
 
+def test_penetration_between_output_samples_is_caught():
+    """A stiffness of 2e8 N/m^1.5 with 11 output samples over 20 ms (one per 2 ms): at the
+    samples the journal is never more than 0.6 mm deep (under the limit 0.95 mm = a tenth of
+    R_J), but the running peak over the accepted steps (impacts last ~0.1 ms) passes the limit,
+    and the status says so; a stiff 1e10 law stays ok with its peak under the limit."""
+    status, _, pen, _, _, peak = (np.asarray(x) for x in _batch(_rows([(0.9, 2e8, 0.0, 9.81), GOOD, GOOD, GOOD])))
+    limit = 0.1 * float(MECH.clearance_joints[0].journal_radius)
+    assert pen[0] < limit < peak[0]
+    assert status[0] == CODE["penetration_too_deep"]
+    assert status[1] == 0 and peak[1] < limit
+
+
 # ---- 8. property test: within and beyond the ranges, through the API and under vmap ------
 
 restitution = st.one_of(st.floats(0.05, 1.0), st.floats(-2.0, 0.0), st.floats(1.0001, 3.0), st.just(math.nan))
 stiffness = st.one_of(st.floats(1e8, 1e11), st.floats(-1e10, 0.0), st.just(math.nan), st.just(math.inf))
 friction = st.one_of(st.floats(0.0, 0.3), st.floats(-1.0, -1e-6))
+mass = st.one_of(st.floats(0.05, 1.0), st.floats(-1.0, 0.0), st.just(math.nan))
+bearing = st.one_of(st.floats(0.008, 0.02), st.floats(-0.01, 0.0), st.just(math.nan))
+clearance = st.one_of(st.floats(1e-4, 1e-3), st.floats(-1e-3, 0.0), st.floats(0.03, 0.05))
 
 
 def _valid(p):
-    return 0.0 < p[0] <= 1.0 and 0.0 < p[1] < math.inf and p[2] >= 0.0
+    e, k, mu, _, m, rb, c = p
+    return 0.0 < e <= 1.0 and 0.0 < k < math.inf and mu >= 0.0 and m > 0.0 and rb > 0.0 and 0.0 < c < rb
 
 
-@hsettings(max_examples=8, deadline=None, derandomize=True)
-@given(st.lists(st.tuples(restitution, stiffness, friction), min_size=4, max_size=4))
+def _refused_by_the_api(p) -> bool:
+    """Where objects are built with concrete values: params.validate and the constructors raise
+    a ParameterError; a bearing radius set by eqx.tree_at (no constructor) is named by
+    Mechanism.check()."""
+    e, k, mu, _, m, rb, c = p
+    m0 = eqx.tree_at(lambda m: m.clearance_joints[0].bearing_radius, MECH, jnp.asarray(rb))
+    if m0.check() != RESULTS.successful:
+        return True
+    try:
+        for name, value in {"restitution": e, "stiffness": k, "friction": mu, "mass:rod": m, "clearance": c}.items():
+            params.validate(m0, name, value)
+        jc.ContactLaw(restitution=e, stiffness=k)
+        jc.Friction(mu)
+    except jc.ParameterError:
+        return True
+    return False
+
+
+@hsettings(max_examples=10, deadline=None, derandomize=True)
+@given(st.lists(st.tuples(restitution, stiffness, friction, st.just(9.81), mass, bearing, clearance),
+                min_size=4, max_size=4))
 def test_property_valid_runs_ok_or_named_invalid_is_named(rows):
-    rows = [(*r, 9.81) for r in rows]
-    status, _, _, finite, _ = _run(rows)
-    for p, code, fin in zip(rows, status.tolist(), finite.tolist()):
+    """Restitution, stiffness, friction, a body's mass, the bearing radius and the clearance,
+    drawn within and beyond their ranges, four members under jit(vmap): a valid member ends ok
+    with finite outputs or with a named status that is not an invalid_* one; an invalid member
+    gets an invalid_* status (not integrated) and the API refuses the same values eagerly."""
+    status, steps, _, finite, _ = _run(rows)
+    for p, code, n, fin in zip(rows, status.tolist(), steps.tolist(), finite.tolist()):
         assert code in STATUS  # always a named status
         if _valid(p):
             assert code not in invalid_codes()
             if code == 0:
                 assert fin  # never a NaN with status ok
         else:
-            assert code in invalid_codes()
-        # the API refuses the same values where objects are built
-        if not _valid(p):
-            with pytest.raises(jc.ParameterError):
-                params.replace_many(MECH, {"restitution": p[0], "stiffness": p[1], "friction": p[2]})
-                jc.ContactLaw(restitution=p[0], stiffness=p[1])
-                jc.Friction(p[2])
+            assert code in invalid_codes() and n == 0
+            assert _refused_by_the_api(p)
 
 
 # ---- 3. sizes bounded up front ----------------------------------------------------------
@@ -153,6 +198,28 @@ def test_output_size_bounded_before_compiling():
         jc.Settings(t_end=1.0, n_out=10**12)
     with pytest.raises(jc.ParameterError, match="n_out"):
         jc.integrate.runs.revolution_settings(MECH, 1e9)
+
+
+def test_sweep_sizes_bounded_before_compiling():
+    """Runs, samples per run and stored time-series samples are bounded when the configuration
+    is built: the error names the option and the limit (and nothing is allocated: a 1e8-run grid
+    is refused before its table is built)."""
+    from jaxclear.sweep import config_from_dict
+    from jaxclear.sweep.config import MAX_RUNS, MAX_TRAJECTORY_SAMPLES
+    from jaxclear.integrate.settings import MAX_OUT_SAMPLES
+
+    big = {"grid": {"restitution": {"start": 0.1, "stop": 0.9, "num": 10_000},
+                    "stiffness": {"start": 1e9, "stop": 1e10, "num": 10_000}}}
+    with pytest.raises(jc.ParameterError, match=rf"100000000 runs .*\[1, {MAX_RUNS}\]"):
+        config_from_dict(big)
+    long = {"grid": {"restitution": [0.5]}, "run": {"revolutions": 10_000, "samples_per_revolution": 1000}}
+    with pytest.raises(jc.ParameterError, match=rf"run.revolutions x run.samples_per_revolution .*{MAX_OUT_SAMPLES}"):
+        config_from_dict(long)
+    stored = {"grid": {"restitution": {"start": 0.1, "stop": 0.9, "num": 100_000}}, "output": {"trajectories": True}}
+    with pytest.raises(jc.ParameterError, match=rf"--trajectories.* 100000 x 601 .*{MAX_TRAJECTORY_SAMPLES}"):
+        config_from_dict(stored)
+    stored["output"]["trajectories"] = False  # the same sweep without time series is fine
+    assert config_from_dict(stored).n_runs == 100_000
 
 
 # ---- 4. locked output folders -----------------------------------------------------------
@@ -178,6 +245,51 @@ def test_output_folder_lock_names_folder_and_holder(tmp_path):
 def test_fit_refuses_unfittable_data(data, match):
     with pytest.raises(jc.ParameterError, match=match):
         _check_data(data, "record.csv")
+
+
+def test_fit_refuses_zero_or_nonfinite_start_loss():
+    """The loss at the start values: not finite -> FitDataError naming the record and the
+    values; exactly zero at the first stage -> FitDataError naming the record (nothing to fit).
+    A later stage may start from an exact fit."""
+    from types import SimpleNamespace
+
+    from jaxclear.fitting.run import check_start_loss
+
+    stages = [SimpleNamespace(name="velocity 0.25"), SimpleNamespace(name="acceleration 1")]
+    problem = SimpleNamespace(meas=SimpleNamespace(path="rig.csv"), stages=stages, free=("restitution",),
+                              win=SimpleNamespace(scale=1.0))
+    for loss in (math.nan, math.inf):
+        with pytest.raises(jc.FitDataError, match=r"rig.csv.*not finite.*restitution"):
+            check_start_loss(problem, stages[1], loss, np.zeros(1))
+    with pytest.raises(jc.FitDataError, match=r"rig.csv.*exactly 0.*velocity 0.25"):
+        check_start_loss(problem, stages[0], 0.0, np.zeros(1))
+    check_start_loss(problem, stages[1], 0.0, np.zeros(1))
+    check_start_loss(problem, stages[0], 1e-3, np.zeros(1))
+    assert issubclass(jc.FitDataError, jc.ParameterError)
+
+
+@pytest.mark.slow  # compiles a sweep chunk (about a minute on a shared machine)
+def test_progress_bars_start_after_compilation_and_say_resumed(tmp_path, capsys):
+    """A sweep prints a 'compiling' line and starts its bar after the first chunk (so the
+    rate leaves the compilation out); a resumed sweep says so in its line and its bar."""
+    from jaxclear.sweep import SweepConfig, run_sweep
+
+    def cfg():
+        return SweepConfig(grid={"restitution": [0.5, 0.9]}, revolutions=0.01, samples_per_revolution=100,
+                           ideal_reference=False, chunk_size=1, out=str(tmp_path), progress=True)
+
+    run_sweep(cfg())
+    printed = capsys.readouterr()
+    assert "compiling" in printed.out
+    # the bar appears when the first chunk (and the compilation, tens of seconds) is done: at
+    # 1/2 its clock reads 0 and it has no rate yet
+    assert "sweep:  50%" in printed.err and "1/2 [00:00<?" in printed.err and "0/2" not in printed.err
+    rows = (tmp_path / "runs.csv").read_text().splitlines()
+    (tmp_path / "runs.csv").write_text("\n".join(rows[:2]) + "\n")  # keep run 0 only
+    run_sweep(cfg())
+    printed = capsys.readouterr()
+    assert "resuming" in printed.out and "1 of 2 runs already done" in printed.out
+    assert "sweep (resumed)" in printed.err
 
 
 def test_corrupt_checkpoint_is_a_named_error(tmp_path):
@@ -214,3 +326,53 @@ def _with_run(parser, run):
 def test_unknown_preset_option_is_a_jaxclear_error():
     with pytest.raises(jc.ParameterError, match="bogus"):
         jc.preset("four-bar", bogus=1)
+
+
+# ---- 4b. two processes, one folder ---------------------------------------------------------
+
+LOCK_TOML = """
+[grid]
+restitution = [0.5, 0.9]
+[run]
+revolutions = 0.01
+samples_per_revolution = 100
+ideal_reference = false
+[output]
+dir = "{out}"
+chunk_size = 1
+"""
+
+
+@pytest.mark.slow  # the first process compiles its sweep (about a minute)
+def test_second_process_on_the_same_folder_is_refused(tmp_path):
+    """Two OS processes run `jaxclear sweep` into one folder: while the first holds it (it is
+    compiling), the second exits at once with code 2 and an error naming the folder and the
+    first's pid; the first then finishes, and runs.csv holds every index exactly once."""
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "out"
+    cfg = tmp_path / "sweep.toml"
+    cfg.write_text(LOCK_TOML.format(out=out))
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(Path(__file__).parents[1]),
+                                                       os.environ.get("PYTHONPATH", "")]))
+    cmd = [sys.executable, "-m", "jaxclear", "sweep", str(cfg), "--no-plots", "--no-progress"]
+    first = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        owner = out / ".jaxclear.lock.owner"
+        deadline = time.time() + 120
+        while time.time() < deadline and first.poll() is None and not owner.exists():
+            time.sleep(0.01)
+        assert first.poll() is None and f"pid {first.pid}" in owner.read_text()
+        second = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=120)
+        assert first.poll() is None, "the first sweep ended before the second tried the folder"
+        assert second.returncode == 2
+        assert str(out) in second.stderr and f"pid {first.pid}" in second.stderr
+        stdout, stderr = first.communicate(timeout=300)
+    finally:
+        if first.poll() is None:
+            first.kill()
+    assert first.returncode == 0, stderr[-2000:]
+    rows = (out / "runs.csv").read_text().splitlines()[1:]
+    assert sorted(int(r.split(",")[0]) for r in rows) == [0, 1]

@@ -160,4 +160,6 @@ def test_wear_needs_the_hybrid_law_at_fixed_points(tmp_path, capsys):
     assert main(["wear", "--model", "lankarani-nikravesh", "--out", str(tmp_path)]) == 2
     assert "--model hybrid" in capsys.readouterr().err
     assert main(["wear", "--wear-coefficient", "-1", "--out", str(tmp_path)]) == 2
-    assert "--wear-coefficient" in capsys.readouterr().err
+    assert "argument --wear-coefficient" in capsys.readouterr().err
+    assert main(["wear", "--harmonics", "90", "--out", str(tmp_path)]) == 2
+    assert "--harmonics 90 is outside the allowed range" in capsys.readouterr().err

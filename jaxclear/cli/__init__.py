@@ -26,7 +26,7 @@ import sys
 from .. import __version__
 from .._errors import JaxclearError
 from . import animate, check, fit, models, presets, simulate, sweep, wear
-from .common import Formatter
+from .common import Formatter, Parser
 
 #: Commands in help order: name -> module.
 COMMANDS = {"presets": presets, "check": check, "simulate": simulate, "animate": animate, "models": models,
@@ -35,7 +35,7 @@ COMMANDS = {"presets": presets, "check": check, "simulate": simulate, "animate":
 
 def build_parser() -> argparse.ArgumentParser:
     """The full parser, with one sub-parser per command of :data:`COMMANDS`."""
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog="jaxclear",
         description="Dynamics of planar mechanisms with revolute clearance joints (JAX, differentiable).",
         epilog="Run 'jaxclear COMMAND --help' for the options of a command (all in SI units).\n"

@@ -7,7 +7,7 @@ import os
 
 from ..drawing import animate
 from ..integrate import runs
-from .common import add_mechanism_file_option, add_mechanism_options, int_at_least
+from .common import add_mechanism_file_option, add_mechanism_options, number_in
 from .simulate import add_integration_options, load, settings_from
 
 HELP = "animate a mechanism file or preset (GIF, or MP4 with ffmpeg)"
@@ -26,13 +26,13 @@ def configure(p: argparse.ArgumentParser):
     a = p.add_argument_group("animation")
     a.add_argument("--to", default="./jaxclear-out/animation.gif", metavar="FILE",
                    help="animation file, .gif or .mp4 (default: ./jaxclear-out/animation.gif)")
-    a.add_argument("--frames", type=int_at_least(1), default=120, metavar="N",
+    a.add_argument("--frames", type=number_in(int, 1), default=120, metavar="N",
                    help="frames, spread uniformly over the output samples [-], >= 1 (default: 120)")
-    a.add_argument("--fps", type=int_at_least(1), default=25, metavar="N", help="frames per second (default: 25)")
-    a.add_argument("--magnify", type=float, metavar="X",
+    a.add_argument("--fps", type=number_in(int, 1), default=25, metavar="N", help="frames per second, >= 1 (default: 25)")
+    a.add_argument("--magnify", type=number_in(float, 0.0, low_open=True), metavar="X",
                    help="drawing factor of the clearances [-], > 0 (default: 30 %% of the drawn bearing)")
-    a.add_argument("--joint", type=int_at_least(0), default=0, metavar="K",
-                   help="clearance joint whose orbit the inset shows (default: 0)")
+    a.add_argument("--joint", type=number_in(int, 0), default=0, metavar="K",
+                   help="clearance joint whose orbit the inset shows, >= 0 (default: 0)")
     a.add_argument("--no-progress", action="store_true", help="hide the progress bar (default: shown)")
     return run
 

@@ -9,7 +9,7 @@ from .. import io
 from .._errors import ParameterError
 from ..analysis.structure import check_mechanism
 from ..drawing import plot_mechanism
-from .common import add_mechanism_file_option, mechanism_file
+from .common import add_mechanism_file_option, mechanism_file, number_in
 from ..mechanism_files import load_mechanism
 from ..presets import preset, preset_names
 
@@ -30,7 +30,7 @@ def configure(p: argparse.ArgumentParser):
     p.add_argument("--preset", metavar="NAME", help=f"a preset instead of a file, one of {', '.join(preset_names())}")
     p.add_argument("--out", default="./jaxclear-out", metavar="DIR",
                    help="output folder, created if missing (default: ./jaxclear-out)")
-    p.add_argument("--magnify", type=float, metavar="X",
+    p.add_argument("--magnify", type=number_in(float, 0.0, low_open=True), metavar="X",
                    help="drawing factor of the clearances [-], > 0 (default: the largest clearance drawn as "
                    "30 %% of the bearing circle)")
     return run

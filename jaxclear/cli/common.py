@@ -5,13 +5,22 @@ those options to :func:`jaxclear.presets.preset` keyword arguments."""
 from __future__ import annotations
 
 import argparse
+import math
 
 from ..contact.registry import law_names
 from .._errors import ParameterError
 from .. import params
 from ..mechanism_files import load_mechanism
 from ..model import Mechanism
-from ..presets import preset_names
+from ..presets import preset, preset_names
+
+
+class Parser(argparse.ArgumentParser):
+    """The parser of every command: a usage error is one line, ``error: argument --flag: ...``
+    and where to find the options (exit code 2), like the library's errors."""
+
+    def error(self, message):
+        self.exit(2, f"error: {message} (options: {self.prog} --help)\n")
 
 
 class Formatter(argparse.RawDescriptionHelpFormatter):
@@ -21,16 +30,25 @@ class Formatter(argparse.RawDescriptionHelpFormatter):
         super().__init__(prog, max_help_position=30, width=100)
 
 
-def int_at_least(low: int):
-    """argparse type: an integer >= ``low`` (else a usage error naming the bound)."""
+def number_in(kind=float, low=None, high=None, low_open=False, high_open=False):
+    """argparse type: a finite number (``kind`` float or int) in the interval the help states
+    (``None`` bounds are open ends); else a usage error that argparse prefixes with the flag
+    (``argument --rtol: ...``), exit code 2, before anything is built or compiled."""
+    lo = "-inf" if low is None else f"{low:g}"
+    hi = "inf" if high is None else f"{high:g}"
+    interval = f"{'(' if (low is None or low_open) else '['}{lo}, {hi}{')' if (high is None or high_open) else ']'}"
 
-    def parse(text: str) -> int:
+    def parse(text: str):
         try:
-            value = int(text)
+            value = kind(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-        if value < low:
-            raise argparse.ArgumentTypeError(f"must be at least {low}, got {value}")
+            what = "an integer" if kind is int else "a number"
+            raise argparse.ArgumentTypeError(f"expected {what} in the allowed range {interval}, got {text!r}") from None
+        bad = not math.isfinite(value)
+        bad |= low is not None and (value <= low if low_open else value < low)
+        bad |= high is not None and (value >= high if high_open else value > high)
+        if bad:
+            raise argparse.ArgumentTypeError(f"{text} is outside the allowed range {interval}")
         return value
 
     return parse
@@ -61,21 +79,21 @@ def add_mechanism_options(p: argparse.ArgumentParser, title: str = "mechanism", 
     which = "preset mechanism with a slider" if needs_slider else "preset mechanism"
     mech.add_argument("--preset", default="flores-slider-crank", metavar="NAME",
                       help=f"{which}, one of {', '.join(preset_names())} (default: flores-slider-crank)")
-    mech.add_argument("--clearance", type=float, metavar="M",
+    mech.add_argument("--clearance", type=number_in(float, 0.0, low_open=True), metavar="M",
                       help="radial clearance c = R_B - R_J [m], > 0 and < the bearing radius "
                       "(default: the preset's, 0.5e-3 m)")
-    mech.add_argument("--restitution", type=float, metavar="CR",
+    mech.add_argument("--restitution", type=number_in(float, 0.0, 1.0, low_open=True), metavar="CR",
                       help="coefficient of restitution c_r [-], in (0, 1] (default: the preset's, 0.9)")
-    mech.add_argument("--friction", type=float, metavar="MU",
+    mech.add_argument("--friction", type=number_in(float, 0.0), metavar="MU",
                       help="friction coefficient mu [-], >= 0 (default: the preset's; 0 for "
                       "flores-slider-crank and four-bar, 0.01 for flores-2011-rig)")
-    mech.add_argument("--speed-rpm", type=float, metavar="RPM",
+    mech.add_argument("--speed-rpm", type=number_in(float), metavar="RPM",
                       help="crank speed [rev/min] (default: the preset's; 5000 for flores-slider-crank, "
                       "200 for flores-2011-rig, 500 for four-bar)")
     mech.add_argument("--model", default="lankarani-nikravesh", metavar="LAW",
                       help=f"normal contact force law [-], one of {', '.join(law_names())} "
                       "(default: lankarani-nikravesh)")
-    mech.add_argument("--stiffness", type=float, metavar="K",
+    mech.add_argument("--stiffness", type=number_in(float, 0.0, low_open=True), metavar="K",
                       help="contact stiffness, > 0: K [N/m^n] of the Hertz-family laws (n = 1.5), the "
                       "stiffness parameter of the others (default: from steel, E = 207 GPa, nu = 0.3, and "
                       "the radii; K = 6.61e10 N/m^1.5 for R_B = 10 mm, c = 0.5 mm)")
@@ -97,11 +115,11 @@ def _add_hybrid_options(p: argparse.ArgumentParser):
                    help="where the Gauss points sit: 'arc' (on the current contact arc, exact with few "
                    "points) or 'fixed' (body-fixed over the whole pin circumference, the model's original "
                    "formulation) (default: arc)")
-    h.add_argument("--elements", type=int_at_least(1), metavar="N_E",
+    h.add_argument("--elements", type=number_in(int, 1), metavar="N_E",
                    help="number of elements N_e [-], >= 1 (default: 2 for arc, 180 for fixed)")
-    h.add_argument("--gauss-points", type=int_at_least(1), metavar="N_G",
+    h.add_argument("--gauss-points", type=number_in(int, 1), metavar="N_G",
                    help="Gauss-Legendre points per element N_g [-], >= 1 (default: 4)")
-    h.add_argument("--layer-thickness", type=float, metavar="H",
+    h.add_argument("--layer-thickness", type=number_in(float, 0.0, low_open=True), metavar="H",
                    help="compliant layer thickness h [m], > 0 (default: the clearance c)")
     h.add_argument("--damping", choices=("joint", "point"), default=None,
                    help="Qin-Lu damping applied to the joint resultant or to every point (default: joint)")
@@ -118,6 +136,29 @@ def _hybrid_options(args) -> dict:
         flags = ", ".join("--" + attr.replace("_", "-") for attr in given)
         raise ParameterError(f"{flags} apply only to --model hybrid (got --model {args.model})")
     return {HYBRID_OPTIONS[attr]: getattr(args, attr) for attr in given}
+
+
+#: preset keyword -> the command-line flag that sets it.
+FLAGS = {"clearance": "--clearance", "restitution": "--restitution", "friction": "--friction",
+         "speed_rpm": "--speed-rpm", "stiffness": "--stiffness", "law": "--model", "n_elements": "--elements",
+         "n_gauss": "--gauss-points", "thickness": "--layer-thickness", "placement": "--placement",
+         "damping": "--damping", "geometry": "--geometry"}
+
+
+def preset_from_args(args, **kwargs) -> Mechanism:
+    """The preset ``args.preset`` with the mechanism options applied (``kwargs``: more preset
+    keywords, e.g. ``ideal``); a range error names the flag the user typed (``--clearance:
+    clearance = 0.02 m must be smaller than ...``)."""
+    overrides = mechanism_overrides(args)
+    try:
+        return preset(args.preset, **kwargs, **overrides)
+    except ParameterError as err:
+        text = str(err)
+        given = list(overrides) + list(overrides.get("law_options", {}))
+        named = [FLAGS[k] for k in given if k in FLAGS and text.startswith((f"{k} ", f"{k}="))]
+        if named and not text.startswith("--"):
+            raise ParameterError(f"{named[0]}: {text}") from None
+        raise
 
 
 def mechanism_overrides(args) -> dict:

@@ -6,11 +6,9 @@ import argparse
 import os
 import warnings
 
-from .._errors import ParameterError
 from ..fitting import fit
-from ..presets import preset
 from ..analysis.sensor import Accelerometer
-from .common import add_mechanism_options, mechanism_overrides, name_value
+from .common import add_mechanism_options, name_value, number_in, preset_from_args
 
 HELP = "fit contact parameters to a measured record (JSON, PNG)"
 DESCRIPTION = """\
@@ -37,30 +35,30 @@ def configure(p: argparse.ArgumentParser):
                    "friction, clearance [m], mass:BODY, ..., sensor_gain, sensor_bias (default: stiffness,restitution)")
     f.add_argument("--start", type=name_value, action="append", default=[], metavar="NAME=VALUE",
                    help="start value of a free parameter (SI), repeatable (default: the model's value)")
-    f.add_argument("--window", type=float, metavar="S",
+    f.add_argument("--window", type=number_in(float, 0.0, low_open=True), metavar="S",
                    help="length of a fit window [s], > 0 (default: a quarter crank revolution)")
-    f.add_argument("--windows", type=int, default=1, metavar="N",
+    f.add_argument("--windows", type=number_in(int, 1), default=1, metavar="N",
                    help="back-to-back windows, >= 1; windows after the first estimate their journal state "
                    "(default: 1)")
-    f.add_argument("--starts", type=int, default=1, metavar="N", help="number of starts, >= 1 (default: 1)")
+    f.add_argument("--starts", type=number_in(int, 1), default=1, metavar="N", help="number of starts, >= 1 (default: 1)")
     f.add_argument("--optimizer", default="levenberg-marquardt", metavar="NAME",
                    help="levenberg-marquardt (optax transformation, default) or adam[:LR]")
-    f.add_argument("--max-iter", type=int, default=30, metavar="N",
+    f.add_argument("--max-iter", type=number_in(int, 1), default=30, metavar="N",
                    help="iterations of the last stage, >= 1; earlier stages get half (default: 30)")
     f.add_argument("--align", choices=("time", "crank"), default="time",
                    help="first sample = simulation start ('time') or simulation time from crank_angle_rad "
                    "('crank') (default: time)")
-    f.add_argument("--rtol", type=float, default=1e-8, metavar="TOL",
-                   help="relative tolerance of the model's integration (default: 1e-8)")
-    f.add_argument("--atol", type=float, default=1e-11, metavar="TOL",
-                   help="absolute tolerance of the model's integration [m, rad, m/s] (default: 1e-11)")
+    f.add_argument("--rtol", type=number_in(float, 0.0, 1.0, True, True), default=1e-8, metavar="TOL",
+                   help="relative tolerance of the model's integration, in (0, 1) (default: 1e-8)")
+    f.add_argument("--atol", type=number_in(float, 0.0, low_open=True), default=1e-11, metavar="TOL",
+                   help="absolute tolerance of the model's integration [m, rad, m/s], > 0 (default: 1e-11)")
     s = p.add_argument_group("sensor model")
-    s.add_argument("--sensor-cutoff-hz", type=float, metavar="HZ",
-                   help="accelerometer low-pass cut-off (2nd-order Butterworth) [Hz] (default: none)")
-    s.add_argument("--sensor-gain", type=float, default=1.0, metavar="G", help="accelerometer gain [-] (default: 1)")
-    s.add_argument("--sensor-bias", type=float, default=0.0, metavar="B",
+    s.add_argument("--sensor-cutoff-hz", type=number_in(float, 0.0, low_open=True), metavar="HZ",
+                   help="accelerometer low-pass cut-off (2nd-order Butterworth) [Hz], > 0 (default: none)")
+    s.add_argument("--sensor-gain", type=number_in(float), default=1.0, metavar="G", help="accelerometer gain [-] (default: 1)")
+    s.add_argument("--sensor-bias", type=number_in(float), default=0.0, metavar="B",
                    help="accelerometer bias [m/s^2] (default: 0)")
-    s.add_argument("--oversample", type=int, default=4, metavar="N",
+    s.add_argument("--oversample", type=number_in(int, 1), default=4, metavar="N",
                    help="model grid points per record sample, >= 1 (default: 4)")
     out = p.add_argument_group("output")
     out.add_argument("--out", default="./jaxclear-fit", metavar="DIR",
@@ -73,18 +71,15 @@ def configure(p: argparse.ArgumentParser):
 
 def run(args) -> int:
     """Check the counts, fit, write fit.json and fit.png, print the estimates."""
-    for name, value in (("--windows", args.windows), ("--starts", args.starts), ("--max-iter", args.max_iter),
-                        ("--oversample", args.oversample)):
-        if value < 1:
-            raise ParameterError(f"{name} = {value} must be >= 1")
-    mech = preset(args.preset, **mechanism_overrides(args))
+    mech = preset_from_args(args)
     free = [n.strip() for n in args.free.split(",") if n.strip()]
     sensor = Accelerometer(args.sensor_cutoff_hz, gain=args.sensor_gain, bias=args.sensor_bias,
                            oversample=args.oversample)
     os.makedirs(args.out, exist_ok=True)
     print(f"jaxclear fit: {args.data}, {mech.name} with {args.model}, free {', '.join(free)}; sensor: "
           f"{sensor.describe()}", flush=True)
-    print("compiling the forward-mode model (about 20 to 40 s), then fitting...", flush=True)
+    if args.no_progress:  # with the bar, fit() says it is compiling and that it resumed
+        print("compiling the forward-mode model (about 20 to 40 s), then fitting...", flush=True)
     with warnings.catch_warnings():  # the fit's warnings are printed below, once
         warnings.simplefilter("ignore", UserWarning)
         res = fit(args.data, mech, free, dict(args.start), sensor=sensor, window=args.window, windows=args.windows,
@@ -102,7 +97,8 @@ def run(args) -> int:
 def _print_result(res, files: list[str]):
     """Print the fit's outcome, the estimates with their start values and std, and warnings."""
     width = max(len(n) for n in res.estimates)
-    print(f"done in {res.wall_time_s:.1f} s wall, {res.iterations} iterations ({res.stop_reason}); "
+    resumed = " (resumed from the checkpoint)" if res.settings.get("resumed") else ""
+    print(f"done in {res.wall_time_s:.1f} s wall{resumed}, {res.iterations} iterations ({res.stop_reason}); "
           f"loss {res.loss:.4g}, residual lag-1 autocorrelation {res.residual_autocorrelation:.2f}")
     print(f"  {'parameter':<{width}}  {'start':>12}  {'estimate':>12}  {'std':>10}")
     for name, value in res.estimates.items():

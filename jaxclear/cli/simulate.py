@@ -10,10 +10,10 @@ from ..analysis import channels, metrics
 from ..integrate import runs
 from .._errors import ParameterError, check_range
 from ..model import crank_driver
-from ..presets import preset
 from ..integrate import SOLVERS
-from .common import (add_mechanism_file_option, add_mechanism_options, fmt, int_at_least, load_mechanism_file,
-                     mechanism_file, mechanism_overrides)
+from ..integrate.settings import MAX_OUT_SAMPLES
+from .common import (add_mechanism_file_option, add_mechanism_options, fmt, load_mechanism_file, mechanism_file,
+                     mechanism_overrides, number_in, preset_from_args)
 
 HELP = "simulate a preset or a mechanism file (CSV, JSON, PNG)"
 DESCRIPTION = """\
@@ -51,21 +51,21 @@ def configure(p: argparse.ArgumentParser):
 def add_integration_options(p: argparse.ArgumentParser):
     """The integration options (time span, samples, solver, tolerances) of simulate and animate."""
     run_ = p.add_argument_group("integration")
-    run_.add_argument("--revolutions", type=float, default=3.0, metavar="N",
+    run_.add_argument("--revolutions", type=number_in(float, 0.0, low_open=True), default=3.0, metavar="N",
                       help="simulated time in crank revolutions [-], > 0 (default: 3)")
-    run_.add_argument("--t-end", type=float, metavar="S",
+    run_.add_argument("--t-end", type=number_in(float, 0.0, low_open=True), metavar="S",
                       help="simulated time [s], > 0; overrides --revolutions (default: unset)")
-    run_.add_argument("--n-out", type=int_at_least(2), metavar="N",
-                      help=f"number of output samples [-], >= 2, uniform in time (default: "
+    run_.add_argument("--n-out", type=number_in(int, 2, MAX_OUT_SAMPLES), metavar="N",
+                      help=f"number of output samples [-], in [2, {MAX_OUT_SAMPLES}], uniform in time (default: "
                       f"{runs.SAMPLES_PER_REVOLUTION} per crank revolution + 1, i.e. "
                       f"{3 * runs.SAMPLES_PER_REVOLUTION + 1} for 3 revolutions)")
     run_.add_argument("--solver", default="tsit5", metavar="NAME",
                       help=f"explicit/implicit Runge-Kutta solver, one of {', '.join(SOLVERS)} (default: tsit5)")
-    run_.add_argument("--rtol", type=float, default=1e-6, metavar="TOL",
+    run_.add_argument("--rtol", type=number_in(float, 0.0, 1.0, True, True), default=1e-6, metavar="TOL",
                       help="relative tolerance of the adaptive step [-], in (0, 1) (default: 1e-6)")
-    run_.add_argument("--atol", type=float, default=1e-9, metavar="TOL",
+    run_.add_argument("--atol", type=number_in(float, 0.0, low_open=True), default=1e-9, metavar="TOL",
                       help="absolute tolerance of the adaptive step [m, rad, m/s, rad/s], > 0 (default: 1e-9)")
-    run_.add_argument("--max-steps", type=int, default=400_000, metavar="N",
+    run_.add_argument("--max-steps", type=number_in(int, 1), default=400_000, metavar="N",
                       help="maximum number of solver steps [-], >= 1 (default: 400000)")
 
 
@@ -74,7 +74,7 @@ def load(args):
     path = mechanism_file(args)
     if path is None:
         overrides = mechanism_overrides(args)
-        return preset(args.preset, ideal=args.ideal, **overrides), None, overrides
+        return preset_from_args(args, ideal=args.ideal), None, overrides
     return load_mechanism_file(args, path, ideal=args.ideal), path, {"mechanism_file": path}
 
 

@@ -5,6 +5,10 @@ from __future__ import annotations
 import argparse
 import os
 
+import jax
+
+from .._errors import ParameterError
+from .common import number_in
 from ..sweep import CSV_NAME, MANIFEST_NAME, NETCDF_NAME, bifurcation, heatmap, load_config, poincare_plot, run_sweep
 
 HELP = "run a parameter sweep from a TOML file (CSV, NetCDF, NPZ, PNG)"
@@ -29,11 +33,11 @@ def configure(p: argparse.ArgumentParser):
     """Add the options of ``jaxclear sweep``; returns its ``run(args) -> exit code``."""
     p.add_argument("config", metavar="CONFIG.toml", help="sweep configuration file (TOML)")
     p.add_argument("--out", metavar="DIR", help="output folder (default: the file's output.dir, else ./sweep-out)")
-    p.add_argument("--chunk-size", type=int, metavar="N",
+    p.add_argument("--chunk-size", type=number_in(int, 1), metavar="N",
                    help="runs per chunk, >= 1, rounded up to a multiple of the devices "
                    "(default: the file's, else auto)")
-    p.add_argument("--devices", type=int, metavar="N",
-                   help="number of local devices to use, >= 1 (default: all)")
+    p.add_argument("--devices", type=number_in(int, 1), metavar="N",
+                   help="number of local devices to use, >= 1 and at most the devices available (default: all)")
     p.add_argument("--trajectories", action="store_true", default=None,
                    help="also store the time series in the chunk files (default: the file's, else off)")
     p.add_argument("--restart", action="store_true", help="discard results already in the folder instead of resuming")
@@ -44,6 +48,9 @@ def configure(p: argparse.ArgumentParser):
 
 def run(args) -> int:
     """Load the configuration, run (or resume) the sweep, draw its plots, print a summary."""
+    if args.devices is not None and args.devices > len(jax.devices()):
+        raise ParameterError(f"--devices = {args.devices} is outside the allowed range [1, {len(jax.devices())}] "
+                             f"(devices available: {len(jax.devices())})")
     cfg = load_config(args.config, out=args.out, chunk_size=args.chunk_size, devices=args.devices,
                       trajectories=args.trajectories, progress=False if args.no_progress else None)
     mode = "grid" if cfg.grid is not None else "list"
@@ -55,7 +62,10 @@ def run(args) -> int:
     files = [os.path.join(cfg.out, n) for n in (CSV_NAME, MANIFEST_NAME, NETCDF_NAME)]
     if not args.no_plots and len(table["run"]):
         files += _plots(cfg, res, grid=mode == "grid")
-    print(f"done: {len(table['run'])} of {cfg.n_runs} runs on disk ({res.computed} computed now), {failed} failed")
+    before = len(table["run"]) - res.computed
+    resumed = f", resumed with {before} already on disk" if before > 0 else ""
+    print(f"done: {len(table['run'])} of {cfg.n_runs} runs on disk ({res.computed} computed now){resumed}, "
+          f"{failed} failed")
     print("wrote " + ", ".join(files))
     return 0
 

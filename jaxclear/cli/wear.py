@@ -8,7 +8,7 @@ import argparse
 from .._errors import ParameterError, check_range
 from ..integrate import runs
 from ..wearing import WearOptions, wear
-from .common import add_mechanism_file_option, add_mechanism_options, fmt, int_at_least
+from .common import add_mechanism_file_option, add_mechanism_options, fmt, number_in
 from .simulate import add_integration_options, load, settings_from
 
 HELP = "wear a clearance joint's bearing over a long service (Archard), resumable"
@@ -33,20 +33,20 @@ def configure(p: argparse.ArgumentParser):
     p.set_defaults(model="hybrid", placement="fixed", ideal=False)
     add_integration_options(p)
     w = p.add_argument_group("wear")
-    w.add_argument("--wear-coefficient", type=float, default=1e-15, metavar="K_W",
+    w.add_argument("--wear-coefficient", type=number_in(float, 0.0, low_open=True), default=1e-15, metavar="K_W",
                    help="Archard's dimensional wear coefficient [m^2/N], > 0 (default: 1e-15)")
-    w.add_argument("--updates", type=int_at_least(1), default=10, metavar="N",
+    w.add_argument("--updates", type=number_in(int, 1), default=10, metavar="N",
                    help="number of profile updates (windows) [-], >= 1 (default: 10)")
-    w.add_argument("--cycles-per-update", type=float, default=1.0, metavar="F",
+    w.add_argument("--cycles-per-update", type=number_in(float, 1.0), default=1.0, metavar="F",
                    help="extrapolation factor: each window's wear is multiplied by it [-], >= 1 (default: 1)")
-    w.add_argument("--settle", type=float, default=0.0, metavar="S",
+    w.add_argument("--settle", type=number_in(float, 0.0), default=0.0, metavar="S",
                    help="start of each window discarded [s], >= 0 and below the window (default: 0)")
     w.add_argument("--joint", default=None, metavar="NAME",
                    help="the clearance joint to wear, by name or index (default: the only one)")
-    w.add_argument("--nodes", type=int_at_least(8), default=180, metavar="N",
+    w.add_argument("--nodes", type=number_in(int, 8), default=180, metavar="N",
                    help="bearing nodes [-], >= 8 (default: 180)")
-    w.add_argument("--harmonics", type=int_at_least(1), default=24, metavar="M",
-                   help="Fourier terms of the worn profile [-], in [1, nodes/2) (default: 24)")
+    w.add_argument("--harmonics", type=number_in(int, 1), default=24, metavar="M",
+                   help="Fourier terms of the worn profile [-], >= 1 and below --nodes / 2 (default: 24)")
     o = p.add_argument_group("output")
     o.add_argument("--out", default="./jaxclear-wear", metavar="DIR",
                    help="output folder, created if missing, locked while running (default: ./jaxclear-wear)")
@@ -60,10 +60,8 @@ def run(args) -> int:
     if args.model != "hybrid":
         raise ParameterError(f"jaxclear wear needs --model hybrid (got --model {args.model}): Archard's law needs "
                              "the contact pressure point by point")
-    check_range("--wear-coefficient", args.wear_coefficient, low=0.0, low_open=True, unit="m^2/N")
-    check_range("--cycles-per-update", args.cycles_per_update, low=1.0)
     if not args.harmonics < args.nodes / 2:
-        raise ParameterError(f"--harmonics {args.harmonics} is outside the allowed range [1, --nodes/2 = "
+        raise ParameterError(f"--harmonics {args.harmonics} is outside the allowed range [1, --nodes / 2 = "
                              f"{args.nodes / 2:g})")
     mech, _, _ = load(args)
     s = settings_from(args, mech)

@@ -72,8 +72,9 @@ class AbstractForceElement(eqx.Module):
         return RESULTS.successful
 
     def penetration_limit(self) -> Scalar:
-        """Deepest physically meaningful penetration [m]; a run whose output penetration
-        exceeds it gets status ``penetration_too_deep``. Default: no limit (``inf``)."""
+        """Deepest physically meaningful penetration [m]; a run whose penetration exceeds it at
+        any accepted step (the memory's running peak) or output sample gets status
+        ``penetration_too_deep``. Default: no limit (``inf``)."""
         return jnp.inf
 
     # ---- state ----------------------------------------------------------------------

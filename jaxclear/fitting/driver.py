@@ -85,8 +85,12 @@ def fit(
 
     Raises:
         ParameterError: unknown free parameter, start value outside its bounds, record shorter
-            than the windows, mechanism without a slider or a crank driver where one is needed,
-            the model cannot be simulated at the start values.
+            than the windows, mechanism without a slider or a crank driver where one is needed.
+        FitDataError (a ParameterError): the record holds non-finite or absurd samples or no
+            signal, or the loss at the start values is not finite (the model cannot be simulated
+            there) or exactly zero (nothing to fit); the message names the record.
+        OutputLockedError: another process holds ``out``.
+        CheckpointError: the checkpoint in ``out`` cannot be read.
     """
     t_wall = time.perf_counter()
     opt = make_optimizer(optimizer, ftol, xtol)
@@ -106,29 +110,36 @@ def _fit_locked(problem: FitProblem, opt, out, resume: bool, progress: bool, cal
         tqdm.write(f"jaxclear fit: resuming from {ckpt.path} after {saved.total} iteration(s)")
     st = saved if saved is not None else fresh_state(problem)
     wall_before = st.wall
-    bar = _progress_bar(problem, st) if progress else None
+    bars = []  # the bar starts after the first iteration, which includes the compilation
+    if progress:
+        tqdm.write("jaxclear fit: compiling the model; the progress bar starts after the first iteration")
 
     def report(record: dict):
-        if bar is not None:
-            bar.update(1)
-            bar.set_description(record["stage"])
-            bar.set_postfix({"loss": f"{record['loss']:.4g}", **{n: f"{v:.4g}" for n, v in record["values"].items()}})
+        if progress and not bars:
+            bars.append(_progress_bar(problem, record["iteration"]))
+        elif bars:
+            bars[0].update(1)
+        if bars:
+            bars[0].set_description(record["stage"] + (" (resumed)" if saved is not None else ""))
+            bars[0].set_postfix({"loss": f"{record['loss']:.4g}", **{n: f"{v:.4g}" for n, v in record["values"].items()}})
         if callback is not None:
             callback(record)
 
     try:
         st = run_plan(problem, opt, st, ckpt, report)
     finally:
-        if bar is not None:
+        for bar in bars:
             bar.total = bar.n
             bar.refresh()
             bar.close()
     return _result(problem, st, wall_before + time.perf_counter() - t_wall, saved is not None)
 
 
-def _progress_bar(problem: FitProblem, st: FitState):
+def _progress_bar(problem: FitProblem, done: int):
+    """The iteration bar, started after the first iteration of this call (so its rate and ETA
+    leave the compilation out): the ``done`` iterations so far count as its start."""
     total = sum(stage.max_iter(problem.settings["max_iter"]) for stage in problem.stages)
-    return tqdm(total=total, initial=min(st.total, total), desc="fit", unit="it", leave=True)
+    return tqdm(total=total, initial=min(done, total), desc="fit", unit="it", leave=True)
 
 
 def _evaluate_all(problem: FitProblem, theta, states, guesses):

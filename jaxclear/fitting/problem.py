@@ -11,7 +11,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._errors import ParameterError
+from .._errors import FitDataError, ParameterError
 from ..model import FunctionDriver, Mechanism, crank_driver, crank_period
 from ..analysis.sensor import Accelerometer, record_times, uniform_spacing
 from ..integrate import settings as make_settings
@@ -105,18 +105,18 @@ MAX_ABS_DATA = 1e100
 
 
 def _check_data(y_rec, where: str):
-    """ParameterError for data a least-squares fit cannot treat honestly: non-finite values,
+    """:class:`~jaxclear.FitDataError` for data a least-squares fit cannot treat honestly: non-finite values,
     magnitudes beyond :data:`MAX_ABS_DATA`, or a record without any signal (all zero)."""
     bad = ~np.isfinite(y_rec)
     if bad.any():
-        raise ParameterError(f"{where}: slider_acc_m_s2 holds {int(bad.sum())} non-finite value(s) "
+        raise FitDataError(f"{where}: slider_acc_m_s2 holds {int(bad.sum())} non-finite value(s) "
                              f"(first at sample {int(np.argmax(bad))}); remove or interpolate them")
     peak = float(np.max(np.abs(y_rec))) if y_rec.size else 0.0
     if peak > MAX_ABS_DATA:
-        raise ParameterError(f"{where}: |slider_acc_m_s2| reaches {peak:g} m/s^2, beyond the allowed "
+        raise FitDataError(f"{where}: |slider_acc_m_s2| reaches {peak:g} m/s^2, beyond the allowed "
                              f"{MAX_ABS_DATA:g} m/s^2 (check the units or the scale of the record)")
     if peak == 0.0:
-        raise ParameterError(f"{where}: slider_acc_m_s2 is zero everywhere: there is nothing to fit")
+        raise FitDataError(f"{where}: slider_acc_m_s2 is zero everywhere: there is nothing to fit")
 
 
 def build_problem(data, mech: Mechanism, free: Sequence[str], start: dict | None, sensor: Accelerometer | None,

@@ -8,7 +8,7 @@ from typing import Callable
 import jax.numpy as jnp
 import numpy as np
 
-from .._errors import ParameterError
+from .._errors import FitDataError
 from .parameters import values_of
 from .plan import Stage
 from .problem import FitProblem
@@ -110,10 +110,25 @@ def stage_run(problem: FitProblem, opt: Optimizer, st: FitState, stage: Stage) -
     return StageRun(opt, fn, args, u, st.solver), st
 
 
-def _cannot_simulate(problem: FitProblem, theta) -> ParameterError:
+def _cannot_simulate(problem: FitProblem, theta) -> FitDataError:
     values = dict(zip(problem.free, values_of(problem.free, theta, problem.win.scale)))
-    return ParameterError(f"the model cannot be simulated at the values {values} (solver failure or non-finite "
-                          "state); choose other start values")
+    where = problem.meas.path or "the record"
+    return FitDataError(f"{where}: the loss at the start is not finite: the model cannot be simulated at the "
+                        f"values {values} (solver failure or non-finite state); choose other start values")
+
+
+def check_start_loss(problem: FitProblem, stage: Stage, loss: float, theta):
+    """Refuse a fit whose loss at the start values is not finite (:func:`_cannot_simulate`) or,
+    at the first stage, exactly zero (:class:`~jaxclear.FitDataError` naming the record: the
+    record equals the model already, or the fitted samples are empty, so the Jacobian scaling
+    and the relative stopping rules are undefined)."""
+    if not np.isfinite(loss):
+        raise _cannot_simulate(problem, theta)
+    if loss == 0.0 and stage is problem.stages[0]:
+        where = problem.meas.path or "the record"
+        raise FitDataError(f"{where}: the loss at the start values is exactly 0 on stage {stage.name!r} (the record "
+                           "equals the model at the start, or no sample is fitted): there is nothing to fit; check "
+                           "the record and the start values")
 
 
 def run_stage(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoint,
@@ -130,8 +145,8 @@ def run_stage(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoin
     while not reason:
         fresh = st.x is None
         rep = run.step(st.iteration, limit, tol_f, s["xtol"])
-        if fresh and not np.isfinite(rep.loss):
-            raise _cannot_simulate(problem, split(problem, st, stage, join(st, stage))[0])
+        if fresh:
+            check_start_loss(problem, stage, rep.loss, split(problem, st, stage, join(st, stage))[0])
         theta, states = split(problem, st, stage, rep.x)
         st = st.replace(x=rep.u.tolist(), solver=solver_leaves(rep.arrays), theta=theta.tolist(),
                         states=states.tolist(), evaluations=st.evaluations + 1)

@@ -31,7 +31,7 @@ from .dynamics import _accelerations, flat_vector_field
 from .settings import SOLVERS, Settings
 from .solution import Solution
 from .solvers import ImpactMemorySolver, StateNorm, UnrolledExplicitRK
-from .state import State
+from .state import State, stack_memory
 
 
 def _inner_solver(s: Settings):
@@ -134,7 +134,7 @@ def _solve(mech: Mechanism, s: Settings, y0: State, assembled_ok, valid=RESULTS.
     result = RESULTS.where(sol.result == diffrax.RESULTS.dt_min_reached, RESULTS.nonfinite_state, result)
     result = RESULTS.where(sol.result == diffrax.RESULTS.max_steps_reached, RESULTS.max_steps_reached, result)
     result = RESULTS.where(assembled_ok, result, RESULTS.assembly_failed)
-    result = RESULTS.where(_too_deep(mech, pen), RESULTS.penetration_too_deep, result)
+    result = RESULTS.where(_too_deep(mech, pen, ys.elements), RESULTS.penetration_too_deep, result)
     result = RESULTS.where(valid == RESULTS.successful, result, valid)
     out = Solution(
         ts=ts,
@@ -159,12 +159,18 @@ def _solve(mech: Mechanism, s: Settings, y0: State, assembled_ok, valid=RESULTS.
     return out
 
 
-def _too_deep(mech: Mechanism, pen):
-    """Whether any element's output penetration exceeds its ``penetration_limit()``."""
+def _too_deep(mech: Mechanism, pen, element_states):
+    """Whether any element went deeper than its ``penetration_limit()`` at any accepted step:
+    the running peak of the elements' memories (``peak_penetration``, raised after every
+    accepted step by the impact-memory rule, so a deep penetration between two output samples
+    counts) and the output samples ``pen`` (T, k). Samples after a failed step (diffrax fills
+    them with ``inf``) are left out: that failure has its own status."""
     if not mech.elements or pen.shape[-1] != len(mech.elements):
         return jnp.asarray(False)
     limits = jnp.stack([jnp.asarray(e.penetration_limit(), pen.dtype) for e in mech.elements])
-    return jnp.any(pen > limits)
+    peak = stack_memory(element_states, pen).peak_penetration
+    peak = jnp.where(jnp.isfinite(peak), peak, -jnp.inf)
+    return jnp.any(pen > limits) | jnp.any(peak > limits)
 
 
 @jit

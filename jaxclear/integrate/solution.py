@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import equinox as eqx
 
+from .._errors import ParameterError
 from .._types import Array, Float
 from ..elements.memory import ContactMemory
 from ..model.drivers import COORDINATES
@@ -73,6 +74,10 @@ class Solution(eqx.Module):
         return self.memory.peak_penetration[..., -1, :]
 
     def coordinate(self, mech: Mechanism, body: str, which: str, derivative: int = 0):
-        """Time series of one coordinate (``x``, ``y`` or ``phi``) of a body."""
+        """Time series of one coordinate (``x``, ``y`` or ``phi``) of a body; ``derivative`` 0, 1
+        or 2 (position, velocity, acceleration)."""
+        if which not in COORDINATES or derivative not in (0, 1, 2):
+            raise ParameterError(f"coordinate {which!r}, derivative {derivative!r}: expected one of "
+                                 f"{list(COORDINATES)} and a derivative 0, 1 or 2")
         i = 3 * mech.body_index(body) + COORDINATES[which]
         return (self.q, self.qdot, self.qddot)[derivative][..., i]

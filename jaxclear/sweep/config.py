@@ -27,6 +27,7 @@ from ..model import Mechanism
 from ..mechanism_files import load_mechanism
 from ..presets import PRESETS, preset
 from ..integrate import SOLVERS, Settings
+from ..integrate.settings import MAX_OUT_SAMPLES
 from .values import _canonical, _number, _values
 
 #: Allowed keys of a sweep configuration file, per table (see :func:`load_config`).
@@ -41,6 +42,13 @@ CONFIG_KEYS = {
 RUN_KEYS = ("revolutions", "transient_revolutions", "samples_per_revolution", "solver", "rtol", "atol",
             "max_steps", "ideal_reference")
 OUTPUT_KEYS = ("dir", "chunk_size", "trajectories", "progress", "devices")
+
+#: Largest number of runs of one sweep (the (runs, parameters) table is built before anything
+#: is compiled; a grid's size is the product of its axes' lengths).
+MAX_RUNS = 10_000_000
+#: Largest runs x output samples of a sweep that stores its time series (``trajectories``):
+#: about 100 bytes per sample of a one-joint mechanism on disk and in ``SweepResult``, ~5 GB.
+MAX_TRAJECTORY_SAMPLES = 50_000_000
 
 
 @dataclass
@@ -160,6 +168,12 @@ class SweepConfig:
             if _canonical(name) == ("speed",) and np.any(vals == 0.0):
                 raise ParameterError(f"{src}: {name} = 0: crank revolutions are undefined at zero speed")
             axes[name] = vals
+        sizes = [len(v) for v in axes.values()]
+        n_runs = math.prod(sizes) if self.grid is not None else max(sizes)
+        if n_runs > MAX_RUNS:
+            raise ParameterError(f"{src}: the {'grid' if self.grid is not None else 'list'} has {n_runs} runs "
+                                 f"(axes {dict(zip(names, sizes))}), outside the allowed range [1, {MAX_RUNS}] "
+                                 "(jaxclear.sweep.config.MAX_RUNS); split the sweep or use fewer values")
         if self.grid is not None:
             mesh = np.meshgrid(*axes.values(), indexing="ij")
             values = np.stack([m.ravel() for m in mesh], axis=-1)
@@ -196,6 +210,11 @@ class SweepConfig:
         if abs(total - round(total)) > 1e-9 * max(total, 1.0):
             raise ParameterError(f"{src}: revolutions x samples_per_revolution = {total:g} must be an integer "
                                  "(so that samples fall on whole revolutions)")
+        n_out = int(round(total)) + 1
+        if n_out > MAX_OUT_SAMPLES:
+            raise ParameterError(f"{src}: run.revolutions x run.samples_per_revolution + 1 = {n_out} output samples "
+                                 f"per run, outside the allowed range [2, {MAX_OUT_SAMPLES}] "
+                                 "(jaxclear.integrate.settings.MAX_OUT_SAMPLES); use fewer revolutions or samples")
         if isinstance(self.max_steps, bool) or not isinstance(self.max_steps, (int, np.integer)):
             raise ParameterError(f"{src}: run.max_steps = {self.max_steps!r}: expected an integer >= 1")
         for key in ("rtol", "atol"):
@@ -216,6 +235,13 @@ class SweepConfig:
                 raise ParameterError(f"{src}: {key} = {getattr(self, key)!r}: expected true or false")
         if not isinstance(self.out, (str, os.PathLike)) or not str(self.out):
             raise ParameterError(f"{src}: output.dir = {self.out!r}: expected a folder name")
+        stored = self.n_runs * self.n_out
+        if self.trajectories and stored > MAX_TRAJECTORY_SAMPLES:
+            raise ParameterError(
+                f"{src}: output.trajectories (CLI: --trajectories) stores runs x samples = {self.n_runs} x "
+                f"{self.n_out} = {stored} time-series samples, outside the allowed range [0, "
+                f"{MAX_TRAJECTORY_SAMPLES}] (jaxclear.sweep.config.MAX_TRAJECTORY_SAMPLES, ~100 bytes each); "
+                "store fewer runs, revolutions or run.samples_per_revolution, or turn trajectories off")
         cs = self.chunk_size
         if not (cs == "auto" or (isinstance(cs, (int, np.integer)) and not isinstance(cs, bool) and cs >= 1)):
             raise ParameterError(f"{src}: output.chunk_size = {cs!r}: expected 'auto' or an integer >= 1")

@@ -80,16 +80,26 @@ def _run_sweep(cfg: SweepConfig, out: str, restart: bool, progress: bool, lead: 
     plan = make_plan(cfg, mesh)
     todo = _todo(cfg, chunk, done)
     n_chunks = -(-cfg.n_runs // chunk)
-    if done and progress and lead:
+    show = progress and lead
+    if done and show:
         tqdm.write(f"jaxclear sweep: resuming in {out}: {len(done)} of {cfg.n_runs} runs already done")
     computed = 0
-    with tqdm(total=n_chunks, initial=n_chunks - len(todo), unit="chunk", desc="sweep",
-              disable=not (progress and lead), dynamic_ncols=True) as bar:
+    if todo and show:
+        tqdm.write("jaxclear sweep: compiling; the progress bar starts after the first chunk")
+    bar = None
+    try:
         for c in todo:
             lo, res = _compute(cfg, plan, c, chunk)
             if lead:
                 computed += write_chunk(cfg, out, c, lo, res, done)
-            bar.update(1)
+            if bar is None:  # started after the first chunk (compilation), so the ETA leaves it out
+                bar = tqdm(total=n_chunks, initial=n_chunks - len(todo) + 1, unit="chunk",
+                           desc="sweep (resumed)" if done else "sweep", disable=not show, dynamic_ncols=True)
+            else:
+                bar.update(1)
+    finally:
+        if bar is not None:
+            bar.close()
     barrier("jaxclear-sweep-done")
     if not lead:
         return SweepResult(out, {}, cfg.names, np.zeros(0), cfg.axes, "grid" if cfg.grid is not None else "list",
