@@ -205,6 +205,7 @@ def test_clearance_joint_carries_bristle_state_and_its_work_balances_energy():
     assert work < 0 and abs(lost - work) < 1e-3 * abs(work), (lost, work)
 
 
+@pytest.mark.slow  # about 5 min on a shared 2-core machine (compiles the reverse-mode gradient)
 def test_bristle_state_under_vmap_and_grad():
     """One oblique impact with LuGre friction: a vmapped batch over the bristle stiffness equals
     the single runs, and d(loss)/d(sigma_0) through the bristle state matches central

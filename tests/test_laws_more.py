@@ -227,3 +227,12 @@ def test_models_lists_every_new_law():
     assert {"hu-guo", "carvalho-martins", "impact", *CONFORMAL} <= names
     for name in ["impact", *CONFORMAL]:
         assert jc.make_law(name).name == name
+
+
+@pytest.mark.parametrize("name,options", [("impact", {"max_damping": 3e3, "damping_depth": 2e-5}), ("johnson", {}),
+                                          ("pereira", {"hysteresis": "qin-lu"}), ("carvalho-martins", {})])
+def test_new_laws_round_trip_through_mechanism_files(name, options):
+    from jaxclear.mechanism_files import dumps_mechanism, loads_mechanism
+
+    mech = jc.preset("flores-slider-crank", law=name, law_options=options)
+    assert eqx.tree_equal(loads_mechanism(dumps_mechanism(mech)), mech)

@@ -68,7 +68,7 @@ import jax.numpy as jnp
 from .._errors import RESULTS, ParameterError, check_range, first_failure, in_range
 from .._types import Scalar
 from .base import STEEL, AbstractNormalLaw, Material, effective_modulus
-from .hertz import HYSTERESIS_FACTORS, dissipative_hertz, hysteresis_model
+from .hertz import HYSTERESIS_FACTORS, hysteresis_model, positive_power
 
 #: law -> (kappa, c, which B): the logarithmic line-contact laws (module docstring)
 LOG_LAWS = {
@@ -217,7 +217,7 @@ class ConformalLaw(AbstractNormalLaw):
         modulus = self.modulus_value()
         if self.model == "pereira":
             k, n = pereira_stiffness(radius_bearing, radius_journal, length, modulus)
-            return dissipative_hertz(delta, 0.0, 1.0, k, 0.0, n)
+            return k * positive_power(delta, n)
         kappa, b, c = log_law_scale(self.model, radius_bearing, radius_journal, length, modulus)
         return log_law_force(delta, kappa, b, c, length, modulus)
 
