@@ -21,6 +21,7 @@ from test_engine import effective_restitution_exact
 import jaxclear as jc
 from jaxclear.contact import conformal as cf
 from jaxclear.contact.impact import cubic_step
+from jaxclear.mechanism_files import dumps_mechanism, loads_mechanism
 
 RB, RJ, L = 0.010, 0.0095, 0.010
 DR = RB - RJ
@@ -232,7 +233,5 @@ def test_models_lists_every_new_law():
 @pytest.mark.parametrize("name,options", [("impact", {"max_damping": 3e3, "damping_depth": 2e-5}), ("johnson", {}),
                                           ("pereira", {"hysteresis": "qin-lu"}), ("carvalho-martins", {})])
 def test_new_laws_round_trip_through_mechanism_files(name, options):
-    from jaxclear.mechanism_files import dumps_mechanism, loads_mechanism
-
     mech = jc.preset("flores-slider-crank", law=name, law_options=options)
     assert eqx.tree_equal(loads_mechanism(dumps_mechanism(mech)), mech)
