@@ -9,8 +9,10 @@ cost of evaluating the law). Hybrid variants: ``arc`` (2 x 4 Gauss points on the
 and ``fixed`` with 720 points (360 elements x 2) over the whole pin; the default hybrid (h = c)
 is ~70x stiffer than LN's cylindrical K and so needs more steps, hence an extra row with the layer
 thickness matched to LN's stiffness at 10 um (same contact dynamics scale, isolates the cost).
+The friction rows run LN with mu = 0.1 and each friction model; their ratios are to the LN +
+Ambrosio (mu = 0.1) row.
 
-Usage: python benchmarks/bench_laws.py [--revolutions 1] [--repeats 3] [--json PATH]
+Usage: python benchmarks/bench_laws.py [--revolutions 1] [--repeats 3] [--subset all|new] [--json PATH]
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ import statistics
 import time
 from pathlib import Path
 
+import equinox as eqx
 import jax
 
 import jaxclear as jc
@@ -42,10 +45,35 @@ VARIANTS = [
     ("hybrid", {"law_options": {"placement": "arc"}}),
     ("hybrid", {"law_options": {"placement": "arc", "thickness": "matched"}}),
     ("hybrid", {"law_options": {"placement": "fixed", "n_elements": 360, "n_gauss": 2}}),
+    ("hu-guo", {}),
+    ("carvalho-martins", {}),
+    ("impact", {"law_options": {"max_damping": 1e4, "damping_depth": 1e-5}}),
+    ("johnson", {}),
+    ("radzimovsky", {}),
+    ("goldsmith", {}),
+    ("dubowsky-freudenstein", {}),
+    ("esdu-78035", {}),
+    ("pereira", {}),
+    # friction laws on LN (mu = 0.1, static 0.15 where the law has one); the first is the
+    # reference for these rows (the benchmark's own friction is Ambrosio with mu = 0)
+    ("lankarani-nikravesh", {"friction_law": ("ambrosio", {})}),
+    ("lankarani-nikravesh", {"friction_law": ("smooth", {})}),
+    ("lankarani-nikravesh", {"friction_law": ("viscous", {"viscous": 0.5})}),
+    ("lankarani-nikravesh", {"friction_law": ("stribeck", {"static": 0.15, "viscous": 0.5})}),
+    ("lankarani-nikravesh", {"friction_law": ("threlfall", {})}),
+    ("lankarani-nikravesh", {"friction_law": ("brown-mcphee", {"static": 0.15})}),
+    ("lankarani-nikravesh", {"friction_law": ("dahl", {})}),
+    ("lankarani-nikravesh", {"friction_law": ("lugre", {"static": 0.15, "bristle_damping": 1e-2})}),
 ]
+
+#: the rows added with the laws of Pereira et al., the step-damped impact force and the friction
+#: laws (``--subset new``), plus the LN reference row
+NEW_FROM = 14
 
 
 def label(name, opts):
+    if "friction_law" in opts:
+        return f"LN + {opts['friction_law'][0]} friction"
     lo = opts.get("law_options", {})
     if name == "hybrid":
         n = lo.get("n_elements", 2) * lo.get("n_gauss", 4)
@@ -63,13 +91,19 @@ def ln_matched_thickness():
     return float(matched_thickness(jc.HybridLaw(), joint.bearing_radius, joint.journal_radius, joint.length, k))
 
 
-def run(revolutions: float, repeats: int):
+def run(revolutions: float, repeats: int, subset: str = "all"):
     rows = []
-    for name, opts in VARIANTS:
+    variants = VARIANTS if subset == "all" else VARIANTS[:1] + VARIANTS[NEW_FROM:]
+    for name, opts in variants:
         name_label = label(name, opts)
         if opts.get("law_options", {}).get("thickness") == "matched":
             opts = {"law_options": {**opts["law_options"], "thickness": ln_matched_thickness()}}
+        friction = opts.get("friction_law")
+        opts = {k: v for k, v in opts.items() if k != "friction_law"}
         mech = jc.preset("flores-slider-crank", law=name, **opts)
+        if friction is not None:
+            model, kwargs = friction
+            mech = eqx.tree_at(lambda m: m.clearance_joints[0].friction, mech, jc.Friction(0.1, model, **kwargs))
         s = jc.settings(revolutions * jc.crank_period(mech), n_out=201)
         t0 = time.perf_counter()
         sol = jax.block_until_ready(jc.simulate(mech, s))
@@ -86,9 +120,11 @@ def run(revolutions: float, repeats: int):
                          peak_force_n=float(sol.peak_force[0]), status=int(sol.status)))
         print(f"  {rows[-1]['law']:<28s} {steady:7.3f} s", flush=True)
     ln = rows[0]
+    friction_ref = next((r for r in rows if r["law"] == "LN + ambrosio friction"), ln)
     for r in rows:
-        r["ratio_per_simulation"] = r["steady_s"] / ln["steady_s"]
-        r["ratio_per_step"] = r["us_per_step"] / ln["us_per_step"]
+        ref = friction_ref if r["law"].startswith("LN + ") else ln
+        r["ratio_per_simulation"] = r["steady_s"] / ref["steady_s"]
+        r["ratio_per_step"] = r["us_per_step"] / ref["us_per_step"]
     return rows
 
 
@@ -97,8 +133,10 @@ def main(argv=None):
     ap.add_argument("--revolutions", type=float, default=1.0, help="crank revolutions per run (default 1)")
     ap.add_argument("--repeats", type=int, default=3, help="timed repeats after compilation (default 3)")
     ap.add_argument("--json", default="benchmarks/results/laws.json", help="where to write the JSON results")
+    ap.add_argument("--subset", choices=("all", "new"), default="all",
+                    help="all rows, or LN and the rows of the newer laws and friction models (default all)")
     args = ap.parse_args(argv)
-    rows = run(args.revolutions, args.repeats)
+    rows = run(args.revolutions, args.repeats, args.subset)
     head = f"{'law':<28s} {'compile s':>9s} {'steady s':>9s} {'steps':>6s} {'us/step':>8s} {'x LN/sim':>8s} {'x LN/step':>9s} {'impacts':>7s} {'peak F N':>10s}"
     print()
     print(head)

@@ -33,5 +33,6 @@ def run(args) -> int:
         print(f"    parameters: {params}")
         print(f"    --stiffness sets: {law['stiffness_parameter']}")
     print("friction laws (per joint): " + ", ".join(FRICTION_MODELS)
-          + " (ambrosio: Ambrosio 2003 modified Coulomb; smooth: mu F_N tanh(v_T / v_s))")
+          + " (ambrosio: Ambrosio 2003 modified Coulomb; smooth: mu F_N tanh(v_T / v_s); dahl, lugre: bristle laws "
+          "whose deflection the joint carries in its state)")
     return 0

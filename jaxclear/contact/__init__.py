@@ -2,6 +2,8 @@
 Gauss-point model), friction laws, and the registry that names them."""
 
 from .base import STEEL, AbstractFriction, AbstractNormalLaw, ContactKinematics, Material, effective_modulus
+from .bristle import DahlFriction, LuGreFriction
+from .conformal import ConformalLaw
 from .cylindrical import CylindricalLaw
 from .friction import (
     AmbrosioFriction,
@@ -10,7 +12,15 @@ from .friction import (
     NoFriction,
     SmoothCoulombFriction,
 )
+from .friction_laws import (
+    BrownMcPheeFriction,
+    KarnoppFriction,
+    StribeckFriction,
+    ThrelfallFriction,
+    ViscousFriction,
+)
 from .hertz import HYSTERESIS_FACTORS, ContactLaw
+from .impact import StepDampedImpactLaw
 from .hybrid import FourierProfile, HybridLaw, matched_thickness, oval
 from .kelvin_voigt import KelvinVoigtLaw
 from .registry import describe_laws, law_names, make_law

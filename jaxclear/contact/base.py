@@ -8,7 +8,8 @@ hierarchy; concrete laws are final):
   own direction (non-circular profiles), ``contact_force``; ``penetration`` decides contact;
   ``stiffness_parameter`` names the leaf that ``stiffness`` addresses in fits and sweeps and
   ``stiffness_value`` returns its value (derived from materials when the leaf is ``None``).
-* :class:`AbstractFriction`: ``__call__(v_t, F_N) -> F_T``.
+* :class:`AbstractFriction`: ``__call__(v_t, F_N) -> F_T``; a law with internal (bristle)
+  states sets ``state_size`` and implements ``force_and_rate(state, v_t, F_N)``.
 
 A new law is one subclass in one file plus one entry in :mod:`jaxclear.contact.registry`.
 """
@@ -144,6 +145,18 @@ class AbstractFriction(eqx.Module):
     with :math:`F_T v_T \le 0` (friction never does positive work)."""
 
     coefficient: eqx.AbstractVar[Scalar]
+    #: number of internal states (bristle deflections) the law needs carried in the element's
+    #: state; 0 for a memoryless law
+    state_size: ClassVar[int] = 0
+
+    def state_init(self, dtype=float):
+        """Internal state at the start, shape ``(state_size,)`` (zeros: unloaded bristles)."""
+        return jnp.zeros((self.state_size,), dtype)
+
+    def force_and_rate(self, state, v_t: Scalar, normal_force: Scalar):
+        """``(F_T [N], d state/dt)`` for internal state ``state`` ``(state_size,)``; a memoryless
+        law returns ``(self(v_t, normal_force), 0)``."""
+        return self(v_t, normal_force), jnp.zeros_like(state)
 
     def check(self) -> RESULTS:
         """Traceable range check (run time): ``invalid_friction`` unless the coefficient is

@@ -15,6 +15,8 @@ import jax.numpy as jnp
 from .._errors import RESULTS, ParameterError, check_range, first_failure, in_range, is_concrete
 from .._types import ArrayLike, Scalar
 from .base import AbstractFriction
+from .bristle import DahlFriction, LuGreFriction
+from .friction_laws import BrownMcPheeFriction, StribeckFriction, ThrelfallFriction, ViscousFriction
 
 
 def ambrosio(v_t, normal_force, mu, v0=1e-4, v1=1e-3):
@@ -128,6 +130,12 @@ FRICTION_MODELS = {
     "coulomb": (CoulombFriction, ()),
     "smooth": (SmoothCoulombFriction, ("v_s",)),
     "none": (NoFriction, ()),
+    "viscous": (ViscousFriction, ("viscous",)),
+    "stribeck": (StribeckFriction, ("static", "v_stribeck", "stribeck_exponent", "viscous")),
+    "threlfall": (ThrelfallFriction, ("v_threlfall",)),
+    "brown-mcphee": (BrownMcPheeFriction, ("static", "v_transition", "viscous")),
+    "dahl": (DahlFriction, ("bristle_stiffness",)),
+    "lugre": (LuGreFriction, ("static", "v_stribeck", "bristle_stiffness", "bristle_damping", "viscous")),
 }
 
 
@@ -137,17 +145,34 @@ def Friction(  # noqa: N802 (the old class name, kept as the one factory)
     v0: ArrayLike = 1e-4,
     v1: ArrayLike = 1e-3,
     v_s: ArrayLike = 1e-3,
+    static: ArrayLike | None = None,
+    viscous: ArrayLike = 0.0,
+    v_stribeck: ArrayLike = 1e-3,
+    stribeck_exponent: ArrayLike = 2.0,
+    v_threlfall: ArrayLike = 1e-3,
+    v_transition: ArrayLike = 1e-3,
+    bristle_stiffness: ArrayLike = 1e5,
+    bristle_damping: ArrayLike = 0.0,
 ) -> AbstractFriction:
-    r"""A friction law by name: ``ambrosio`` (default), ``coulomb``, ``smooth`` or ``none``, with
-    coefficient :math:`\mu \ge 0`; ``v0``, ``v1`` [m/s] are Ambrósio's tolerances, ``v_s``
-    [m/s] the regularization speed of ``smooth`` (each used only by its law, validated always)."""
+    r"""A friction law by name (:data:`FRICTION_MODELS`) with (kinetic) coefficient
+    :math:`\mu \ge 0`: ``ambrosio`` (default), ``coulomb``, ``smooth``, ``none``, ``viscous``,
+    ``stribeck``, ``threlfall``, ``brown-mcphee`` (:mod:`~jaxclear.contact.friction_laws`) and the
+    bristle laws ``dahl``, ``lugre`` (:mod:`~jaxclear.contact.bristle`). Parameters, each used only
+    by the laws that name it: ``v0``, ``v1`` [m/s] Ambrósio's tolerances; ``v_s`` [m/s] the
+    regularization speed of ``smooth``; ``static`` :math:`\mu_s \ge \mu` (``None``: equal);
+    ``viscous`` :math:`\mu_v` [s/m]; ``v_stribeck`` [m/s] and ``stribeck_exponent``; ``v_threlfall``
+    [m/s]; ``v_transition`` [m/s] (Brown-McPhee); ``bristle_stiffness`` :math:`\sigma_0` [1/m] and
+    ``bristle_damping`` :math:`\sigma_1` [s/m] per newton of normal force. Ambrósio's and the
+    smoothing speeds are validated always, the others by the law that uses them."""
     if model not in FRICTION_MODELS:
         raise ParameterError(f"unknown friction model {model!r}; valid: {list(FRICTION_MODELS)}")
     check_range("v0 (Ambrosio lower slip speed)", v0, low=0.0, unit="m/s")
     check_range("v1 (Ambrosio upper slip speed)", v1, low=0.0, low_open=True, unit="m/s")
     check_range("v_s (regularization speed)", v_s, low=0.0, low_open=True, unit="m/s")
     cls, names = FRICTION_MODELS[model]
-    given = {"v0": v0, "v1": v1, "v_s": v_s}
+    given = {"v0": v0, "v1": v1, "v_s": v_s, "static": static, "viscous": viscous, "v_stribeck": v_stribeck,
+             "stribeck_exponent": stribeck_exponent, "v_threlfall": v_threlfall, "v_transition": v_transition,
+             "bristle_stiffness": bristle_stiffness, "bristle_damping": bristle_damping}
     return cls(coefficient, **{k: given[k] for k in names})
 
 

@@ -7,11 +7,15 @@ import inspect
 
 from .._errors import ParameterError
 from .base import AbstractNormalLaw, Material
+from .conformal import ConformalLaw
 from .cylindrical import CylindricalLaw
 from .hertz import ContactLaw
 from .hybrid import HybridLaw
+from .impact import StepDampedImpactLaw
 from .kelvin_voigt import KelvinVoigtLaw
 
+_CONFORMAL = ("; F_N = F(delta)(1 + chi_LN(c_r) deltadot/deltadot0), F from delta(F) by Newton; dR = R_B - R_J, "
+              "E* [Pa] from E, nu if not given")
 _HERTZ = "F_N = K delta^n (1 + chi(c_r) deltadot/deltadot0), F_N >= 0; K [N/m^n] from E, nu, radii if not given"
 
 #: name -> (constructor, reference, formula in plain text)
@@ -27,6 +31,12 @@ LAWS = {
     "qin-lu": (ContactLaw, "Zhiying & Qishao, Sci. China Ser. E 49 (2006) 600",
                _HERTZ + "; chi = 3(1 - c_r^2) exp(2(1 - c_r))/4"),
     "flores": (ContactLaw, "Flores et al., Multibody Syst. Dyn. 25 (2011) 357", _HERTZ + "; chi = 8(1 - c_r)/(5 c_r)"),
+    "hu-guo": (ContactLaw, "Hu & Guo, Multibody Syst. Dyn. 35 (2015) 131", _HERTZ + "; chi = 3(1 - c_r)/(4 c_r)"),
+    "carvalho-martins": (ContactLaw, "Carvalho & Martins, Mech. Mach. Theory 139 (2019) 174",
+                         _HERTZ + "; chi = 3(1 - c_r)(11 - c_r)/(2(1 + 9 c_r))"),
+    "impact": (StepDampedImpactLaw, "MSC Adams/Solver IMPACT and STEP functions (step-damped impact force)",
+               "F_N = max(K delta^n + step(delta; 0, 0, d_max, c_max) deltadot, 0), cubic step; "
+               "restitution not used (c_max [N s/m], d_max [m] set the damping)"),
     "kelvin-voigt": (KelvinVoigtLaw, "Goldsmith, Impact (1960); Machado et al., Mech. Mach. Theory 53 (2012) 99",
                      "F_N = max(k delta + d deltadot, 0), k [N/m], d = 2 zeta sqrt(k m_eff) from c_r"),
     "liu": (CylindricalLaw, "Liu, Zhang, Yang, Mech. Mach. Theory 42 (2007) 183",
@@ -38,6 +48,19 @@ LAWS = {
                "(hybrid LN / elastic-foundation Gauss-point model)",
                "F_N = |sum_k w_k (K_f delta_k/h) R_J L u_k| (1 + chi_QinLu deltadot/deltadot0) over Gauss points "
                "on the pin surface, K_f = E(1 - nu)/((1 + nu)(1 - 2 nu)) [Pa]"),
+    **{name: (ConformalLaw, ref, formula + _CONFORMAL) for name, (ref, formula) in {
+        "johnson": ("Johnson, Contact Mechanics (1985); Pereira et al., Nonlinear Dyn. 63 (2011) 681",
+                    "delta = F/(pi L E*) [ln(4 pi L E* dR/F) - 1]"),
+        "radzimovsky": ("Radzimovsky, Univ. Illinois Bull. 408 (1953); Pereira et al. (2011)",
+                        "delta = F/(pi L E*) [2/3 + ln(4 R_B/b) + ln(4 R_J/b)], b = 2 sqrt(F R*/(pi L E*))"),
+        "goldsmith": ("Goldsmith, Impact (1960); Pereira et al. (2011)",
+                      "delta = F/(pi L E*) [ln(pi E* L^3/(F dR)) + 1]"),
+        "dubowsky-freudenstein": ("Dubowsky & Freudenstein, J. Eng. Ind. 93 (1971) 305; Pereira et al. (2011)",
+                                  "delta = F/(pi L E*) [ln(pi E* L^3 dR/(F R_B R_J)) + 1]"),
+        "esdu-78035": ("ESDU-78035 (1978); Pereira et al. (2011)", "delta = F/(L E*) [ln(4 pi L E* dR/F) + 1]"),
+        "pereira": ("Pereira, Ramalho, Ambrosio, Nonlinear Dyn. 63 (2011) 681",
+                    "F = K delta^n, K = (0.965 dR + 0.0965) L E*/dR, n = Y dR^-0.005, dR in mm in the fit"),
+    }.items()},
 }
 
 
@@ -66,7 +89,7 @@ def make_law(name: str, **kwargs):
     if "stiffness" in kwargs and cls.stiffness_parameter != "stiffness":
         kwargs[cls.stiffness_parameter] = kwargs.pop("stiffness")
     try:
-        return cls(model=name, **kwargs) if cls in (ContactLaw, CylindricalLaw) else cls(**kwargs)
+        return cls(model=name, **kwargs) if cls in (ContactLaw, CylindricalLaw, ConformalLaw) else cls(**kwargs)
     except TypeError as err:
         params = [p for p in inspect.signature(cls.__init__).parameters if p != "self"]
         raise ParameterError(f"contact law {name!r}: {err}; its parameters are {params}") from None

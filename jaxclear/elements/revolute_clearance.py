@@ -19,7 +19,10 @@ it would do positive work); the energy tests check that friction only dissipates
 
 The impact speed :math:`\dot\delta^{(-)}` of the joint is history: the joint's state is a
 :class:`~jaxclear.elements.memory.ContactMemory`, updated after every accepted step by
-:meth:`ClearanceJoint.after_step` with the rule of :mod:`jaxclear.elements.memory`.
+:meth:`ClearanceJoint.after_step` with the rule of :mod:`jaxclear.elements.memory`. A friction
+law with internal states (the bristle laws of :mod:`jaxclear.contact.bristle`) adds them to the
+joint's state (:class:`JournalState`); they are continuous states integrated with their rate
+while in contact, frozen out of contact, and relaxed (zero) at each contact onset.
 """
 
 from __future__ import annotations
@@ -34,6 +37,7 @@ import jax.numpy as jnp
 from .._errors import RESULTS, ParameterError, check_range, first_failure, in_range
 from .._types import Array, ArrayLike, Float, Scalar, Vec2
 from ..contact.base import AbstractFriction, AbstractNormalLaw, ContactKinematics
+from ..contact.bristle import FrozenBristles
 from ..contact.friction import Friction
 from ..contact.hertz import ContactLaw
 from ..model.geometry import perp, safe_normal
@@ -41,6 +45,19 @@ from ..model.joints import Revolute
 from ..model.mechanism import Mechanism, point_load, point_position, point_velocity
 from .base import AbstractForceElement, ContactOutput
 from .memory import N_FIELDS, ContactMemory, onset_update, with_peak_force
+
+
+class JournalState(eqx.Module):
+    """State of a journal joint whose friction law has internal states (Dahl, LuGre): the
+    impact memory and the bristle states ``(m,)`` [m]; the slice is the memory's six fields
+    followed by the bristle states."""
+
+    memory: ContactMemory
+    friction: Float[Array, " m"]
+
+    def summary(self) -> ContactMemory:
+        """The impact memory (what ``Solution.memory`` stacks)."""
+        return self.memory
 
 
 class AbstractJournalJoint(AbstractForceElement):
@@ -132,34 +149,60 @@ class AbstractJournalJoint(AbstractForceElement):
         """The ideal revolute joint this element replaces: journal and bearing centres coincide."""
         return Revolute(self.journal_body, self.journal_point, self.bearing_body, self.bearing_point)
 
-    # ---- state: one ContactMemory -----------------------------------------------------
-    state_size: ClassVar[int] = N_FIELDS
+    # ---- state: one ContactMemory (and the friction law's bristle states, if any) -------
+    @property
+    def state_size(self) -> int:
+        """:data:`~jaxclear.elements.memory.N_FIELDS` plus the friction law's internal states."""
+        return N_FIELDS + self.friction.state_size
 
-    def state_init(self, dtype=float) -> ContactMemory:
-        return ContactMemory.initial((), dtype)
+    def state_init(self, dtype=float):
+        memory = ContactMemory.initial((), dtype)
+        return memory if self.friction.state_size == 0 else JournalState(memory, self.friction.state_init(dtype))
 
-    def state_to_vector(self, state: ContactMemory):
-        return jnp.stack(jax.tree_util.tree_leaves(state))
+    def state_to_vector(self, state):
+        return jnp.concatenate([jnp.reshape(x, (-1,)) for x in jax.tree_util.tree_leaves(state)])
 
-    def state_from_vector(self, v) -> ContactMemory:
-        return ContactMemory(*(v[i] for i in range(N_FIELDS)))
+    def state_from_vector(self, v):
+        memory = ContactMemory(*(v[i] for i in range(N_FIELDS)))
+        return memory if self.friction.state_size == 0 else JournalState(memory, v[N_FIELDS:self.state_size])
+
+    def split_state(self, state) -> tuple[ContactMemory, Float[Array, " m"]]:
+        """``(memory, friction states)``; a bare memory (outputs recomputed from
+        ``Solution.memory``) gets relaxed bristles."""
+        if isinstance(state, JournalState):
+            return state.memory, state.friction
+        return state, self.friction.state_init(state.impact_velocity.dtype)
 
     # ---- physics ----------------------------------------------------------------------
-    def forces(self, mech: Mechanism, t, q, qdot, state: ContactMemory):
-        """Generalized contact force (n,), memory rate (the work's rate is the power) and the
-        joint's :class:`ContactOutput`."""
-        gen, out = self.contact(mech, q, qdot, state.impact_velocity)
-        return gen, state.rate(out.power), out
+    def forces(self, mech: Mechanism, t, q, qdot, state):
+        """Generalized contact force (n,), state rate (the memory's work rate is the power; the
+        bristle states move at the friction law's rate) and the joint's :class:`ContactOutput`."""
+        if self.friction.state_size == 0:
+            gen, out = self.contact(mech, q, qdot, state.impact_velocity)
+            return gen, state.rate(out.power), out
+        memory, bristles = self.split_state(state)
+        frozen = eqx.tree_at(lambda j: j.friction, self, FrozenBristles(self.friction, bristles))
+        gen, out = frozen.contact(mech, q, qdot, memory.impact_velocity)
+        slip = self.kinematics(mech, q, qdot).slip
+        _, rate = self.friction.force_and_rate(bristles, slip, out.normal_force)
+        # out of contact the bristles carry no load and stay as they are (after_step relaxes
+        # them at the next onset): their rate there would be stiff and unseen by the error norm
+        rate = jnp.where(out.normal_force > 0.0, rate, 0.0)
+        return gen, JournalState(memory.rate(out.power), rate), out
 
-    def after_step(self, mech: Mechanism, t0, q0, qd0, t1, q1, qd1, state: ContactMemory):
+    def after_step(self, mech: Mechanism, t0, q0, qd0, t1, q1, qd1, state):
         """The impact-memory rule over the accepted step ``[t0, t1]``
         (:func:`~jaxclear.elements.memory.onset_update`), then the running peak force at the
         step's end."""
+        memory, bristles = self.split_state(state)
         kin0, kin1 = self.kinematics(mech, q0, qd0), self.kinematics(mech, q1, qd1)
         p0, p1 = self.law.penetration(kin0), self.law.penetration(kin1)
-        new, crossed = onset_update(state, t0, t1, p0, p1, kin0.deltadot, kin1.deltadot)
+        new, crossed = onset_update(memory, t0, t1, p0, p1, kin0.deltadot, kin1.deltadot)
         _, out = self.contact(mech, q1, qd1, new.impact_velocity)
-        return with_peak_force(new, out.normal_force), crossed
+        new = with_peak_force(new, out.normal_force)
+        if self.friction.state_size == 0:
+            return new, crossed
+        return JournalState(new, jnp.where(crossed, 0.0, bristles)), crossed  # relaxed at each onset
 
     # ---- initial assembly: hold the journal at its initial offset ---------------------
     n_equations: ClassVar[int] = 2

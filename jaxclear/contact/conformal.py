@@ -1,0 +1,227 @@
+r"""Line-contact (conformal) laws for a journal of radius :math:`R_J` and length :math:`L` in a
+bearing of radius :math:`R_B`, radial clearance :math:`\Delta R = R_B - R_J`, effective
+modulus :math:`1/E^* = (1-\nu_i^2)/E_i + (1-\nu_j^2)/E_j`, as compared by Pereira, Ramalho,
+Ambrósio, "A critical overview of internal and external cylinder contact force models",
+Nonlinear Dyn. 63 (2011) 681-697 (their definitions; the variants chosen are stated per law).
+
+Five of them give the penetration as a function of the force, all of the form
+
+.. math:: \delta(F) = \kappa\,\frac{F}{\pi L E^*}\left[\ln\frac{B}{F} + c\right]
+
+(:func:`log_law_penetration`), with
+
+=========================  ========  ===============================================  =======
+law                        kappa     B [N]                                            c
+=========================  ========  ===============================================  =======
+Johnson (1985)             1         :math:`4\pi L E^*\Delta R`                        -1
+Radzimovsky (1953)         1         :math:`4\pi L E^*\Delta R`                        2/3
+Goldsmith (1960)           1         :math:`\pi E^* L^3/\Delta R`                      1
+Dubowsky-Freudenstein      1         :math:`\pi E^* L^3\Delta R/(R_B R_J)`             1
+ESDU-78035 (1978)          pi        :math:`4\pi L E^*\Delta R`                        1
+=========================  ========  ===============================================  =======
+
+* Johnson, *Contact Mechanics*, CUP 1985, sec. 5.6: :math:`\delta = \frac{F}{\pi L E^*}
+  [\ln(4\pi L E^*\Delta R/F) - 1]`.
+* Radzimovsky, "Stress distribution and strength condition of two rolling cylinders pressed
+  together", Univ. Illinois Eng. Exp. Station Bull. 408 (1953): :math:`\delta = \frac{F}{\pi L E^*}
+  [2/3 + \ln(4R_B/b) + \ln(4R_J/b)]` with the Hertz half-width :math:`b = 2\sqrt{F R^*/(\pi L E^*)}`,
+  :math:`R^* = R_B R_J/\Delta R`; substituting b gives the row above (variant: Hertz half-width,
+  not Radzimovsky's empirical 1.6 coefficient).
+* Goldsmith, *Impact*, Arnold 1960: :math:`\delta = \frac{F\sigma_G}{L}[\ln(L^3/(F\sigma_G\Delta R))
+  + 1]`, :math:`\sigma_G = \sum_k (1-\nu_k^2)/(\pi E_k) = 1/(\pi E^*)`.
+* Dubowsky & Freudenstein, "Dynamic analysis of mechanical systems with clearances, part 1",
+  J. Eng. Ind. 93 (1971) 305-309: as Goldsmith with :math:`\Delta R/(R_B R_J)` in place of
+  :math:`1/\Delta R` in the logarithm.
+* ESDU-78035, "Contact phenomena I: stresses, deflections and contact dimensions for normally
+  loaded unlubricated elastic components" (1978), as quoted by Pereira et al.:
+  :math:`\delta = \frac{F}{L E^*}[\ln(4\pi L E^*\Delta R/F) + 1]`.
+
+Each is solved for :math:`F(\delta)` by Newton's method on :math:`\ln F` (:func:`log_law_force`,
+fixed iteration count, differentiable through the implicit function theorem). The relation is
+monotonic while :math:`\ln(B/F) + c > 1`; beyond that penetration (for Johnson
+:math:`\delta > 4e^{-2}\Delta R \approx 0.54\,\Delta R`) the force is held at its maximum and the law
+is outside its validity.
+
+Pereira et al.'s own law is explicit (:func:`pereira_stiffness`):
+:math:`F = K\delta^n`, :math:`K = (a\Delta R + b) L E^*/\Delta R`, :math:`n = Y\Delta R^{-0.005}`,
+internal contact :math:`a = 0.965`, :math:`b = 0.0965`,
+:math:`Y = 1.51[\ln(1000\Delta R)]^{-0.151}` for :math:`0.005 \le \Delta R \le 0.34954` and
+:math:`Y = 0.0151\Delta R + 1.151` for :math:`0.34954 \le \Delta R \le 10`, with :math:`\Delta R` in
+millimetres in these empirical factors (the two expressions for Y meet at 0.34954 mm only in
+millimetres) and K read as N/m^n.
+
+Every law gets the hysteresis damping of the dissipative-Hertz family,
+:math:`F_N = F(\delta)(1 + \hat\chi(c_r)\dot\delta/\dot\delta^{(-)})` (default Lankarani-Nikravesh,
+as Pereira et al. use). The Lankarani-Nikravesh law "for cylinders" of the same comparison is
+:math:`K\delta^{1.5}` with :math:`K = \frac43 E^*\sqrt{R^*}`: the existing ``lankarani-nikravesh``
+law with its default stiffness.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+from .._errors import RESULTS, ParameterError, check_range, first_failure, in_range
+from .._types import Scalar
+from .base import STEEL, AbstractNormalLaw, Material, effective_modulus
+from .hertz import HYSTERESIS_FACTORS, hysteresis_model, positive_power
+
+#: law -> (kappa, c, which B): the logarithmic line-contact laws (module docstring)
+LOG_LAWS = {
+    "johnson": (1.0, -1.0, "clearance"),
+    "radzimovsky": (1.0, 2.0 / 3.0, "clearance"),
+    "goldsmith": (1.0, 1.0, "goldsmith"),
+    "dubowsky-freudenstein": (1.0, 1.0, "dubowsky"),
+    "esdu-78035": (jnp.pi, 1.0, "clearance"),
+}
+
+CONFORMAL_LAWS = (*LOG_LAWS, "pereira")
+
+
+def log_law_scale(model, radius_bearing, radius_journal, length, modulus):
+    """``(kappa, B [N], c)`` of a logarithmic law (table in the module docstring)."""
+    kappa, c, which = LOG_LAWS[model]
+    dr = radius_bearing - radius_journal
+    if which == "clearance":
+        b = 4.0 * jnp.pi * length * modulus * dr
+    elif which == "goldsmith":
+        b = jnp.pi * modulus * length**3 / dr
+    else:
+        b = jnp.pi * modulus * length**3 * dr / (radius_bearing * radius_journal)
+    return kappa, b, c
+
+
+def log_law_penetration(force, kappa, b, c, length, modulus):
+    r""":math:`\delta(F) = \kappa F/(\pi L E^*)[\ln(B/F) + c]` [m] for a force F > 0 [N]."""
+    return kappa * force / (jnp.pi * length * modulus) * (jnp.log(b / force) + c)
+
+
+def log_law_force(delta, kappa, b, c, length, modulus, iterations=8):
+    r"""Force [N] of a logarithmic law at penetration ``delta`` [m] (0 for delta <= 0): Newton on
+    :math:`x = \ln F` for :math:`h(x) = \ln\delta(e^x) - \ln\delta = 0`,
+    :math:`h'(x) = 1 - 1/(\ln B - x + c)`, from two fixed-point steps; ``iterations`` Newton steps
+    under ``stop_gradient`` and one last step that carries the derivatives (implicit function
+    theorem: exact first derivatives at the converged root)."""
+    inside = delta > 0.0
+    d = jnp.where(inside, delta, 1e-12)
+    scale = jnp.log(jnp.pi * length * modulus / kappa)
+    log_b = jnp.log(b)
+    u_min = 1.0 + 1e-9
+
+    def h(x, log_d, log_b, scale):
+        u = jnp.maximum(log_b - x + c, u_min)
+        return x - scale + jnp.log(u) - log_d, 1.0 - 1.0 / u
+
+    log_d, lb, sc = jax.lax.stop_gradient((jnp.log(d), log_b, scale))
+    x = log_d + sc - jnp.log(15.0)
+    for _ in range(2):
+        x = log_d + sc - jnp.log(jnp.maximum(lb - x + c, u_min + 0.5))
+    x_max = lb + c - u_min  # the force where the relation stops being monotonic
+    for _ in range(iterations):
+        val, slope = h(x, log_d, lb, sc)
+        x = jnp.minimum(x - val / slope, x_max)
+    x = jax.lax.stop_gradient(x)
+    val, slope = h(x, jnp.log(d), log_b, scale)
+    x = jnp.minimum(x - val / jax.lax.stop_gradient(slope), log_b + c - u_min)
+    return jnp.where(inside, jnp.exp(x), 0.0)
+
+
+def pereira_stiffness(radius_bearing, radius_journal, length, modulus):
+    r"""``(K [N/m^n], n)`` of Pereira et al.'s internal-contact law (module docstring), with the
+    empirical factors evaluated for :math:`\Delta R` in millimetres."""
+    dr_mm = (radius_bearing - radius_journal) * 1e3
+    y_small = 1.51 * jnp.log(1000.0 * dr_mm) ** -0.151
+    y_large = 0.0151 * dr_mm + 1.151
+    y = jnp.where(dr_mm <= 0.34954, y_small, y_large)
+    exponent = y * dr_mm**-0.005
+    stiffness = (0.965 * dr_mm + 0.0965) * length * modulus / dr_mm
+    return stiffness, exponent
+
+
+#: clearance range [m] of Pereira et al.'s fit
+PEREIRA_CLEARANCE = (0.005e-3, 10e-3)
+
+
+class ConformalLaw(AbstractNormalLaw):
+    r"""The line-contact laws compared by Pereira et al. (2011), selected by ``model``
+    (``johnson``, ``radzimovsky``, ``goldsmith``, ``dubowsky-freudenstein``, ``esdu-78035``,
+    ``pereira``; module docstring), with hysteresis damping
+    :math:`F_N = F(\delta)(1 + \hat\chi(c_r)\dot\delta/\dot\delta^{(-)})`, clipped at 0.
+
+    Attributes:
+        model: law name (static).
+        restitution: :math:`c_r \in (0, 1]`.
+        modulus: :math:`E^*` [Pa] > 0 or ``None`` (from the materials: :func:`effective_modulus`).
+        hysteresis: name of the damping factor in :data:`HYSTERESIS_FACTORS` (static; default
+            Lankarani-Nikravesh).
+        bearing_material, journal_material: used when ``modulus`` is ``None``.
+    """
+
+    model: str = eqx.field(static=True)
+    restitution: Scalar
+    modulus: Scalar | None
+    bearing_material: Material
+    journal_material: Material
+    hysteresis: str = eqx.field(static=True)
+
+    stiffness_parameter: ClassVar[str] = "modulus"
+
+    def __init__(self, model="johnson", restitution=0.9, modulus=None, hysteresis=None,
+                 bearing_material: Material = STEEL, journal_material: Material = STEEL):
+        if model not in CONFORMAL_LAWS:
+            raise ParameterError(f"conformal law model must be one of {list(CONFORMAL_LAWS)}, got {model!r}")
+        check_range("restitution", restitution, low=0.0, high=1.0, low_open=True)
+        check_range("modulus (E*)", modulus, low=0.0, low_open=True, unit="Pa")
+        self.model = model
+        self.restitution = jnp.asarray(restitution, dtype=float)
+        self.modulus = None if modulus is None else jnp.asarray(modulus, dtype=float)
+        self.hysteresis = hysteresis_model("lankarani-nikravesh" if hysteresis is None else hysteresis)
+        self.bearing_material, self.journal_material = bearing_material, journal_material
+
+    @property
+    def name(self) -> str:
+        return self.model
+
+    def check(self) -> RESULTS:
+        """Restitution in (0, 1], E* > 0 (when given), the materials."""
+        modulus = 1.0 if self.modulus is None else self.modulus
+        return first_failure(
+            super().check(),
+            (in_range(modulus, low=0.0, low_open=True), RESULTS.invalid_stiffness),
+            self.bearing_material.check(),
+            self.journal_material.check(),
+        )
+
+    def check_geometry(self, radius_bearing, radius_journal):
+        """Pereira et al.'s fit covers clearances of 0.005 mm to 10 mm only."""
+        if self.model == "pereira":
+            lo, hi = PEREIRA_CLEARANCE
+            dr = radius_bearing - radius_journal
+            if not lo <= dr <= hi:
+                raise ParameterError(f"the pereira law is fitted for a radial clearance in [{lo:g}, {hi:g}] m, "
+                                     f"got {dr:g} m (R_B - R_J)")
+
+    def modulus_value(self):
+        """:math:`E^*` [Pa]: the given one, or from the materials."""
+        return effective_modulus(self.bearing_material, self.journal_material) if self.modulus is None else self.modulus
+
+    def stiffness_value(self, radius_bearing, radius_journal):
+        return self.modulus_value()
+
+    def elastic_force(self, delta, radius_bearing, radius_journal, length):
+        """The undamped force :math:`F(\\delta)` [N] (0 for delta <= 0)."""
+        modulus = self.modulus_value()
+        if self.model == "pereira":
+            k, n = pereira_stiffness(radius_bearing, radius_journal, length, modulus)
+            return k * positive_power(delta, n)
+        kappa, b, c = log_law_scale(self.model, radius_bearing, radius_journal, length, modulus)
+        return log_law_force(delta, kappa, b, c, length, modulus)
+
+    def normal_force(self, kin, deltadot0):
+        chi = HYSTERESIS_FACTORS[self.hysteresis](self.restitution)
+        elastic = self.elastic_force(kin.delta, kin.radius_bearing, kin.radius_journal, kin.length)
+        return jnp.maximum(elastic * (1.0 + chi * kin.deltadot / deltadot0), 0.0)
