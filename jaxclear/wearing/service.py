@@ -20,6 +20,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import warnings
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -35,6 +36,8 @@ from .figures import plot_wear
 from .archard import WindowWear, wear_element, window_wear
 from .profile import node_angles, prepare, worn
 
+#: A single update wearing more than this fraction of the clearance gets a warning.
+STEP_WARNING = 0.05
 STATE_FILE = "wear.json"
 UPDATES_FILE = "updates.csv"
 UPDATES_HEADER = "update,service_time_s,cycles,worn_volume_m3,max_depth_m,mean_depth_m,peak_force_n,max_penetration_m\n"
@@ -177,7 +180,12 @@ def wear(mech: Mechanism, settings: Settings, options: WearOptions, out: str | N
             window_depth = np.asarray(w.depth)
             if not np.all(np.isfinite(window_depth)):
                 raise ParameterError(f"update {u}: the wear depth is not finite (the window's run failed)")
-            depth = depth + options.cycles_per_update * window_depth
+            step = options.cycles_per_update * window_depth
+            if step.max() > STEP_WARNING * clearance:
+                warnings.warn(f"update {u} wears {step.max():.3g} m in one step, {step.max() / clearance:.0%} of the "
+                              f"clearance: the profile changes too much between windows; lower cycles_per_update "
+                              f"(now {options.cycles_per_update:g})", stacklevel=3)
+            depth = depth + step
             cycles = (u + 1) * options.cycles_per_update
             records.append({
                 "service_time_s": cycles * window_time, "cycles": cycles,
