@@ -13,7 +13,7 @@ import jax.numpy as jnp
 #: selects XLA:CPU's older elemental emitters for fused kernels; for the small scalar-heavy
 #: kernels of a planar mechanism they compile in about half the time (benchmark slider-crank:
 #: 7.3 s -> 4.2 s of XLA compilation) and run at least as fast. Other backends ignore it.
-PREFERRED_COMPILER_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
+PREFERRED_COMPILER_OPTIONS = {"xla_cpu_use_fusion_emitters": False, "xla_cpu_experimental_ynn_fusion_type": ""}
 
 
 @functools.cache
