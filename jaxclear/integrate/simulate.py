@@ -93,13 +93,27 @@ class StopOnNonFinite(diffrax.AbstractAdaptiveStepSizeController):
 POSTPROCESS_BATCH = 256
 
 
-def _postprocess(mech: Mechanism, s: Settings, ts, ys: State):
-    def one(t, y):
+def _postprocess(mech: Mechanism, s: Settings, ts, packed, ys: State):
+    """Accelerations, reactions, constraint drift and contact outputs at the output samples
+    ``ts`` (T,) of the packed states ``packed`` (T, N) (``ys`` the same, unpacked)."""
+    def one(t, v):
+        y = State.unpack(v, mech)
         qdd, lam, value, _, contact = _accelerations(mech, t, y.q, y.qdot, y.elements, s.baumgarte)
         return qdd, lam, value, contact
 
-    # in cache-sized batches: a vmap over every sample at once is several times slower per sample
-    qdd, lam, value, contact = jax.lax.map(lambda a: one(*a), (ts, ys), batch_size=POSTPROCESS_BATCH)
+    # in batches of POSTPROCESS_BATCH samples (vmap inside, a scan over the batches): one vmap over
+    # a long grid at once is slower per sample
+    n, b = ts.shape[0], POSTPROCESS_BATCH
+    if n <= b:
+        qdd, lam, value, contact = jax.vmap(one)(ts, packed)
+    else:
+        m = -(-n // b)
+        pad = m * b - n
+        tb = jnp.concatenate([ts, jnp.broadcast_to(ts[-1], (pad,))]).reshape(m, b)
+        vb = jnp.concatenate([packed, jnp.broadcast_to(packed[-1], (pad, packed.shape[1]))]).reshape(m, b, -1)
+        out = jax.lax.map(lambda a: jax.vmap(one)(*a), (tb, vb))
+        qdd, lam, value, contact = jax.tree_util.tree_map(
+            lambda x: x.reshape((m * b,) + x.shape[2:])[:n], out)
     drift = jnp.linalg.norm(value, axis=-1) if value.shape[-1] else jnp.zeros_like(ts)
     if contact is None:
         z = jnp.zeros((ts.shape[0], 0), ts.dtype)
@@ -136,7 +150,7 @@ def _solve(mech: Mechanism, s: Settings, y0: State, assembled_ok, valid=RESULTS.
             progress_meter=meter,
         )
     ys: State = jax.vmap(lambda v: State.unpack(v, mech))(sol.ys)
-    qdd, lam, drift, ecc, pen, fn, ft, mode = _postprocess(mech, s, ts, ys)
+    qdd, lam, drift, ecc, pen, fn, ft, mode = _postprocess(mech, s, ts, sol.ys, ys)
     finite = jnp.all(jnp.isfinite(ys.q)) & jnp.all(jnp.isfinite(ys.qdot)) & jnp.all(jnp.isfinite(qdd))
     result = RESULTS.where(finite, RESULTS.successful, RESULTS.nonfinite_state)
     result = RESULTS.where(sol.result == diffrax.RESULTS.successful, result, RESULTS.solver_failed)
