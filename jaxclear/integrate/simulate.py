@@ -26,10 +26,8 @@ import jax.numpy as jnp
 from .._errors import RESULTS, ParameterError, SolverError, invalid_codes, is_concrete, status_message
 from ..model.mechanism import Mechanism
 from .assembly import NEWTON_TOL, assemble, check_assembly, initial_state
-from .compile import jit
+from .compile import jit, without_input_callbacks
 from .dynamics import _accelerations, flat_vector_field
-from .output import (ChunkedDirectAdjoint, ChunkedForwardMode, ChunkedRecursiveCheckpointAdjoint,
-                     without_input_callbacks)
 from .settings import SOLVERS, Settings
 from .solution import Solution
 from .solvers import ImpactMemorySolver, StateNorm, UnrolledExplicitRK
@@ -47,10 +45,10 @@ def _inner_solver(s: Settings):
 
 def _adjoint(s: Settings):
     if s.adjoint == "forward":
-        return ChunkedForwardMode()
+        return diffrax.ForwardMode()
     if s.adjoint == "direct":
-        return ChunkedDirectAdjoint()
-    return ChunkedRecursiveCheckpointAdjoint(checkpoints=s.checkpoints)
+        return diffrax.DirectAdjoint()
+    return diffrax.RecursiveCheckpointAdjoint(checkpoints=s.checkpoints)
 
 
 class StopOnNonFinite(diffrax.AbstractAdaptiveStepSizeController):
