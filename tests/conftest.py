@@ -1,10 +1,15 @@
 """Shared builders for tests. Importing jaxclear turns on float64."""
 
 import math
+import os
 import sys
 from pathlib import Path
 
-import jaxclear as jc
+# the command line's persistent compilation cache stays off in tests (no writes to the user's
+# cache folder); tests/test_cli_cache.py switches it on in a temporary folder
+os.environ.setdefault("JAXCLEAR_CACHE_DIR", "off")
+
+import jaxclear as jc  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))

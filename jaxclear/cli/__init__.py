@@ -16,6 +16,10 @@ and print only: the work is done by the library. Errors of type
 :class:`jaxclear.JaxclearError` (bad parameters, failed runs) are printed as ``error: ...`` on
 stderr with exit code 2 and no traceback; command-line syntax errors also exit with 2
 (argparse), file-system errors with 1.
+
+Compiled programs are kept in a persistent compilation cache (:mod:`.cache`; per user, under
+``~/.cache/jaxclear/xla`` by default), so a second run of the same structure skips XLA
+compilation; ``jaxclear --no-cache COMMAND`` or ``JAXCLEAR_CACHE_DIR=off`` switches it off.
 """
 
 from __future__ import annotations
@@ -25,7 +29,7 @@ import sys
 
 from .. import __version__
 from .._errors import JaxclearError
-from . import animate, check, fit, models, presets, simulate, sweep, wear
+from . import animate, cache, check, fit, models, presets, simulate, sweep, wear
 from .common import Formatter, Parser
 
 #: Commands in help order: name -> module.
@@ -43,6 +47,11 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=Formatter,
     )
     parser.add_argument("--version", action="version", version=f"jaxclear {__version__}")
+    parser.add_argument("--no-cache", action="store_true",
+                        help=f"do not use the persistent compilation cache (also: {cache.ENV}=off)")
+    parser.add_argument("--cache-dir", metavar="DIR",
+                        help=f"folder of the persistent compilation cache (default: ${cache.ENV}, else "
+                        "$XDG_CACHE_HOME/jaxclear/xla or ~/.cache/jaxclear/xla)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", title="commands")
     for name, module in COMMANDS.items():
         p = sub.add_parser(name, help=module.HELP, description=module.DESCRIPTION, formatter_class=Formatter)
@@ -60,6 +69,7 @@ def main(argv: list[str] | None = None) -> int:
     if getattr(args, "run", None) is None:
         parser.print_help(sys.stderr)
         return 2
+    cache.configure(args)
     try:
         return int(args.run(args) or 0)
     except JaxclearError as err:

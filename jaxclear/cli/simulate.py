@@ -12,6 +12,7 @@ from .._errors import ParameterError, check_range
 from ..model import crank_driver
 from ..integrate import SOLVERS
 from ..integrate.settings import MAX_OUT_SAMPLES
+from . import cache
 from .common import (add_mechanism_file_option, add_mechanism_options, fmt, load_mechanism_file, mechanism_file,
                      mechanism_overrides, number_in, preset_from_args)
 
@@ -44,7 +45,7 @@ def configure(p: argparse.ArgumentParser):
                      "joint:0:normal_force (names: docs/mechanism-files.md; default: the legacy columns, plus the "
                      "output link's motion with its ideal-joint overlay for a mechanism without a slider)")
     out.add_argument("--no-plots", action="store_true", help="write CSV and JSON only, no PNG (default: off)")
-    out.add_argument("--no-progress", action="store_true", help="hide the progress bar (default: shown)")
+    out.add_argument("--no-progress", action="store_true", help="hide the progress bar (default: shown when the compilation cache is off)")
     return run
 
 
@@ -89,7 +90,7 @@ def settings_from(args, mech):
             raise ParameterError(f"{mech.name!r} has no crank (AngleDriver): give --t-end [s] instead of --revolutions")
     return runs.revolution_settings(mech, args.revolutions, t_end=args.t_end, n_out=args.n_out,
                                     solver=args.solver, rtol=args.rtol, atol=args.atol,
-                                    max_steps=args.max_steps, progress=not args.no_progress)
+                                    max_steps=args.max_steps, progress=cache.progress_allowed(args))
 
 
 def run(args) -> int:

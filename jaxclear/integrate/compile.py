@@ -1,10 +1,16 @@
 """Compilation of jaxclear's own functions: XLA options chosen for the small, scalar-heavy
-kernels of a planar mechanism, applied only where JAX allows them (the outermost jit)."""
+kernels of a planar mechanism, applied only where JAX allows them (the outermost jit), and
+programs free of host callbacks, so that JAX's persistent compilation cache can store them
+(:func:`without_input_callbacks`)."""
 
 from __future__ import annotations
 
+import contextlib
 import functools
+import threading
 
+import diffrax
+import diffrax._integrate
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -13,7 +19,7 @@ import jax.numpy as jnp
 #: selects XLA:CPU's older elemental emitters for fused kernels; for the small scalar-heavy
 #: kernels of a planar mechanism they compile in about half the time (benchmark slider-crank:
 #: 7.3 s -> 4.2 s of XLA compilation) and run at least as fast. Other backends ignore it.
-PREFERRED_COMPILER_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
+PREFERRED_COMPILER_OPTIONS = {"xla_cpu_use_fusion_emitters": False, "xla_cpu_experimental_ynn_fusion_type": ""}
 
 
 @functools.cache
@@ -57,3 +63,51 @@ class jit:  # noqa: N801 (used like a decorator, as eqx.filter_jit)
 
     def lower(self, *args, **kwargs):
         return self._get().lower(*args, **kwargs)
+
+
+class _ChecksOff:
+    """``equinox.internal`` as diffrax's integrator sees it, with ``error_if`` returning its
+    argument unchanged (see :func:`without_input_callbacks`)."""
+
+    def __init__(self, module):
+        self._module = module
+
+    def __getattr__(self, name):
+        return getattr(self._module, name)
+
+    @staticmethod
+    def error_if(x, pred, msg, **kwargs):
+        return x
+
+
+_LOCK = threading.Lock()
+_SAVED: list = [None]
+_depth = 0
+
+
+@contextlib.contextmanager
+def without_input_callbacks():
+    """While tracing ``diffrax.diffeqsolve``: its run-time input checks (``dt0`` sign,
+    ``SaveAt.ts`` sorted and inside ``[t0, t1]``) are left out.
+
+    Each such check is an ``equinox.error_if`` with a traced predicate, compiled as a host
+    callback, and JAX never writes a program with host callbacks to its persistent compilation
+    cache: with them :func:`jaxclear.simulate` was recompiled in every new process (the command
+    line's startup). :func:`~jaxclear.integrate.simulate.simulate` builds inputs that satisfy
+    the checks by construction (a sorted grid clipped to ``[t0, t1]``, ``dt0`` > 0 or None).
+    Only diffrax's integrator module is affected, and only during the ``with`` block (the
+    trace); the result of the solve is still checked (:class:`~jaxclear.RESULTS`)."""
+    global _depth
+    module = diffrax._integrate
+    with _LOCK:  # traces may overlap (simulate_with_ideal compiles two programs in two threads)
+        if _depth == 0:
+            _SAVED[0] = module.eqxi
+            module.eqxi = _ChecksOff(module.eqxi)
+        _depth += 1
+    try:
+        yield
+    finally:
+        with _LOCK:
+            _depth -= 1
+            if _depth == 0:
+                module.eqxi = _SAVED[0]

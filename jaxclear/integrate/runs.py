@@ -12,7 +12,9 @@ simulation paired with its ideal-joint reference.
 
 from __future__ import annotations
 
+import dataclasses
 import time
+from concurrent.futures import ThreadPoolExecutor
 from typing import NamedTuple
 
 import jax
@@ -101,12 +103,19 @@ def simulate_with_ideal(mech: Mechanism, s: Settings, ideal: bool = True) -> Run
     """Simulate ``mech`` and, if ``ideal`` and it has clearance joints, its ideal-joint
     counterpart ``mech.ideal()`` (every clearance joint an ideal revolute joint) with the same
     settings, so both solutions share the output grid. Errors of either run propagate
-    (:class:`jaxclear.JaxclearError`)."""
-    sol, wall = timed_simulate(mech, s)
+    (:class:`jaxclear.JaxclearError`).
+
+    The two are different programs (the ideal mechanism has other equations), so a first call
+    compiles both; the ideal one runs in a second thread, so that its tracing and XLA
+    compilation (which release the GIL) overlap the clearance run's instead of following it."""
     if not (ideal and mech.clearance_joints):
+        sol, wall = timed_simulate(mech, s)
         return RunWithIdeal(sol, None, None, wall, None)
     ideal_mech = mech.ideal()
-    ideal_sol, ideal_wall = timed_simulate(ideal_mech, s)
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="jaxclear-ideal") as pool:
+        pending = pool.submit(timed_simulate, ideal_mech, dataclasses.replace(s, progress=False))
+        sol, wall = timed_simulate(mech, s)
+        ideal_sol, ideal_wall = pending.result()
     return RunWithIdeal(sol, ideal_sol, ideal_mech, wall, ideal_wall)
 
 

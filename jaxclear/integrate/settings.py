@@ -91,6 +91,10 @@ class Settings(eqx.Module):
                 "(CLI: --n-out, or fewer --revolutions, whose default n_out grows with them); the outputs "
                 f"take about 1 kB per sample, and this bound is checked before anything is compiled"
             )
+        if self.dt0 is not None and not self.dt0 > 0:
+            raise ParameterError(f"dt0 = {self.dt0:g} s outside the allowed range (0, inf)")
+        if self.dtmax is not None and not self.dtmax > 0:
+            raise ParameterError(f"dtmax = {self.dtmax:g} s outside the allowed range (0, inf)")
         if self.max_steps < 1:
             raise ParameterError(f"max_steps = {self.max_steps} outside the allowed range [1, inf)")
         if is_concrete(self.t_end) and not float(self.t_end) > self.t_start:

@@ -26,7 +26,7 @@ import jax.numpy as jnp
 from .._errors import RESULTS, ParameterError, SolverError, invalid_codes, is_concrete, status_message
 from ..model.mechanism import Mechanism
 from .assembly import NEWTON_TOL, assemble, check_assembly, initial_state
-from .compile import jit
+from .compile import jit, without_input_callbacks
 from .dynamics import _accelerations, flat_vector_field
 from .settings import SOLVERS, Settings
 from .solution import Solution
@@ -86,12 +86,32 @@ class StopOnNonFinite(diffrax.AbstractAdaptiveStepSizeController):
         return keep & finite, tprev, tnext, jump, state, result
 
 
-def _postprocess(mech: Mechanism, s: Settings, ts, ys: State):
-    def one(t, y):
+#: Output samples whose accelerations and contact outputs are evaluated together (one ``vmap``
+#: batch of a ``lax.map``).
+POSTPROCESS_BATCH = 256
+
+
+def _postprocess(mech: Mechanism, s: Settings, ts, packed, ys: State):
+    """Accelerations, reactions, constraint drift and contact outputs at the output samples
+    ``ts`` (T,) of the packed states ``packed`` (T, N) (``ys`` the same, unpacked)."""
+    def one(t, v):
+        y = State.unpack(v, mech)
         qdd, lam, value, _, contact = _accelerations(mech, t, y.q, y.qdot, y.elements, s.baumgarte)
         return qdd, lam, value, contact
 
-    qdd, lam, value, contact = jax.vmap(one)(ts, ys)
+    # in batches of POSTPROCESS_BATCH samples (vmap inside, a scan over the batches): one vmap over
+    # a long grid at once is slower per sample
+    n, b = ts.shape[0], POSTPROCESS_BATCH
+    if n <= b:
+        qdd, lam, value, contact = jax.vmap(one)(ts, packed)
+    else:
+        m = -(-n // b)
+        pad = m * b - n
+        tb = jnp.concatenate([ts, jnp.broadcast_to(ts[-1], (pad,))]).reshape(m, b)
+        vb = jnp.concatenate([packed, jnp.broadcast_to(packed[-1], (pad, packed.shape[1]))]).reshape(m, b, -1)
+        out = jax.lax.map(lambda a: jax.vmap(one)(*a), (tb, vb))
+        qdd, lam, value, contact = jax.tree_util.tree_map(
+            lambda x: x.reshape((m * b,) + x.shape[2:])[:n], out)
     drift = jnp.linalg.norm(value, axis=-1) if value.shape[-1] else jnp.zeros_like(ts)
     if contact is None:
         z = jnp.zeros((ts.shape[0], 0), ts.dtype)
@@ -107,27 +127,28 @@ def _solve(mech: Mechanism, s: Settings, y0: State, assembled_ok, valid=RESULTS.
     # an invalid member (parameters outside their ranges) is not integrated: zero-length run
     t1 = jnp.where(valid == RESULTS.successful, jnp.asarray(s.t_end, y0.q.dtype), t0)
     ts = t0 + (t1 - t0) * jnp.linspace(0.0, 1.0, s.n_out, dtype=y0.q.dtype)
-    ts = ts.at[-1].set(t1)
+    ts = jnp.minimum(ts, t1).at[-1].set(t1)  # sorted and inside [t0, t1] by construction
     norm = StateNorm(mech.n_coordinates)
     controller = StopOnNonFinite(diffrax.PIDController(rtol=s.rtol, atol=s.atol, dtmax=s.dtmax, norm=norm))
     meter = diffrax.TqdmProgressMeter(refresh_steps=200) if s.progress else diffrax.NoProgressMeter()
-    sol = diffrax.diffeqsolve(
-        diffrax.ODETerm(flat_vector_field),
-        ImpactMemorySolver(_inner_solver(s)),
-        t0,
-        t1,
-        s.dt0,
-        y0.pack(),
-        args=(mech, s.baumgarte),
-        saveat=diffrax.SaveAt(ts=ts),
-        stepsize_controller=controller,
-        max_steps=s.max_steps,
-        adjoint=_adjoint(s),
-        throw=False,
-        progress_meter=meter,
-    )
+    with without_input_callbacks():
+        sol = diffrax.diffeqsolve(
+            diffrax.ODETerm(flat_vector_field),
+            ImpactMemorySolver(_inner_solver(s)),
+            t0,
+            t1,
+            s.dt0,
+            y0.pack(),
+            args=(mech, s.baumgarte),
+            saveat=diffrax.SaveAt(ts=ts),
+            stepsize_controller=controller,
+            max_steps=s.max_steps,
+            adjoint=_adjoint(s),
+            throw=False,
+            progress_meter=meter,
+        )
     ys: State = jax.vmap(lambda v: State.unpack(v, mech))(sol.ys)
-    qdd, lam, drift, ecc, pen, fn, ft, mode = _postprocess(mech, s, ts, ys)
+    qdd, lam, drift, ecc, pen, fn, ft, mode = _postprocess(mech, s, ts, sol.ys, ys)
     finite = jnp.all(jnp.isfinite(ys.q)) & jnp.all(jnp.isfinite(ys.qdot)) & jnp.all(jnp.isfinite(qdd))
     result = RESULTS.where(finite, RESULTS.successful, RESULTS.nonfinite_state)
     result = RESULTS.where(sol.result == diffrax.RESULTS.successful, result, RESULTS.solver_failed)
