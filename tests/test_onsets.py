@@ -121,6 +121,7 @@ def test_four_bar_samples_inside_the_onset_step_read_the_impact_mode():
     assert checked >= 3
 
 
+@pytest.mark.slow
 def test_vmap_of_exact_onsets_equals_single_runs():
     """A batch of restitutions under vmap gives each member's single run (each member keeps its own
     step sequence, the onset rejection included) to 1e-9 of the clearance."""
@@ -133,6 +134,7 @@ def test_vmap_of_exact_onsets_equals_single_runs():
         np.testing.assert_allclose(np.asarray(batch[k]), np.asarray(single), rtol=0, atol=1e-9 * CLEARANCE)
 
 
+@pytest.mark.slow
 def test_gradient_through_exact_onsets_matches_central_differences():
     """d x(T) / d c_r and d x(T) / d K after the first impact, reverse mode through the onset
     rejections (step-size decisions are not differentiated), against central differences
@@ -204,10 +206,11 @@ def _penetrations(mech, element, q):
 
 def test_accuracy_benchmark_quick(tmp_path):
     """benchmarks/bench_accuracy.py runs end to end on a tiny window (no cached reference): a table,
-    a JSON file and a PNG; jaxclear's error falls with rtol."""
+    a JSON file and a PNG, finite errors, one speed-up row for the one SciPy run."""
     import bench_accuracy
 
-    res = bench_accuracy.main(["--quick", "--t-end", "4e-4", "--n-out", "21", "--no-cache", "--out", str(tmp_path)])
+    res = bench_accuracy.main(["--quick", "--t-end", "4e-4", "--n-out", "21", "--no-cache", "--rtols", "1e-6",
+                                "--out", str(tmp_path)])
     assert (tmp_path / "accuracy_quick.json").exists() and (tmp_path / "accuracy_quick.png").exists()
     errs = [r["error"] for r in res["rows"] if r["code"] == "jaxclear"]
     assert all(math.isfinite(e) for e in errs)
