@@ -61,6 +61,7 @@ from .integrate import (  # noqa: E402
     SOLVERS,
     Baumgarte,
     ImpactMemorySolver,
+    OnsetController,
     Settings,
     Solution,
     State,
