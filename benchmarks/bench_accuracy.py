@@ -247,6 +247,7 @@ def _write(rows, cases, a, t_end, n_out, load_start, out_dir) -> dict:
                   versions=dict(jax=jax.__version__, jaxclear=jc.__version__), png=png.name, table=lines)
     (out_dir / f"{name}.json").write_text(json.dumps(result, indent=1, default=float))
     print(f"wrote {out_dir / (name + '.json')} and {png}", flush=True)
+    return result
 
 
 if __name__ == "__main__":
