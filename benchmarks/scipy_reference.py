@@ -68,6 +68,7 @@ def params(**overrides) -> dict:
         mu=0.0,  # friction coefficient
         v0=1e-4, v1=1e-3,  # Ambrosio friction velocity tolerances [m/s]
         floor=1e-4,  # floor on the onset approach velocity deltadot0 [m/s]
+        law="lankarani-nikravesh",  # hysteresis factor chi(c_r): see HYSTERESIS
         alpha=5.0, beta=5.0,  # Baumgarte parameters
     )
     unknown = set(overrides) - set(p)
@@ -75,6 +76,15 @@ def params(**overrides) -> dict:
         raise KeyError(f"unknown parameter(s): {sorted(unknown)}")
     p.update(overrides)
     return p
+
+
+#: hysteresis factor chi(c_r) of the dissipative Hertz law F = K d^1.5 (1 + chi ddot / ddot0):
+#: Lankarani, Nikravesh, J. Mech. Des. 112 (1990) 369; Flores, Machado, Silva, Martins,
+#: Multibody Syst. Dyn. 25 (2011) 357.
+HYSTERESIS = {
+    "lankarani-nikravesh": lambda c_r: 3.0 * (1.0 - c_r**2) / 4.0,
+    "flores": lambda c_r: 8.0 * (1.0 - c_r) / (5.0 * c_r),
+}
 
 
 def contact_stiffness(p) -> float:
@@ -245,10 +255,10 @@ def contact(q, qd, p, deltadot0):
     if delta <= 0.0:
         return out
 
-    # Lankarani-Nikravesh normal force
+    # dissipative Hertz normal force (Lankarani-Nikravesh or Flores hysteresis factor)
     K = contact_stiffness(p)
     dd0 = max(deltadot0, p["floor"])
-    F_N = K * delta * math.sqrt(delta) * (1.0 + 3.0 * (1.0 - p["c_r"] ** 2) / 4.0 * deltadot / dd0)
+    F_N = K * delta * math.sqrt(delta) * (1.0 + HYSTERESIS[p["law"]](p["c_r"]) * deltadot / dd0)
     F_N = max(F_N, 0.0)
 
     # Ambrosio friction

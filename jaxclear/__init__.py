@@ -71,6 +71,7 @@ from .integrate import (  # noqa: E402
     SOLVERS,
     Baumgarte,
     ImpactMemorySolver,
+    OnsetController,
     Settings,
     Solution,
     State,

@@ -100,6 +100,16 @@ class AbstractForceElement(eqx.Module):
         """The state's update after an accepted step ``[t0, t1]`` (memory rules) and whether
         the force law changed within the step (the solver then re-evaluates its first stage)."""
 
+    def onset(self, mech: Mechanism, t0, q0, qd0, t1, q1, qd1, state) -> tuple[Scalar, BoolScalar]:
+        """Where a candidate step ``[t0, t1]`` crosses into contact: ``(s, crossed)`` with the
+        fraction ``s`` in [0, 1] of the step at the earliest onset among the element's contacts
+        (cubic Hermite estimate, :func:`~jaxclear.elements.memory.onset_fraction`) and whether
+        any contact crossed. The step-size controller
+        (:class:`~jaxclear.integrate.solvers.OnsetController`) uses it to end a step just past
+        the onset, so the impact memory is taken at the onset. Default: never an onset
+        (elements without a memory of the approach speed)."""
+        return jnp.ones((), jnp.result_type(t1)), jnp.zeros((), bool)
+
     @abc.abstractmethod
     def relative_state(self, mech: Mechanism, q, qdot) -> Float[Array, "4"]:
         """``[x, y, v_x, v_y]`` of the element's moving part relative to its seat (the journal

@@ -96,6 +96,15 @@ def hermite_crossing(p0, p1, r0, r1, h, crossed):
     return s, slope / h
 
 
+def onset_fraction(p0, p1, r0, r1, h) -> tuple[Scalar, BoolScalar]:
+    r"""Fraction ``s`` in [0, 1] of a step ``h`` [s] at which the penetration (``p0, p1`` [m],
+    rates ``r0, r1`` [m/s] at its ends; any matching shapes) crosses into contact, and whether
+    it does (:math:`\delta_0 \le 0 < \delta_1`); ``s = 1`` where it does not."""
+    crossed = (p0 <= 0.0) & (p1 > 0.0)
+    s, _ = hermite_crossing(p0, p1, r0, r1, h, crossed)
+    return jnp.where(crossed, s, 1.0), crossed
+
+
 def onset_update(memory: ContactMemory, t0, t1, p0, p1, r0, r1) -> tuple[ContactMemory, BoolScalar]:
     """Apply the impact-memory rule (module docstring) to one contact over the step ``[t0, t1]``
     with penetrations ``p0, p1`` [m] and rates ``r0, r1`` [m/s] at its ends. Returns the new

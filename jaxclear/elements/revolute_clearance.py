@@ -44,7 +44,7 @@ from ..model.geometry import perp, safe_normal
 from ..model.joints import Revolute
 from ..model.mechanism import Mechanism, point_load, point_position, point_velocity
 from .base import AbstractForceElement, ContactOutput
-from .memory import N_FIELDS, ContactMemory, onset_update, with_peak_force
+from .memory import N_FIELDS, ContactMemory, onset_fraction, onset_update, with_peak_force
 
 
 class JournalState(eqx.Module):
@@ -203,6 +203,12 @@ class AbstractJournalJoint(AbstractForceElement):
         if self.friction.state_size == 0:
             return new, crossed
         return JournalState(new, jnp.where(crossed, 0.0, bristles)), crossed  # relaxed at each onset
+
+    def onset(self, mech: Mechanism, t0, q0, qd0, t1, q1, qd1, state: ContactMemory):
+        """Fraction of ``[t0, t1]`` at the contact onset (:func:`~jaxclear.elements.memory.onset_fraction`)."""
+        kin0, kin1 = self.kinematics(mech, q0, qd0), self.kinematics(mech, q1, qd1)
+        p0, p1 = self.law.penetration(kin0), self.law.penetration(kin1)
+        return onset_fraction(p0, p1, kin0.deltadot, kin1.deltadot, t1 - t0)
 
     # ---- initial assembly: hold the journal at its initial offset ---------------------
     n_equations: ClassVar[int] = 2

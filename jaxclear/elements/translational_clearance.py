@@ -55,7 +55,7 @@ from ..model.geometry import perp, rotate
 from ..model.joints import Translational
 from ..model.mechanism import Mechanism, point_load, point_position, point_velocity
 from .base import AbstractForceElement, ContactOutput
-from .memory import N_FIELDS, ContactMemory, onset_update, with_peak_force
+from .memory import N_FIELDS, ContactMemory, onset_fraction, onset_update, with_peak_force
 
 #: Corner signs (sigma along the slider, tau across it): rear-lower, front-lower, rear-upper, front-upper.
 SIGMA = np.array([-1.0, 1.0, -1.0, 1.0])
@@ -367,6 +367,13 @@ class TranslationalClearanceJoint(AbstractForceElement):
         new, crossed = onset_update(state.corners, t0, t1, pen(k0), pen(k1), k0.deltadot, k1.deltadot)
         f_n, _, _ = self.corner_forces(mech, q1, qd1, new.impact_velocity)
         return CornerMemory(with_peak_force(new, f_n)), jnp.any(crossed)
+
+    def onset(self, mech: Mechanism, t0, q0, qd0, t1, q1, qd1, state: CornerMemory):
+        """Fraction of ``[t0, t1]`` at the earliest corner onset (``onset_fraction`` per corner)."""
+        k0, k1 = self.corner_kinematics(mech, q0, qd0), self.corner_kinematics(mech, q1, qd1)
+        pen = jax.vmap(self.law.penetration)
+        s, crossed = onset_fraction(pen(k0), pen(k1), k0.deltadot, k1.deltadot, t1 - t0)
+        return jnp.min(s), jnp.any(crossed)
 
     # ---- initial assembly: hold the block at its initial offset and tilt ----------------
     n_equations: ClassVar[int] = 2

@@ -7,5 +7,5 @@ from .dynamics import Baumgarte, accelerations, energy, flat_vector_field, spd_s
 from .settings import SOLVERS, Settings, settings
 from .simulate import simulate
 from .solution import Solution
-from .solvers import ImpactMemorySolver, UnrolledExplicitRK
+from .solvers import ImpactMemorySolver, OnsetController, UnrolledExplicitRK
 from .state import State

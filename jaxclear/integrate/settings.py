@@ -54,6 +54,11 @@ class Settings(eqx.Module):
             members, where one copy of the vector field serves every stage: measured 1.7x
             faster per member at a batch of 32). The two compute the same step. Sweeps use
             ``"loop"``.
+        exact_onsets: end the step that crosses into contact just past the onset (a rejected
+            step per onset, :class:`~jaxclear.integrate.solvers.OnsetController`), so the
+            dissipative laws use the approach speed at the onset throughout the contact
+            (default True; False: the onset is found only after the step, whose force used the
+            approach speed of its start).
     """
 
     t_end: Float[Array, ""]
@@ -73,6 +78,7 @@ class Settings(eqx.Module):
     continuous_contact_after: float = eqx.field(static=True, default=2e-4)
     allow_free_dof: bool = eqx.field(static=True, default=False)
     stages: str = eqx.field(static=True, default="unrolled")
+    exact_onsets: bool = eqx.field(static=True, default=True)
 
     def __check_init__(self):
         if self.solver not in SOLVERS:

@@ -30,7 +30,7 @@ from .compile import jit, without_input_callbacks
 from .dynamics import _accelerations, flat_vector_field
 from .settings import SOLVERS, Settings
 from .solution import Solution
-from .solvers import ImpactMemorySolver, StateNorm, UnrolledExplicitRK
+from .solvers import ImpactMemorySolver, OnsetController, StateNorm, UnrolledExplicitRK
 from .state import State, stack_memory
 
 
@@ -130,6 +130,8 @@ def _solve(mech: Mechanism, s: Settings, y0: State, assembled_ok, valid=RESULTS.
     ts = jnp.minimum(ts, t1).at[-1].set(t1)  # sorted and inside [t0, t1] by construction
     norm = StateNorm(mech.n_coordinates)
     controller = StopOnNonFinite(diffrax.PIDController(rtol=s.rtol, atol=s.atol, dtmax=s.dtmax, norm=norm))
+    if s.exact_onsets and mech.clearance_joints:
+        controller = OnsetController(controller)
     meter = diffrax.TqdmProgressMeter(refresh_steps=200) if s.progress else diffrax.NoProgressMeter()
     with without_input_callbacks():
         sol = diffrax.diffeqsolve(
