@@ -32,11 +32,13 @@ def _rocker_record(mech, window, n, seed=0):
     return {"time_s": np.asarray(sol.ts), "rocker_acc_rad_s2": noisy}
 
 
+@pytest.mark.slow  # compilation-dominated: 14 min wall on a shared, loaded 2-core machine
 def test_four_bar_fit_from_rocker_channel(tmp_path):
     """Stiffness 2x and restitution 0.7 at the start; 5 ms from the known start through the first
     impact (2.95 ms) and its contact; one window, the velocity stage then the acceleration over
-    the whole window (``horizons=(1,)``). Recovers K within 5 % and c_r within 0.02. The same
-    record as a CSV through ``jaxclear fit --channel`` gives the same estimates."""
+    the whole window (``horizons=(1,)``). Recovers K within 5 % and c_r within 0.02 (measured:
+    -0.34 % and 0.8972, 7 iterations). The
+    fit reports the column's channel and its fitted samples."""
     mech = jc.load_mechanism(ROOT / "examples" / "four-bar-rocker-pivot.toml")
     k0 = float(params.get(mech, "stiffness"))
     window = 0.005
