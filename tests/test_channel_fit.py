@@ -88,6 +88,7 @@ def test_viscosity_fit_on_the_lubricated_joint():
     assert abs(res.estimates["viscosity"] / 0.4 - 1) < 0.05, res.estimates
 
 
+@pytest.mark.slow  # not yet seen to finish on the loaded shared machine (> 40 min with compilation)
 def test_translational_clearance_fit_runs_with_windows(tmp_path):
     """slider-crank-guide-clearance through jc.fit with two windows (the second window's start
     state in the translational element's layout), a handful of iterations: runs, finite
