@@ -110,7 +110,7 @@ from .analysis.structure import check_mechanism  # noqa: E402
 from .sweep import SweepConfig, SweepResult, load_config, read_results, run_sweep  # noqa: E402
 from .io import Measurements, read_measurements, timeseries_frame  # noqa: E402
 from .analysis import Accelerometer  # noqa: E402
-from .fitting import FitResult, fit, levenberg_marquardt, parameter_grad, synthetic_record  # noqa: E402
+from .fitting import FitChannel, FitResult, fit, levenberg_marquardt, parameter_grad, synthetic_record  # noqa: E402
 from .wearing import WearHistory, WearOptions, plot_wear, wear  # noqa: E402
 
 try:

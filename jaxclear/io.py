@@ -212,23 +212,27 @@ def _record_lines(path: str, lines: list[str]):
     return metadata, header, header_line, rows
 
 
-def _record_columns(path: str, header: list[str] | None, header_line: int) -> dict[str, int]:
-    """Known column name -> index in the header; errors for a missing header, a duplicate or a
-    missing required column, a warning (at the caller of :func:`read_measurements`) for
-    unknown columns."""
+def _record_columns(path: str, header: list[str] | None, header_line: int,
+                    required=REQUIRED_MEASUREMENT_COLUMNS, any_column: bool = False) -> dict[str, int]:
+    """Known column name -> index in the header (``any_column``: every column); errors for a
+    missing header, a duplicate or a missing required column, a warning (at the caller of
+    :func:`read_measurements`) for unknown columns."""
     if header is None:
-        raise ParameterError(f"{path}: no header row found (expected columns {list(REQUIRED_MEASUREMENT_COLUMNS)})")
+        raise ParameterError(f"{path}: no header row found (expected columns {list(required)})")
     seen = set()
     for name in header:
         if name in seen:
             raise ParameterError(f"{path}, line {header_line}: column {name!r} appears twice in the header")
         seen.add(name)
-    missing = [c for c in REQUIRED_MEASUREMENT_COLUMNS if c not in header]
+    missing = [c for c in required if c not in header]
     if missing:
         raise ParameterError(
             f"{path}, line {header_line}: missing required column(s) {missing} in header {header}; "
-            f"required: {list(REQUIRED_MEASUREMENT_COLUMNS)}, optional: {list(OPTIONAL_MEASUREMENT_COLUMNS)}"
+            f"required: {list(required)}, optional: "
+            f"{'any' if any_column else list(OPTIONAL_MEASUREMENT_COLUMNS)}"
         )
+    if any_column:
+        return {name: header.index(name) for name in header}
     known = REQUIRED_MEASUREMENT_COLUMNS + OPTIONAL_MEASUREMENT_COLUMNS
     unknown = [c for c in header if c not in known]
     if unknown:
@@ -259,6 +263,40 @@ def _record_values(path: str, n_fields: int, header_line: int, rows, used: dict[
     return values
 
 
+def _read_record_lines(path) -> tuple[str, list[str]]:
+    path = os.fspath(path)
+    try:
+        with open(path, encoding="utf-8-sig", newline="") as f:
+            return path, f.read().splitlines()
+    except OSError as err:
+        raise ParameterError(f"cannot read measurements file {path!r}: {err.strerror or err}") from None
+
+
+def _check_rows_and_time(path: str, rows, t):
+    if len(rows) < 2:
+        raise ParameterError(f"{path}: {len(rows)} data row(s); at least 2 samples are needed")
+    bad = np.nonzero(np.diff(t) <= 0.0)[0]
+    if bad.size:
+        r = int(bad[0]) + 1
+        raise ParameterError(
+            f"{path}, line {rows[r][0]}, column 'time_s': time {t[r]:g} s is not greater than the previous "
+            f"sample's {t[r - 1]:g} s (line {rows[r - 1][0]}); time must be strictly increasing"
+        )
+
+
+def read_record_columns(path, required=("time_s",)) -> tuple[dict, dict]:
+    """Read a record CSV of the format of :func:`read_measurements` with any columns:
+    ``(columns: name -> float array, metadata)``; ``required`` columns must be present
+    (``time_s`` always). Same checks and messages as :func:`read_measurements`."""
+    path, lines = _read_record_lines(path)
+    required = tuple(dict.fromkeys(("time_s", *required)))
+    metadata, header, header_line, rows = _record_lines(path, lines)
+    used = _record_columns(path, header, header_line, required, any_column=True)
+    values = _record_values(path, len(header), header_line, rows, used)
+    _check_rows_and_time(path, rows, values["time_s"])
+    return values, metadata
+
+
 def read_measurements(path) -> Measurements:
     """Read a measured-data CSV (the record format of ``jaxclear fit``).
 
@@ -272,25 +310,12 @@ def read_measurements(path) -> Measurements:
             number of fields, non-numeric or non-finite value, time not strictly increasing, or
             fewer than 2 samples; the message names the file, line number and column.
     """
-    path = os.fspath(path)
-    try:
-        with open(path, encoding="utf-8-sig", newline="") as f:
-            lines = f.read().splitlines()
-    except OSError as err:
-        raise ParameterError(f"cannot read measurements file {path!r}: {err.strerror or err}") from None
+    path, lines = _read_record_lines(path)
     metadata, header, header_line, rows = _record_lines(path, lines)
     used = _record_columns(path, header, header_line)
     values = _record_values(path, len(header), header_line, rows, used)
-    if len(rows) < 2:
-        raise ParameterError(f"{path}: {len(rows)} data row(s); at least 2 samples are needed")
+    _check_rows_and_time(path, rows, values["time_s"])
     t = values["time_s"]
-    bad = np.nonzero(np.diff(t) <= 0.0)[0]
-    if bad.size:
-        r = int(bad[0]) + 1
-        raise ParameterError(
-            f"{path}, line {rows[r][0]}, column 'time_s': time {t[r]:g} s is not greater than the previous "
-            f"sample's {t[r - 1]:g} s (line {rows[r - 1][0]}); time must be strictly increasing"
-        )
     return Measurements(
         time_s=t,
         slider_acc_m_s2=values["slider_acc_m_s2"],

@@ -366,7 +366,10 @@ def plot_fit(path, result) -> Figure:
     values = ", ".join(
         f"{k} = {v:.4g} ± {result.std.get(k, float('nan')):.2g}" for k, v in result.estimates.items())
     ax1.set_title(f"fit: {values}", fontsize=9)
-    ax1.set_ylabel("slider acceleration [m/s$^2$]")
+    chans = (getattr(result, "settings", None) or {}).get("channels") or {}
+    first = next(iter(chans), "slider_acc_m_s2")
+    ax1.set_ylabel("slider acceleration [m/s$^2$]" if first == "slider_acc_m_s2" else
+                   f"{first}\n({chans[first]['channel']})", fontsize=None if first == "slider_acc_m_s2" else 8)
     ax1.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4))
     ax1.legend(loc="upper right", fontsize=8)
     res = meas - fitted
@@ -377,7 +380,7 @@ def plot_fit(path, result) -> Figure:
         ax2.legend(loc="upper right", fontsize=8)
     ax2.axhline(0.0, color="black", lw=0.5)
     ax2.set_xlabel("time [ms]")
-    ax2.set_ylabel("residual [m/s$^2$]")
+    ax2.set_ylabel("residual [m/s$^2$]" if first == "slider_acc_m_s2" else "residual")
     ax2.set_title(f"residual: loss {result.loss:.4g} (normalised), lag-1 autocorrelation "
                   f"{result.residual_autocorrelation:.2f}", fontsize=9)
     ax2.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4))

@@ -6,22 +6,26 @@ import argparse
 import os
 import warnings
 
-from ..fitting import fit
+from .._errors import ParameterError
+from ..fitting import fit, read_channels_toml
 from ..analysis.sensor import Accelerometer
 from .common import add_mechanism_options, name_value, number_in, preset_from_args
 
 HELP = "fit contact parameters to a measured record (JSON, PNG)"
 DESCRIPTION = """\
-Fit contact parameters of a preset to a measured slider acceleration (a CSV with the columns
-time_s, slider_acc_m_s2 and optionally crank_angle_rad, slider_pos_m, slider_vel_m_s; see
-jaxclear.io.read_measurements) and write:
+Fit contact parameters of a preset to measured channels: by default the slider acceleration (a
+CSV with the columns time_s, slider_acc_m_s2 and optionally crank_angle_rad, slider_pos_m,
+slider_vel_m_s; see jaxclear.io.read_measurements); with --channel COLUMN=CHANNEL (or
+--channels FILE.toml) any record columns compared with named output channels (see
+jaxclear.fitting.targets), several at once with --weight COLUMN=W. Writes:
   fit.json              estimates, std (Gauss-Newton), loss, iterations, wall time, diagnostics
   fit.png               measured vs fitted acceleration and the residuals
   fit_checkpoint.json   the fit's state after every iteration: the same command resumes it
 The first sample is the preset's start (crank angle 0, journal centred, velocities from the
 ideal kinematics). The loss is on short windows from that state (see jaxclear.fitting).
 Example: jaxclear fit data.csv --free stiffness,restitution --start stiffness=2e11 \\
-         --start restitution=0.6 --sensor-cutoff-hz 20000 --out fit-out"""
+         --start restitution=0.6 --sensor-cutoff-hz 20000 --out fit-out
+         jaxclear fit rec.csv --preset four-bar --channel rocker_acc=body:rocker:phi:acc --window 0.005"""
 
 
 def configure(p: argparse.ArgumentParser):
@@ -35,6 +39,15 @@ def configure(p: argparse.ArgumentParser):
                    "friction, clearance [m], mass:BODY, ..., sensor_gain, sensor_bias (default: stiffness,restitution)")
     f.add_argument("--start", type=name_value, action="append", default=[], metavar="NAME=VALUE",
                    help="start value of a free parameter (SI), repeatable (default: the model's value)")
+    f.add_argument("--channel", type=column_channel, action="append", default=[], metavar="COLUMN=CHANNEL",
+                   help="fit the record column COLUMN to the named output channel CHANNEL (e.g. "
+                   "rocker_acc=body:rocker:phi:acc), repeatable (default: slider_acc_m_s2=body:SLIDER:x:acc)")
+    f.add_argument("--weight", type=name_value, action="append", default=[], metavar="COLUMN=W",
+                   help="weight of a --channel column's normalised squared residual, not negative, repeatable "
+                   "(default: 1)")
+    f.add_argument("--channels", metavar="FILE.toml",
+                   help="a [channels] table: COLUMN = \"CHANNEL\" or COLUMN = {channel, weight, cutoff_hz, gain, "
+                   "bias} (a sensor of its own); combined with --channel/--weight")
     f.add_argument("--window", type=number_in(float, 0.0, low_open=True), metavar="S",
                    help="length of a fit window [s], > 0 (default: a quarter crank revolution)")
     f.add_argument("--windows", type=number_in(int, 1), default=1, metavar="N",
@@ -72,6 +85,7 @@ def configure(p: argparse.ArgumentParser):
 def run(args) -> int:
     """Check the counts, fit, write fit.json and fit.png, print the estimates."""
     mech = preset_from_args(args)
+    channels = _channels(args)
     free = [n.strip() for n in args.free.split(",") if n.strip()]
     sensor = Accelerometer(args.sensor_cutoff_hz, gain=args.sensor_gain, bias=args.sensor_bias,
                            oversample=args.oversample)
@@ -82,7 +96,7 @@ def run(args) -> int:
         print("compiling the forward-mode model (about 20 to 40 s), then fitting...", flush=True)
     with warnings.catch_warnings():  # the fit's warnings are printed below, once
         warnings.simplefilter("ignore", UserWarning)
-        res = fit(args.data, mech, free, dict(args.start), sensor=sensor, window=args.window, windows=args.windows,
+        res = fit(args.data, mech, free, dict(args.start), channels=channels, sensor=sensor, window=args.window, windows=args.windows,
                   starts=args.starts, optimizer=args.optimizer, max_iter=args.max_iter, rtol=args.rtol,
                   atol=args.atol, align=args.align, out=args.out, resume=not args.restart,
                   progress=not args.no_progress)
@@ -92,6 +106,28 @@ def run(args) -> int:
         res.plot(files[-1])
     _print_result(res, files)
     return 0
+
+
+def column_channel(text: str) -> tuple[str, str]:
+    """argparse type: ``COLUMN=CHANNEL`` (the channel name may hold ``=`` in its options)."""
+    column, sep, name = text.partition("=")
+    if not sep or not column.strip() or not name.strip():
+        raise argparse.ArgumentTypeError(f"expected COLUMN=CHANNEL, got {text!r}")
+    return column.strip(), name.strip()
+
+
+def _channels(args) -> dict | None:
+    """column -> spec from --channels, --channel and --weight (None: the default target)."""
+    table = dict(read_channels_toml(args.channels)) if args.channels else {}
+    for column, name in args.channel:
+        table[column] = name
+    for column, weight in args.weight:
+        if column not in table:
+            raise ParameterError(f"--weight {column}={weight:g}: {column!r} is not a fitted column "
+                                 f"(give it with --channel {column}=CHANNEL); fitted: {sorted(table)}")
+        spec = table[column]
+        table[column] = dict(spec, weight=weight) if isinstance(spec, dict) else {"channel": spec, "weight": weight}
+    return table or None
 
 
 def _print_result(res, files: list[str]):

@@ -1,7 +1,7 @@
 """Force elements between two bodies, each with its own slice of the state: the revolute
 clearance joint and the impact-memory rule it shares with future elements."""
 
-from .base import AbstractForceElement, ContactOutput
+from .base import AbstractForceElement, ContactOutput, start_states
 from .memory import ContactMemory, hermite_crossing, onset_update
 from .lubricated import FILMS, LubricatedJoint, film_force, film_integrals, gauss_film_force
 from .pin_slot import IDEALS, PinSlotJoint

@@ -115,6 +115,30 @@ class AbstractForceElement(eqx.Module):
         """``[x, y, v_x, v_y]`` of the element's moving part relative to its seat (the journal
         centre relative to the bearing centre; the slider relative to the guide) [m, m/s]."""
 
+    # ---- start state (the initial assembly's coordinates; fit windows) -------------------
+    def start_state(self, mech: Mechanism, q, qdot) -> Float[Array, " 2e"]:
+        """The coordinates :meth:`equations` holds at the start and their rates at ``(q, qdot)``
+        ``(2 n_equations,)``: :math:`[a(q), \\dot a(q, \\dot q)]` with :math:`a(q)` =
+        ``equations(q) + initial_offset`` (a journal's eccentricity [m]; a translational joint's
+        lateral offset [m] and tilt [rad]). :meth:`with_start` of this vector starts a simulation
+        at the same relative configuration (windows of :mod:`jaxclear.fitting` chain this way).
+        Default: the rate by forward-mode differentiation of :meth:`equations` along ``qdot``."""
+        e, edot = jax.jvp(lambda qq: self.equations(mech, qq, jnp.zeros((), q.dtype)), (q,), (qdot,))
+        return jnp.concatenate([e + self.initial_offset, edot])
+
+    def with_start(self, offset, velocity) -> "AbstractForceElement":
+        """A copy starting at the coordinates ``offset`` ``(n_equations,)`` and their rates
+        ``velocity`` (layout of :meth:`start_state`; default: ``initial_offset`` and
+        ``initial_velocity`` replaced)."""
+        return eqx.tree_at(lambda e: (e.initial_offset, e.initial_velocity), self, (offset, velocity))
+
+    @abc.abstractmethod
+    def start_scale(self) -> Float[Array, " e"]:
+        """Per coordinate of :meth:`start_state` the half-axis ``(n_equations,)`` of an ellipse
+        inside which the element is free of contact (a journal: the radial clearance ``c`` twice;
+        a translational joint: ``c / sqrt 2`` [m] and ``sqrt 2 c / l`` [rad]). The fit maps its
+        window unknowns into this ellipse."""
+
     #: axis labels of the orbit plot of :attr:`ContactOutput.ecc` (without unit)
     orbit_labels: ClassVar[tuple[str, str]] = ("eccentricity x", "eccentricity y")
 
@@ -142,3 +166,10 @@ def stack_outputs(outputs: list[ContactOutput]) -> ContactOutput | None:
     if not outputs:
         return None
     return jax.tree_util.tree_map(lambda *xs: jnp.stack(xs), *outputs)
+
+
+def start_states(mech: Mechanism, q, qdot) -> Float[Array, " s"]:
+    """Every force element's :meth:`~AbstractForceElement.start_state` at ``(q, qdot)``, stacked
+    (``(sum of 2 n_equations,)``; the fit's window states)."""
+    rows = [element.start_state(mech, q, qdot) for element in mech.clearance_joints]
+    return jnp.concatenate(rows) if rows else jnp.zeros((0,), q.dtype)

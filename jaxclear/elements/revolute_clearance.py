@@ -140,6 +140,14 @@ class AbstractJournalJoint(AbstractForceElement):
         kin = self.kinematics(mech, q, qdot)
         return jnp.concatenate([kin.ecc, kin.journal_velocity - kin.bearing_velocity])
 
+    def start_state(self, mech: Mechanism, q, qdot):
+        """:meth:`relative_state`: the eccentricity and its rate are what the assembly holds."""
+        return self.relative_state(mech, q, qdot)
+
+    def start_scale(self):
+        """The radial clearance ``c`` [m] along both axes (the clearance circle)."""
+        return jnp.stack([self.clearance, self.clearance])
+
     def clearance_region(self, n: int = 361):
         r"""The clearance circle :math:`|\mathbf e| = c` (n, 2) [m]."""
         theta = jnp.linspace(0.0, 2.0 * jnp.pi, n)

@@ -251,6 +251,12 @@ class TranslationalClearanceJoint(AbstractForceElement):
         y = jnp.interp(s, jnp.arange(5.0), jnp.array([0.0, 1.0, 0.0, -1.0, 0.0]))
         return self.clearance * jnp.stack([x, y], axis=-1)
 
+    def start_scale(self):
+        """``[c / sqrt 2, sqrt 2 c / l]`` [m, rad]: the ellipse with these half-axes lies inside the
+        contact-free square ``|y| + (l/2)|theta| <= c`` of :meth:`clearance_region`."""
+        c = self.clearance
+        return jnp.stack([c / jnp.sqrt(2.0), jnp.sqrt(2.0) * c / self.slider_length])
+
     def ideal_joint(self) -> Translational:
         """The ideal translational joint: slider centre on the guide line, block aligned."""
         return Translational(self.guide_body, self.guide_point, self.slider_body, self.slider_point,

@@ -1,5 +1,11 @@
-r"""Identification of contact parameters from a measured slider acceleration:
+r"""Identification of contact parameters from a measured slider acceleration, or from any
+record columns mapped to named output channels (:mod:`.targets`):
 ``jaxclear.fit(data, mech, ...)`` (:func:`fit`) and ``jaxclear fit DATA.csv``.
+
+Below, "the slider acceleration" stands for the fitted columns: with ``channels`` every column
+is compared with its channel through its own sensor model and weight, and the residuals of all
+columns are stacked (:mod:`.window`); the windows, continuations, optimiser and uncertainty are
+the same.
 
 The problem
 -----------
@@ -109,7 +115,7 @@ the same inputs resumes where it stopped, from bit-identical numbers; other inpu
 Modules
 -------
 :mod:`.parameters` (names, values, transforms), :mod:`.records` (synthetic records, writing,
-checks, quiet cut), :mod:`.window` (the window model and the record cut into windows),
+checks, quiet cut), :mod:`.targets` (record columns mapped to named channels), :mod:`.window` (the window model and the record cut into windows),
 :mod:`.plan` (stages and starts), :mod:`.problem` (the checked inputs), :mod:`.state` (the fit
 state and its checkpoint), :mod:`.solver` (optimistix steps of one stage), :mod:`.run` (the
 plan with checkpoints), :mod:`.uncertainty`, :mod:`.result` (:class:`FitResult`),
@@ -127,11 +133,15 @@ from .records import check_record, quiet_cut, sensor_signal, synthetic_record, w
 from .result import FitResult
 from .solver import Optimizer, make_optimizer
 from .state import CHECKPOINT_NAME, Checkpoint, FitState
+from .targets import DEFAULT_COLUMN, FitChannel, read_channels_toml
 from .uncertainty import AUTOCORRELATION_WARNING
 from .window import WindowInput, WindowModel, evaluate_window
 
 __all__ = [
     "fit",
+    "FitChannel",
+    "DEFAULT_COLUMN",
+    "read_channels_toml",
     "FitResult",
     "FitState",
     "Checkpoint",

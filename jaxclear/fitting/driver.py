@@ -33,6 +33,7 @@ def fit(
     free: Sequence[str] = DEFAULT_FREE,
     start: dict | None = None,
     *,
+    channels=None,
     sensor: Accelerometer | None = None,
     window: float | None = None,
     windows: int = 1,
@@ -53,16 +54,23 @@ def fit(
     progress: bool = True,
     callback: Callable | None = None,
 ) -> FitResult:
-    """Fit the ``free`` parameters of ``mech`` to a measured slider acceleration (method:
-    :mod:`jaxclear.fitting`).
+    """Fit the ``free`` parameters of ``mech`` to measured channels, by default the slider
+    acceleration (method: :mod:`jaxclear.fitting`).
 
     Args:
-        data: a :class:`jaxclear.io.Measurements` or the path of a record CSV.
+        data: a :class:`jaxclear.io.Measurements`, a pandas DataFrame or dict of columns
+            (``time_s`` and the fitted columns), or the path of a record CSV.
         mech: the mechanism with every known value set (the free ones are replaced).
         free: names of the fitted parameters (:mod:`jaxclear.params` names, ``sensor_gain``,
-            ``sensor_bias``); default stiffness and restitution.
+            ``sensor_bias`` (of the first channel's sensor)); default stiffness and restitution.
         start: ``name: value`` start values (SI; default: the mechanism's / sensor's values).
-        sensor: the accelerometer model (default: no filter, gain 1, bias 0, oversample 4).
+        channels: record column -> channel spec (a :mod:`jaxclear.analysis.channels` name, a
+            :class:`~jaxclear.fitting.FitChannel` or a table ``{"channel", "weight", "cutoff_hz",
+            "gain", "bias"}``; :mod:`jaxclear.fitting.targets`), several at once with weights and
+            sensors of their own. Default None: ``{"slider_acc_m_s2": "body:SLIDER:x:acc"}``
+            (``SLIDER``: the ``slider`` role) through ``sensor``.
+        sensor: the sensor model of every channel without one of its own (default: no filter,
+            gain 1, bias 0, oversample 4; the oversampling is common to all channels).
         window: window length [s] (default a quarter crank revolution, at most the record).
         windows: number of back-to-back windows; windows after the first have the journal
             state at their start as extra unknowns.
@@ -96,7 +104,8 @@ def fit(
     opt = make_optimizer(optimizer, ftol, xtol)
     settings = dict(max_iter=max_iter, ftol=ftol, xtol=xtol, rtol=rtol, atol=atol, max_steps=max_steps, align=align,
                     time_offset=time_offset, optimizer=opt.name)
-    problem = build_problem(data, mech, free, start, sensor, window, windows, horizons, coarse, starts, settings)
+    problem = build_problem(data, mech, free, start, sensor, window, windows, horizons, coarse, starts, settings,
+                            channels)
     with locked_folder(out, "fit output folder") if out is not None else contextlib.nullcontext():
         return _fit_locked(problem, opt, out, resume, progress, callback, t_wall)
 
@@ -160,17 +169,24 @@ def _final_jacobian(problem: FitProblem, evals) -> tuple[np.ndarray, np.ndarray]
     return r, np.asarray(jac)
 
 
-def _plot_series(problem: FitProblem, evals, initial) -> dict:
-    """Fitted samples of every window for the plot: t (simulation time), measured, fitted, initial."""
+def _plot_series(problem: FitProblem, evals, initial, j: int = 0) -> dict:
+    """Fitted samples of every window of channel ``j`` for the plot: t (simulation time),
+    measured, fitted, initial."""
     parts = {"t": [], "measured": [], "fitted": [], "initial": []}
     win = problem.win
     for k, n_k in enumerate(win.counts):
         keep = win.valid[k, :n_k] > 0
         parts["t"].append((win.t_rel[k, :n_k] + win.starts[k])[keep])
-        parts["measured"].append(win.data[k, :n_k][keep])
-        parts["fitted"].append(evals[k][3][:n_k][keep])
-        parts["initial"].append(initial[k][3][:n_k][keep])
+        parts["measured"].append(win.data[k, j, :n_k][keep])
+        parts["fitted"].append(evals[k][3][j, :n_k][keep])
+        parts["initial"].append(initial[k][3][j, :n_k][keep])
     return {name: np.concatenate(v) for name, v in parts.items()}
+
+
+def _channel_series(problem: FitProblem, evals, initial) -> dict:
+    """column -> ``{"measured", "fitted", "initial"}`` fitted samples (times: ``FitResult.t``)."""
+    return {c: {k: v for k, v in _plot_series(problem, evals, initial, j).items() if k != "t"}
+            for j, c in enumerate(problem.columns)}
 
 
 def _result(problem: FitProblem, st: FitState, wall: float, resumed: bool) -> FitResult:
@@ -178,7 +194,7 @@ def _result(problem: FitProblem, st: FitState, wall: float, resumed: bool) -> Fi
     theta, states = np.asarray(st.theta, dtype=float), np.asarray(st.states, dtype=float)
     evals = _evaluate_all(problem, theta, states, st.guesses)
     r, jac = _final_jacobian(problem, evals)
-    mask = np.concatenate([problem.win.mask(k, 1.0) for k in range(problem.windows)])
+    mask = np.concatenate([problem.win.residual_mask(k, 1.0) for k in range(problem.windows)])
     unc: Uncertainty = estimate_uncertainty(r, jac, mask, problem.win.scale, theta, problem.free)
     converged = st.stop_reason not in ("", "max_iter")
     warn = list(unc.warnings)
@@ -186,8 +202,8 @@ def _result(problem: FitProblem, st: FitState, wall: float, resumed: bool) -> Fi
         warn.append(f"the last stage stopped on max_iter = {problem.settings['max_iter']} before meeting ftol/xtol")
     for w in warn:
         warnings.warn(w, stacklevel=3)
-    n_pad = problem.win.n_pad
-    window_losses = [float(np.mean(r[k * n_pad:(k + 1) * n_pad][problem.win.mask(k, 1.0) > 0] ** 2))
+    n_pad = problem.win.n_pad * problem.win.n_channels
+    window_losses = [float(np.mean(r[k * n_pad:(k + 1) * n_pad][problem.win.residual_mask(k, 1.0) > 0] ** 2))
                      for k in range(problem.windows)]
     initial = _evaluate_all(problem, problem.z_starts[0], states, st.guesses)
     s = problem.settings
@@ -206,6 +222,8 @@ def _result(problem: FitProblem, st: FitState, wall: float, resumed: bool) -> Fi
                   "sensor": problem.sensor.describe(), "oversample": problem.sensor.oversample,
                   "record": problem.meas.path, "record_samples": len(problem.t_rec), "sample_spacing_s": s["dt"],
                   "data_rms_m_s2": problem.win.scale, "mechanism": problem.mech.name,
-                  "law": law_name(problem.mech), "resumed": resumed, "optimizer": s["optimizer"]},
+                  "law": law_name(problem.mech), "resumed": resumed, "optimizer": s["optimizer"],
+                  "channels": problem.channel_config()},
+        series=_channel_series(problem, evals, initial),
         warnings=warn, window_states=[list(map(float, v)) for v in states[1:]], window_losses=window_losses)
 

@@ -13,12 +13,14 @@ import numpy as np
 
 from .._errors import FitDataError, ParameterError
 from ..model import FunctionDriver, Mechanism, crank_driver, crank_period
+from ..analysis.channels import unit as named_unit
 from ..analysis.sensor import Accelerometer, record_times, uniform_spacing
 from ..integrate import settings as make_settings
 from .parameters import check_free, fixed_values, start_values, z_vector
 from .plan import Stage, check_plan, plan_stages, spread_starts
-from .records import read_record, slider_role
+from .records import read_record
 from .state import checkpoint_key
+from .targets import DEFAULT_COLUMN, resolve_targets
 from .window import WindowInput, WindowModel, WindowSet, cut_windows, state_to_z
 
 
@@ -28,9 +30,10 @@ class FitProblem:
 
     meas: object
     t_rec: np.ndarray
-    y_rec: np.ndarray
+    y_rec: np.ndarray  # (C, N): the fitted columns
     mech: Mechanism
     sensor: Accelerometer
+    targets: tuple  # ((column, FitChannel), ...)
     free: tuple
     values0: dict
     fixed: dict
@@ -42,7 +45,7 @@ class FitProblem:
     horizons: tuple
     state0: np.ndarray
     guess0: tuple
-    clearances: list
+    start_scales: list
     velocity_scale: float
     angle0: float
     speed: float
@@ -62,15 +65,32 @@ class FitProblem:
                     horizons=self.horizons, starts=s["starts"], coarse=s["coarse"], max_iter=s["max_iter"],
                     ftol=s["ftol"], xtol=s["xtol"], rtol=s["rtol"], atol=s["atol"], align=s["align"],
                     time_offset=s["time_offset"], sensor=self.sensor.describe(), oversample=self.sensor.oversample,
-                    optimizer=s["optimizer"], mechanism=str(jax.tree_util.tree_structure(self.mech)))
+                    optimizer=s["optimizer"], mechanism=str(jax.tree_util.tree_structure(self.mech)),
+                    **({} if self.default_target else {"channels": self.channel_config()}))
+
+    @property
+    def default_target(self) -> bool:
+        """Whether the fit compares the slider acceleration column alone (the default target)."""
+        return self.columns == (DEFAULT_COLUMN,) and self.targets[0][1].weight == 1.0 and \
+            self.targets[0][1].sensor is self.sensor
+
+    @property
+    def columns(self) -> tuple:
+        return tuple(c for c, _ in self.targets)
+
+    def channel_config(self) -> dict:
+        """column -> channel, weight, sensor (for the checkpoint and ``fit.json``)."""
+        return {c: fc.describe() for c, fc in self.targets}
 
     def checkpoint_key(self) -> str:
-        leaves = [np.ravel(np.asarray(x, dtype=float)) for x in jax.tree_util.tree_leaves((self.mech, self.sensor))]
-        return checkpoint_key(self.t_rec, self.y_rec, np.concatenate(leaves), self.checkpoint_config())
+        sensors = [fc.sensor for _, fc in self.targets]
+        leaves = [np.ravel(np.asarray(x, dtype=float)) for x in jax.tree_util.tree_leaves(
+            (self.mech, self.sensor) if self.default_target else (self.mech, self.sensor, sensors))]
+        y = self.y_rec[0] if self.default_target else self.y_rec
+        return checkpoint_key(self.t_rec, y, np.concatenate(leaves), self.checkpoint_config())
 
 
 def _check_mechanism(mech: Mechanism, windows: int):
-    slider_role(mech)
     if not mech.clearance_joints:
         raise ParameterError(f"mechanism {mech.name!r} has no clearance joint: nothing to identify")
     if windows > 1:
@@ -104,27 +124,30 @@ def _window_length(mech, window, windows: int, span: float, dt: float, h: float,
 MAX_ABS_DATA = 1e100
 
 
-def _check_data(y_rec, where: str):
+def _check_data(y_rec, where: str, column: str = DEFAULT_COLUMN, unit: str = "m/s^2"):
     """:class:`~jaxclear.FitDataError` for data a least-squares fit cannot treat honestly: non-finite values,
     magnitudes beyond :data:`MAX_ABS_DATA`, or a record without any signal (all zero)."""
     bad = ~np.isfinite(y_rec)
     if bad.any():
-        raise FitDataError(f"{where}: slider_acc_m_s2 holds {int(bad.sum())} non-finite value(s) "
-                             f"(first at sample {int(np.argmax(bad))}); remove or interpolate them")
+        raise FitDataError(f"{where}: {column} holds {int(bad.sum())} non-finite value(s) "
+                           f"(first at sample {int(np.argmax(bad))}); remove or interpolate them")
     peak = float(np.max(np.abs(y_rec))) if y_rec.size else 0.0
     if peak > MAX_ABS_DATA:
-        raise FitDataError(f"{where}: |slider_acc_m_s2| reaches {peak:g} m/s^2, beyond the allowed "
-                             f"{MAX_ABS_DATA:g} m/s^2 (check the units or the scale of the record)")
+        raise FitDataError(f"{where}: |{column}| reaches {peak:g} {unit}, beyond the allowed "
+                           f"{MAX_ABS_DATA:g} {unit} (check the units or the scale of the record)")
     if peak == 0.0:
-        raise FitDataError(f"{where}: slider_acc_m_s2 is zero everywhere: there is nothing to fit")
+        raise FitDataError(f"{where}: {column} is zero everywhere: there is nothing to fit")
 
 
 def build_problem(data, mech: Mechanism, free: Sequence[str], start: dict | None, sensor: Accelerometer | None,
-                  window, windows: int, horizons, coarse, starts: int, settings: dict) -> FitProblem:
+                  window, windows: int, horizons, coarse, starts: int, settings: dict, channels=None) -> FitProblem:
     """Check the inputs (ParameterError before any compilation) and build the :class:`FitProblem`.
-    ``settings``: max_iter, ftol, xtol, rtol, atol, max_steps, align, time_offset, optimizer."""
-    meas = read_record(data)
+    ``settings``: max_iter, ftol, xtol, rtol, atol, max_steps, align, time_offset, optimizer;
+    ``channels``: record column -> channel spec (:mod:`.targets`; None: the slider acceleration)."""
     sensor = Accelerometer() if sensor is None else sensor
+    targets = resolve_targets(mech, channels, sensor)
+    columns = tuple(c for c, _ in targets)
+    meas = read_record(data, columns)
     start = dict(start or {})
     free = check_free(mech, free, start)
     _check_mechanism(mech, windows)
@@ -134,29 +157,33 @@ def build_problem(data, mech: Mechanism, free: Sequence[str], start: dict | None
     angle0 = float(crank[1].angle0) if crank is not None else 0.0
     t_rec = record_times(meas, settings["align"], speed=speed if crank else None, angle0=angle0,
                          time_offset=settings["time_offset"])
-    y_rec = np.asarray(meas.slider_acc_m_s2, dtype=float)
+    y_rec = np.stack([np.asarray(meas.columns[c], dtype=float) for c in columns])
     dt = uniform_spacing(t_rec)
     h = dt / sensor.oversample
     where = meas.path or "the record"
-    _check_data(y_rec, where)
+    for (column, fc), y in zip(targets, y_rec):
+        _check_data(y, where, column, named_unit(mech, fc.channel))
     window = _window_length(mech, window, windows, float(t_rec[-1]), dt, h, len(t_rec), t_rec, where)
-    settle = 2.0 / sensor.cutoff_hz if sensor.cutoff_hz is not None else 0.0
-    win = cut_windows(t_rec, y_rec, dt, windows, window, settle, horizons, where)
+    cutoffs = [fc.sensor.cutoff_hz for _, fc in targets if fc.sensor.cutoff_hz is not None]
+    settle = 2.0 / min(cutoffs) if cutoffs else 0.0
+    win = cut_windows(t_rec, y_rec, dt, windows, window, settle, horizons, where, columns)
     values0 = start_values(mech, sensor, free, start)
     z0 = z_vector(free, values0, win.scale)
     velocity_scale = abs(speed) if speed else 1.0 / window
     n_fine = int(round(window / h))
     s = make_settings(n_fine * h, n_out=n_fine + 1, rtol=settings["rtol"], atol=settings["atol"], adjoint="forward",
                       throw=False, max_steps=settings["max_steps"])
-    model = WindowModel(mech=mech, sensor=sensor, settings=s, bias_scale=jnp.asarray(win.scale),
-                        velocity_scale=jnp.asarray(velocity_scale), free=free, slider=slider_role(mech),
+    model = WindowModel(mech=mech, sensors=tuple(fc.sensor for _, fc in targets),
+                        weights=jnp.asarray([fc.weight for _, fc in targets], dtype=float), settings=s,
+                        bias_scale=jnp.asarray(win.scale), velocity_scale=jnp.asarray(velocity_scale), free=free,
+                        channels=tuple(fc.channel for _, fc in targets),
                         driver=crank[0] if crank is not None else None, h=h)
-    clearances = [float(j.clearance) for j in mech.clearance_joints]
+    start_scales = [np.asarray(j.start_scale(), dtype=float) for j in mech.clearance_joints]
     state0 = state_to_z(np.concatenate([np.concatenate([np.asarray(j.initial_offset), np.asarray(j.initial_velocity)])
-                                        for j in mech.clearance_joints]), clearances, velocity_scale)
+                                        for j in mech.clearance_joints]), start_scales, velocity_scale)
     guess0 = tuple(np.asarray(a) for a in mech.guess())
     stages: list[Stage] = plan_stages(windows, horizons, starts, coarse)
     settings = dict(settings, starts=starts, coarse=coarse, dt=dt)
-    return FitProblem(meas, t_rec, y_rec, mech, sensor, free, values0, fixed_values(mech, sensor, free), z0,
-                      spread_starts(z0, free, starts), model, win, stages, horizons, state0, guess0, clearances,
+    return FitProblem(meas, t_rec, y_rec, mech, sensor, targets, free, values0, fixed_values(mech, sensor, free), z0,
+                      spread_starts(z0, free, starts), model, win, stages, horizons, state0, guess0, start_scales,
                       velocity_scale, angle0, speed, json.loads(json.dumps(settings, default=str)))

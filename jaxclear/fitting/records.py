@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import io as _stringio
 import os
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -97,22 +98,77 @@ def write_measurements(path, meas: io.Measurements) -> str:
     return atomic_write_text(path, buf.getvalue())
 
 
-def read_record(data) -> io.Measurements:
-    """``data`` as a checked record: a Measurements or the path of a record CSV."""
-    meas = io.read_measurements(data) if isinstance(data, (str, os.PathLike)) else data
-    check_record(meas)
-    return meas
+@dataclass
+class FitRecord:
+    """A record with any columns: ``time_s`` ``(N,)`` [s], ``columns`` name -> ``(N,)`` (the
+    fitted ones), ``crank_angle_rad`` (for ``align="crank"``, or None), metadata and path."""
+
+    time_s: np.ndarray
+    columns: dict
+    crank_angle_rad: np.ndarray | None = None
+    metadata: dict = field(default_factory=dict)
+    path: str = ""
 
 
-def check_record(meas: io.Measurements):
+def _table(data) -> tuple[dict, dict, str]:
+    """``(columns, metadata, path)`` of a Measurements, a mapping of columns, a pandas DataFrame
+    (``time_s`` a column or the index) or the path of a record CSV (any columns)."""
+    if isinstance(data, io.Measurements):
+        return {n: getattr(data, n) for n in data.columns}, dict(data.metadata), data.path
+    if hasattr(data, "columns") and hasattr(data, "index") and hasattr(data, "to_numpy"):  # a DataFrame
+        cols = {str(c): data[c].to_numpy() for c in data.columns}
+        if "time_s" not in cols and data.index.name == "time_s":
+            cols["time_s"] = data.index.to_numpy()
+        return cols, dict(getattr(data, "attrs", {}).get("metadata", {})), ""
+    if isinstance(data, dict):
+        return dict(data), {}, ""
+    raise ParameterError(f"a record must be a jaxclear.io.Measurements, a DataFrame, a dict of columns or the path "
+                         f"of a record CSV, got {type(data).__name__}")
+
+
+def read_record(data, columns=("slider_acc_m_s2",)) -> FitRecord:
+    """``data`` (a Measurements, a DataFrame, a dict of columns or the path of a record CSV) as a
+    checked :class:`FitRecord` holding ``columns``. A CSV fitted on ``slider_acc_m_s2`` alone is
+    read by :func:`jaxclear.io.read_measurements` (its checks and messages); any other by
+    :func:`jaxclear.io.read_record_columns`."""
+    columns = tuple(columns)
+    if isinstance(data, (str, os.PathLike)):
+        if columns == ("slider_acc_m_s2",):
+            data = io.read_measurements(data)
+        else:
+            values, meta = io.read_record_columns(data, columns)
+            data = io.Measurements(time_s=values["time_s"], slider_acc_m_s2=values.get("slider_acc_m_s2"),
+                                   crank_angle_rad=values.get("crank_angle_rad"), metadata=meta, path=os.fspath(data))
+            return _checked(FitRecord(values["time_s"], {c: values[c] for c in columns}, data.crank_angle_rad, meta,
+                                      data.path))
+    table, meta, path = _table(data)
+    where = path or "the record"
+    missing = [c for c in ("time_s", *columns) if c not in table or table[c] is None]
+    if missing:
+        raise ParameterError(f"{where}: missing column(s) {missing}; the record has {sorted(k for k, v in table.items() if v is not None)}")
+    crank = table.get("crank_angle_rad")
+    return _checked(FitRecord(np.asarray(table["time_s"], dtype=float),
+                              {c: np.asarray(table[c], dtype=float) for c in columns},
+                              None if crank is None else np.asarray(crank, dtype=float), meta, path))
+
+
+def _checked(rec: FitRecord) -> FitRecord:
+    check_record(rec)
+    return rec
+
+
+def check_record(meas):
     """Raise a ParameterError naming the sample and data row of the first bad value: columns of
-    unequal length, a non-finite value, or times that do not strictly increase."""
+    unequal length, a non-finite value, or times that do not strictly increase (``meas``: a
+    :class:`FitRecord` or a Measurements)."""
     where = meas.path or "the record"
     t = np.asarray(meas.time_s, dtype=float)
-    y = np.asarray(meas.slider_acc_m_s2, dtype=float)
-    if t.ndim != 1 or y.shape != t.shape:
-        raise ParameterError(f"{where}: time_s and slider_acc_m_s2 must be 1-D of equal length, got {t.shape}, {y.shape}")
-    for name, arr in (("time_s", t), ("slider_acc_m_s2", y)):
+    cols = meas.columns if isinstance(meas, FitRecord) else {"slider_acc_m_s2": meas.slider_acc_m_s2}
+    cols = {n: np.asarray(v, dtype=float) for n, v in cols.items()}
+    for name, y in cols.items():
+        if t.ndim != 1 or y.shape != t.shape:
+            raise ParameterError(f"{where}: time_s and {name} must be 1-D of equal length, got {t.shape}, {y.shape}")
+    for name, arr in (("time_s", t), *cols.items()):
         bad = np.nonzero(~np.isfinite(arr))[0]
         if bad.size:
             raise ParameterError(f"{where}: column {name!r} has a non-finite value at sample {int(bad[0])} "

@@ -28,8 +28,10 @@ class FitResult:
         residual_autocorrelation: lag-1 autocorrelation of the residuals (about 0 when white).
         converged: whether the last stage stopped on a tolerance (not on ``max_iter``).
         history: one record per iteration (stage, loss, values).
-        t, measured, fitted, initial: the fitted samples for the plot (times in simulation time,
-            ``initial`` = the model at the start values), per window stacked; ``window_starts`` [s].
+        t, measured, fitted, initial: the fitted samples of the first fitted column for the plot
+            (times in simulation time, ``initial`` = the model at the start values), per window
+            stacked; ``window_starts`` [s].
+        series: every fitted column -> ``{"measured", "fitted", "initial"}`` (same samples as ``t``).
         free, fixed, settings, warnings: inputs and remarks, written to ``fit.json``.
     """
 
@@ -61,6 +63,7 @@ class FitResult:
     window_states: list = field(default_factory=list)
     window_losses: list = field(default_factory=list)
     evaluations: int = 0
+    series: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         """The content of ``fit.json``."""

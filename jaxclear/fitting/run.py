@@ -74,7 +74,7 @@ def begin_stage(problem: FitProblem, st: FitState) -> FitState:
         q1, qd1, end = window_end(problem, st, k - 1)
         guesses, states = list(st.guesses), list(st.states)
         guesses[k] = [q1.tolist(), qd1.tolist()]
-        states[k] = state_to_z(end, problem.clearances, problem.velocity_scale).tolist()
+        states[k] = state_to_z(end, problem.start_scales, problem.velocity_scale).tolist()
         st = st.replace(guesses=guesses, states=states)
     return st
 
@@ -140,7 +140,7 @@ def run_stage(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoin
     run, st = stage_run(problem, opt, st, stage)
     s = problem.settings
     limit, tol_f = stage.max_iter(s["max_iter"]), stage.ftol(s["ftol"])
-    n_fit = max(float(sum(problem.win.mask(k, stage.horizon).sum() for k in stage.windows)), 1.0)
+    n_fit = max(float(sum(problem.win.residual_mask(k, stage.horizon).sum() for k in stage.windows)), 1.0)
     reason, loss = ("max_iter", float("nan")) if st.iteration >= limit else ("", float("nan"))
     while not reason:
         fresh = st.x is None

@@ -1,18 +1,30 @@
 r"""The model of one fit window and the record cut into windows.
 
 Window ``k`` (length ``T_w`` [s]) is simulated from ``t = 0`` with the crank's start angle
-advanced by ``omega k T_w`` and, for ``k > 0``, a free journal state at its start: per
-clearance joint 4 unconstrained numbers ``s = (u, w)`` map to the journal offset
-``e0 = c u / sqrt(1 + |u|^2)`` [m] (``c``: radial clearance; always inside the bearing) and the
-relative velocity ``v0 = v_s c w`` [m/s] (``v_s``: crank speed [rad/s], or ``1 / T_w``).
+advanced by ``omega k T_w`` and, for ``k > 0``, a free start state of every force element in
+the element's own layout (:meth:`~jaxclear.elements.AbstractForceElement.start_state`: the
+coordinates ``a`` its initial assembly holds and their rates; a journal's eccentricity, a
+translational joint's lateral offset and tilt). Per element ``2 e`` unconstrained numbers
+``s = (u, w)`` (``e = n_equations``) map to
 
-The residual at the window's ``n_pad`` samples (mask ``m_i``: 1 fitted, 0 not) is
+``a0 = S u / sqrt(1 + |u|^2)``, ``a0dot = v_s S w``,
 
-* acceleration: ``r_i = m_i (y_i - d_i) / s_a``, ``s_a`` the RMS of the record [m/s^2];
-* velocity (coarse stages): ``r_i = m_i sum_{j<=i} m_j (y_j - d_j) dt_j / s_v``, the running
-  integral of the misfit, ``s_v`` [m/s] the RMS of the integrated record,
+with ``S`` the element's :meth:`~jaxclear.elements.AbstractForceElement.start_scale` (the
+half-axes of a contact-free ellipse; the radial clearance ``c`` for a journal) and ``v_s`` the
+crank speed [rad/s] (or ``1 / T_w``), so the start is always free of contact. The element's
+memory starts from its :meth:`~jaxclear.elements.AbstractForceElement.state_init`.
 
-with ``y`` the sensor model ``gain * filter(acc) + bias`` and ``d`` the data.
+The residual of channel ``j`` (weight ``w_j``) at the window's ``n_pad`` samples (mask ``m_i``:
+1 fitted, 0 not) is
+
+* signal: ``r_ji = sqrt(w_j) m_i (y_ji - d_ji) / s_j``, ``s_j`` the RMS of the column over the
+  fitted windows;
+* running integral (coarse stages): ``r_ji = sqrt(w_j) m_i sum_{l<=i} m_l (y_jl - d_jl) dt_l /
+  v_j``, ``v_j`` the RMS of the integrated column over window 0,
+
+with ``y_j`` the channel seen through its sensor, ``gain * filter(channel) + bias``
+(:class:`~jaxclear.analysis.sensor.Accelerometer`), and ``d_j`` the record's column; the
+channels' residuals are stacked (channel-major, ``(C n_pad,)``).
 """
 
 from __future__ import annotations
@@ -27,15 +39,16 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import params
-from ..elements import journal_state
+from ..elements import start_states
 from .._errors import ParameterError
 from ..model import Mechanism
+from ..analysis.channels import channel
 from ..analysis.sensor import Accelerometer
 from ..integrate import Settings, jit, simulate
 from .parameters import SENSOR_PARAMETERS, from_z
 from .records import quiet_cut
 
-#: Offset of a window's start state as a fraction of the clearance: the map keeps it inside.
+#: Offset of a window's start state as a fraction of the element's start scale: the map keeps it inside.
 OFFSET_RADIUS = 1.0
 
 
@@ -46,33 +59,41 @@ class WindowInput(eqx.Module):
     guess_q: jax.Array  # position guess of the bodies at the window start, (3 n_b,)
     guess_qd: jax.Array  # velocity guess, (3 n_b,)
     t_rel: jax.Array  # record sample times relative to the window start [s], (n_pad,)
-    data: jax.Array  # measured values [m/s^2], (n_pad,)
+    data: jax.Array  # measured values, (C, n_pad)
     mask: jax.Array  # 1 for fitted samples, 0 else, (n_pad,)
-    scale: jax.Array  # normalisation of the residual (RMS of the data) [m/s^2], ()
+    scale: jax.Array  # normalisation of each channel's residual (RMS of its data), (C,)
     dts: jax.Array  # sample intervals [s], (n_pad,), for the integrated residual
-    integrate: jax.Array  # 1: residual of the integrated signal (velocity), 0: of the acceleration
-    vscale: jax.Array  # normalisation of the integrated residual [m/s], ()
+    integrate: jax.Array  # 1: residual of the integrated signal (velocity), 0: of the signal itself
+    vscale: jax.Array  # normalisation of each channel's integrated residual, (C,)
 
 
 class WindowModel(eqx.Module):
-    """Mechanism + sensor + settings of the windows; ``free`` names the parameters in ``theta_z``."""
+    """Mechanism + sensors + settings of the windows; ``free`` names the parameters in
+    ``theta_z``; ``channels`` the fitted channels (:mod:`jaxclear.analysis.channels` names), one
+    sensor and one weight each. ``sensor_gain``/``sensor_bias`` act on the first channel's sensor."""
 
     mech: Mechanism
-    sensor: Accelerometer
+    sensors: tuple
+    weights: jax.Array
     settings: Settings
     bias_scale: jax.Array
     velocity_scale: jax.Array
     free: tuple = eqx.field(static=True)
-    slider: str = eqx.field(static=True)
+    channels: tuple = eqx.field(static=True)
     driver: int | None = eqx.field(static=True)
     h: float = eqx.field(static=True)
+
+    @property
+    def sensor(self) -> Accelerometer:
+        """The first channel's sensor."""
+        return self.sensors[0]
 
     def values(self, theta_z):
         """``name: value`` (SI) of the unconstrained ``theta_z`` ``(P,)``."""
         return {n: from_z(n, theta_z[i], self.bias_scale) for i, n in enumerate(self.free)}
 
     def mechanism(self, theta_z, state_z, win: WindowInput):
-        """The mechanism of the window: free values, crank angle, guesses and journal start state."""
+        """The mechanism of the window: free values, crank angle, guesses and element start states."""
         values = self.values(theta_z)
         mech = params.replace_many(self.mech, {n: v for n, v in values.items() if n not in SENSOR_PARAMETERS})
         if self.driver is not None:
@@ -82,43 +103,45 @@ class WindowModel(eqx.Module):
                            [win.guess_q[3 * i: 3 * i + 3] for i in range(n_b)])
         mech = eqx.tree_at(lambda m: [b.velocity for b in m.bodies], mech,
                            [win.guess_qd[3 * i: 3 * i + 3] for i in range(n_b)])
-        offsets, velocities = [], []
-        for k, joint in enumerate(mech.clearance_joints):
-            u = state_z[4 * k: 4 * k + 2]
-            c = joint.clearance
-            offsets.append(c * OFFSET_RADIUS * u / jnp.sqrt(1.0 + u @ u))
-            velocities.append(self.velocity_scale * c * state_z[4 * k + 2: 4 * k + 4])
-        if mech.clearance_joints:
-            mech = eqx.tree_at(lambda m: [j.initial_offset for j in m.clearance_joints], mech, offsets)
-            mech = eqx.tree_at(lambda m: [j.initial_velocity for j in m.clearance_joints], mech, velocities)
+        elements, i = [], 0
+        for element in mech.clearance_joints:
+            e = element.n_equations
+            u, w = state_z[i: i + e], state_z[i + e: i + 2 * e]
+            scale = element.start_scale()
+            elements.append(element.with_start(scale * OFFSET_RADIUS * u / jnp.sqrt(1.0 + u @ u),
+                                               self.velocity_scale * scale * w))
+            i += 2 * e
+        if elements:
+            mech = eqx.tree_at(lambda m: list(m.clearance_joints), mech, elements)
         return mech, values
 
     def signal(self, theta_z, state_z, win: WindowInput):
-        """Sensor output ``(n_pad,)`` [m/s^2] at the window's samples and ``(q_end, qdot_end,
-        journal_state_end, status)`` of the simulation."""
+        """Sensor outputs ``(C, n_pad)`` at the window's samples and ``(q_end, qdot_end,
+        start_states_end, status)`` of the simulation."""
         mech, values = self.mechanism(theta_z, state_z, win)
         sol = simulate(mech, self.settings)
-        acc = sol.coordinate(mech, self.slider, "x", derivative=2)
-        gain = values.get("sensor_gain", self.sensor.gain)
-        bias = values.get("sensor_bias", self.sensor.bias)
-        y = gain * self.sensor.filter(self.h, acc) + bias
-        y = jnp.interp(win.t_rel, sol.ts, y)
+        ys = []
+        for j, (name, sensor) in enumerate(zip(self.channels, self.sensors)):
+            gain = values.get("sensor_gain", sensor.gain) if j == 0 else sensor.gain
+            bias = values.get("sensor_bias", sensor.bias) if j == 0 else sensor.bias
+            y = gain * sensor.filter(self.h, channel(mech, sol, name)) + bias
+            ys.append(jnp.interp(win.t_rel, sol.ts, y))
         q1, qd1 = sol.q[-1], sol.qdot[-1]
-        return y, (q1, qd1, journal_state(mech, q1, qd1), sol.status)
+        return jnp.stack(ys), (q1, qd1, start_states(mech, q1, qd1), sol.status)
 
     def residual(self, theta_z, state_z, win: WindowInput):
-        """Residual ``(n_pad,)`` of the window (module docstring), the signal, and the end."""
+        """Residual ``(C n_pad,)`` of the window (module docstring), the signals, and the end."""
         y, extra = self.signal(theta_z, state_z, win)
         err = win.mask * (y - win.data)
-        r_velocity = win.mask * jnp.cumsum(err * win.dts) / win.vscale
-        r = jnp.where(win.integrate > 0, r_velocity, err / win.scale)
-        return r, (y, extra)
+        r_velocity = win.mask * jnp.cumsum(err * win.dts, axis=-1) / win.vscale[:, None]
+        r = jnp.where(win.integrate > 0, r_velocity, err / win.scale[:, None])
+        return jnp.reshape(jnp.sqrt(self.weights)[:, None] * r, (-1,)), (y, extra)
 
 
 def evaluate_window(model: WindowModel, theta_z, state_z, win: WindowInput):
-    """Residual ``r`` ``(n_pad,)``, its Jacobians ``dr/dtheta_z`` ``(n_pad, P)`` and
-    ``dr/dstate_z`` ``(n_pad, 4 n_c)`` in forward mode (``jax.jacfwd``: few columns, many rows),
-    the signal ``y`` ``(n_pad,)`` and the end ``(q, qdot, journal_state, status)``. ``r`` is NaN
+    """Residual ``r`` ``(C n_pad,)``, its Jacobians ``dr/dtheta_z`` ``(C n_pad, P)`` and
+    ``dr/dstate_z`` ``(C n_pad, S)`` in forward mode (``jax.jacfwd``: few columns, many rows),
+    the signals ``y`` ``(C, n_pad)`` and the end ``(q, qdot, start states, status)``. ``r`` is NaN
     where the simulation failed (status not 0) or a value is not finite."""
 
     def f(theta_z, state_z):
@@ -136,31 +159,36 @@ def evaluate_window(model: WindowModel, theta_z, state_z, win: WindowInput):
 evaluate_window_jit = jit(evaluate_window)
 
 
-def state_to_z(state: np.ndarray, clearance: Sequence[float], velocity_scale: float) -> np.ndarray:
-    """Inverse of the window-state map of :meth:`WindowModel.mechanism`: journal state
-    ``[e_x, e_y, v_x, v_y]`` per joint ``(4 n_c,)`` [m, m/s] to ``s`` ``(4 n_c,)`` (offset
-    clipped to 0.999 of the clearance)."""
-    out = []
-    for k, c in enumerate(clearance):
-        w = np.asarray(state[4 * k: 4 * k + 2]) / (c * OFFSET_RADIUS)
+def state_to_z(state: np.ndarray, scales: Sequence[np.ndarray], velocity_scale: float) -> np.ndarray:
+    """Inverse of the window-state map of :meth:`WindowModel.mechanism`: the elements' start
+    states (:func:`jaxclear.elements.start_states`, ``(S,)``) to ``s`` ``(S,)``, given each
+    element's start scale ``(e,)`` (the offset clipped to 0.999 of its ellipse)."""
+    out, i = [], 0
+    for scale in scales:
+        scale = np.asarray(scale, dtype=float)
+        e = scale.shape[0]
+        w = np.asarray(state[i: i + e]) / (scale * OFFSET_RADIUS)
         n = float(np.linalg.norm(w))
         if n >= 0.999:
             w = w * 0.999 / n
             n = 0.999
         out.append(w / math.sqrt(1.0 - n * n))
-        out.append(np.asarray(state[4 * k + 2: 4 * k + 4]) / (velocity_scale * c))
+        out.append(np.asarray(state[i + e: i + 2 * e]) / (velocity_scale * scale))
+        i += 2 * e
     return np.concatenate(out) if out else np.zeros(0)
 
 
 @dataclass(frozen=True)
 class WindowSet:
-    """The record on the simulation clock cut into ``W`` windows of ``n_pad`` samples (padded).
+    """The record on the simulation clock cut into ``W`` windows of ``n_pad`` samples (padded),
+    ``C`` channels.
 
-    Attributes: ``t_rel``, ``data``, ``valid`` (1: sample may be fitted; 0: padding or the
-    filter's settling time ``2 / f_c`` at the start of windows ``k > 0``), ``dts`` all ``(W,
-    n_pad)``; ``counts`` samples per window; ``starts`` window start times [s]; ``length`` ``T_w``
-    [s]; ``dt`` sample spacing [s]; ``scale`` RMS of the data [m/s^2]; ``vscale`` RMS of the
-    integrated data of window 0 [m/s]; ``cuts`` ``(window, horizon) -> end time`` [s]."""
+    Attributes: ``t_rel``, ``valid`` (1: sample may be fitted; 0: padding or the filter's
+    settling time ``2 / f_c`` at the start of windows ``k > 0``), ``dts`` all ``(W, n_pad)``;
+    ``data`` ``(W, C, n_pad)``; ``counts`` samples per window; ``starts`` window start times
+    [s]; ``length`` ``T_w`` [s]; ``dt`` sample spacing [s]; ``scales`` ``(C,)`` RMS of each
+    column; ``vscales`` ``(C,)`` RMS of each integrated column over window 0; ``cuts``
+    ``(window, horizon) -> end time`` [s]."""
 
     t_rel: np.ndarray
     data: np.ndarray
@@ -170,49 +198,68 @@ class WindowSet:
     starts: tuple
     length: float
     dt: float
-    scale: float
-    vscale: float
+    scales: np.ndarray
+    vscales: np.ndarray
     cuts: dict
 
     @property
     def n_pad(self) -> int:
         return self.t_rel.shape[1]
 
+    @property
+    def n_channels(self) -> int:
+        return self.data.shape[1]
+
+    @property
+    def scale(self) -> float:
+        """RMS of the first column (the unit of ``sensor_bias`` and of the reported noise)."""
+        return float(self.scales[0])
+
     def mask(self, k: int, horizon: float) -> np.ndarray:
         """``(n_pad,)`` fitted samples of window ``k`` within ``horizon`` (fraction of the window)."""
         end = self.cuts.get((k, horizon), horizon * self.length)
         return self.valid[k] * (self.t_rel[k] <= end + 1e-9 * self.dt)
 
+    def residual_mask(self, k: int, horizon: float) -> np.ndarray:
+        """``(C n_pad,)``: :meth:`mask` for every channel, in the residual's order."""
+        return np.tile(self.mask(k, horizon), self.n_channels)
+
     def window_input(self, k: int, horizon: float, integrate: bool, angle0: float, guess) -> WindowInput:
         """The :class:`WindowInput` of window ``k`` (``guess``: ``(q, qdot)`` at its start)."""
         return WindowInput(jnp.asarray(angle0), jnp.asarray(guess[0]), jnp.asarray(guess[1]),
                            jnp.asarray(self.t_rel[k]), jnp.asarray(self.data[k]),
-                           jnp.asarray(self.mask(k, horizon)), jnp.asarray(self.scale), jnp.asarray(self.dts[k]),
-                           jnp.asarray(1.0 if integrate else 0.0), jnp.asarray(self.vscale))
+                           jnp.asarray(self.mask(k, horizon)), jnp.asarray(self.scales), jnp.asarray(self.dts[k]),
+                           jnp.asarray(1.0 if integrate else 0.0), jnp.asarray(self.vscales))
 
 
 def cut_windows(t_rec, y_rec, dt: float, windows: int, window: float, settle: float, horizons: Sequence[float],
-                where: str) -> WindowSet:
-    """Cut the record (``t_rec`` on the simulation clock [s], ``y_rec`` [m/s^2]) into ``windows``
-    back-to-back windows of ``window`` seconds (``dt``: the uniform sample spacing [s]); a partial horizon ends at the quietest sample
-    within the next 10 % of the window (:func:`quiet_cut`)."""
+                where: str, columns: Sequence[str] = ("slider_acc_m_s2",)) -> WindowSet:
+    """Cut the record (``t_rec`` ``(N,)`` on the simulation clock [s], ``y_rec`` ``(C, N)`` the
+    fitted ``columns``) into ``windows`` back-to-back windows of ``window`` seconds (``dt``: the
+    uniform sample spacing [s]); a partial horizon ends at the quietest sample of the first
+    column within the next 10 % of the window (:func:`quiet_cut`)."""
+    y_rec = np.atleast_2d(np.asarray(y_rec, dtype=float))
+    n_c = y_rec.shape[0]
     starts = tuple(k * window for k in range(windows))
     idx = [np.nonzero((t_rec >= t0 - 1e-12 * window) & (t_rec <= t0 + window + 1e-9 * dt))[0] for t0 in starts]
     n_pad = max(len(i) for i in idx)
-    scale = float(np.sqrt(np.mean(np.concatenate([y_rec[i] for i in idx]) ** 2)))
-    if not scale > 0:
-        raise ParameterError(f"{where}: the measured acceleration is zero over the fitted window(s)")
-    t_rel, data, valid = np.zeros((windows, n_pad)), np.zeros((windows, n_pad)), np.zeros((windows, n_pad))
+    fitted = np.concatenate(idx)
+    scales = np.sqrt(np.mean(y_rec[:, fitted] ** 2, axis=1))
+    for j, name in enumerate(columns):
+        if not scales[j] > 0:
+            raise ParameterError(f"{where}: the measured column {name!r} is zero over the fitted window(s)")
+    t_rel, valid = np.zeros((windows, n_pad)), np.zeros((windows, n_pad))
+    data = np.zeros((windows, n_c, n_pad))
     dts = np.full((windows, n_pad), dt)
     for k, i in enumerate(idx):
         t_rel[k, : len(i)] = t_rec[i] - starts[k]
-        data[k, : len(i)] = y_rec[i]
+        data[k, :, : len(i)] = y_rec[:, i]
         valid[k, : len(i)] = 1.0 if k == 0 else (t_rel[k, : len(i)] >= settle)
         dts[k, 1: len(i)] = np.diff(t_rel[k, : len(i)])
     n0 = len(idx[0])
-    vscale = float(np.sqrt(np.mean(np.cumsum(data[0, :n0] * dts[0, :n0]) ** 2)))
-    vscale = vscale if vscale > 0 else scale * window
-    cuts = {(k, hz): quiet_cut(t_rel[k, : len(i)], data[k, : len(i)], hz * window, 0.1 * window)
+    vscales = np.sqrt(np.mean(np.cumsum(data[0, :, :n0] * dts[0, :n0], axis=1) ** 2, axis=1))
+    vscales = np.where(vscales > 0, vscales, scales * window)
+    cuts = {(k, hz): quiet_cut(t_rel[k, : len(i)], data[k, 0, : len(i)], hz * window, 0.1 * window)
             if hz < 1.0 else window for k, i in enumerate(idx) for hz in horizons}
-    return WindowSet(t_rel, data, valid, dts, tuple(len(i) for i in idx), starts, float(window), dt, scale, vscale,
+    return WindowSet(t_rel, data, valid, dts, tuple(len(i) for i in idx), starts, float(window), dt, scales, vscales,
                      cuts)
