@@ -53,7 +53,8 @@ class WearOptions:
         cycles_per_update: extrapolation factor [-], >= 1: the window's wear is multiplied by it.
         settle: start of each window discarded [s], >= 0 and below the settings' span.
         joint: the clearance joint worn (index or name; ``None``: the only one).
-        n_nodes: bearing nodes [-], >= 8.
+        n_nodes: bearing nodes [-], >= 8; at most half the hybrid law's points (else a warning:
+            points that turn little against the bearing wear their own tracks, seen as stripes).
         harmonics: Fourier terms of the worn profile [-], in [1, n_nodes / 2).
     """
 
@@ -162,6 +163,11 @@ def wear(mech: Mechanism, settings: Settings, options: WearOptions, out: str | N
     if it holds a run of the same mechanism, settings and options; ``restart`` starts over)."""
     options.check(settings)
     index = wear_element(mech, options.joint)
+    law = mech.elements[index].law
+    if options.n_nodes > law.n_elements * law.n_gauss / 2:
+        warnings.warn(f"n_nodes = {options.n_nodes} is more than half the hybrid law's {law.n_elements * law.n_gauss} "
+                      "points: where the joint turns little, each point wears its own track and the depth shows "
+                      "stripes at the point spacing; use fewer nodes or more elements", stacklevel=2)
     base = prepare(mech, index, options.harmonics)
     window_time = float(settings.t_end) - settings.t_start - options.settle
     t_from = settings.t_start + options.settle
