@@ -30,7 +30,7 @@ from .compile import jit, without_input_callbacks
 from .dynamics import _accelerations, flat_vector_field
 from .settings import SOLVERS, Settings
 from .solution import Solution
-from .solvers import ImpactMemorySolver, OnsetController, StateNorm, UnrolledExplicitRK
+from .solvers import ImpactMemorySolver, OnsetController, StateNorm, StopOnNonFinite, UnrolledExplicitRK
 from .state import State, stack_memory
 
 
@@ -49,41 +49,6 @@ def _adjoint(s: Settings):
     if s.adjoint == "direct":
         return diffrax.DirectAdjoint()
     return diffrax.RecursiveCheckpointAdjoint(checkpoints=s.checkpoints)
-
-
-class StopOnNonFinite(diffrax.AbstractAdaptiveStepSizeController):
-    """A step-size controller that delegates to ``inner`` (a :class:`diffrax.PIDController`)
-    and ends the solve at the first step whose candidate state is not finite (diffrax would
-    otherwise reject it and halve the step until ``max_steps``). The solve then reports
-    ``diffrax.RESULTS.dt_min_reached``, which :func:`simulate` maps to ``nonfinite_state``."""
-
-    inner: diffrax.PIDController
-
-    @property
-    def rtol(self):
-        return self.inner.rtol
-
-    @property
-    def atol(self):
-        return self.inner.atol
-
-    @property
-    def norm(self):
-        return self.inner.norm
-
-    def wrap(self, direction):
-        return StopOnNonFinite(self.inner.wrap(direction))
-
-    def init(self, terms, t0, t1, y0, dt0, args, func, error_order):
-        return self.inner.init(terms, t0, t1, y0, dt0, args, func, error_order)
-
-    def adapt_step_size(self, t0, t1, y0, y1_candidate, args, y_error, error_order, controller_state):
-        keep, tprev, tnext, jump, state, result = self.inner.adapt_step_size(
-            t0, t1, y0, y1_candidate, args, y_error, error_order, controller_state
-        )
-        finite = jnp.all(jnp.isfinite(y1_candidate))
-        result = diffrax.RESULTS.where(finite, result, diffrax.RESULTS.dt_min_reached)
-        return keep & finite, tprev, tnext, jump, state, result
 
 
 #: Output samples whose accelerations and contact outputs are evaluated together (one ``vmap``

@@ -182,7 +182,51 @@ class ImpactMemorySolver(_Forwarding):
 ONSET_MARGIN = 1e-3
 
 
-class OnsetController(diffrax.AbstractAdaptiveStepSizeController):
+class AbstractWrappedController(diffrax.AbstractAdaptiveStepSizeController):
+    """A step-size controller that delegates to ``inner`` (tolerances, norm, initial step) and
+    changes only :meth:`adapt_step_size`: the base of :class:`OnsetController` and
+    :class:`StopOnNonFinite`."""
+
+    inner: eqx.AbstractVar[diffrax.AbstractAdaptiveStepSizeController]
+
+    @property
+    def rtol(self):
+        return self.inner.rtol
+
+    @property
+    def atol(self):
+        return self.inner.atol
+
+    @property
+    def norm(self):
+        return self.inner.norm
+
+    def wrap(self, direction):
+        return type(self)(self.inner.wrap(direction))
+
+    def init(self, terms, t0, t1, y0, dt0, args, func, error_order):
+        return self.inner.init(terms, t0, t1, y0, dt0, args, func, error_order)
+
+
+class StopOnNonFinite(AbstractWrappedController):
+    """A step-size controller that delegates to ``inner`` (a :class:`diffrax.PIDController`)
+    and ends the solve at the first step whose candidate state is not finite (diffrax would
+    otherwise reject it and halve the step until ``max_steps``). The solve then reports
+    ``diffrax.RESULTS.dt_min_reached``, which :func:`~jaxclear.simulate` maps to
+    ``nonfinite_state``."""
+
+    inner: diffrax.AbstractAdaptiveStepSizeController
+
+    def adapt_step_size(self, t0, t1, y0, y1_candidate, args, y_error, error_order, controller_state):
+        keep, tprev, tnext, jump, state, result = self.inner.adapt_step_size(
+            t0, t1, y0, y1_candidate, args, y_error, error_order, controller_state
+        )
+        finite = jnp.all(jnp.isfinite(y1_candidate))
+        result = diffrax.RESULTS.where(finite, result, diffrax.RESULTS.dt_min_reached)
+        return keep & finite, tprev, tnext, jump, state, result
+
+
+class OnsetController(AbstractWrappedController):
     r"""Step-size controller for exact contact onsets: delegates to ``inner`` and, when a
     candidate step ``[t0, t0 + h]`` crosses into contact at the fraction ``s`` (the earliest
     onset over the force elements, :meth:`AbstractForceElement.onset
@@ -199,24 +243,6 @@ class OnsetController(diffrax.AbstractAdaptiveStepSizeController):
     :meth:`State.pack`."""
 
     inner: diffrax.AbstractAdaptiveStepSizeController
-
-    @property
-    def rtol(self):
-        return self.inner.rtol
-
-    @property
-    def atol(self):
-        return self.inner.atol
-
-    @property
-    def norm(self):
-        return self.inner.norm
-
-    def wrap(self, direction):
-        return OnsetController(self.inner.wrap(direction))
-
-    def init(self, terms, t0, t1, y0, dt0, args, func, error_order):
-        return self.inner.init(terms, t0, t1, y0, dt0, args, func, error_order)
 
     def adapt_step_size(self, t0, t1, y0, y1_candidate, args, y_error, error_order, controller_state):
         keep, tprev, tnext, jump, state, result = self.inner.adapt_step_size(
