@@ -208,7 +208,7 @@ def test_short_form_defaults_and_alternative_keys():
     (("mass = 1\n", "mass = -1\n"), jc.ParameterError, ["bodies[0]", "mass", "(0, inf)"]),
     (('type = "revolute"', 'type = "hinge"'), jc.MechanismError, ["joints[0].type", "'hinge'", "revolute", "translational"]),
     (('name = "hunt-crossley"', 'name = "hertzz"'), jc.ParameterError, ["clearance_joints[0].law", "hertzz", "lankarani-nikravesh"]),
-    (('model = "coulomb"', 'model = "viscous"'), jc.ParameterError, ["clearance_joints[0].friction", "viscous", "ambrosio"]),
+    (('model = "coulomb"', 'model = "viscus"'), jc.ParameterError, ["clearance_joints[0].friction", "viscus", "ambrosio"]),
     (("clearance = 0.0005", "clearance = 0.02"), jc.ParameterError, ["clearance_joints[0].clearance", "(0, bearing_radius = 0.01 m)"]),
     (("inertia = 0.01\n", "inertia = 0.01\ncolour = 3\n"), jc.MechanismError, ["bodies[0].colour", "allowed keys", "inertia"]),
     (('point_j = "O"', 'point_j = "Q"'), jc.MechanismError, ["'Q'", "crank", "['A', 'O']"]),
