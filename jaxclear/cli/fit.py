@@ -9,7 +9,7 @@ import warnings
 from .._errors import ParameterError
 from ..fitting import fit, read_channels_toml
 from ..analysis.sensor import Accelerometer
-from .common import add_mechanism_options, name_value, number_in, preset_from_args
+from .common import add_mechanism_options, load_mechanism_file, name_value, number_in, preset_from_args
 
 HELP = "fit contact parameters to a measured record (JSON, PNG)"
 DESCRIPTION = """\
@@ -25,7 +25,8 @@ The first sample is the preset's start (crank angle 0, journal centred, velociti
 ideal kinematics). The loss is on short windows from that state (see jaxclear.fitting).
 Example: jaxclear fit data.csv --free stiffness,restitution --start stiffness=2e11 \\
          --start restitution=0.6 --sensor-cutoff-hz 20000 --out fit-out
-         jaxclear fit rec.csv --preset four-bar --channel rocker_acc=body:rocker:phi:acc --window 0.005"""
+         jaxclear fit rec.csv --preset four-bar --channel rocker_acc=body:rocker:phi:acc --window 0.005
+         jaxclear fit rec.csv --mechanism my-linkage.toml --channel rocker_acc=body:rocker:phi:acc"""
 
 
 def configure(p: argparse.ArgumentParser):
@@ -33,6 +34,9 @@ def configure(p: argparse.ArgumentParser):
     p.add_argument("data", metavar="DATA.csv", help="measured record (time_s, slider_acc_m_s2, ...)")
     add_mechanism_options(p, "model (known values; free parameters start from them unless --start)", ideal=False,
                           needs_slider=True)
+    p.add_argument("--mechanism", metavar="FILE.toml",
+                   help="mechanism file (TOML, docs/mechanism-files.md) to fit instead of --preset; its physical "
+                   "options (--clearance, --restitution, ...) apply to every clearance joint (default: use --preset)")
     f = p.add_argument_group("fit")
     f.add_argument("--free", default="stiffness,restitution", metavar="NAMES",
                    help="comma-separated free parameters: stiffness [N/m^1.5 for the LN family], restitution, "
@@ -84,13 +88,14 @@ def configure(p: argparse.ArgumentParser):
 
 def run(args) -> int:
     """Check the counts, fit, write fit.json and fit.png, print the estimates."""
-    mech = preset_from_args(args)
+    mech = load_mechanism_file(args, args.mechanism) if args.mechanism else preset_from_args(args)
     channels = _channels(args)
     free = [n.strip() for n in args.free.split(",") if n.strip()]
     sensor = Accelerometer(args.sensor_cutoff_hz, gain=args.sensor_gain, bias=args.sensor_bias,
                            oversample=args.oversample)
     os.makedirs(args.out, exist_ok=True)
-    print(f"jaxclear fit: {args.data}, {mech.name} with {args.model}, free {', '.join(free)}; sensor: "
+    laws = "the file's contact laws" if args.mechanism else args.model
+    print(f"jaxclear fit: {args.data}, {mech.name} with {laws}, free {', '.join(free)}; sensor: "
           f"{sensor.describe()}", flush=True)
     if args.no_progress:  # with the bar, fit() says it is compiling and that it resumed
         print("compiling the forward-mode model (about 20 to 40 s), then fitting...", flush=True)
