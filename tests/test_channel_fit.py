@@ -114,19 +114,3 @@ def test_cli_fit_mechanism_file_errors_name_the_file(tmp_path, capsys):
     code = main(["fit", str(tmp_path / "r.csv"), "--mechanism", str(tmp_path / "nope.toml"),
                  "--channel", f"rocker_acc_rad_s2={ROCKER}", "--out", str(tmp_path / "o")])
     assert code in (1, 2) and "nope.toml" in capsys.readouterr().err
-
-
-@pytest.mark.slow  # compilation-dominated (minutes on a loaded 2-core machine)
-def test_cli_fit_on_a_mechanism_file(tmp_path, capsys):
-    """`jaxclear fit REC.csv --mechanism four-bar-rocker-pivot.toml --channel COLUMN=CHANNEL`: the
-    four-bar from its rocker channel on the command line; stiffness recovered within 5 %."""
-    path = ROOT / "examples" / "four-bar-rocker-pivot.toml"
-    mech = jc.load_mechanism(path)
-    k0 = float(params.get(mech, "stiffness"))
-    pd.DataFrame(_rocker_record(mech, 0.005, 501)).to_csv(tmp_path / "rec.csv", index=False)
-    code = main(["fit", str(tmp_path / "rec.csv"), "--mechanism", str(path), "--channel",
-                 f"rocker_acc_rad_s2={ROCKER}", "--free", "stiffness", "--start", f"stiffness={2 * k0}",
-                 "--window", "0.005", "--oversample", "1", "--no-plots", "--no-progress", "--out", str(tmp_path / "o")])
-    assert code == 0, capsys.readouterr().err
-    d = json.loads((tmp_path / "o" / "fit.json").read_text())
-    assert abs(d["estimates"]["stiffness"] / k0 - 1) < 0.05, d["estimates"]
