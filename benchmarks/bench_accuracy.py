@@ -52,6 +52,7 @@ jax.config.update("jax_enable_x64", True)
 
 import jaxclear as jc  # noqa: E402
 import scipy_reference as ref  # noqa: E402
+from _timing import compile_and_steady  # noqa: E402
 
 RESULTS_DIR = HERE / "results"
 
@@ -97,15 +98,7 @@ def reference(case: str, t_end: float, n_out: int, cache: bool = True) -> np.nda
 def run_jaxclear(case: str, solver: str, rtol: float, t_end: float, n_out: int, repeats: int, **kw) -> dict:
     mech = jc.preset("flores-slider-crank", **CASES[case][0])
     s = jc.settings(t_end, n_out=n_out, rtol=rtol, atol=ATOL, solver=solver, **kw)
-    t0 = time.perf_counter()
-    sol = jax.block_until_ready(jc.simulate(mech, s))
-    first = time.perf_counter() - t0
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        jax.block_until_ready(jc.simulate(mech, s))
-        times.append(time.perf_counter() - t0)
-    steady = min(times)
+    sol, first, steady = compile_and_steady(mech, s, repeats, steady=min)
     acc = np.asarray(sol.coordinate(mech, "slider", "x", 2))
     return dict(code="jaxclear", solver=solver, rtol=rtol, acc=acc, steady_s=steady, compile_s=first - steady,
                 steps=int(sol.num_steps), rejected=int(sol.num_rejected_steps))

@@ -28,6 +28,7 @@ from pathlib import Path
 import jax
 
 import jaxclear as jc
+from _timing import compile_and_steady
 from jaxclear.integrate.assembly import initial_state
 from jaxclear.integrate.dynamics import flat_vector_field
 
@@ -80,15 +81,7 @@ def run(revolutions: float, repeats: int, rpm: float):
     rows = []
     for name, mech in mechanisms(rpm):
         s = jc.settings(revolutions * jc.crank_period(mech), n_out=201)
-        t0 = time.perf_counter()
-        sol = jax.block_until_ready(jc.simulate(mech, s))
-        first = time.perf_counter() - t0
-        times = []
-        for _ in range(repeats):
-            t0 = time.perf_counter()
-            sol = jax.block_until_ready(jc.simulate(mech, s))
-            times.append(time.perf_counter() - t0)
-        steady = statistics.median(times)
+        sol, first, steady = compile_and_steady(mech, s, repeats)
         steps = int(sol.num_steps)
         rows.append(dict(element=name, compile_s=first - steady, steady_s=steady, steps=steps,
                          us_per_step=steady / steps * 1e6, us_per_rhs=rhs_time(mech, s) * 1e6,

@@ -21,14 +21,13 @@ import argparse
 import json
 import os
 import platform
-import statistics
-import time
 from pathlib import Path
 
 import equinox as eqx
 import jax
 
 import jaxclear as jc
+from _timing import compile_and_steady
 
 VARIANTS = [
     ("lankarani-nikravesh", {}),
@@ -105,15 +104,7 @@ def run(revolutions: float, repeats: int, subset: str = "all"):
             model, kwargs = friction
             mech = eqx.tree_at(lambda m: m.clearance_joints[0].friction, mech, jc.Friction(0.1, model, **kwargs))
         s = jc.settings(revolutions * jc.crank_period(mech), n_out=201)
-        t0 = time.perf_counter()
-        sol = jax.block_until_ready(jc.simulate(mech, s))
-        first = time.perf_counter() - t0
-        times = []
-        for _ in range(repeats):
-            t0 = time.perf_counter()
-            sol = jax.block_until_ready(jc.simulate(mech, s))
-            times.append(time.perf_counter() - t0)
-        steady = statistics.median(times)
+        sol, first, steady = compile_and_steady(mech, s, repeats)
         steps = int(sol.num_steps)
         rows.append(dict(law=name_label, compile_s=first - steady, steady_s=steady, steps=steps,
                          us_per_step=steady / steps * 1e6, impacts=int(sol.impacts[0]),
