@@ -140,6 +140,35 @@ class AbstractNormalLaw(eqx.Module):
         return self.stiffness_value(radius_bearing, radius_journal)
 
 
+class AbstractModulusLaw(AbstractNormalLaw):
+    """A law whose stiffness is the effective modulus :math:`E^*` of the two materials (the line
+    contacts of :mod:`.cylindrical` and :mod:`.conformal`): the modulus given, or from the
+    materials; its checks."""
+
+    modulus: eqx.AbstractVar[Scalar | None]
+    bearing_material: eqx.AbstractVar["Material"]
+    journal_material: eqx.AbstractVar["Material"]
+
+    stiffness_parameter: ClassVar[str] = "modulus"
+
+    def check(self) -> RESULTS:
+        """Restitution in (0, 1], E* > 0 (when given), the materials."""
+        modulus = 1.0 if self.modulus is None else self.modulus
+        return first_failure(
+            super().check(),
+            (in_range(modulus, low=0.0, low_open=True), RESULTS.invalid_stiffness),
+            self.bearing_material.check(),
+            self.journal_material.check(),
+        )
+
+    def modulus_value(self):
+        """:math:`E^*` [Pa]: the given one, or from the materials."""
+        return effective_modulus(self.bearing_material, self.journal_material) if self.modulus is None else self.modulus
+
+    def stiffness_value(self, radius_bearing, radius_journal):
+        return self.modulus_value()
+
+
 class AbstractFriction(eqx.Module):
     r"""A tangential (friction) law: :math:`F_T(v_T, F_N)` [N] on the journal along the tangent,
     with :math:`F_T v_T \le 0` (friction never does positive work)."""

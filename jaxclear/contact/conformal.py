@@ -59,15 +59,14 @@ law with its default stiffness.
 
 from __future__ import annotations
 
-from typing import ClassVar
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from .._errors import RESULTS, ParameterError, check_range, first_failure, in_range
+from .._errors import ParameterError, check_range
 from .._types import Scalar
-from .base import STEEL, AbstractNormalLaw, Material, effective_modulus
+from .base import STEEL, AbstractModulusLaw, Material
 from .hertz import HYSTERESIS_FACTORS, hysteresis_model, positive_power
 
 #: law -> (kappa, c, which B): the logarithmic line-contact laws (module docstring)
@@ -146,7 +145,7 @@ def pereira_stiffness(radius_bearing, radius_journal, length, modulus):
 PEREIRA_CLEARANCE = (0.005e-3, 10e-3)
 
 
-class ConformalLaw(AbstractNormalLaw):
+class ConformalLaw(AbstractModulusLaw):
     r"""The line-contact laws compared by Pereira et al. (2011), selected by ``model``
     (``johnson``, ``radzimovsky``, ``goldsmith``, ``dubowsky-freudenstein``, ``esdu-78035``,
     ``pereira``; module docstring), with hysteresis damping
@@ -168,8 +167,6 @@ class ConformalLaw(AbstractNormalLaw):
     journal_material: Material
     hysteresis: str = eqx.field(static=True)
 
-    stiffness_parameter: ClassVar[str] = "modulus"
-
     def __init__(self, model="johnson", restitution=0.9, modulus=None, hysteresis=None,
                  bearing_material: Material = STEEL, journal_material: Material = STEEL):
         if model not in CONFORMAL_LAWS:
@@ -186,16 +183,6 @@ class ConformalLaw(AbstractNormalLaw):
     def name(self) -> str:
         return self.model
 
-    def check(self) -> RESULTS:
-        """Restitution in (0, 1], E* > 0 (when given), the materials."""
-        modulus = 1.0 if self.modulus is None else self.modulus
-        return first_failure(
-            super().check(),
-            (in_range(modulus, low=0.0, low_open=True), RESULTS.invalid_stiffness),
-            self.bearing_material.check(),
-            self.journal_material.check(),
-        )
-
     def check_geometry(self, radius_bearing, radius_journal):
         """Pereira et al.'s fit covers clearances of 0.005 mm to 10 mm only."""
         if self.model == "pereira":
@@ -204,13 +191,6 @@ class ConformalLaw(AbstractNormalLaw):
             if not lo <= dr <= hi:
                 raise ParameterError(f"the pereira law is fitted for a radial clearance in [{lo:g}, {hi:g}] m, "
                                      f"got {dr:g} m (R_B - R_J)")
-
-    def modulus_value(self):
-        """:math:`E^*` [Pa]: the given one, or from the materials."""
-        return effective_modulus(self.bearing_material, self.journal_material) if self.modulus is None else self.modulus
-
-    def stiffness_value(self, radius_bearing, radius_journal):
-        return self.modulus_value()
 
     def elastic_force(self, delta, radius_bearing, radius_journal, length):
         """The undamped force :math:`F(\\delta)` [N] (0 for delta <= 0)."""

@@ -3,14 +3,13 @@ foundation model and Bai & Zhao's stiffness."""
 
 from __future__ import annotations
 
-from typing import ClassVar
 
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._errors import RESULTS, ParameterError, check_range, first_failure, in_range
+from .._errors import ParameterError, check_range
 from .._types import Scalar
-from .base import STEEL, AbstractNormalLaw, Material, effective_modulus
+from .base import STEEL, AbstractModulusLaw, Material
 from .hertz import HYSTERESIS_FACTORS, dissipative_hertz, hysteresis_model
 
 
@@ -43,7 +42,7 @@ def bai_zhao_stiffness(delta, clearance, modulus):
     return jnp.where(inside, jnp.pi * modulus / 8.0 * jnp.sqrt(arg), 0.0)
 
 
-class CylindricalLaw(AbstractNormalLaw):
+class CylindricalLaw(AbstractModulusLaw):
     r"""The conformal (pin-in-hole) laws, selected by ``model``:
 
     * ``"liu"``: :math:`F_N = F_{Liu}(\delta)(1 + \hat\chi(c_r)\dot\delta/\dot\delta^{(-)})` with
@@ -66,8 +65,6 @@ class CylindricalLaw(AbstractNormalLaw):
     journal_material: Material
     hysteresis: str = eqx.field(static=True)
 
-    stiffness_parameter: ClassVar[str] = "modulus"
-
     @property
     def name(self) -> str:
         return self.model
@@ -84,23 +81,6 @@ class CylindricalLaw(AbstractNormalLaw):
         default = "lankarani-nikravesh" if model == "liu" else "qin-lu"
         self.hysteresis = hysteresis_model(default if hysteresis is None else hysteresis)
         self.bearing_material, self.journal_material = bearing_material, journal_material
-
-    def check(self) -> RESULTS:
-        """Restitution in (0, 1], E* > 0 (when given), the materials."""
-        modulus = 1.0 if self.modulus is None else self.modulus
-        return first_failure(
-            super().check(),
-            (in_range(modulus, low=0.0, low_open=True), RESULTS.invalid_stiffness),
-            self.bearing_material.check(),
-            self.journal_material.check(),
-        )
-
-    def modulus_value(self):
-        """:math:`E^*` [Pa]: the given one, or from the materials."""
-        return effective_modulus(self.bearing_material, self.journal_material) if self.modulus is None else self.modulus
-
-    def stiffness_value(self, radius_bearing, radius_journal):
-        return self.modulus_value()
 
     def normal_force(self, kin, deltadot0):
         c = kin.radius_bearing - kin.radius_journal
