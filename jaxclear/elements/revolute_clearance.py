@@ -213,7 +213,7 @@ class AbstractJournalJoint(AbstractForceElement):
         return JournalState(new, jnp.where(crossed, 0.0, bristles)), crossed  # relaxed at each onset
 
     def onset(self, mech: Mechanism, t0, q0, qd0, t1, q1, qd1, state: ContactMemory):
-        """Fraction of ``[t0, t1]`` at the contact onset (:func:`~jaxclear.elements.memory.onset_fraction`)."""
+        """Fraction of ``[t0, t1]`` at the first contact switch to split at (:func:`~jaxclear.elements.memory.onset_fraction`)."""
         kin0, kin1 = self.kinematics(mech, q0, qd0), self.kinematics(mech, q1, qd1)
         p0, p1 = self.law.penetration(kin0), self.law.penetration(kin1)
         return onset_fraction(p0, p1, kin0.deltadot, kin1.deltadot, t1 - t0)

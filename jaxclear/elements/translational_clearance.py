@@ -375,7 +375,7 @@ class TranslationalClearanceJoint(AbstractForceElement):
         return CornerMemory(with_peak_force(new, f_n)), jnp.any(crossed)
 
     def onset(self, mech: Mechanism, t0, q0, qd0, t1, q1, qd1, state: CornerMemory):
-        """Fraction of ``[t0, t1]`` at the earliest corner onset (``onset_fraction`` per corner)."""
+        """Fraction of ``[t0, t1]`` at the earliest corner switch to split at (``onset_fraction`` per corner)."""
         k0, k1 = self.corner_kinematics(mech, q0, qd0), self.corner_kinematics(mech, q1, qd1)
         pen = jax.vmap(self.law.penetration)
         s, crossed = onset_fraction(pen(k0), pen(k1), k0.deltadot, k1.deltadot, t1 - t0)
