@@ -29,7 +29,7 @@ E, NU = 207e9, 0.3
 SIGMA = (1 - NU**2) / E  # compliance of one steel body [1/Pa]
 ESTAR = 1 / (2 * SIGMA)  # effective modulus [Pa]
 K_LN = 4 / 3 * ESTAR * math.sqrt(RB * RJ / DR)  # cylindrical stiffness of the LN family [N/m^1.5]
-CONFORMAL = ["johnson", "radzimovsky", "goldsmith", "dubowsky-freudenstein", "esdu-78035", "pereira"]
+CONFORMAL = ["johnson", "radzimovsky", "goldsmith", "dubowsky-freudenstein", "esdu-78035", "pereira", "persson"]
 
 
 # ---------------------------------------------------------------- the laws, written out again
@@ -50,7 +50,17 @@ def delta_of_force(model, f):
         return f * sigma_g / L * (math.log(L**3 * DR / (f * sigma_g * RB * RJ)) + 1)
     if model == "esdu-78035":
         return f / (L * ESTAR) * (math.log(4 * math.pi * L * ESTAR * DR / f) + 1)
+    if model == "persson":  # the arc of load f, then the penetration at which the rigid journal overlaps it
+        eps = persson_angle(f)
+        return DR * (1 / math.cos(eps) - 1)
     raise ValueError(model)
+
+
+def persson_angle(f):
+    """Half-angle [rad] of Persson's contact arc under load f [N]: E* dR L/f = (1/b^2 - 1)/pi,
+    b = tan(eps/2) (Ciavarella & Decuzzi's closed form), solved by brentq on (0, pi/2)."""
+    return brentq(lambda eps: (1 / math.tan(eps / 2) ** 2 - 1) / math.pi - ESTAR * DR * L / f, 1e-9, math.pi / 2 - 1e-12,
+                  xtol=1e-15, rtol=1e-15)
 
 
 def pereira_kn():
@@ -211,6 +221,22 @@ def test_pereira_empirical_factors():
         jc.ClearanceJoint(jc.GROUND, "a", "b", "c", 0.03, 0.01, law=jc.make_law("pereira"))
 
 
+def test_persson_load_angle_limits_and_one_material():
+    """Persson's load-arc relation meets Hertz's line contact for a small arc (half-width
+    a = R eps with a^2 = 4 F R*/(pi L E*), R* = R_B R_J/dR, R = sqrt(R_B R_J): a conformal pair has
+    one radius to first order in dR/R, and this reading of it makes the two agree exactly in the
+    limit; to 1e-4 at eps = 0.01 rad, the relative size of the next term eps^2) and tends to a half circumference (90 degrees) under a load without bound;
+    two different materials are refused (the solution assumes elastic similarity)."""
+    eps = 0.01
+    f = float(cf.persson_load(math.tan(eps / 2) ** 2, DR, L, ESTAR))
+    a_hertz = math.sqrt(4 * f * (RB * RJ / DR) / (math.pi * L * ESTAR))
+    assert a_hertz / (math.sqrt(RB * RJ) * eps) == pytest.approx(1.0, rel=1e-4)
+    assert math.degrees(persson_angle(1e12)) == pytest.approx(90.0, abs=0.01)
+    with pytest.raises(jc.ParameterError, match="elastic similarity"):
+        jc.make_law("persson", journal_material=jc.contact.Material(70e9, 0.33))
+    jc.make_law("persson", modulus=1e11, journal_material=jc.contact.Material(70e9, 0.33))  # explicit E*: accepted
+
+
 @pytest.mark.parametrize("model", CONFORMAL)
 def test_conformal_restitution_against_independent_integration(model):
     """One central impact with LN damping (c_r = 0.4): jaxclear against SciPy's integration of
@@ -231,7 +257,8 @@ def test_models_lists_every_new_law():
 
 
 @pytest.mark.parametrize("name,options", [("impact", {"max_damping": 3e3, "damping_depth": 2e-5}), ("johnson", {}),
-                                          ("pereira", {"hysteresis": "qin-lu"}), ("carvalho-martins", {})])
+                                          ("pereira", {"hysteresis": "qin-lu"}), ("persson", {}),
+                                          ("carvalho-martins", {})])
 def test_new_laws_round_trip_through_mechanism_files(name, options):
     mech = jc.preset("flores-slider-crank", law=name, law_options=options)
     assert eqx.tree_equal(loads_mechanism(dumps_mechanism(mech)), mech)
