@@ -272,3 +272,17 @@ def test_new_friction_laws_round_trip_through_mechanism_files():
 
 def test_static_helper_defaults_to_kinetic():
     assert float(fl.check_static(0.3, None)) == 0.3
+
+
+def test_karnopp_in_a_joint_is_refused_by_name():
+    """Karnopp's stick band needs the tangential load on the sliding body, which no force element
+    knows: every joint refuses it at construction, and a law swapped in afterwards (tree_at) is
+    refused when the mechanism is checked."""
+    law = jc.KarnoppFriction(MU_K, static=MU_S)
+    with pytest.raises(jc.ParameterError, match="KarnoppFriction cannot be used in a ClearanceJoint"):
+        jc.ClearanceJoint(jc.GROUND, "a", "b", "c", friction=law)
+    with pytest.raises(jc.ParameterError, match="TranslationalClearanceJoint"):
+        jc.TranslationalClearanceJoint(jc.GROUND, "a", "b", "c", friction=law)
+    mech = eqx.tree_at(lambda m: m.clearance_joints[0].friction, free_journal(), law)
+    with pytest.raises(jc.ParameterError, match="tangential load"):
+        mech.clearance_joints[0].check()

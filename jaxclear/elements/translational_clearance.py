@@ -47,7 +47,7 @@ import numpy as np
 
 from .._errors import RESULTS, ParameterError, check_range, first_failure, in_range, is_concrete
 from .._types import ArrayLike, Scalar, Vec2
-from ..contact.base import AbstractFriction, AbstractNormalLaw, ContactKinematics
+from ..contact.base import AbstractFriction, AbstractNormalLaw, ContactKinematics, element_friction
 from ..contact.friction import Friction
 from ..contact.hertz import ContactLaw
 from ..model.bodies import vec2
@@ -183,7 +183,7 @@ class TranslationalClearanceJoint(AbstractForceElement):
         self.guide_width = jnp.asarray(guide_width, dtype=float)
         self.corner_radius = jnp.asarray(corner_radius, dtype=float)
         self.law = law
-        self.friction = Friction() if friction is None else friction
+        self.friction = element_friction(friction, "TranslationalClearanceJoint", Friction())
         self.impact_velocity_floor = jnp.asarray(impact_velocity_floor, dtype=float)
         self.initial_offset = offset
         self.initial_velocity = jnp.asarray(initial_velocity, dtype=float).reshape(2)
@@ -220,6 +220,7 @@ class TranslationalClearanceJoint(AbstractForceElement):
         fitting its guide (clearance per side :math:`(W - b)/2 > 0`) -> ``invalid_clearance``;
         corner radius and impact_velocity_floor > 0, a non-zero finite axis and a finite angle
         -> ``invalid_parameter``; then the corner law's and the friction law's own checks."""
+        element_friction(self.friction, type(self).__name__, self.friction)  # a law set after __init__
         fits = (
             in_range(self.slider_length, low=0.0, low_open=True)
             & in_range(self.slider_height, low=0.0, low_open=True)
