@@ -302,7 +302,8 @@ def test_translational_joint_corners_carry_bristle_states_and_stick():
     carry the same deflection, which the statics fix by hand: z = P/(sigma_0 m g) (to 1e-5;
     measured 2e-8)."""
     sigma0, p = 1e5, 0.5
-    law = jc.Friction(MU_K, "lugre", static=MU_S, bristle_stiffness=sigma0, bristle_damping=2 * math.sqrt(sigma0 / 9.81))
+    law = jc.Friction(MU_K, "lugre", static=MU_S, bristle_stiffness=sigma0,
+                      bristle_damping=2 * math.sqrt(sigma0 / 9.81))
     slider = jc.Body("slider", 1.0, 2.8e-4, {"S": (0.0, 0.0)}, position=(0.0, 0.0, 0.0))
     joint = jc.TranslationalClearanceJoint(
         jc.GROUND, "g", "slider", "S", 0.05, 0.03, 0.03 + 2e-4, initial_offset=(-1e-4 + 1e-6, 0.0),

@@ -59,8 +59,8 @@ def delta_of_force(model, f):
 def persson_angle(f):
     """Half-angle [rad] of Persson's contact arc under load f [N]: E* dR L/f = (1/b^2 - 1)/pi,
     b = tan(eps/2) (Ciavarella & Decuzzi's closed form), solved by brentq on (0, pi/2)."""
-    return brentq(lambda eps: (1 / math.tan(eps / 2) ** 2 - 1) / math.pi - ESTAR * DR * L / f, 1e-9, math.pi / 2 - 1e-12,
-                  xtol=1e-15, rtol=1e-15)
+    return brentq(lambda eps: (1 / math.tan(eps / 2) ** 2 - 1) / math.pi - ESTAR * DR * L / f,
+                  1e-9, math.pi / 2 - 1e-12, xtol=1e-15, rtol=1e-15)
 
 
 def pereira_kn():
@@ -225,8 +225,9 @@ def test_persson_load_angle_limits_and_one_material():
     """Persson's load-arc relation meets Hertz's line contact for a small arc (half-width
     a = R eps with a^2 = 4 F R*/(pi L E*), R* = R_B R_J/dR, R = sqrt(R_B R_J): a conformal pair has
     one radius to first order in dR/R, and this reading of it makes the two agree exactly in the
-    limit; to 1e-4 at eps = 0.01 rad, the relative size of the next term eps^2) and tends to a half circumference (90 degrees) under a load without bound;
-    two different materials are refused (the solution assumes elastic similarity)."""
+    limit; to 1e-4 at eps = 0.01 rad, the relative size of the next term eps^2) and tends to a
+    half circumference (90 degrees) under a load without bound; two different materials are
+    refused (the solution assumes elastic similarity)."""
     eps = 0.01
     f = float(cf.persson_load(math.tan(eps / 2) ** 2, DR, L, ESTAR))
     a_hertz = math.sqrt(4 * f * (RB * RJ / DR) / (math.pi * L * ESTAR))

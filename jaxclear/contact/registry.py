@@ -58,7 +58,8 @@ LAWS = {
                       "delta = F/(pi L E*) [ln(pi E* L^3/(F dR)) + 1]" + _NEWTON),
         "dubowsky-freudenstein": ("Dubowsky & Freudenstein, J. Eng. Ind. 93 (1971) 305; Pereira et al. (2011)",
                                   "delta = F/(pi L E*) [ln(pi E* L^3 dR/(F R_B R_J)) + 1]" + _NEWTON),
-        "esdu-78035": ("ESDU-78035 (1978); Pereira et al. (2011)", "delta = F/(L E*) [ln(4 pi L E* dR/F) + 1]" + _NEWTON),
+        "esdu-78035": ("ESDU-78035 (1978); Pereira et al. (2011)",
+                       "delta = F/(L E*) [ln(4 pi L E* dR/F) + 1]" + _NEWTON),
         "pereira": ("Pereira, Ramalho, Ambrosio, Nonlinear Dyn. 63 (2011) 681",
                     "F = K delta^n, K = (0.965 dR + 0.0965) L E*/dR, n = Y dR^-0.005, dR in mm in the fit"),
         "persson": ("Persson, PhD thesis, Chalmers (1964); Ciavarella & Decuzzi, Int. J. Solids Struct. 38 (2001) "
