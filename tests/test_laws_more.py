@@ -222,12 +222,13 @@ def test_pereira_empirical_factors():
 
 
 def test_persson_load_angle_limits_and_one_material():
-    """Persson's load-arc relation meets Hertz's line contact for a small arc (half-width
+    """The closed load-arc relation meets Hertz's line contact for a small arc (half-width
     a = R eps with a^2 = 4 F R*/(pi L E*), R* = R_B R_J/dR, R = sqrt(R_B R_J): a conformal pair has
     one radius to first order in dR/R, and this reading of it makes the two agree exactly in the
     limit; to 1e-4 at eps = 0.01 rad, the relative size of the next term eps^2) and tends to a
-    half circumference (90 degrees) under a load without bound; two different materials are
-    refused (the solution assumes elastic similarity)."""
+    half circumference (90 degrees) under a load without bound (the numerical solution below
+    does not: 84.8 degrees); two different materials are refused (the solution assumes elastic
+    similarity)."""
     eps = 0.01
     f = float(cf.persson_load(math.tan(eps / 2) ** 2, DR, L, ESTAR))
     a_hertz = math.sqrt(4 * f * (RB * RJ / DR) / (math.pi * L * ESTAR))
@@ -284,7 +285,9 @@ def test_persson_closed_form_against_a_numerical_solution_of_the_plane_problem()
     where joints work; 0.2 deg is the panel width plus the grid's step in the arc). Beyond, the
     closed form's arc is larger: 46.2 against 44.9 deg at 0.7, 76.2 against 72.1 deg at 5 (both
     pinned here to 0.1 deg, the numerical ones converged from 600 to 2400 panels): the closed form
-    is exact in both limits and close in between, not Persson's relation exactly."""
+    is exact for small arcs and an approximation beyond. A pin without clearance (dR -> 0, the
+    load per dR without bound) has the same numerical arc at any load: 84.8 deg (the closed form
+    tends to 90)."""
     def closed(load):
         return math.degrees(2 * math.atan(math.sqrt(load / (load + math.pi))))  # F = pi b^2/(1 - b^2) solved for b
 
@@ -293,6 +296,8 @@ def test_persson_closed_form_against_a_numerical_solution_of_the_plane_problem()
     assert math.degrees(persson_arc_numerical(0.7)) == pytest.approx(44.9, abs=0.1)
     assert math.degrees(persson_arc_numerical(5.0)) == pytest.approx(72.1, abs=0.1)
     assert closed(0.7) == pytest.approx(46.2, abs=0.05) and closed(5.0) == pytest.approx(76.2, abs=0.05)
+    assert math.degrees(persson_arc_numerical(1e3)) == pytest.approx(84.8, abs=0.1)
+    assert math.degrees(persson_arc_numerical(1e5)) == pytest.approx(84.8, abs=0.1)
 
 
 @pytest.mark.parametrize("model", CONFORMAL)

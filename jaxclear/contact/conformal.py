@@ -66,15 +66,16 @@ al.'s own equation nor Persson's thesis could be read for this implementation:
   .. math:: \frac{E^*\Delta R}{F/L} = \frac{1}{\pi}\left(\frac{1}{b^2} - 1\right),
             \qquad F = \pi L E^*\Delta R\,\frac{b^2}{1 - b^2};
 
-  quoted from that paper as recalled, not verified against its text here. It meets the two
-  limits that pin it down: Hertz's line contact for a small arc (:math:`F \to \pi L E^*\Delta R\,
-  b^2`, i.e. the half-width :math:`a = R\varepsilon` of :math:`a^2 = 4FR^*/(\pi L E^*)`), and the
-  classical neat-fit result (Persson) that the arc tends to a half circumference,
-  :math:`\varepsilon \to 90°` (:math:`b \to 1`), as the load grows without bound. Against a
-  numerical solution of the plane problem (tests/test_laws_more.py: the exact gap-closure kernel
-  of a disc in a hole of one material, from Muskhelishvili's potentials) its arc agrees to 0.2°
-  up to :math:`F/(LE^*\Delta R) = 0.1` (an arc of 20°) and is larger beyond (46.2° against 44.9° at
-  0.7, 76.2° against 72.1° at 5): exact in both limits, close in between;
+  quoted from that paper as recalled, not verified against its text here. It meets Hertz's
+  line contact for a small arc (:math:`F \to \pi L E^*\Delta R\,b^2`, i.e. the half-width
+  :math:`a = R\varepsilon` of :math:`a^2 = 4FR^*/(\pi L E^*)`); under a load without bound its arc
+  tends to a half circumference (:math:`b \to 1`). Against a numerical solution of the plane
+  problem (tests/test_laws_more.py: the exact gap-closure kernel of a disc in a hole of one
+  material, from Muskhelishvili's potentials) its arc agrees to 0.2° up to
+  :math:`F/(LE^*\Delta R) = 0.1` (an arc of 20°) and is larger beyond: 46.2° against 44.9° at 0.7,
+  76.2° against 72.1° at 5, and 90° against 84.8° for a neat fit (the numerical arc of a pin
+  without clearance, the same at any load). So it is exact for small arcs and an approximation
+  of Persson's relation beyond;
 * arc against penetration: the arc on which the rigid journal, displaced by
   :math:`\Delta R + \delta`, overlaps the hole, :math:`\cos\varepsilon = \Delta R/(\Delta R + \delta)`,
   the relation the elastic-foundation laws use (Liu et al. 2007, :mod:`.cylindrical`); it gives
