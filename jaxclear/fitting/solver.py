@@ -123,17 +123,21 @@ def column_scale(jac: np.ndarray, damping: float = 1e-3) -> np.ndarray:
     samples; :func:`jaxclear.fitting.run.run_stage` skips such a stage) gives ``D = 1``: a floor
     relative to a zero norm would be a subnormal number, which XLA on CPU flushes to zero, so
     that ``x = u / D`` would be ``0 / 0``."""
-    norms = np.sqrt(np.sum(np.asarray(jac, dtype=float) ** 2, axis=0))
-    largest = float(np.max(norms, initial=0.0))
-    if not largest > MIN_COLUMN_NORM:
+    norms = _column_norms(jac)
+    if not influences(jac):
         return np.ones_like(norms)
-    return math.sqrt(damping) * np.maximum(norms, 1e-12 * largest)
+    return math.sqrt(damping) * np.maximum(norms, 1e-12 * float(np.max(norms)))
+
+
+def _column_norms(jac: np.ndarray) -> np.ndarray:
+    """Euclidean norms ``|J_{:,j}|`` ``(P,)`` of the Jacobian's columns."""
+    return np.sqrt(np.sum(np.asarray(jac, dtype=float) ** 2, axis=0))
 
 
 def influences(jac: np.ndarray) -> bool:
     """Whether any column of a stage's Jacobian exceeds :data:`MIN_COLUMN_NORM` (some unknown
     changes the fitted samples)."""
-    return float(np.max(np.sqrt(np.sum(np.asarray(jac, dtype=float) ** 2, axis=0)), initial=0.0)) > MIN_COLUMN_NORM
+    return float(np.max(_column_norms(jac), initial=0.0)) > MIN_COLUMN_NORM
 
 
 def stack_jacobian(jts, jss, theta_free: bool, free_rows: tuple):
