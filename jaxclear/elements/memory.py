@@ -82,6 +82,15 @@ N_FIELDS = len(ContactMemory.__dataclass_fields__)
 #: accepted; otherwise it is retried to end at ``s (1 + ONSET_MARGIN)`` (see :func:`onset_fraction`).
 ONSET_MARGIN = 1e-4
 
+#: A contact that begins and ends inside one step, or a free flight inside a contact, shallower
+#: than this [m] (jaxclear's default position tolerance ``atol``) is below the integration's
+#: resolution and is not split at (a journal resting on its bearing would otherwise chatter).
+EXCURSION_DEPTH = 1e-9
+
+#: A step that starts within this distance [m] of a contact switch starts at it: penetrations
+#: are differences of coordinates of order 0.01-1 m, whose float64 rounding is ~1e-16 m.
+SWITCH_RESOLUTION = 1e-14
+
 
 def _hermite_cubic(p0, p1, r0, r1, h):
     """Coefficients ``(a, b, c, d)`` of the cubic Hermite interpolant ``a s^3 + b s^2 + c s + d``
@@ -114,12 +123,15 @@ class Switches(eqx.Module):
         first: step fraction of the first switch (1 where there is none).
         last: step fraction of the last switch (1 where there is none).
         last_rate: penetration rate [m/s] of the interpolant at the last switch.
+        excursion: how far [m] the interpolant goes beyond zero on the side opposite to its
+            start (the depth of a contact, or of a free flight, that the step holds inside).
     """
 
     count: Scalar
     first: Scalar
     last: Scalar
     last_rate: Scalar
+    excursion: Scalar
 
 
 def contact_switches(p0, p1, r0, r1, h) -> Switches:
@@ -148,7 +160,9 @@ def contact_switches(p0, p1, r0, r1, h) -> Switches:
     inside = lambda e: (disc >= 0) & jnp.isfinite(e) & (e > 0) & (e < 1)
     e1, e2 = jnp.where(inside(e1), e1, 0.0), jnp.where(inside(e2), e2, 0.0)
     pts = [jnp.zeros_like(e1), jnp.minimum(e1, e2), jnp.maximum(e1, e2), jnp.ones_like(e1)]
-    touching = [p0 > 0.0, val(pts[1]) > 0.0, val(pts[2]) > 0.0, p1 > 0.0]
+    v1, v2 = val(pts[1]), val(pts[2])
+    touching = [p0 > 0.0, v1 > 0.0, v2 > 0.0, p1 > 0.0]
+    excursion = jnp.where(touching[0], -jnp.minimum(v1, v2), jnp.maximum(v1, v2))
     changes = [touching[k] != touching[k - 1] for k in (1, 2, 3)]
     count = sum(ch.astype(jnp.int32) for ch in changes)
     # brackets of the first and the last switch
@@ -160,7 +174,8 @@ def contact_switches(p0, p1, r0, r1, h) -> Switches:
     first = _root_in(val, slope, lo_f, hi_f, ~touching[0])
     last = _root_in(val, slope, lo_l, hi_l, touching[3])
     some = count > 0
-    return Switches(count, jnp.where(some, first, 1.0), jnp.where(some, last, 1.0), slope(last) / hs)
+    return Switches(count, jnp.where(some, first, 1.0), jnp.where(some, last, 1.0), slope(last) / hs,
+                    jax.lax.stop_gradient(excursion))
 
 
 def onset_fraction(p0, p1, r0, r1, h) -> tuple[Scalar, BoolScalar]:
@@ -175,16 +190,24 @@ def onset_fraction(p0, p1, r0, r1, h) -> tuple[Scalar, BoolScalar]:
       :math:`\epsilon` past it) when it is an onset, whose approach speed the memory rule
       (:func:`onset_update`) would otherwise read off a step spent in contact, or when the
       contact (or the free flight) it begins also ends inside the step; a separation there is
-      kept, as is any switch within :math:`\epsilon^2` of the start (the limit of the retries).
+      kept, as is any switch within :math:`\epsilon^2` of the start or with the start's
+      penetration within :data:`SWITCH_RESOLUTION` of zero (the limits of the retries);
+    * a contact or free flight inside the step shallower than :data:`EXCURSION_DEPTH` is kept.
 
     ``s = 1`` and ``False`` where nothing switches."""
     sw = contact_switches(p0, p1, r0, r1, h)
     s, n = sw.first, sw.count
     eps = ONSET_MARGIN
-    before_end = (n > 0) & (s < 1.0 / (1.0 + 2.0 * eps))
+    # a single switch, or an excursion inside the step deep enough to resolve
+    resolve = (n == 1) | (n == 3) | ((n == 2) & (sw.excursion > EXCURSION_DEPTH))
+    before_end = resolve & (s < 1.0 / (1.0 + 2.0 * eps))
     at_start = s <= eps
-    onset_or_several = (jnp.asarray(p0) <= 0.0) | (n > 1)
-    split = before_end & (~at_start | (onset_or_several & (s > eps * eps)))
+    onset_or_several = (jnp.asarray(p0) <= 0.0) | ((n > 1) & (sw.excursion > EXCURSION_DEPTH))
+    # at the start only where the step's start is measurably off the switch: below
+    # SWITCH_RESOLUTION the penetration is rounding noise of the coordinates, and retrying
+    # would shrink the step towards the resolution of t
+    off_switch = (s > eps * eps) & (jnp.abs(jnp.asarray(p0)) > SWITCH_RESOLUTION)
+    split = before_end & (~at_start | (onset_or_several & off_switch))
     s = jnp.where(at_start, s + eps, s)
     return jnp.where(split, s, 1.0), split
 

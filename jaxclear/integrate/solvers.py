@@ -259,6 +259,7 @@ class OnsetController(AbstractWrappedController):
         h = t1 - t0
         dt_inner = tnext - tprev
         dt_split = jax.lax.stop_gradient(jnp.minimum(dt_inner, s * h * (1.0 + eps)))
+        split = split & (t0 + dt_split > t0)  # never a step below the resolution of t
         tprev = jnp.where(split, t0, tprev)
         tnext = jnp.where(split, t0 + dt_split, tnext)
         return keep & ~split, tprev, tnext, jump & ~split, state, result
