@@ -215,3 +215,50 @@ def test_accuracy_benchmark_quick(tmp_path):
     errs = [r["error"] for r in res["rows"] if r["code"] == "jaxclear"]
     assert all(math.isfinite(e) for e in errs)
     assert len(res["speedups"]) == 1
+
+
+def test_contact_switches_match_the_roots_of_the_cubic():
+    """The sign changes of the cubic Hermite interpolant found between its extrema equal the real
+    roots in (0, 1) of the same cubic found by numpy.roots (companion matrix eigenvalues, an
+    independent method): count, first and last root to 1e-9 (of the step), and the rate at the
+    last root to 1e-8 of the cubic's rate scale."""
+    from jaxclear.elements.memory import contact_switches
+
+    rng = np.random.default_rng(3)
+    h = 1e-5
+    checked = {0: 0, 1: 0, 2: 0, 3: 0}
+    for _ in range(400):
+        roots = np.sort(rng.uniform(-0.5, 1.5, 3))
+        scale = rng.choice([-1.0, 1.0]) * 1e-6
+        coeffs = scale * np.poly(roots)  # a s^3 + b s^2 + c s + d
+        val = lambda s: np.polyval(coeffs, s)
+        dval = lambda s: np.polyval(np.polyder(coeffs), s)
+        p0, p1, r0, r1 = val(0.0), val(1.0), dval(0.0) / h, dval(1.0) / h
+        inside = np.sort([r.real for r in np.roots(coeffs) if abs(r.imag) < 1e-12 and 0 < r.real < 1])
+        # keep draws whose roots are clear of the ends and of each other (no double roots)
+        if np.any(np.abs(np.concatenate([inside, inside - 1])) < 1e-3) or np.any(np.diff(inside) < 1e-3):
+            continue
+        sw = contact_switches(jnp.asarray(p0), jnp.asarray(p1), r0, r1, h)
+        assert int(sw.count) == len(inside), (roots, inside)
+        checked[len(inside)] += 1
+        if len(inside):
+            assert abs(float(sw.first) - inside[0]) < 1e-9
+            assert abs(float(sw.last) - inside[-1]) < 1e-9
+            # a root error of 1e-9 moves the rate by 1e-9 times the slope's derivative: bound it by
+            # the cubic's rate scale sum(|coefficients|) / h
+            assert abs(float(sw.last_rate) - dval(inside[-1]) / h) < 1e-8 * np.abs(coeffs).sum() / h
+    assert min(checked.values()) >= 10, checked
+
+
+def test_separating_steps_keep_the_approach_speed_of_their_contact():
+    """A bouncing journal (Lankarani-Nikravesh, c_r = 0.9: the law's force is positive throughout
+    a contact, chi = 3 (1 - c_r^2) / 4 < 1 / c_r): every output sample with a positive penetration
+    has a positive normal force, also the samples inside the steps that separate (their memory
+    is the onset's approach speed, not the separating rate), and the run bounces more than once."""
+    mech = falling_journal(restitution=0.9, law="lankarani-nikravesh")
+    sol = jc.simulate(mech, jc.settings(4e-3, n_out=4001, rtol=1e-6, atol=1e-12))
+    pen, force = np.asarray(sol.penetration[:, 0]), np.asarray(sol.normal_force[:, 0])
+    assert int(sol.impacts[0]) >= 2
+    touching = pen > 1e-12
+    assert touching.sum() > 50
+    assert np.all(force[touching] > 0.0)

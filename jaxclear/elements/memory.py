@@ -102,13 +102,13 @@ def _hermite_cubic(p0, p1, r0, r1, h):
 
 def _root_in(val, slope, lo, hi, rising):
     """Root of a function monotone on ``[lo, hi]`` that changes sign there (``rising``: from
-    <= 0 to > 0): three bisections, then five Newton steps clipped to the bracket."""
-    for _ in range(3):
+    <= 0 to > 0): eight bisections, then six Newton steps clipped to the bracket."""
+    for _ in range(8):
         mid = 0.5 * (lo + hi)
         past = (val(mid) > 0.0) == rising
         lo, hi = jnp.where(past, lo, mid), jnp.where(past, mid, hi)
     s = 0.5 * (lo + hi)
-    for _ in range(5):
+    for _ in range(6):
         sl = slope(s)
         ok = jnp.abs(sl) > 1e-300
         s = jnp.clip(s - jnp.where(ok, val(s) / jnp.where(ok, sl, 1.0), 0.0), lo, hi)
