@@ -53,6 +53,7 @@ VARIANTS = [
     ("dubowsky-freudenstein", {}),
     ("esdu-78035", {}),
     ("pereira", {}),
+    ("persson", {}),
     # friction laws on LN (mu = 0.1, static 0.15 where the law has one); the first is the
     # reference for these rows (the benchmark's own friction is Ambrosio with mu = 0)
     ("lankarani-nikravesh", {"friction_law": ("ambrosio", {})}),
