@@ -264,24 +264,41 @@ def test_oval_film_force_gradient_matches_central_differences():
 
 
 def test_lubricated_joint_with_profiles():
-    """A zero profile gives the closed-form element force (full film: 1e-10, as above); profiles
-    are refused with the fixed-edge film, for too few points, and when they close the film."""
+    """A zero profile gives the closed-form element force (full film: 1e-10, as above); the
+    profiles are the dry law's (one geometry for film and wall); profiles are refused with a law
+    that assumes circles, with the hybrid law's arc placement, when given twice, with the
+    fixed-edge film, for too few points, and when they close the film."""
     mech = jc.preset("flores-slider-crank", viscosity=0.4)
     d = mech.clearance_joints[0]
     args = (d.bearing_body, d.bearing_point, d.journal_body, d.journal_point, d.bearing_radius, d.journal_radius)
     q = jnp.asarray([0.025, 0, 0, 0.11, 0, 0, 0.17 + 3e-4, 1e-4, 0.0])
     qd = jnp.asarray([0, 2.0, 500, 0, 1, -100, 0.5, 0.3, 0.0])
 
+    fixed = jc.HybridLaw(placement="fixed")
+
     def film(**kw):
         joint = jc.LubricatedJoint(*args, viscosity=0.4, film="full", **kw)
         return np.asarray(joint.film_force(eqx.tree_at(lambda m: m.clearance_joints, mech, (joint,)), q, qd))
 
     ref = film()
-    np.testing.assert_allclose(film(journal_profile=jc.FourierProfile([0.0])), ref, atol=1e-10 * np.abs(ref).max())
-    assert np.linalg.norm(film(journal_profile=jc.oval(5e-5)) - ref) > 1e-3 * np.linalg.norm(ref)
-    for kw, match in [({"film": "half-fixed", "journal_profile": jc.oval(1e-5)}, "half-fixed"),
-                      ({"journal_profile": jc.oval(1e-5), "n_gauss": 0}, "n_gauss"),
-                      ({"journal_profile": jc.oval(3e-4), "bearing_profile": jc.oval(-3e-4)}, "close the film")]:
+    np.testing.assert_allclose(film(journal_profile=jc.FourierProfile([0.0]), law=fixed), ref,
+                               atol=1e-10 * np.abs(ref).max())
+    assert np.linalg.norm(film(journal_profile=jc.oval(5e-5), law=fixed) - ref) > 1e-3 * np.linalg.norm(ref)
+    # the profiles live on the law: given to the joint or to its law, the same joint
+    oval = jc.oval(5e-5)
+    by_joint = jc.LubricatedJoint(*args, law=fixed, journal_profile=oval)
+    by_law = jc.LubricatedJoint(*args, law=jc.HybridLaw(placement="fixed", journal_profile=oval))
+    assert bool(eqx.tree_equal(by_joint.law.journal_profile, by_joint.journal_profile, oval))
+    assert by_joint.law.bearing_profile is None and by_joint.bearing_profile is None
+    assert bool(eqx.tree_equal(by_joint, by_law))
+    for kw, match in [({"journal_profile": jc.oval(1e-5)}, "assumes a circular journal"),
+                      ({"journal_profile": jc.oval(1e-5), "law": jc.HybridLaw()}, "placement='fixed'"),
+                      ({"journal_profile": oval, "law": by_law.law}, "given twice"),
+                      ({"film": "half-fixed", "journal_profile": jc.oval(1e-5), "law": fixed}, "half-fixed"),
+                      ({"film": "half-fixed", "law": by_law.law}, "half-fixed"),
+                      ({"journal_profile": jc.oval(1e-5), "law": fixed, "n_gauss": 0}, "n_gauss"),
+                      ({"journal_profile": jc.oval(3e-4), "bearing_profile": jc.oval(-3e-4), "law": fixed},
+                       "larger than the bearing")]:
         with pytest.raises(jc.ParameterError, match=match):
             jc.LubricatedJoint(*args, **kw)
 

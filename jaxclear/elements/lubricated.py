@@ -89,6 +89,12 @@ journal :math:`F = -R_J\int_0^{2\pi}\bar p\,u\,d\theta`. For circles
 The blend applies to the eccentricity (:math:`\mathbf e \to \tilde\varepsilon c\,n` in
 :math:`h`), and :math:`h` is floored at :math:`(1 - \varepsilon_1)c` so that a profile cannot
 close the film.
+
+The dry contact of a profiled joint touches the same profiles: they belong to the joint's dry
+law, which must integrate them point by point (:class:`~jaxclear.HybridLaw` with
+``placement="fixed"``, :meth:`~jaxclear.contact.base.AbstractNormalLaw.with_profiles`; any
+other law raises :class:`~jaxclear.ParameterError`), and the film reads them from there, so that
+film and wall (and a wear update of the law's bearing profile) always see one geometry.
 """
 
 from __future__ import annotations
@@ -223,11 +229,16 @@ class LubricatedJoint(AbstractJournalJoint):
         blend_start, blend_end: eccentricity ratios :math:`0 < \\varepsilon_0 < \\varepsilon_1 < 1`
             of the film's C1 saturation (transition to dry contact).
         film: film condition, one of :data:`FILMS` (static); ``"half"`` or ``"full"`` with profiles.
-        journal_profile, bearing_profile: :class:`~jaxclear.FourierProfile` radial deviations [m]
-            (body-fixed) or ``None`` (circles: the closed forms). With a profile the film force
-            is integrated at ``n_elements`` x ``n_gauss`` Gauss points (:func:`gauss_film_force`;
-            static, >= 1; default 180 x 4: the half film's edges fall inside elements, where the
-            rule loses its order, error O(element width^2), 1e-5 of the force at 180 elements).
+        journal_profile, bearing_profile (properties, the dry law's :attr:`profiles`):
+            :class:`~jaxclear.FourierProfile` radial deviations [m] (body-fixed) or ``None``
+            (circles: the closed forms). Given to the constructor, they are handed to the law
+            (:meth:`~jaxclear.contact.base.AbstractNormalLaw.with_profiles`: a law that
+            integrates profiles, ``HybridLaw(placement="fixed")``; the default law assumes
+            circles and raises :class:`~jaxclear.ParameterError`; so does a law that has its own
+            profiles). With a profile the film force is integrated at ``n_elements`` x
+            ``n_gauss`` Gauss points (:func:`gauss_film_force`; static, >= 1; default 180 x 4: the
+            half film's edges fall inside elements, where the rule loses its order, error
+            O(element width^2), 1e-5 of the force at 180 elements).
     """
 
     bearing_body: str = eqx.field(static=True)
@@ -245,8 +256,6 @@ class LubricatedJoint(AbstractJournalJoint):
     impact_velocity_floor: Scalar
     initial_offset: Vec2
     initial_velocity: Vec2
-    journal_profile: FourierProfile | None
-    bearing_profile: FourierProfile | None
     film: str = eqx.field(static=True)
     n_elements: int = eqx.field(static=True)
     n_gauss: int = eqx.field(static=True)
@@ -287,19 +296,18 @@ class LubricatedJoint(AbstractJournalJoint):
             )
         if film not in FILMS:
             raise ParameterError(f"film = {film!r} is not a film condition; valid: {list(FILMS)}")
-        profiled = journal_profile is not None or bearing_profile is not None
-        if profiled and film == "half-fixed":
+        law = ContactLaw() if law is None else law
+        if journal_profile is not None or bearing_profile is not None:
+            if any(p is not None for p in law.profiles):
+                raise ParameterError("profiles given twice: to the joint and to its law (give them once; the "
+                                     "joint hands its profiles to the law)")
+            law = law.with_profiles(journal_profile, bearing_profile)
+        if film == "half-fixed" and any(p is not None for p in law.profiles):
             raise ParameterError("film = 'half-fixed' has no meaning for profiles (its edges follow the line of "
                                  "centres of circles); valid with profiles: ['half', 'full']")
         check_range("n_elements", n_elements, low=1.0, unit="")
         check_range("n_gauss", n_gauss, low=1.0, unit="")
-        if profiled and all(is_concrete(v) for v in (bearing_radius, journal_radius, journal_profile, bearing_profile)):
-            j_max = journal_profile.extremes()[1] if journal_profile is not None else 0.0
-            b_min = bearing_profile.extremes()[0] if bearing_profile is not None else 0.0
-            if float(bearing_radius) - float(journal_radius) + b_min - j_max <= 0.0:
-                raise ParameterError(
-                    f"the profiles close the film: clearance {float(bearing_radius) - float(journal_radius):g} m + "
-                    f"smallest bearing deviation {b_min:g} m - largest journal deviation {j_max:g} m must be > 0")
+        # the law refuses profiles that close the clearance (HybridLaw.check_geometry)
         rb, rj, offset = check_journal_geometry(bearing_radius, journal_radius, length, impact_velocity_floor, law,
                                                 initial_offset)
         self.bearing_body, self.bearing_point = bearing_body, bearing_point
@@ -309,15 +317,24 @@ class LubricatedJoint(AbstractJournalJoint):
         self.viscosity = jnp.asarray(viscosity, dtype=float)
         self.blend_start = jnp.asarray(blend_start, dtype=float)
         self.blend_end = jnp.asarray(blend_end, dtype=float)
-        self.law = ContactLaw() if law is None else law
+        self.law = law
         self.friction = Friction() if friction is None else friction
         self.impact_velocity_floor = jnp.asarray(impact_velocity_floor, dtype=float)
         self.initial_offset = offset
         self.initial_velocity = jnp.asarray(initial_velocity, dtype=float).reshape(2)
         self.film = film
-        self.journal_profile, self.bearing_profile = journal_profile, bearing_profile
         self.n_elements, self.n_gauss = int(n_elements), int(n_gauss)
         self.name = name
+
+    @property
+    def journal_profile(self) -> FourierProfile | None:
+        """The journal's radial deviation [m] (the dry law's), or ``None`` (circle)."""
+        return self.law.profiles[0]
+
+    @property
+    def bearing_profile(self) -> FourierProfile | None:
+        """The bearing's radial deviation [m] (the dry law's), or ``None`` (circle)."""
+        return self.law.profiles[1]
 
     @property
     def width(self):
