@@ -93,8 +93,6 @@ def _number(value):
 def _plain(value):
     if isinstance(value, (str, bool, int, float)):
         return value
-    if isinstance(value, FourierProfile):
-        return _fields(value, ("cos", "sin"))
     return _number(value)
 
 
