@@ -48,7 +48,7 @@ def _mechanism(viscosity, shift, profiled):
 @pytest.mark.parametrize("viscosity, impacts, tolerance", [
     # benchmark oil: the film carries the load; e/c reaches 0.97, inside the film's saturation
     # band (0.95, 0.99). Differences left: the half film's Gauss rule (1e-5 of the force, see
-    # test_joints) and the blend's thinnest film taken at the Gauss points (ratio low by <= 1.8e-5
+    # test_lubricated) and the blend's thinnest film taken at the Gauss points (ratio low by <= 1.8e-5
     # relative). Measured 5.2e-9 m; tolerance 1e-4 c = 5e-8 m, 400 times below b.
     (0.4, 0, 5e-8),
     # thin oil: four impacts on the wall in 2 ms; the wall's identity holds to b^2 / (2 R_B) =
