@@ -10,8 +10,9 @@ the same in body and global axes, and moving the bearing point by :math:`b\\,u(\
 slider builds the shifted circle.
 
 The profiled joint runs its film on Gauss points and its wall contact on the hybrid law's
-profile; the shifted circle runs the closed-form film and the circle's contact (two other code
-paths). The journal orbit about the nominal bearing centre must agree; the same joint without
+profile (penetration and direction from the point forces); the shifted circle runs the
+closed-form film and the circle's contact (penetration e - c, direction n): other code paths
+for everything but the hybrid law's point quadrature. The journal orbit about the nominal bearing centre must agree; the same joint without
 the profile (the unshifted circle) must not, which shows the profile acts on the run.
 """
 
