@@ -90,7 +90,7 @@ def test_viscosity_fit_on_the_lubricated_joint():
     assert abs(res.estimates["viscosity"] / 0.4 - 1) < 0.05, res.estimates
 
 
-@pytest.mark.slow  # 640 s on 2 shared cores (two 3 ms windows, forward-mode Jacobians through the corner impacts)
+@pytest.mark.slow  # 370 s on 2 shared cores (two 3 ms windows, forward-mode Jacobians through the corner impacts)
 def test_translational_clearance_fit_runs_with_windows(tmp_path):
     """slider-crank-guide-clearance through jc.fit with two windows (the second window's start
     state in the translational element's layout), a handful of iterations: runs, finite
