@@ -4,26 +4,36 @@ by these names; this module is the one place that maps a name to a leaf of the m
 
 Names (``J`` = clearance-joint index, default 0, written ``name@J`` e.g. ``clearance@1``):
 
-==================  =======================================================  ============
-name                leaf                                                     unit, range
-==================  =======================================================  ============
-``clearance``       ``R_B - R_J`` (sets the journal radius, bearing kept);   m, (0, R_B)
-                    translational joint: ``(W - b)/2`` (sets the guide width)
-``restitution``     ``law.restitution``                                      -, (0, 1]
-``stiffness``       the law's stiffness leaf (``law.stiffness_parameter``)      law's unit, (0, inf)
-``exponent``        ``law.exponent``                                         -, (0, inf)
-``friction``        ``friction.coefficient``                                 -, [0, inf)
-``length``          joint axial length L                                     m, (0, inf)
-``viscosity``       oil viscosity of a :class:`LubricatedJoint`              Pa s, (0, inf)
-``width``           film width of a :class:`LubricatedJoint` (its ``length``)  m, (0, inf)
-``speed``           first ``AngleDriver.speed``                              rad/s
-``speed_rpm``       the same in rev/min                                      rpm
-``mass:BODY``       body mass                                                kg, (0, inf)
-``inertia:BODY``    body centroidal inertia                                  kg m^2, (0, inf)
-==================  =======================================================  ============
+======================  =======================================================  ============
+name                    leaf                                                     unit, range
+======================  =======================================================  ============
+``clearance``           ``R_B - R_J`` (sets the journal radius, bearing kept);   m, (0, R_B)
+                        translational joint: ``(W - b)/2`` (sets the guide width)
+``restitution``         ``law.restitution``                                      -, (0, 1]
+``stiffness``           the law's stiffness leaf (``law.stiffness_parameter``)      law's unit, (0, inf)
+``exponent``            ``law.exponent``                                         -, (0, inf)
+``friction``            ``friction.coefficient``                                 -, [0, inf)
+``friction_static``     ``friction.static`` (mu_s; Stribeck, LuGre, ...)           -, [0, inf)
+``friction_viscous``    ``friction.viscous`` (mu_v: viscous, Stribeck, ...)       s/m, [0, inf)
+``v_stribeck``          ``friction.v_stribeck`` (Stribeck, LuGre)                m/s, (0, inf)
+``stribeck_exponent``   ``friction.stribeck_exponent`` (Stribeck)                -, (0, inf)
+``v_threlfall``         ``friction.v_threlfall`` (Threlfall)                     m/s, (0, inf)
+``v_transition``        ``friction.v_transition`` (Brown-McPhee)                 m/s, (0, inf)
+``bristle_stiffness``   ``friction.bristle_stiffness`` (sigma_0: Dahl, LuGre)    1/m, (0, inf)
+``bristle_damping``     ``friction.bristle_damping`` (sigma_1: LuGre)            s/m, [0, inf)
+``length``              joint axial length L                                     m, (0, inf)
+``viscosity``           oil viscosity of a :class:`LubricatedJoint`              Pa s, (0, inf)
+``width``               film width of a :class:`LubricatedJoint` (its ``length``)  m, (0, inf)
+``speed``               first ``AngleDriver.speed``                              rad/s
+``speed_rpm``           the same in rev/min                                      rpm
+``mass:BODY``           body mass                                                kg, (0, inf)
+``inertia:BODY``        body centroidal inertia                                  kg m^2, (0, inf)
+======================  =======================================================  ============
 
 ``stiffness`` of a law whose stiffness is derived from materials (``None``) reads the derived
-value and, when set, becomes explicit.
+value and, when set, becomes explicit. The friction names address the joint's friction law
+(:mod:`jaxclear.contact.friction_laws`, :mod:`jaxclear.contact.bristle`); a law without that
+parameter raises :class:`~jaxclear.ParameterError` naming the laws that have it.
 """
 
 from __future__ import annotations
@@ -37,6 +47,7 @@ import numpy as np
 
 from ._errors import ParameterError, check_range
 from ._units import rad_s_to_rpm, rpm_to_rad_s
+from .contact.friction import FRICTION_MODELS
 from .elements import LubricatedJoint, TranslationalClearanceJoint
 from .model import Mechanism, crank_driver
 
@@ -62,6 +73,20 @@ INFO = {
     "stiffness": ParameterInfo("stiffness", "law unit", 0.0, None, True, False, "log", "contact stiffness of the law"),
     "exponent": ParameterInfo("exponent", "", 0.0, None, True, False, "log", "force exponent n"),
     "friction": ParameterInfo("friction", "", 0.0, None, False, False, "log", "friction coefficient mu"),
+    "friction_static": ParameterInfo("friction_static", "", 0.0, None, False, False, "log",
+                                     "static friction coefficient mu_s"),
+    "friction_viscous": ParameterInfo("friction_viscous", "s/m", 0.0, None, False, False, "log",
+                                      "viscous friction coefficient mu_v (per newton of normal force)"),
+    "v_stribeck": ParameterInfo("v_stribeck", "m/s", 0.0, None, True, False, "log", "Stribeck speed"),
+    "stribeck_exponent": ParameterInfo("stribeck_exponent", "", 0.0, None, True, False, "log",
+                                       "exponent of the Stribeck curve"),
+    "v_threlfall": ParameterInfo("v_threlfall", "m/s", 0.0, None, True, False, "log", "Threlfall speed"),
+    "v_transition": ParameterInfo("v_transition", "m/s", 0.0, None, True, False, "log",
+                                  "Brown-McPhee transition speed"),
+    "bristle_stiffness": ParameterInfo("bristle_stiffness", "1/m", 0.0, None, True, False, "log",
+                                       "bristle stiffness sigma_0 (per newton of normal force)"),
+    "bristle_damping": ParameterInfo("bristle_damping", "s/m", 0.0, None, False, False, "log",
+                                     "bristle damping sigma_1 (per newton of normal force)"),
     "length": ParameterInfo("length", "m", 0.0, None, True, False, "log", "axial length of the joint"),
     "viscosity": ParameterInfo("viscosity", "Pa s", 0.0, None, True, False, "log", "oil viscosity (lubricated joint)"),
     "width": ParameterInfo("width", "m", 0.0, None, True, False, "log", "film width L (lubricated joint)"),
@@ -69,6 +94,19 @@ INFO = {
     "speed_rpm": ParameterInfo("speed_rpm", "rpm", None, None, False, False, "none", "crank speed"),
     "mass": ParameterInfo("mass", "kg", 0.0, None, True, False, "log", "body mass (mass:BODY)"),
     "inertia": ParameterInfo("inertia", "kg m^2", 0.0, None, True, False, "log", "body inertia (inertia:BODY)"),
+}
+
+
+#: parameter name -> field of the joint's friction law (the parameters beyond ``friction``)
+FRICTION_FIELDS = {
+    "friction_static": "static",
+    "friction_viscous": "viscous",
+    "v_stribeck": "v_stribeck",
+    "stribeck_exponent": "stribeck_exponent",
+    "v_threlfall": "v_threlfall",
+    "v_transition": "v_transition",
+    "bristle_stiffness": "bristle_stiffness",
+    "bristle_damping": "bristle_damping",
 }
 
 
@@ -135,6 +173,14 @@ def _accessor(mech: Mechanism, name: str) -> tuple[Callable, Callable]:
         return (lambda m: m.clearance_joints[k].clearance), (lambda m: m.clearance_joints[k].journal_radius)
     if base == "friction":
         w = lambda m: m.clearance_joints[k].friction.coefficient  # noqa: E731
+        return w, w
+    if base in FRICTION_FIELDS:
+        field = FRICTION_FIELDS[base]
+        if field not in type(joint.friction).__dataclass_fields__:
+            having = sorted(n for n, (cls, _) in FRICTION_MODELS.items() if field in cls.__dataclass_fields__)
+            raise ParameterError(f"parameter {name!r}: friction law {type(joint.friction).__name__} of clearance "
+                                 f"joint {k} has no {field!r}; the friction models that have it: {having}")
+        w = lambda m: getattr(m.clearance_joints[k].friction, field)  # noqa: E731
         return w, w
     if base == "length":
         if isinstance(joint, TranslationalClearanceJoint):

@@ -102,6 +102,22 @@ def test_fit_levenberg_marquardt_on_rosenbrock(extend, cap):
         y = y_new
 
 
+def test_column_scale_of_a_stage_without_influence():
+    """A stage whose unknowns do not change its samples (a horizon before the first contact) has a
+    zero Jacobian: its scale is 1, not a subnormal floor that XLA on CPU flushes to zero (which
+    made ``x = u / D`` a 0 / 0 and the start loss NaN); a zero column beside a non-zero one gets
+    the 1e-12 relative floor, a normal number. ``influences`` tells the two stages apart."""
+    from jaxclear.fitting.solver import column_scale, influences
+    zero = np.zeros((50, 2))
+    np.testing.assert_array_equal(column_scale(zero), [1.0, 1.0])
+    assert not influences(zero)
+    d = column_scale(np.array([[3.0, 0.0], [4.0, 0.0]]))  # column norms 5 and 0
+    np.testing.assert_allclose(d, math.sqrt(1e-3) * np.array([5.0, 5e-12]), rtol=1e-15)
+    u = 25.0 * d  # the solver's unknowns; x = u / D inside compiled code must come back exactly
+    np.testing.assert_allclose(np.asarray(jax.jit(lambda a, b: a / b)(u, d)), [25.0, 25.0], rtol=1e-15)
+    assert influences(np.array([[3.0, 0.0], [4.0, 0.0]]))
+
+
 def test_levenberg_marquardt_is_an_optax_transformation():
     """On an exponential fit y = a exp(-b t): converges from far in a few iterations through the
     optax interface (update with the extra arguments jacobian, residual, value_fn). The spelling

@@ -272,3 +272,55 @@ def test_new_friction_laws_round_trip_through_mechanism_files():
 
 def test_static_helper_defaults_to_kinetic():
     assert float(fl.check_static(0.3, None)) == 0.3
+
+
+def test_karnopp_in_a_joint_is_refused_by_name():
+    """Karnopp's stick band needs the tangential load on the sliding body, which no force element
+    knows: every joint refuses it at construction, and a law swapped in afterwards (tree_at) is
+    refused when the mechanism is checked."""
+    law = jc.KarnoppFriction(MU_K, static=MU_S)
+    with pytest.raises(jc.ParameterError, match="KarnoppFriction cannot be used in a ClearanceJoint"):
+        jc.ClearanceJoint(jc.GROUND, "a", "b", "c", friction=law)
+    with pytest.raises(jc.ParameterError, match="TranslationalClearanceJoint"):
+        jc.TranslationalClearanceJoint(jc.GROUND, "a", "b", "c", friction=law)
+    mech = eqx.tree_at(lambda m: m.clearance_joints[0].friction, free_journal(), law)
+    with pytest.raises(jc.ParameterError, match="tangential load"):
+        mech.clearance_joints[0].check()
+
+
+def test_translational_joint_corners_carry_bristle_states_and_stick():
+    """A 1 kg block (50 mm x 30 mm, clearance 0.1 mm per side) dropped from 1 um onto the lower
+    guide surface, pushed along the guide by P = 0.5 N < mu_k m g, with LuGre friction at its
+    corners (sigma_1 = 2 sqrt(sigma_0/g): the bristles critically damped with the block's mass).
+    The joint carries one bristle state per corner (slice 24 + 4). Truths: after 0.3 s the block
+    is at rest (|v| < 1e-6 m/s, it moved < 1e-9 m over the last 0.15 s: no creep, which the
+    memoryless steady curve, zero at zero slip, cannot give) and the corners' friction balances
+    the load (statics, sum F_T = -P, to 1e-4: what is left of the contact oscillation); each
+    loaded corner's bristle deflection is within the stick bound mu_s/sigma_0; the upper
+    corners never touch and their bristles stay relaxed. The block lands flat (one impact per
+    lower corner, together), so both lower bristles have moved with it since the same onset and
+    carry the same deflection, which the statics fix by hand: z = P/(sigma_0 m g) (to 1e-5;
+    measured 2e-8)."""
+    sigma0, p = 1e5, 0.5
+    law = jc.Friction(MU_K, "lugre", static=MU_S, bristle_stiffness=sigma0,
+                      bristle_damping=2 * math.sqrt(sigma0 / 9.81))
+    slider = jc.Body("slider", 1.0, 2.8e-4, {"S": (0.0, 0.0)}, position=(0.0, 0.0, 0.0))
+    joint = jc.TranslationalClearanceJoint(
+        jc.GROUND, "g", "slider", "S", 0.05, 0.03, 0.03 + 2e-4, initial_offset=(-1e-4 + 1e-6, 0.0),
+        law=jc.make_law("lankarani-nikravesh", restitution=0.3, stiffness=4.8e9), friction=law)
+    mech = jc.Mechanism([slider], clearance_joints=[joint], loads=[jc.PointForce("slider", "S", (p, 0.0))],
+                        ground_points={"g": (0.0, 0.0)})
+    assert joint.state_size == 28
+    sol = jc.simulate(mech, jc.settings(0.3, n_out=3, rtol=1e-9, atol=1e-13))
+    assert int(sol.status) == 0
+    state = sol.element_states[0]
+    z = np.asarray(state.friction[-1])  # (4 corners, 1)
+    f_n, f_t, _ = joint.corner_forces(mech, sol.q[-1], sol.qdot[-1], state.corners.impact_velocity[-1],
+                                      state.friction[-1])
+    assert abs(float(sol.qdot[-1, 0])) < 1e-6
+    assert abs(float(sol.q[-1, 0]) - float(sol.q[1, 0])) < 1e-9
+    np.testing.assert_allclose(float(jnp.sum(f_t)), -p, rtol=1e-4)
+    assert np.all(z[:2, 0] > 0) and np.all(z[:2, 0] <= MU_S / sigma0) and np.all(z[2:] == 0.0)
+    np.testing.assert_array_equal(np.asarray(state.corners.impacts[-1]), [1.0, 1.0, 0.0, 0.0])
+    np.testing.assert_allclose(z[:2, 0], p / (sigma0 * 1.0 * 9.81), rtol=1e-5)
+    assert float(f_n[2]) == 0.0 and float(f_n[3]) == 0.0

@@ -29,7 +29,7 @@ E, NU = 207e9, 0.3
 SIGMA = (1 - NU**2) / E  # compliance of one steel body [1/Pa]
 ESTAR = 1 / (2 * SIGMA)  # effective modulus [Pa]
 K_LN = 4 / 3 * ESTAR * math.sqrt(RB * RJ / DR)  # cylindrical stiffness of the LN family [N/m^1.5]
-CONFORMAL = ["johnson", "radzimovsky", "goldsmith", "dubowsky-freudenstein", "esdu-78035", "pereira"]
+CONFORMAL = ["johnson", "radzimovsky", "goldsmith", "dubowsky-freudenstein", "esdu-78035", "pereira", "persson"]
 
 
 # ---------------------------------------------------------------- the laws, written out again
@@ -50,7 +50,17 @@ def delta_of_force(model, f):
         return f * sigma_g / L * (math.log(L**3 * DR / (f * sigma_g * RB * RJ)) + 1)
     if model == "esdu-78035":
         return f / (L * ESTAR) * (math.log(4 * math.pi * L * ESTAR * DR / f) + 1)
+    if model == "persson":  # the arc of load f, then the penetration at which the rigid journal overlaps it
+        eps = persson_angle(f)
+        return DR * (1 / math.cos(eps) - 1)
     raise ValueError(model)
+
+
+def persson_angle(f):
+    """Half-angle [rad] of Persson's contact arc under load f [N]: E* dR L/f = (1/b^2 - 1)/pi,
+    b = tan(eps/2) (Ciavarella & Decuzzi's closed form), solved by brentq on (0, pi/2)."""
+    return brentq(lambda eps: (1 / math.tan(eps / 2) ** 2 - 1) / math.pi - ESTAR * DR * L / f,
+                  1e-9, math.pi / 2 - 1e-12, xtol=1e-15, rtol=1e-15)
 
 
 def pereira_kn():
@@ -211,6 +221,85 @@ def test_pereira_empirical_factors():
         jc.ClearanceJoint(jc.GROUND, "a", "b", "c", 0.03, 0.01, law=jc.make_law("pereira"))
 
 
+def test_persson_load_angle_limits_and_one_material():
+    """The closed load-arc relation meets Hertz's line contact for a small arc (half-width
+    a = R eps with a^2 = 4 F R*/(pi L E*), R* = R_B R_J/dR, R = sqrt(R_B R_J): a conformal pair has
+    one radius to first order in dR/R, and this reading of it makes the two agree exactly in the
+    limit; to 1e-4 at eps = 0.01 rad, the relative size of the next term eps^2) and tends to a
+    half circumference (90 degrees) under a load without bound (the numerical solution below
+    does not: 84.8 degrees); two different materials are refused (the solution assumes elastic
+    similarity)."""
+    eps = 0.01
+    f = float(cf.persson_load(math.tan(eps / 2) ** 2, DR, L, ESTAR))
+    a_hertz = math.sqrt(4 * f * (RB * RJ / DR) / (math.pi * L * ESTAR))
+    assert a_hertz / (math.sqrt(RB * RJ) * eps) == pytest.approx(1.0, rel=1e-4)
+    assert math.degrees(persson_angle(1e12)) == pytest.approx(90.0, abs=0.01)
+    with pytest.raises(jc.ParameterError, match="elastic similarity"):
+        jc.make_law("persson", journal_material=jc.contact.Material(70e9, 0.33))
+    jc.make_law("persson", modulus=1e11, journal_material=jc.contact.Material(70e9, 0.33))  # explicit E*: accepted
+
+
+def persson_arc_numerical(load, n_panels=1200, half=0.56 * math.pi):
+    """Half-angle [rad] of the contact arc of a pin in a hole of one material under the load
+    F/(L E* dR) = ``load``, from a numerical solution of the plane frictionless problem written
+    here (units R = E* = dR = 1). The closure of the gap by a boundary pressure mode p_n cos(n th)
+    is (2R/E*) n/(n^2 - 1) p_n for n >= 2 (disc plus hole, Muskhelishvili's potentials, plane
+    strain, one material) and (R/E*) p_0 for n = 0; mode 1 is a rigid shift, absorbed in the
+    eccentricity e. Summed, the kernel is G(x) = [-2 cos x ln|2 sin(x/2)| - (1 + cos x)/2]/pi.
+    Piecewise-constant pressure on panels (the log part integrated exactly, the rest by 2-point
+    Gauss), contact set by active-set iteration: G p = e cos(th) - 1 where p > 0, gap >= 0
+    elsewhere, sum p cos(th) h = load."""
+    edges = np.linspace(-half, half, n_panels + 1)
+    th, h = 0.5 * (edges[1:] + edges[:-1]), edges[1] - edges[0]
+    x = th[:, None]
+
+    def f(u):
+        a = np.abs(u)
+        return np.where(a > 0, u * np.log(np.where(a > 0, a, 1.0)) - u, 0.0)
+
+    def smooth(u):  # G * pi + 2 ln|u|
+        a = np.maximum(np.abs(u), 1e-12)
+        return -2 * (np.cos(u) - 1) * np.log(a) - 2 * np.cos(u) * np.log(2 * np.sin(a / 2) / a) - (1 + np.cos(u)) / 2
+
+    g = -2 * (f(x - edges[None, :-1]) - f(x - edges[None, 1:]))
+    g = (g + sum(smooth(x - th[None, :] - s * h / 2) * h / 2 for s in (-1 / math.sqrt(3), 1 / math.sqrt(3)))) / math.pi
+    active = np.abs(th) < 0.2
+    for _ in range(100):
+        idx = np.flatnonzero(active)
+        m = np.zeros((len(idx) + 1, len(idx) + 1))
+        m[:-1, :-1], m[:-1, -1], m[-1, :-1] = g[np.ix_(idx, idx)], -np.cos(th[idx]), np.cos(th[idx]) * h
+        sol = np.linalg.solve(m, np.concatenate([-np.ones(len(idx)), [load]]))
+        p = np.zeros_like(th)
+        p[idx] = sol[:-1]
+        gap = g @ p - (sol[-1] * np.cos(th) - 1)
+        leave, enter = active & (p < 0), ~active & (gap < -1e-12)
+        if not (leave.any() or enter.any()):
+            return np.abs(th[active]).max() + h / 2
+        active = (active & ~leave) | enter
+    raise RuntimeError("active set did not settle")
+
+
+def test_persson_closed_form_against_a_numerical_solution_of_the_plane_problem():
+    """The closed form's arc against the numerical solution above (panel width 0.17 deg): equal
+    to 0.2 deg up to F/(L E* dR) = 0.1 (arc 20 deg, delta/dR = 0.13 through the overlap arc, past
+    where joints work; 0.2 deg is the panel width plus the grid's step in the arc). Beyond, the
+    closed form's arc is larger: 46.2 against 44.9 deg at 0.7, 76.2 against 72.1 deg at 5 (both
+    pinned here to 0.1 deg, the numerical ones converged from 600 to 2400 panels): the closed form
+    is exact for small arcs and an approximation beyond. A pin without clearance (dR -> 0, the
+    load per dR without bound) has the same numerical arc at any load: 84.8 deg (the closed form
+    tends to 90)."""
+    def closed(load):
+        return math.degrees(2 * math.atan(math.sqrt(load / (load + math.pi))))  # F = pi b^2/(1 - b^2) solved for b
+
+    for load in (0.01, 0.1):
+        assert abs(math.degrees(persson_arc_numerical(load)) - closed(load)) < 0.2, load
+    assert math.degrees(persson_arc_numerical(0.7)) == pytest.approx(44.9, abs=0.1)
+    assert math.degrees(persson_arc_numerical(5.0)) == pytest.approx(72.1, abs=0.1)
+    assert closed(0.7) == pytest.approx(46.2, abs=0.05) and closed(5.0) == pytest.approx(76.2, abs=0.05)
+    assert math.degrees(persson_arc_numerical(1e3)) == pytest.approx(84.8, abs=0.1)
+    assert math.degrees(persson_arc_numerical(1e5)) == pytest.approx(84.8, abs=0.1)
+
+
 @pytest.mark.parametrize("model", CONFORMAL)
 def test_conformal_restitution_against_independent_integration(model):
     """One central impact with LN damping (c_r = 0.4): jaxclear against SciPy's integration of
@@ -231,7 +320,8 @@ def test_models_lists_every_new_law():
 
 
 @pytest.mark.parametrize("name,options", [("impact", {"max_damping": 3e3, "damping_depth": 2e-5}), ("johnson", {}),
-                                          ("pereira", {"hysteresis": "qin-lu"}), ("carvalho-martins", {})])
+                                          ("pereira", {"hysteresis": "qin-lu"}), ("persson", {}),
+                                          ("carvalho-martins", {})])
 def test_new_laws_round_trip_through_mechanism_files(name, options):
     mech = jc.preset("flores-slider-crank", law=name, law_options=options)
     assert eqx.tree_equal(loads_mechanism(dumps_mechanism(mech)), mech)

@@ -144,6 +144,8 @@ def _print_result(res, files: list[str]):
     print(f"  {'parameter':<{width}}  {'start':>12}  {'estimate':>12}  {'std':>10}")
     for name, value in res.estimates.items():
         print(f"  {name:<{width}}  {res.start[name]:>12.6g}  {value:>12.6g}  {res.std[name]:>10.3g}")
+    for note in res.settings.get("skipped_stages", []):
+        print(f"note: stage {note}")
     for w in res.warnings:
         print(f"warning: {w}")
     print("wrote " + ", ".join(files))

@@ -193,6 +193,9 @@ class AbstractFriction(eqx.Module):
     #: number of internal states (bristle deflections) the law needs carried in the element's
     #: state; 0 for a memoryless law
     state_size: ClassVar[int] = 0
+    #: True for a law that needs the tangential load on the sliding body (Karnopp's stick band),
+    #: which no force element knows: the elements refuse such a law (:func:`element_friction`)
+    needs_applied_load: ClassVar[bool] = False
 
     def state_init(self, dtype=float):
         """Internal state at the start, shape ``(state_size,)`` (zeros: unloaded bristles)."""
@@ -211,3 +214,21 @@ class AbstractFriction(eqx.Module):
     @abc.abstractmethod
     def __call__(self, v_t: Scalar, normal_force: Scalar) -> Scalar:
         """Tangential force on the journal [N] for slip ``v_t`` [m/s] and normal force [N]."""
+
+
+def element_friction(friction: AbstractFriction | None, element: str, default: AbstractFriction) -> AbstractFriction:
+    """The friction law a force element ``element`` (its class name, for the message) will use:
+    ``default`` for ``None``; a law that needs the tangential load on the sliding body
+    (``needs_applied_load``) raises :class:`~jaxclear.ParameterError`. A force element computes
+    its contact from its own kinematics only: the sum of the other forces on the journal or
+    slider (loads, the constraint reactions, the inertia of the bodies it is linked to, itself
+    dependent on the friction force) is known only to the solve of the whole system."""
+    if friction is None:
+        return default
+    if friction.needs_applied_load:
+        raise ParameterError(
+            f"friction law {type(friction).__name__} cannot be used in a {element}: its stick band balances the "
+            "tangential load on the sliding body, which a force element does not know (it depends on the rest of "
+            "the mechanism and on the friction force itself). Use 'stribeck', 'brown-mcphee' or the bristle law "
+            "'lugre' (which sticks under a load below its static limit) instead")
+    return friction

@@ -50,6 +50,42 @@ internal contact :math:`a = 0.965`, :math:`b = 0.0965`,
 millimetres in these empirical factors (the two expressions for Y meet at 0.34954 mm only in
 millimetres) and K read as N/m^n.
 
+Persson's law (``persson``; A. Persson, "On the stress distribution of cylindrical elastic bodies
+in contact", PhD thesis, Chalmers, Göteborg 1964, as listed by Pereira et al.) is the exact plane
+elastic solution for a pin in a hole of the same material (elastic similarity). It relates the
+load to the half-angle :math:`\varepsilon` of the contact arc, not to a penetration: an infinite
+plate under a net force has no finite rigid approach. The form implemented
+(:func:`persson_load`, :func:`persson_force`) has two parts, stated here because neither Pereira et
+al.'s own equation nor Persson's thesis could be read for this implementation:
+
+* load against arc, in the closed form Ciavarella & Decuzzi give to Persson's solution (M.
+  Ciavarella, P. Decuzzi, "The state of stress induced by the plane frictionless cylindrical
+  contact. I. The case of elastic similarity", Int. J. Solids Struct. 38 (2001) 4507-4523), with
+  :math:`b = \tan(\varepsilon/2)`:
+
+  .. math:: \frac{E^*\Delta R}{F/L} = \frac{1}{\pi}\left(\frac{1}{b^2} - 1\right),
+            \qquad F = \pi L E^*\Delta R\,\frac{b^2}{1 - b^2};
+
+  quoted from that paper as recalled, not verified against its text here. It meets Hertz's
+  line contact for a small arc (:math:`F \to \pi L E^*\Delta R\,b^2`, i.e. the half-width
+  :math:`a = R\varepsilon` of :math:`a^2 = 4FR^*/(\pi L E^*)`); under a load without bound its arc
+  tends to a half circumference (:math:`b \to 1`). Against a numerical solution of the plane
+  problem (tests/test_laws_more.py: the exact gap-closure kernel of a disc in a hole of one
+  material, from Muskhelishvili's potentials) its arc agrees to 0.2° up to
+  :math:`F/(LE^*\Delta R) = 0.1` (an arc of 20°) and is larger beyond: 46.2° against 44.9° at 0.7,
+  76.2° against 72.1° at 5, and 90° against 84.8° for a neat fit (the numerical arc of a pin
+  without clearance, the same at any load). So it is exact for small arcs and an approximation
+  of Persson's relation beyond;
+* arc against penetration: the arc on which the rigid journal, displaced by
+  :math:`\Delta R + \delta`, overlaps the hole, :math:`\cos\varepsilon = \Delta R/(\Delta R + \delta)`,
+  the relation the elastic-foundation laws use (Liu et al. 2007, :mod:`.cylindrical`); it gives
+  :math:`b^2 = \delta/(2\Delta R + \delta)`.
+
+Together they give :math:`F = \tfrac12\pi L E^*\delta` exactly: a linear law (any load-arc relation
+with Hertz's small-arc limit gives this slope while :math:`\delta \ll \Delta R`, which is where
+joints work). E* is the effective modulus of the two bodies; the solution assumes both are of one
+material, and the law refuses two different materials (give ``modulus`` to override).
+
 Every law gets the hysteresis damping of the dissipative-Hertz family,
 :math:`F_N = F(\delta)(1 + \hat\chi(c_r)\dot\delta/\dot\delta^{(-)})` (default Lankarani-Nikravesh,
 as Pereira et al. use). The Lankarani-Nikravesh law "for cylinders" of the same comparison is
@@ -64,7 +100,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from .._errors import ParameterError, check_range
+from .._errors import ParameterError, check_range, is_concrete
 from .._types import Scalar
 from .base import STEEL, AbstractModulusLaw, Material
 from .hertz import HYSTERESIS_FACTORS, hysteresis_model, positive_power
@@ -78,7 +114,7 @@ LOG_LAWS = {
     "esdu-78035": (jnp.pi, 1.0, "clearance"),
 }
 
-CONFORMAL_LAWS = (*LOG_LAWS, "pereira")
+CONFORMAL_LAWS = (*LOG_LAWS, "pereira", "persson")
 
 
 def log_law_scale(model, radius_bearing, radius_journal, length, modulus):
@@ -141,6 +177,27 @@ def pereira_stiffness(radius_bearing, radius_journal, length, modulus):
     return stiffness, exponent
 
 
+def persson_load(b2, clearance, length, modulus):
+    r"""Persson's load [N] for a contact arc of half-angle :math:`\varepsilon`, given as
+    ``b2`` = :math:`b^2 = \tan^2(\varepsilon/2) \in [0, 1)`:
+    :math:`F = \pi L E^*\Delta R\,b^2/(1 - b^2)` (module docstring: the closed form, its limits)."""
+    return jnp.pi * length * modulus * clearance * b2 / (1.0 - b2)
+
+
+def overlap_arc(delta, clearance):
+    r""":math:`b^2 = \tan^2(\varepsilon/2)` [-] of the arc on which a rigid journal at eccentricity
+    :math:`\Delta R + \delta` overlaps the hole, :math:`\cos\varepsilon = \Delta R/(\Delta R + \delta)`:
+    :math:`b^2 = \delta/(2\Delta R + \delta)` (0 for :math:`\delta \le 0`; squared, so smooth at 0)."""
+    pos = jnp.maximum(delta, 0.0)
+    return pos / (2.0 * clearance + pos)
+
+
+def persson_force(delta, clearance, length, modulus):
+    r"""Persson's law [N] at penetration ``delta`` [m]: :func:`persson_load` of the
+    :func:`overlap_arc` (together :math:`\tfrac12\pi L E^*\delta`); 0 for delta <= 0."""
+    return persson_load(overlap_arc(delta, clearance), clearance, length, modulus)
+
+
 #: clearance range [m] of Pereira et al.'s fit
 PEREIRA_CLEARANCE = (0.005e-3, 10e-3)
 
@@ -148,7 +205,7 @@ PEREIRA_CLEARANCE = (0.005e-3, 10e-3)
 class ConformalLaw(AbstractModulusLaw):
     r"""The line-contact laws compared by Pereira et al. (2011), selected by ``model``
     (``johnson``, ``radzimovsky``, ``goldsmith``, ``dubowsky-freudenstein``, ``esdu-78035``,
-    ``pereira``; module docstring), with hysteresis damping
+    ``pereira``, ``persson``; module docstring), with hysteresis damping
     :math:`F_N = F(\delta)(1 + \hat\chi(c_r)\dot\delta/\dot\delta^{(-)})`, clipped at 0.
 
     Attributes:
@@ -178,6 +235,13 @@ class ConformalLaw(AbstractModulusLaw):
         self.modulus = None if modulus is None else jnp.asarray(modulus, dtype=float)
         self.hysteresis = hysteresis_model("lankarani-nikravesh" if hysteresis is None else hysteresis)
         self.bearing_material, self.journal_material = bearing_material, journal_material
+        if model == "persson" and modulus is None and is_concrete((bearing_material, journal_material)):
+            same = all(float(getattr(bearing_material, k)) == float(getattr(journal_material, k))
+                       for k in ("young", "poisson"))
+            if not same:
+                raise ParameterError("the persson law is Persson's solution for a pin and a hole of one material "
+                                     "(elastic similarity); bearing_material and journal_material differ. Give "
+                                     "both the same material, or an explicit modulus (E* [Pa]) to use it anyway")
 
     @property
     def name(self) -> str:
@@ -198,6 +262,8 @@ class ConformalLaw(AbstractModulusLaw):
         if self.model == "pereira":
             k, n = pereira_stiffness(radius_bearing, radius_journal, length, modulus)
             return k * positive_power(delta, n)
+        if self.model == "persson":
+            return persson_force(delta, radius_bearing - radius_journal, length, modulus)
         kappa, b, c = log_law_scale(self.model, radius_bearing, radius_journal, length, modulus)
         return log_law_force(delta, kappa, b, c, length, modulus)
 

@@ -13,6 +13,8 @@ coefficient :math:`\mu_v` is in s/m), so no law acts out of contact. Every funct
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import jax.numpy as jnp
 
 from .._errors import RESULTS, ParameterError, check_range, first_failure, in_range, is_concrete
@@ -174,14 +176,22 @@ class StribeckFriction(AbstractFriction):
 class KarnoppFriction(AbstractFriction):
     r"""Karnopp's stick band (:func:`karnopp`): ``coefficient`` :math:`\mu_k`, ``static``
     :math:`\mu_s \ge \mu_k`, band half-width ``v_stick`` :math:`D_v` > 0 [m/s], ``viscous``
-    :math:`\mu_v` [s/m]. Call it with the tangential load as third argument; without it (as a
-    clearance joint calls a law: the joint does not know the load on its contact) the band carries
-    no force, so this law is offered for models that supply the load, not in ``FRICTION_MODELS``."""
+    :math:`\mu_v` [s/m]. Call it with the tangential load as third argument. It is offered for
+    models that supply that load, not in ``FRICTION_MODELS``: every force element refuses it with a
+    :class:`~jaxclear.ParameterError` (``needs_applied_load``;
+    :func:`~jaxclear.contact.base.element_friction`). Why: the stick force is the tangential
+    component of all the other forces on the journal or slider, constraint reactions and the
+    inertia of the linked bodies included, which depend on the friction force itself; only the
+    solve of the whole system knows them, while an element computes its contact from its own
+    kinematics. Taking the applied loads alone would be Karnopp's law only for a free body.
+    LuGre (:mod:`~jaxclear.contact.bristle`) sticks under a load below its static limit and works
+    in every joint."""
 
     coefficient: Scalar
     static: Scalar
     v_stick: Scalar
     viscous: Scalar
+    needs_applied_load: ClassVar[bool] = True
 
     def __init__(self, coefficient: ArrayLike = 0.0, static: ArrayLike | None = None, v_stick: ArrayLike = 1e-4,
                  viscous: ArrayLike = 0.0):

@@ -14,8 +14,9 @@ from .hybrid import HybridLaw
 from .impact import StepDampedImpactLaw
 from .kelvin_voigt import KelvinVoigtLaw
 
-_CONFORMAL = ("; F_N = F(delta)(1 + chi_LN(c_r) deltadot/deltadot0), F from delta(F) by Newton; dR = R_B - R_J, "
-              "E* [Pa] from E, nu if not given")
+_CONFORMAL = ("; F_N = F(delta)(1 + chi_LN(c_r) deltadot/deltadot0); dR = R_B - R_J, E* [Pa] from E, nu if not "
+              "given")
+_NEWTON = " (F from delta(F) by Newton)"
 _HERTZ = "F_N = K delta^n (1 + chi(c_r) deltadot/deltadot0), F_N >= 0; K [N/m^n] from E, nu, radii if not given"
 
 #: name -> (constructor, reference, formula in plain text)
@@ -50,16 +51,21 @@ LAWS = {
                "on the pin surface, K_f = E(1 - nu)/((1 + nu)(1 - 2 nu)) [Pa]"),
     **{name: (ConformalLaw, ref, formula + _CONFORMAL) for name, (ref, formula) in {
         "johnson": ("Johnson, Contact Mechanics (1985); Pereira et al., Nonlinear Dyn. 63 (2011) 681",
-                    "delta = F/(pi L E*) [ln(4 pi L E* dR/F) - 1]"),
+                    "delta = F/(pi L E*) [ln(4 pi L E* dR/F) - 1]" + _NEWTON),
         "radzimovsky": ("Radzimovsky, Univ. Illinois Bull. 408 (1953); Pereira et al. (2011)",
-                        "delta = F/(pi L E*) [2/3 + ln(4 R_B/b) + ln(4 R_J/b)], b = 2 sqrt(F R*/(pi L E*))"),
+                        "delta = F/(pi L E*) [2/3 + ln(4 R_B/b) + ln(4 R_J/b)], b = 2 sqrt(F R*/(pi L E*))" + _NEWTON),
         "goldsmith": ("Goldsmith, Impact (1960); Pereira et al. (2011)",
-                      "delta = F/(pi L E*) [ln(pi E* L^3/(F dR)) + 1]"),
+                      "delta = F/(pi L E*) [ln(pi E* L^3/(F dR)) + 1]" + _NEWTON),
         "dubowsky-freudenstein": ("Dubowsky & Freudenstein, J. Eng. Ind. 93 (1971) 305; Pereira et al. (2011)",
-                                  "delta = F/(pi L E*) [ln(pi E* L^3 dR/(F R_B R_J)) + 1]"),
-        "esdu-78035": ("ESDU-78035 (1978); Pereira et al. (2011)", "delta = F/(L E*) [ln(4 pi L E* dR/F) + 1]"),
+                                  "delta = F/(pi L E*) [ln(pi E* L^3 dR/(F R_B R_J)) + 1]" + _NEWTON),
+        "esdu-78035": ("ESDU-78035 (1978); Pereira et al. (2011)",
+                       "delta = F/(L E*) [ln(4 pi L E* dR/F) + 1]" + _NEWTON),
         "pereira": ("Pereira, Ramalho, Ambrosio, Nonlinear Dyn. 63 (2011) 681",
                     "F = K delta^n, K = (0.965 dR + 0.0965) L E*/dR, n = Y dR^-0.005, dR in mm in the fit"),
+        "persson": ("Persson, PhD thesis, Chalmers (1964); Ciavarella & Decuzzi, Int. J. Solids Struct. 38 (2001) "
+                    "4507; Pereira et al. (2011)",
+                    "F = pi L E* dR b^2/(1 - b^2), b = tan(eps/2) of the contact arc, arc from the rigid overlap "
+                    "cos(eps) = dR/(dR + delta): F = (pi/2) L E* delta; one material (elastic similarity)"),
     }.items()},
 }
 

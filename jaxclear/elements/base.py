@@ -101,13 +101,15 @@ class AbstractForceElement(eqx.Module):
         the force law changed within the step (the solver then re-evaluates its first stage)."""
 
     def onset(self, mech: Mechanism, t0, q0, qd0, t1, q1, qd1, state) -> tuple[Scalar, BoolScalar]:
-        """Where a candidate step ``[t0, t1]`` crosses into contact: ``(s, crossed)`` with the
-        fraction ``s`` in [0, 1] of the step at the earliest onset among the element's contacts
-        (cubic Hermite estimate, :func:`~jaxclear.elements.memory.onset_fraction`) and whether
-        any contact crossed. The step-size controller
-        (:class:`~jaxclear.integrate.solvers.OnsetController`) uses it to end a step just past
-        the onset, so the impact memory is taken at the onset. Default: never an onset
-        (elements without a memory of the approach speed)."""
+        """Where a candidate step ``[t0, t1]`` must be split for the element's force law to
+        switch at a step boundary: ``(s, split)`` with the fraction ``s`` in [0, 1] of the step at
+        the earliest contact onset or separation among the element's contacts that the step
+        cannot keep inside it (sign changes of the cubic Hermite interpolant of the penetration,
+        :func:`~jaxclear.elements.memory.onset_fraction`) and whether there is one. The
+        step-size controller (:class:`~jaxclear.integrate.solvers.OnsetController`) uses it to end
+        a step just past the switch, so the impact memory is taken at the onset and a free
+        flight between contacts is never stepped over. Default: never a switch (elements
+        without a memory of the approach speed)."""
         return jnp.ones((), jnp.result_type(t1)), jnp.zeros((), bool)
 
     @abc.abstractmethod

@@ -113,7 +113,7 @@ import numpy as np
 
 from .._errors import RESULTS, ParameterError, check_range, first_failure, in_range, is_concrete
 from .._types import ArrayLike, Scalar, Vec2
-from ..contact.base import AbstractFriction, AbstractNormalLaw
+from ..contact.base import AbstractFriction, AbstractNormalLaw, element_friction
 from ..contact.friction import Friction
 from ..contact.hertz import ContactLaw
 from ..contact.hybrid import FourierProfile, gauss_nodes
@@ -329,7 +329,7 @@ class LubricatedJoint(AbstractJournalJoint):
         self.blend_start = jnp.asarray(blend_start, dtype=float)
         self.blend_end = jnp.asarray(blend_end, dtype=float)
         self.law = law
-        self.friction = Friction() if friction is None else friction
+        self.friction = element_friction(friction, "LubricatedJoint", Friction())
         self.impact_velocity_floor = jnp.asarray(impact_velocity_floor, dtype=float)
         self.initial_offset = offset
         self.initial_velocity = jnp.asarray(initial_velocity, dtype=float).reshape(2)

@@ -7,17 +7,24 @@ Rule (per contact, with penetration :math:`\delta` and rate :math:`\dot\delta` a
 an accepted step ``[t0, t1]``; Flores, Ambrósio, Claro, Lankarani, "Kinematics and Dynamics of
 Multibody Systems with Imperfect Joints", Springer 2008, ch. 4):
 
-* :math:`\delta_1 \le 0` (free at the step's end): :math:`\dot\delta^{(-)} \leftarrow \dot\delta_1`;
+* :math:`\delta_0 \le 0` and :math:`\delta_1 \le 0` (free over the step): :math:`\dot\delta^{(-)}
+  \leftarrow \dot\delta_1`;
 * :math:`\delta_0 \le 0 < \delta_1` (the step crossed into contact): :math:`\dot\delta^{(-)}
   \leftarrow \dot\delta(t_c)` at the crossing :math:`t_c` of the cubic Hermite interpolant of
   :math:`\delta` over the step (exact to the step's third order), onset time :math:`t_c`,
   impacts + 1;
-* in contact at both ends: unchanged.
+* in contact at both ends, or separating (:math:`\delta_0 > 0 \ge \delta_1`): unchanged, so the
+  output samples of a separating step read the approach speed their force used.
+
+With exact onsets the step-size controller (``integrate.solvers.OnsetController``) ends steps
+just past every onset and separation (:func:`onset_fraction`), so no contact begins and ends
+inside a step unseen.
 """
 
 from __future__ import annotations
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 
 from .._types import BoolScalar, Scalar
@@ -70,39 +77,116 @@ class ContactMemory(eqx.Module):
 N_FIELDS = len(ContactMemory.__dataclass_fields__)
 
 
-def hermite_crossing(p0, p1, r0, r1, h, crossed):
-    """Root ``s`` in [0, 1] of the cubic Hermite interpolant of the penetration over a step
-    (values ``p0, p1`` [m], rates ``r0, r1`` [m/s], step ``h`` [s]) and the interpolated rate
-    there; six Newton iterations from the secant root.
+#: Margin of the exact-onset step control, as a fraction of a step: a step whose only contact
+#: switch lies within ``ONSET_MARGIN`` of its start, or within ``2 ONSET_MARGIN`` of its end, is
+#: accepted; otherwise it is retried to end at ``s (1 + ONSET_MARGIN)`` (see :func:`onset_fraction`).
+ONSET_MARGIN = 1e-4
 
-    ``h`` may be 0 (under ``vmap`` the members of a batch that have finished take empty steps
-    while the others go on): a safe step keeps the masked branch finite, so reverse mode gets no
-    NaN cotangents."""
-    h = jnp.where(h > 0, h, 1.0)
-    denom = jnp.where(crossed, p0 - p1, 1.0)
-    s = jnp.clip(jnp.where(crossed, p0 / denom, 0.5), 0.0, 1.0)
 
-    def value_and_slope(s):
-        s2, s3 = s * s, s * s * s
-        val = (2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * h * r0 + (-2 * s3 + 3 * s2) * p1 + (s3 - s2) * h * r1
-        slope = (6 * s2 - 6 * s) * p0 + (3 * s2 - 4 * s + 1) * h * r0 + (-6 * s2 + 6 * s) * p1 + (3 * s2 - 2 * s) * h * r1
-        return val, slope
+def _hermite_cubic(p0, p1, r0, r1, h):
+    """Coefficients ``(a, b, c, d)`` of the cubic Hermite interpolant ``a s^3 + b s^2 + c s + d``
+    of the penetration over a step, in the step fraction ``s`` in [0, 1]."""
+    c = h * r0
+    e = h * r1
+    return 2 * p0 + c - 2 * p1 + e, -3 * p0 - 2 * c + 3 * p1 - e, c, p0
 
-    for _ in range(6):
-        val, slope = value_and_slope(s)
-        ok = jnp.abs(slope) > 1e-300
-        s = jnp.clip(s - jnp.where(ok, val / jnp.where(ok, slope, 1.0), 0.0), 0.0, 1.0)
-    _, slope = value_and_slope(s)
-    return s, slope / h
+
+def _root_in(val, slope, lo, hi, rising):
+    """Root of a function monotone on ``[lo, hi]`` that changes sign there (``rising``: from
+    <= 0 to > 0): three bisections, then five Newton steps clipped to the bracket."""
+    for _ in range(3):
+        mid = 0.5 * (lo + hi)
+        past = (val(mid) > 0.0) == rising
+        lo, hi = jnp.where(past, lo, mid), jnp.where(past, mid, hi)
+    s = 0.5 * (lo + hi)
+    for _ in range(5):
+        sl = slope(s)
+        ok = jnp.abs(sl) > 1e-300
+        s = jnp.clip(s - jnp.where(ok, val(s) / jnp.where(ok, sl, 1.0), 0.0), lo, hi)
+    return s
+
+
+class Switches(eqx.Module):
+    """Sign changes of the penetration inside a step (:func:`contact_switches`).
+
+    Attributes:
+        count: number of switches (0 to 3).
+        first: step fraction of the first switch (1 where there is none).
+        last: step fraction of the last switch (1 where there is none).
+        last_rate: penetration rate [m/s] of the interpolant at the last switch.
+    """
+
+    count: Scalar
+    first: Scalar
+    last: Scalar
+    last_rate: Scalar
+
+
+def contact_switches(p0, p1, r0, r1, h) -> Switches:
+    r"""Sign changes of the penetration inside a step: the cubic Hermite interpolant of
+    :math:`\delta` (values ``p0, p1`` [m], rates ``r0, r1`` [m/s] at the ends, step ``h`` [s];
+    any matching shapes) is monotone between its extrema (roots of its derivative in (0, 1)),
+    so its sign changes are counted exactly on the points ``0, e_1, e_2, 1`` and each is found
+    in its monotone bracket (:func:`_root_in`). Two switches with equal signs at both ends are a
+    free flight or a contact that begins and ends inside the step, which end-point signs alone
+    do not see. ``h`` may be 0 (finished members of a ``vmap`` batch take empty steps): a safe
+    step keeps the masked branch finite, so reverse mode gets no NaN cotangents."""
+    p0, p1 = jnp.asarray(p0), jnp.asarray(p1)
+    hs = jnp.where(h > 0, h, 1.0)
+    a, b, c, d = _hermite_cubic(p0, p1, r0, r1, hs)
+    val = lambda s: ((a * s + b) * s + c) * s + d
+    slope = lambda s: (3 * a * s + 2 * b) * s + c
+    # extrema: 3 a s^2 + 2 b s + c = 0, in the cancellation-free form of the quadratic's roots;
+    # they only bracket the roots, so no gradient flows through them (nor through sqrt at 0)
+    A, B, C = jax.lax.stop_gradient((3 * a, 2 * b, c))
+    disc = B * B - 4 * A * C
+    sq = jnp.sqrt(jnp.maximum(disc, 0.0))
+    qq = -0.5 * (B + jnp.where(B >= 0, sq, -sq))
+    safe = lambda x: jnp.where(x != 0, x, 1.0)
+    e1 = jnp.where(A != 0, qq / safe(A), jnp.where(B != 0, -C / safe(B), 0.0))
+    e2 = jnp.where(qq != 0, C / safe(qq), 0.0)
+    inside = lambda e: (disc >= 0) & jnp.isfinite(e) & (e > 0) & (e < 1)
+    e1, e2 = jnp.where(inside(e1), e1, 0.0), jnp.where(inside(e2), e2, 0.0)
+    pts = [jnp.zeros_like(e1), jnp.minimum(e1, e2), jnp.maximum(e1, e2), jnp.ones_like(e1)]
+    touching = [p0 > 0.0, val(pts[1]) > 0.0, val(pts[2]) > 0.0, p1 > 0.0]
+    changes = [touching[k] != touching[k - 1] for k in (1, 2, 3)]
+    count = sum(ch.astype(jnp.int32) for ch in changes)
+    # brackets of the first and the last switch
+    lo_f, hi_f, lo_l, hi_l = pts[2], pts[3], pts[0], pts[1]
+    for k in (2, 1):  # first: the lowest interval k whose ends differ in sign
+        lo_f, hi_f = jnp.where(changes[k - 1], pts[k - 1], lo_f), jnp.where(changes[k - 1], pts[k], hi_f)
+    for k in (2, 3):  # last: the highest
+        lo_l, hi_l = jnp.where(changes[k - 1], pts[k - 1], lo_l), jnp.where(changes[k - 1], pts[k], hi_l)
+    first = _root_in(val, slope, lo_f, hi_f, ~touching[0])
+    last = _root_in(val, slope, lo_l, hi_l, touching[3])
+    some = count > 0
+    return Switches(count, jnp.where(some, first, 1.0), jnp.where(some, last, 1.0), slope(last) / hs)
 
 
 def onset_fraction(p0, p1, r0, r1, h) -> tuple[Scalar, BoolScalar]:
-    r"""Fraction ``s`` in [0, 1] of a step ``h`` [s] at which the penetration (``p0, p1`` [m],
-    rates ``r0, r1`` [m/s] at its ends; any matching shapes) crosses into contact, and whether
-    it does (:math:`\delta_0 \le 0 < \delta_1`); ``s = 1`` where it does not."""
-    crossed = (p0 <= 0.0) & (p1 > 0.0)
-    s, _ = hermite_crossing(p0, p1, r0, r1, h, crossed)
-    return jnp.where(crossed, s, 1.0), crossed
+    r"""Where a step must end for the force law to switch at a step boundary: the fraction
+    ``s`` in [0, 1] of the first contact switch (onset or separation, :func:`contact_switches`;
+    any matching shapes) and whether the step must be retried to end at ``s (1 +``
+    :data:`ONSET_MARGIN` ``)``. With :math:`\epsilon` = :data:`ONSET_MARGIN`:
+
+    * a switch within :math:`2\epsilon` of the step's end is kept (the step already ends there);
+    * a switch inside the step is split at, so the step ends just past it;
+    * a switch within :math:`\epsilon` of the start is split at too (the retried step ends
+      :math:`\epsilon` past it) when it is an onset, whose approach speed the memory rule
+      (:func:`onset_update`) would otherwise read off a step spent in contact, or when the
+      contact (or the free flight) it begins also ends inside the step; a separation there is
+      kept, as is any switch within :math:`\epsilon^2` of the start (the limit of the retries).
+
+    ``s = 1`` and ``False`` where nothing switches."""
+    sw = contact_switches(p0, p1, r0, r1, h)
+    s, n = sw.first, sw.count
+    eps = ONSET_MARGIN
+    before_end = (n > 0) & (s < 1.0 / (1.0 + 2.0 * eps))
+    at_start = s <= eps
+    onset_or_several = (jnp.asarray(p0) <= 0.0) | (n > 1)
+    split = before_end & (~at_start | (onset_or_several & (s > eps * eps)))
+    s = jnp.where(at_start, s + eps, s)
+    return jnp.where(split, s, 1.0), split
 
 
 def onset_update(memory: ContactMemory, t0, t1, p0, p1, r0, r1) -> tuple[ContactMemory, BoolScalar]:
@@ -111,8 +195,13 @@ def onset_update(memory: ContactMemory, t0, t1, p0, p1, r0, r1) -> tuple[Contact
     memory (peaks not yet updated) and whether the step crossed into contact."""
     h = t1 - t0
     crossed = (p0 <= 0.0) & (p1 > 0.0)
-    s, rate_c = hermite_crossing(p0, p1, r0, r1, h, crossed)
-    v = jnp.where(p1 <= 0.0, r1, jnp.where(crossed, rate_c, memory.impact_velocity))
+    # the contact at the step's end began at the interpolant's last switch (its only one when
+    # exact onsets split the steps)
+    sw = contact_switches(p0, p1, r0, r1, h)
+    s, rate_c = sw.last, sw.last_rate
+    # tracks the rate only over steps free at both ends: a step that separates keeps the onset's
+    # approach speed, so its output samples before the separation read the speed their force used
+    v = jnp.where((p0 <= 0.0) & (p1 <= 0.0), r1, jnp.where(crossed, rate_c, memory.impact_velocity))
     new = ContactMemory(
         impact_velocity=v,
         contact_start=jnp.where(crossed, t0 + s * h, memory.contact_start),

@@ -29,7 +29,7 @@ import jax.numpy as jnp
 
 from .._errors import RESULTS, ParameterError, check_range, first_failure, in_range, is_concrete
 from .._types import ArrayLike, Scalar, Vec2
-from ..contact.base import AbstractFriction, AbstractNormalLaw, ContactKinematics
+from ..contact.base import AbstractFriction, AbstractNormalLaw, ContactKinematics, element_friction
 from ..contact.friction import Friction
 from ..contact.hertz import ContactLaw
 from ..model.bodies import vec2
@@ -128,7 +128,7 @@ class PinSlotJoint(AbstractJournalJoint):
         self.axis = ax
         self.length = jnp.asarray(length, dtype=float)
         self.law = ContactLaw() if law is None else law
-        self.friction = Friction() if friction is None else friction
+        self.friction = element_friction(friction, "PinSlotJoint", Friction())
         self.impact_velocity_floor = jnp.asarray(impact_velocity_floor, dtype=float)
         self.initial_offset = offset
         self.initial_velocity = jnp.asarray(initial_velocity, dtype=float).reshape(2)

@@ -36,7 +36,7 @@ import jax.numpy as jnp
 
 from .._errors import RESULTS, ParameterError, check_range, first_failure, in_range
 from .._types import Array, ArrayLike, Float, Scalar, Vec2
-from ..contact.base import AbstractFriction, AbstractNormalLaw, ContactKinematics
+from ..contact.base import AbstractFriction, AbstractNormalLaw, ContactKinematics, element_friction
 from ..contact.bristle import FrozenBristles
 from ..contact.friction import Friction
 from ..contact.hertz import ContactLaw
@@ -115,6 +115,7 @@ class AbstractJournalJoint(AbstractForceElement):
     def check(self) -> RESULTS:
         """Radii > 0 with R_J < R_B (clearance in (0, R_B)); length and impact_velocity_floor
         > 0; then the normal law's and the friction law's own checks."""
+        element_friction(self.friction, type(self).__name__, self.friction)  # a law set after __init__
         radii = (
             in_range(self.bearing_radius, low=0.0, low_open=True)
             & in_range(self.journal_radius, low=0.0, low_open=True)
@@ -213,7 +214,7 @@ class AbstractJournalJoint(AbstractForceElement):
         return JournalState(new, jnp.where(crossed, 0.0, bristles)), crossed  # relaxed at each onset
 
     def onset(self, mech: Mechanism, t0, q0, qd0, t1, q1, qd1, state: ContactMemory):
-        """Fraction of ``[t0, t1]`` at the contact onset (:func:`~jaxclear.elements.memory.onset_fraction`)."""
+        """Fraction of ``[t0, t1]`` at the first contact switch to split at (:func:`~jaxclear.elements.memory.onset_fraction`)."""
         kin0, kin1 = self.kinematics(mech, q0, qd0), self.kinematics(mech, q1, qd1)
         p0, p1 = self.law.penetration(kin0), self.law.penetration(kin1)
         return onset_fraction(p0, p1, kin0.deltadot, kin1.deltadot, t1 - t0)
@@ -322,7 +323,7 @@ class ClearanceJoint(AbstractJournalJoint):
         self.bearing_radius, self.journal_radius = rb, rj
         self.length = jnp.asarray(length, dtype=float)
         self.law = ContactLaw() if law is None else law
-        self.friction = Friction() if friction is None else friction
+        self.friction = element_friction(friction, "ClearanceJoint", Friction())
         self.impact_velocity_floor = jnp.asarray(impact_velocity_floor, dtype=float)
         self.initial_offset = offset
         self.initial_velocity = jnp.asarray(initial_velocity, dtype=float).reshape(2)

@@ -19,7 +19,10 @@ centred on its point :math:`S`, aligned with the guide when :math:`\phi_j - \phi
   :math:`v_{T,k} = (v_{C_k} - v^{i}_{C_k})\cdot u`, with :math:`v^{i}_{C_k}` the velocity of the
   guide body's material point at :math:`C_k`;
 * normal force :math:`F_{N,k}` from the joint's normal law (each corner with its own impact
-  memory, :mod:`jaxclear.elements.memory`), friction :math:`F_{T,k}` from its friction law;
+  memory, :mod:`jaxclear.elements.memory`), friction :math:`F_{T,k}` from its friction law (a
+  law with bristle states, Dahl or LuGre, gets its own states per corner, carried as the journal
+  joints carry theirs: integrated while the corner is in contact, frozen out of contact, relaxed
+  to zero at the corner's contact onset);
   force on the slider at :math:`C_k`: :math:`-F_{N,k}\tau_k m + F_{T,k} u`, minus it on the guide.
 
 Each corner is a point contact against a flat surface: the law is meant to be a point law (the
@@ -46,8 +49,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._errors import RESULTS, ParameterError, check_range, first_failure, in_range, is_concrete
-from .._types import ArrayLike, Scalar, Vec2
-from ..contact.base import AbstractFriction, AbstractNormalLaw, ContactKinematics
+from .._types import Array, ArrayLike, Float, Scalar, Vec2
+from ..contact.base import AbstractFriction, AbstractNormalLaw, ContactKinematics, element_friction
 from ..contact.friction import Friction
 from ..contact.hertz import ContactLaw
 from ..model.bodies import vec2
@@ -65,9 +68,13 @@ FLAT_RADIUS = 1e3  # m, the radius a law sees for the guide surface
 
 class CornerMemory(eqx.Module):
     """State of a translational clearance joint: one :class:`ContactMemory` per corner, fields
-    shaped ``(..., 4)`` (corner order of :data:`SIGMA`/:data:`TAU`)."""
+    shaped ``(..., 4)`` (corner order of :data:`SIGMA`/:data:`TAU`), and, for a friction law
+    with internal states (Dahl, LuGre), each corner's bristle states ``friction`` ``(..., 4, m)``
+    [m] (``None`` otherwise). The slice is the memory's six fields (field-major, 6 x 4) followed
+    by the bristle states (corner-major, 4 x m)."""
 
     corners: ContactMemory
+    friction: Float[Array, "4 m"] | None = None
 
     def summary(self) -> ContactMemory:
         """The joint as one contact: latest onset (and its corner's impact speed), impacts and
@@ -183,7 +190,7 @@ class TranslationalClearanceJoint(AbstractForceElement):
         self.guide_width = jnp.asarray(guide_width, dtype=float)
         self.corner_radius = jnp.asarray(corner_radius, dtype=float)
         self.law = law
-        self.friction = Friction() if friction is None else friction
+        self.friction = element_friction(friction, "TranslationalClearanceJoint", Friction())
         self.impact_velocity_floor = jnp.asarray(impact_velocity_floor, dtype=float)
         self.initial_offset = offset
         self.initial_velocity = jnp.asarray(initial_velocity, dtype=float).reshape(2)
@@ -220,6 +227,7 @@ class TranslationalClearanceJoint(AbstractForceElement):
         fitting its guide (clearance per side :math:`(W - b)/2 > 0`) -> ``invalid_clearance``;
         corner radius and impact_velocity_floor > 0, a non-zero finite axis and a finite angle
         -> ``invalid_parameter``; then the corner law's and the friction law's own checks."""
+        element_friction(self.friction, type(self).__name__, self.friction)  # a law set after __init__
         fits = (
             in_range(self.slider_length, low=0.0, low_open=True)
             & in_range(self.slider_height, low=0.0, low_open=True)
@@ -262,18 +270,37 @@ class TranslationalClearanceJoint(AbstractForceElement):
         return Translational(self.guide_body, self.guide_point, self.slider_body, self.slider_point,
                              axis=self.axis, angle=self.angle)
 
-    # ---- state: four corner memories ------------------------------------------------
-    state_size: ClassVar[int] = 4 * N_FIELDS
+    # ---- state: four corner memories (and each corner's bristle states, if any) ---------
+    @property
+    def state_size(self) -> int:
+        """Four :class:`ContactMemory` (4 x :data:`~jaxclear.elements.memory.N_FIELDS`) plus the
+        friction law's internal states for each corner."""
+        return 4 * (N_FIELDS + self.friction.state_size)
+
+    def _bristles_init(self, dtype):
+        m = self.friction.state_size
+        return None if m == 0 else jnp.stack([self.friction.state_init(dtype)] * 4)
 
     def state_init(self, dtype=float) -> CornerMemory:
-        return CornerMemory(ContactMemory.initial((4,), dtype))
+        return CornerMemory(ContactMemory.initial((4,), dtype), self._bristles_init(dtype))
 
     def state_to_vector(self, state: CornerMemory):
         return jnp.concatenate([jnp.reshape(x, (-1,)) for x in jax.tree_util.tree_leaves(state)])
 
     def state_from_vector(self, v) -> CornerMemory:
-        rows = jnp.reshape(v, (N_FIELDS, 4))
-        return CornerMemory(ContactMemory(*(rows[i] for i in range(N_FIELDS))))
+        rows = jnp.reshape(v[:4 * N_FIELDS], (N_FIELDS, 4))
+        memory = ContactMemory(*(rows[i] for i in range(N_FIELDS)))
+        m = self.friction.state_size
+        return CornerMemory(memory, None if m == 0 else jnp.reshape(v[4 * N_FIELDS:self.state_size], (4, m)))
+
+    def corner_bristles(self, state: CornerMemory | None, dtype=float):
+        """The corners' bristle states ``(4, m)`` of ``state`` (relaxed ones for ``None`` or a
+        state without them); ``None`` for a memoryless friction law."""
+        if self.friction.state_size == 0:
+            return None
+        if state is None or state.friction is None:
+            return self._bristles_init(dtype)
+        return state.friction
 
     # ---- kinematics -----------------------------------------------------------------
     def _frame(self, mech: Mechanism, q, qdot):
@@ -332,18 +359,36 @@ class TranslationalClearanceJoint(AbstractForceElement):
         return jnp.stack([jnp.sum(rel * u), jnp.sum(rel * m), jnp.sum(v * u), jnp.sum(v * m)])
 
     # ---- forces ---------------------------------------------------------------------
-    def corner_forces(self, mech: Mechanism, q, qdot, impact_velocity):
+    def corner_forces(self, mech: Mechanism, q, qdot, impact_velocity, bristles=None):
         """Normal and friction forces [N] of the four corners (each (4,)) and their kinematics,
-        for the corners' impact speeds ``impact_velocity`` (4,) [m/s]."""
+        for the corners' impact speeds ``impact_velocity`` (4,) [m/s] and, for a friction law
+        with internal states, the corners' bristle states ``bristles`` (4, m) (``None``:
+        relaxed)."""
+        f_n, f_t, _, kin = self._corner_contacts(mech, q, qdot, impact_velocity, bristles)
+        return f_n, f_t, kin
+
+    def _corner_contacts(self, mech: Mechanism, q, qdot, impact_velocity, bristles):
+        """``(F_N (4,), F_T (4,), bristle rates (4, m) or None, kinematics)``; the rates are zero
+        for a corner out of contact (its bristles carry no load and stay as they are)."""
         kin = self.corner_kinematics(mech, q, qdot)
         speed0 = jnp.maximum(impact_velocity, self.impact_velocity_floor)
         f_n = jax.vmap(lambda k, s: self.law.contact_force(k, s)[0])(kin, speed0)
-        return f_n, jax.vmap(self.friction)(kin.slip, f_n), kin
+        if self.friction.state_size == 0:
+            return f_n, jax.vmap(self.friction)(kin.slip, f_n), None, kin
+        if bristles is None:
+            bristles = self.corner_bristles(None, q.dtype)
+        f_t, rate = jax.vmap(self.friction.force_and_rate)(bristles, kin.slip, f_n)
+        return f_n, f_t, jnp.where(f_n[:, None] > 0.0, rate, 0.0), kin
 
-    def contact(self, mech: Mechanism, q, qdot, impact_velocity):
+    def contact(self, mech: Mechanism, q, qdot, impact_velocity, bristles=None):
         """Generalized force (n,), per-corner power (4,) [W], the joint's :class:`ContactOutput`
-        and the corners' normal forces (4,) [N]."""
-        f_n, f_t, kin = self.corner_forces(mech, q, qdot, impact_velocity)
+        and the corners' normal forces (4,) [N] (``bristles`` as in :meth:`corner_forces`)."""
+        gen, powers, out, f_n, _ = self._contact(mech, q, qdot, impact_velocity, bristles)
+        return gen, powers, out, f_n
+
+    def _contact(self, mech: Mechanism, q, qdot, impact_velocity, bristles):
+        """:meth:`contact` and the corners' bristle rates (or ``None``)."""
+        f_n, f_t, rate, kin = self._corner_contacts(mech, q, qdot, impact_velocity, bristles)
         gens = []
         for k in range(4):
             f = -f_n[k] * kin.normal[k] + f_t[k] * kin.tangent[k]
@@ -359,23 +404,30 @@ class TranslationalClearanceJoint(AbstractForceElement):
             friction_force=jnp.sum(f_t),
             power=jnp.sum(powers),
         )
-        return jnp.sum(gens, axis=0), powers, out, f_n
+        return jnp.sum(gens, axis=0), powers, out, f_n, rate
 
     def forces(self, mech: Mechanism, t, q, qdot, state: CornerMemory):
-        gen, powers, out, _ = self.contact(mech, q, qdot, state.corners.impact_velocity)
-        return gen, CornerMemory(state.corners.rate(powers)), out
+        """Generalized force (n,), state rate (each corner's work rate is its power; the bristle
+        states move at the friction law's rate while their corner is in contact) and the joint's
+        :class:`ContactOutput`."""
+        bristles = self.corner_bristles(state, q.dtype)
+        gen, powers, out, _, rate = self._contact(mech, q, qdot, state.corners.impact_velocity, bristles)
+        return gen, CornerMemory(state.corners.rate(powers), rate), out
 
     def after_step(self, mech: Mechanism, t0, q0, qd0, t1, q1, qd1, state: CornerMemory):
         """The impact-memory rule for every corner over ``[t0, t1]``, then each corner's
-        running peak force."""
+        running peak force; a corner's bristle states relax to zero at its onset."""
         k0, k1 = self.corner_kinematics(mech, q0, qd0), self.corner_kinematics(mech, q1, qd1)
         pen = jax.vmap(self.law.penetration)
         new, crossed = onset_update(state.corners, t0, t1, pen(k0), pen(k1), k0.deltadot, k1.deltadot)
-        f_n, _, _ = self.corner_forces(mech, q1, qd1, new.impact_velocity)
-        return CornerMemory(with_peak_force(new, f_n)), jnp.any(crossed)
+        bristles = self.corner_bristles(state, q1.dtype)
+        f_n, _, _ = self.corner_forces(mech, q1, qd1, new.impact_velocity, bristles)
+        if bristles is not None:
+            bristles = jnp.where(crossed[:, None], 0.0, bristles)
+        return CornerMemory(with_peak_force(new, f_n), bristles), jnp.any(crossed)
 
     def onset(self, mech: Mechanism, t0, q0, qd0, t1, q1, qd1, state: CornerMemory):
-        """Fraction of ``[t0, t1]`` at the earliest corner onset (``onset_fraction`` per corner)."""
+        """Fraction of ``[t0, t1]`` at the earliest corner switch to split at (``onset_fraction`` per corner)."""
         k0, k1 = self.corner_kinematics(mech, q0, qd0), self.corner_kinematics(mech, q1, qd1)
         pen = jax.vmap(self.law.penetration)
         s, crossed = onset_fraction(pen(k0), pen(k1), k0.deltadot, k1.deltadot, t1 - t0)

@@ -44,7 +44,11 @@ the sensor signal on **short windows**:
   then all of them (``horizons``), each stage starting from the previous estimate; a partial
   horizon ends at the quietest record sample within the next 10 % of the window, so that it
   does not cut an impact in half. On the benchmark record the loss restricted to the first
-  0.75 ms is unimodal over stiffness [1/3, 3] x true and restitution [0.5, 0.99].
+  0.75 ms is unimodal over stiffness [1/3, 3] x true and restitution [0.5, 0.99]. A stage whose
+  unknowns change none of its samples (a horizon that ends before the first contact: its
+  Jacobian is exactly zero) is skipped and listed in ``settings["skipped_stages"]``; a final
+  stage without influence is a :class:`~jaxclear.FitDataError`
+  (:func:`jaxclear.fitting.run.run_stage`).
 * **continuation in the signal** (``coarse="velocity"``, default): impacts are spikes a few
   samples wide; when the model's spike sits beside the measured one, the squared difference
   does not tell which way to move (at 200 rpm the restitution landscape of the acceleration

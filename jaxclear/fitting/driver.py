@@ -223,6 +223,7 @@ def _result(problem: FitProblem, st: FitState, wall: float, resumed: bool) -> Fi
                   "record": problem.meas.path, "record_samples": len(problem.t_rec), "sample_spacing_s": s["dt"],
                   "data_rms_m_s2": problem.win.scale, "mechanism": problem.mech.name,
                   "law": law_name(problem.mech), "resumed": resumed, "optimizer": s["optimizer"],
+                  "skipped_stages": list(st.skipped),
                   "channels": problem.channel_config()},
         series=_channel_series(problem, evals, initial),
         warnings=warn, window_states=[list(map(float, v)) for v in states[1:]], window_losses=window_losses)

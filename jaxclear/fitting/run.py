@@ -17,6 +17,7 @@ from .solver import (
     StageResidual,
     StageRun,
     column_scale,
+    influences,
     solver_leaves,
     stack_jacobian,
     stage_arguments,
@@ -79,27 +80,28 @@ def begin_stage(problem: FitProblem, st: FitState) -> FitState:
     return st
 
 
-def stage_jacobian(problem: FitProblem, st: FitState, stage: Stage) -> np.ndarray:
-    """Jacobian of the stage's residual over its unknowns at the state's values."""
-    jts, jss = [], []
+def stage_jacobian(problem: FitProblem, st: FitState, stage: Stage) -> tuple[float, np.ndarray]:
+    """Loss ``|r|^2`` and Jacobian of the stage's residual over its unknowns at the state's values."""
+    rs, jts, jss = [], [], []
     for k in stage.windows:
         win = problem.window_input(k, stage.horizon, stage.integrate, st.guesses)
-        _, jt, js, _, _ = evaluate_window_jit(problem.model, jnp.asarray(st.theta), jnp.asarray(st.states[k]), win)
+        r, jt, js, _, _ = evaluate_window_jit(problem.model, jnp.asarray(st.theta), jnp.asarray(st.states[k]), win)
+        rs.append(np.asarray(r))
         jts.append(jt)
         jss.append(js)
-    return np.asarray(stack_jacobian(jts, jss, stage.theta, _free_rows(stage)))
+    return float(np.sum(np.concatenate(rs) ** 2)), np.asarray(stack_jacobian(jts, jss, stage.theta, _free_rows(stage)))
 
 
 def _free_rows(stage: Stage) -> tuple:
     return tuple(stage.windows.index(k) for k in stage.states)
 
 
-def stage_run(problem: FitProblem, opt: Optimizer, st: FitState, stage: Stage) -> tuple[StageRun, FitState]:
+def stage_run(problem: FitProblem, opt: Optimizer, st: FitState, stage: Stage, jac=None) -> tuple[StageRun, FitState]:
     """The solver run of the stage: fresh (its unknowns scaled by :func:`column_scale` of the
-    Jacobian at the start; 1 for first-order optimisers) or from the state's saved solver leaves."""
+    Jacobian ``jac`` at the start; 1 for first-order optimisers) or from the state's saved solver leaves."""
     if st.x is None:
         x = join(st, stage)
-        scale = column_scale(stage_jacobian(problem, st, stage)) if opt.least_squares else np.ones_like(x)
+        scale = column_scale(jac) if jac is not None else np.ones_like(x)
         st = st.replace(column_scale=scale.tolist())
         u = x * scale
     else:
@@ -131,13 +133,39 @@ def check_start_loss(problem: FitProblem, stage: Stage, loss: float, theta):
                            "the record and the start values")
 
 
+def _no_influence(problem: FitProblem, stage: Stage, theta) -> str:
+    """The reason a stage none of whose unknowns changes its fitted samples is skipped; for the
+    final stage a :class:`~jaxclear.FitDataError` (the record cannot tell the values apart)."""
+    end = max(problem.win.cuts.get((k, stage.horizon), stage.horizon * problem.win.length) for k in stage.windows)
+    text = (f"no free unknown changes the fitted samples up to {end:.6g} s of the window (they end, for "
+            "example, before the first contact)")
+    if stage.final:
+        values = dict(zip(problem.free, values_of(problem.free, np.asarray(theta, dtype=float), problem.win.scale)))
+        raise FitDataError(f"{problem.meas.path or 'the record'}: {text} at the values {values}: there is nothing "
+                           "to fit; give a longer window or other free parameters")
+    return f"skipped: {text}"
+
+
 def run_stage(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoint,
               report: Callable[[dict], None]) -> FitState:
-    """Solve the current stage to its stop reason; returns the state at the next stage."""
+    """Solve the current stage to its stop reason; returns the state at the next stage.
+
+    A fresh least-squares stage whose Jacobian at its start is zero (no unknown influences its
+    fitted samples: a partial horizon that ends before the first contact, where the contact
+    parameters act on nothing) is skipped, its reason kept in ``FitState.skipped``; the next
+    stage starts from the same values. A final stage without influence is an error."""
     if st.iteration == 0 and st.x is None:
         st = begin_stage(problem, st)
     stage = problem.stages[st.stage]
-    run, st = stage_run(problem, opt, st, stage)
+    jac = None
+    if st.x is None and opt.least_squares:
+        loss0, jac = stage_jacobian(problem, st, stage)
+        check_start_loss(problem, stage, loss0, np.asarray(st.theta, dtype=float))
+        if not influences(jac):
+            reason = _no_influence(problem, stage, st.theta)
+            return _end_stage(st.replace(skipped=st.skipped + (f"{stage.name}: {reason}",)), stage, loss0, reason,
+                              ckpt)
+    run, st = stage_run(problem, opt, st, stage, jac)
     s = problem.settings
     limit, tol_f = stage.max_iter(s["max_iter"]), stage.ftol(s["ftol"])
     n_fit = max(float(sum(problem.win.residual_mask(k, stage.horizon).sum() for k in stage.windows)), 1.0)
@@ -158,6 +186,11 @@ def run_stage(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoin
         ckpt.save(st)
         if rep.counted:
             report(record)
+    return _end_stage(st, stage, loss, reason, ckpt)
+
+
+def _end_stage(st: FitState, stage: Stage, loss: float, reason: str, ckpt: Checkpoint) -> FitState:
+    """Record a start's result and the final stop reason, move to the next stage, checkpoint."""
     if stage.start >= 0:
         st = st.with_start_result(stage.start, loss, st.theta, reason)
     if stage.final:

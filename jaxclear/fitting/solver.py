@@ -58,6 +58,11 @@ EXTEND = 0
 MAX_STEP = math.inf
 #: Smallest trust-region size (``1 / lambda``) before a stage is declared stalled.
 MIN_STEP_SIZE = 1e-10
+#: Largest Jacobian column norm (of the normalised residual, per unit of the unconstrained
+#: unknowns) that counts as no influence: 1e-280 stays a normal float64 (above 2.2e-308) when
+#: scaled by the 1e-12 floor of :func:`column_scale` and by ``sqrt(1e-3)``, so no scale is ever
+#: flushed to zero.
+MIN_COLUMN_NORM = 1e-280
 _OPTIONS = {"jac": "fwd"}
 _TAGS = frozenset()
 
@@ -112,10 +117,27 @@ def column_scale(jac: np.ndarray, damping: float = 1e-3) -> np.ndarray:
     optimistix damps with ``lambda I`` and starts at ``lambda = 1``; in ``u`` the Gauss-Newton
     matrix has the diagonal ``1 / damping``, so the first steps are damped like Marquardt's
     ``(J^T J + mu diag(J^T J))`` with ``mu = damping`` (Marquardt 1963), whatever the units of
-    the unknowns and of the residual."""
-    norms = np.sqrt(np.sum(np.asarray(jac, dtype=float) ** 2, axis=0))
-    norms = np.maximum(norms, 1e-12 * max(float(np.max(norms, initial=0.0)), 1e-300))
-    return math.sqrt(damping) * norms
+    the unknowns and of the residual.
+
+    A Jacobian without a column above :data:`MIN_COLUMN_NORM` (no unknown influences the fitted
+    samples; :func:`jaxclear.fitting.run.run_stage` skips such a stage) gives ``D = 1``: a floor
+    relative to a zero norm would be a subnormal number, which XLA on CPU flushes to zero, so
+    that ``x = u / D`` would be ``0 / 0``."""
+    norms = _column_norms(jac)
+    if not influences(jac):
+        return np.ones_like(norms)
+    return math.sqrt(damping) * np.maximum(norms, 1e-12 * float(np.max(norms)))
+
+
+def _column_norms(jac: np.ndarray) -> np.ndarray:
+    """Euclidean norms ``|J_{:,j}|`` ``(P,)`` of the Jacobian's columns."""
+    return np.sqrt(np.sum(np.asarray(jac, dtype=float) ** 2, axis=0))
+
+
+def influences(jac: np.ndarray) -> bool:
+    """Whether any column of a stage's Jacobian exceeds :data:`MIN_COLUMN_NORM` (some unknown
+    changes the fitted samples)."""
+    return float(np.max(_column_norms(jac), initial=0.0)) > MIN_COLUMN_NORM
 
 
 def stack_jacobian(jts, jss, theta_free: bool, free_rows: tuple):

@@ -62,6 +62,8 @@ class FitState(eqx.Module):
         guesses: per window ``((3 n_b,), (3 n_b,))`` position and velocity guesses at its start.
         starts: per start index (str) ``{"loss", "theta", "reason"}`` of its stage.
         history: one record per iteration ``{"stage", "iteration", "loss", "values"}``.
+        skipped: ``"stage name: reason"`` of each stage skipped because no unknown influenced its
+            fitted samples (:func:`jaxclear.fitting.run.run_stage`).
         wall: wall time spent so far [s]; stop_reason: why the final stage ended.
     """
 
@@ -77,6 +79,7 @@ class FitState(eqx.Module):
     guesses: tuple = ()
     starts: tuple = ()
     history: tuple = ()
+    skipped: tuple = ()
     wall: float = 0.0
     stop_reason: str = ""
 

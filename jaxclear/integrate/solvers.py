@@ -26,6 +26,7 @@ import jax.numpy as jnp
 import optimistix as optx
 
 from .._errors import ParameterError
+from ..elements.memory import ONSET_MARGIN
 from .state import State
 
 
@@ -176,12 +177,6 @@ class ImpactMemorySolver(_Forwarding):
         return self.solver.func(terms, t0, y0, args)
 
 
-#: An onset step is accepted when it ends within ``2 ONSET_MARGIN`` of its length past the
-#: onset, or when the onset lies within ``ONSET_MARGIN`` of its start; otherwise it is retried
-#: with the step ``s h (1 + ONSET_MARGIN)``.
-ONSET_MARGIN = 1e-3
-
-
 class AbstractWrappedController(diffrax.AbstractAdaptiveStepSizeController):
     """A step-size controller that delegates to ``inner`` (tolerances, norm, initial step) and
     changes only :meth:`adapt_step_size`: the base of :class:`OnsetController` and
@@ -227,15 +222,18 @@ class StopOnNonFinite(AbstractWrappedController):
 
 
 class OnsetController(AbstractWrappedController):
-    r"""Step-size controller for exact contact onsets: delegates to ``inner`` and, when a
-    candidate step ``[t0, t0 + h]`` crosses into contact at the fraction ``s`` (the earliest
-    onset over the force elements, :meth:`AbstractForceElement.onset
-    <jaxclear.elements.base.AbstractForceElement.onset>`; cubic Hermite root of the penetration)
-    with :math:`\epsilon < s < 1/(1 + 2\epsilon)` (:data:`ONSET_MARGIN` :math:`\epsilon`),
-    rejects it and proposes :math:`\min(h_{inner}, s h (1 + \epsilon))`. The accepted onset step then ends
-    just past the onset, and the memory rule (:class:`ImpactMemorySolver`) stores the approach
-    speed at the onset before the contact force grows; the event location of an event-restart
-    integrator, as one more rejected step per onset. Like diffrax's controllers the step-size
+    r"""Step-size controller for exact contact switches: delegates to ``inner`` and, when a
+    candidate step ``[t0, t0 + h]`` must be split at the fraction ``s`` (the earliest contact
+    onset or separation over the force elements, :meth:`AbstractForceElement.onset
+    <jaxclear.elements.base.AbstractForceElement.onset>`: sign changes of the cubic Hermite
+    interpolant of the penetration, :func:`~jaxclear.elements.memory.onset_fraction`), rejects
+    it and proposes :math:`\min(h_{inner}, s h (1 + \epsilon))` (:data:`~jaxclear.elements.memory.ONSET_MARGIN`
+    :math:`\epsilon`). The accepted step then ends just past the switch: past an onset, the
+    memory rule (:class:`ImpactMemorySolver`) stores the approach speed at the onset before the
+    contact force grows; past a separation, the force's kink lies at a step boundary and a free
+    flight between two contacts ends a step, so its re-contact is counted as an impact. This is
+    the event location of an event-restart integrator (restarted at every onset and
+    separation), as one more rejected step per switch. Like diffrax's controllers the step-size
     decision is not differentiated (``stop_gradient``). Branch-free (``where``), so under
     ``vmap`` it costs the elements' kinematics at both ends of each step.
 
@@ -251,11 +249,13 @@ class OnsetController(AbstractWrappedController):
         mech = args[0]
         a, b = State.unpack(y0, mech), State.unpack(y1_candidate, mech)
         s = jnp.ones((), jnp.result_type(t1))
+        split = jnp.zeros((), bool)
         for element, state0 in zip(mech.clearance_joints, a.elements):
-            s_e, crossed = element.onset(mech, t0, a.q, a.qdot, t1, b.q, b.qdot, state0)
-            s = jnp.minimum(s, jnp.where(crossed, s_e, 1.0))
+            s_e, split_e = element.onset(mech, t0, a.q, a.qdot, t1, b.q, b.qdot, state0)
+            s = jnp.minimum(s, jnp.where(split_e, s_e, 1.0))
+            split = split | split_e
         eps = ONSET_MARGIN
-        split = (s > eps) & (s < 1.0 / (1.0 + 2.0 * eps)) & jnp.all(jnp.isfinite(y1_candidate))
+        split = split & jnp.all(jnp.isfinite(y1_candidate))
         h = t1 - t0
         dt_inner = tnext - tprev
         dt_split = jax.lax.stop_gradient(jnp.minimum(dt_inner, s * h * (1.0 + eps)))
