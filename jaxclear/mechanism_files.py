@@ -3,7 +3,7 @@
 A file holds what :class:`~jaxclear.Mechanism` holds, in SI units: bodies (mass, inertia, named
 points, initial guesses of position and velocity), ideal joints, drivers, force elements (revolute
 clearance, lubricated, pin-in-slot and translational clearance joints: geometry, law by name with
-its parameters, friction, film, profiles, initial offset), applied loads, gravity, ground points
+its parameters and profiles, friction, film, initial offset), applied loads, gravity, ground points
 and roles. :func:`load_mechanism` reads one (the standard ``tomllib``) and validates it:
 every error names the file, the key and the allowed values. :func:`save_mechanism` writes one
 (``tomli-w``); a mechanism written and read back is equal leaf by leaf (``eqx.tree_equal``).
@@ -56,7 +56,7 @@ _TAIL = ("law", "friction", "impact_velocity_floor", "initial_offset", "initial_
 ELEMENT_TYPES = {
     "revolute-clearance": (ClearanceJoint, (*_JOURNAL, "length", *_TAIL)),
     "lubricated": (LubricatedJoint, (*_JOURNAL, "width", "viscosity", "film", "blend_start", "blend_end",
-                                     "journal_profile", "bearing_profile", "n_elements", "n_gauss", *_TAIL)),
+                                     "n_elements", "n_gauss", *_TAIL)),  # profiles: in the law's table
     "pin-slot": (PinSlotJoint, (*_JOURNAL, "slot_length", "axis", "length", "ideal", *_TAIL)),
     "translational-clearance": (TranslationalClearanceJoint, (
         "name", "guide_body", "guide_point", "slider_body", "slider_point", "slider_length", "slider_height",
@@ -93,8 +93,6 @@ def _number(value):
 def _plain(value):
     if isinstance(value, (str, bool, int, float)):
         return value
-    if isinstance(value, FourierProfile):
-        return _fields(value, ("cos", "sin"))
     return _number(value)
 
 
@@ -275,10 +273,6 @@ class _Reader:
             return self.string(key, value)
         if name in ("axis", "force", "initial_offset", "initial_velocity"):
             return self.vector(key, value, 2)
-        if name.endswith("_profile"):  # a profile of a force element (laws: see _law)
-            sub = self.table(key, value)
-            self.keys(key, sub, TABLE_PARAMETERS["_profile"][1])
-            return self.build(key, FourierProfile, dict(sub))
         return self.number(key, value)
 
 

@@ -69,7 +69,7 @@ def _lubricated(**kw):
                 law=jc.make_law("hunt-crossley", restitution=0.7), friction=jc.Friction(0.05, model="coulomb"),
                 initial_offset=(1e-4, -2e-4), initial_velocity=(0.01, 0.0), name="oil"),
     _lubricated(journal_profile=jc.oval(2e-5, 0.3), bearing_profile=jc.FourierProfile([0.0, 0.0, 1e-5]),
-                n_elements=60, n_gauss=3, film="full"),
+                law=jc.HybridLaw(placement="fixed"), n_elements=60, n_gauss=3, film="full"),
     jc.preset("slider-crank-pin-slot", slot_length=0.0),
     eqx.tree_at(lambda m: m.clearance_joints, jc.preset("slider-crank-pin-slot"), (jc.PinSlotJoint(
         "slider", "B", "rod", "B", 0.01, 0.0094, slot_length=5e-3, axis=(0.6, 0.8), ideal="line",

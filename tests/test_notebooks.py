@@ -51,9 +51,10 @@ def test_committed_notebook_has_outputs_and_figures():
         assert (NOTEBOOKS / "figures" / fig).stat().st_size > 10_000
 
 
-@pytest.mark.slow
 def test_joints_notebook_runs(tmp_path):
-    """notebooks/joints.ipynb (dry against lubricated benchmark, guide clearance) end to end."""
+    """notebooks/joints.ipynb (dry against lubricated benchmark, guide clearance) end to end, one
+    crank revolution of each mechanism with JAXCLEAR_QUICK=1 (about 2 minutes on 2 shared cores,
+    mostly compilation)."""
     nb = execute_notebook("joints.ipynb", tmp_path)
     errors = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs if o.output_type == "error"]
     assert not errors

@@ -6,6 +6,7 @@ hierarchy; concrete laws are final):
 
 * :class:`AbstractNormalLaw`: ``normal_force(kin, deltadot0)`` and, where the law sets its
   own direction (non-circular profiles), ``contact_force``; ``penetration`` decides contact;
+  ``profiles`` and ``with_profiles`` (laws that integrate non-circular profiles);
   ``stiffness_parameter`` names the leaf that ``stiffness`` addresses in fits and sweeps and
   ``stiffness_value`` returns its value (derived from materials when the leaf is ``None``).
 * :class:`AbstractFriction`: ``__call__(v_t, F_N) -> F_T``; a law with internal (bristle)
@@ -96,7 +97,8 @@ class AbstractNormalLaw(eqx.Module):
 
     Subclasses implement :meth:`normal_force` and :meth:`stiffness_value` and set the class
     variable ``stiffness_parameter``; they may override :meth:`contact_force` (laws that set
-    their own direction), :meth:`penetration` and :meth:`check_geometry`."""
+    their own direction), :meth:`penetration`, :meth:`check_geometry`, and :attr:`profiles` with
+    :meth:`with_profiles` (laws that integrate non-circular journal and bearing profiles)."""
 
     restitution: eqx.AbstractVar[Scalar]
     stiffness_parameter: ClassVar[str] = "stiffness"
@@ -122,6 +124,20 @@ class AbstractNormalLaw(eqx.Module):
     def penetration(self, kin: ContactKinematics) -> Scalar:
         """Penetration that decides contact [m]; for a circular pin and hole it is ``e - c``."""
         return kin.delta
+
+    @property
+    def profiles(self) -> tuple:
+        """``(journal_profile, bearing_profile)``: the radial deviations the law contacts on
+        (:class:`~jaxclear.FourierProfile` or ``None`` each); ``(None, None)``: circles."""
+        return None, None
+
+    def with_profiles(self, journal_profile, bearing_profile) -> AbstractNormalLaw:
+        """This law on a non-circular journal and/or bearing. The default law assumes circles
+        (its force is a function of ``e - c``) and raises :class:`~jaxclear.ParameterError`;
+        laws that integrate the contact point by point override it."""
+        raise ParameterError(
+            f"contact law {self.name!r} assumes a circular journal and bearing; non-circular profiles need a "
+            "law that integrates the contact over the profile: HybridLaw(placement='fixed')")
 
     def check(self) -> RESULTS:
         """Traceable range check of the law's numbers, evaluated at run time under ``jit`` and

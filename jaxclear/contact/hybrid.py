@@ -110,6 +110,11 @@ def oval(amplitude: float, orientation: float = 0.0) -> FourierProfile:
     return FourierProfile(cos=[0.0, amplitude * np.cos(2 * orientation)], sin=[0.0, amplitude * np.sin(2 * orientation)])
 
 
+#: Why the arc placement refuses profiles.
+ARC_PROFILES = ("profiles need placement='fixed' (the contact arc of a non-circular profile is not known in "
+                "closed form)")
+
+
 class HybridLaw(AbstractNormalLaw):
     """The hybrid Gauss-point model (see module docstring).
 
@@ -174,7 +179,7 @@ class HybridLaw(AbstractNormalLaw):
         if int(n_gauss) < 1:
             raise ParameterError(f"n_gauss = {n_gauss} is outside the allowed range [1, inf)")
         if placement == "arc" and (journal_profile is not None or bearing_profile is not None):
-            raise ParameterError("profiles need placement='fixed' (the contact arc of a non-circular profile is not known in closed form)")
+            raise ParameterError(ARC_PROFILES)
         check_range("restitution", restitution, low=0.0, high=1.0, low_open=True)
         check_range("foundation_modulus", foundation_modulus, low=0.0, low_open=True, unit="Pa")
         check_range("thickness (h)", thickness, low=0.0, low_open=True, unit="m")
@@ -185,6 +190,20 @@ class HybridLaw(AbstractNormalLaw):
         self.journal_profile, self.bearing_profile = journal_profile, bearing_profile
         self.n_elements, self.n_gauss = int(n_elements), int(n_gauss)
         self.placement, self.damping, self.geometry, self.layers = placement, damping, geometry, layers
+
+    # ---- profiles -------------------------------------------------------------------
+    @property
+    def profiles(self):
+        """``(journal_profile, bearing_profile)``."""
+        return self.journal_profile, self.bearing_profile
+
+    def with_profiles(self, journal_profile, bearing_profile):
+        """This law with the given profiles (:class:`FourierProfile` or ``None`` each); the arc
+        placement raises :class:`~jaxclear.ParameterError` (:data:`ARC_PROFILES`)."""
+        if self.placement == "arc" and (journal_profile is not None or bearing_profile is not None):
+            raise ParameterError(ARC_PROFILES)
+        return eqx.tree_at(lambda m: (m.journal_profile, m.bearing_profile), self, (journal_profile, bearing_profile),
+                           is_leaf=lambda x: x is None)
 
     # ---- parameters -----------------------------------------------------------------
     def check(self) -> RESULTS:

@@ -86,9 +86,20 @@ journal :math:`F = -R_J\int_0^{2\pi}\bar p\,u\,d\theta`. For circles
 (:math:`\Delta = 0`) this is the integrand of the closed forms above (:math:`\psi = \theta -
 \theta_n`), which the tests reproduce; a first harmonic :math:`\Delta_J = a\cos(\theta -
 \phi_J)` is a circle whose centre is shifted by :math:`a\,u(\phi_J)`, another closed-form check.
-The blend applies to the eccentricity (:math:`\mathbf e \to \tilde\varepsilon c\,n` in
-:math:`h`), and :math:`h` is floored at :math:`(1 - \varepsilon_1)c` so that a profile cannot
-close the film.
+The blend applies to the closure of the film, :math:`k(\theta) = c - h(\theta)`, through the
+effective ratio :math:`\varepsilon_h = \max_\theta k/c = 1 - h_{min}/c` (the largest over the
+Gauss points): :math:`h \to c - (g(\varepsilon_h)/\varepsilon_h)\,k`, so that the thinnest
+film is :math:`(1 - g(\varepsilon_h))c \ge (1 - \varepsilon_1)c > 0` whatever the profiles
+(circles: :math:`\varepsilon_h = \varepsilon`, :math:`\mathbf e \to \tilde\varepsilon c\,n`
+as above; a first harmonic: the blend of the shifted circle). Below ``blend_start`` the film is
+untouched; above it the force is continuous, and C1 except where the thinnest Gauss point
+changes (the discrete maximum; its kinks shrink with the point spacing).
+
+The dry contact of a profiled joint touches the same profiles: they belong to the joint's dry
+law, which must integrate them point by point (:class:`~jaxclear.HybridLaw` with
+``placement="fixed"``, :meth:`~jaxclear.contact.base.AbstractNormalLaw.with_profiles`; any
+other law raises :class:`~jaxclear.ParameterError`), and the film reads them from there, so that
+film and wall (and a wear update of the law's bearing profile) always see one geometry.
 """
 
 from __future__ import annotations
@@ -165,16 +176,15 @@ def film_force(eps, eps_dot, wedge, radius, clearance, length, viscosity, film: 
     return -scale * (eps_dot * i_cc - wedge * i_cs), -scale * (eps_dot * i_cs - wedge * i_ss)
 
 
-def gauss_film_force(ecc, ecc_film, vel, omega_j, omega_b, phi_j, phi_b, radius, clearance, length, viscosity,
+def gauss_film_force(ecc, vel, omega_j, omega_b, phi_j, phi_b, radius, clearance, length, viscosity,
                      journal_profile=None, bearing_profile=None, n_elements: int = 180, n_gauss: int = 4,
-                     film: str = "half", h_min=0.0):
+                     film: str = "half", blend=None):
     r"""Short-bearing film force on the journal (2,) [N, global axes] for journal and bearing
     profiles, by composite Gauss-Legendre quadrature over :math:`\theta \in [0, 2\pi)` (module
     docstring for :math:`\bar p(\theta)`).
 
     Args:
-        ecc: eccentricity :math:`\mathbf e` (2,) [m] (the wedge term); ecc_film: the eccentricity
-            the film thickness is evaluated at (2,) [m] (the blended one).
+        ecc: eccentricity :math:`\mathbf e` (2,) [m] (bearing centre to journal centre).
         vel: journal-centre velocity relative to the bearing centre (2,) [m/s].
         omega_j, omega_b, phi_j, phi_b: angular velocities [rad/s] and angles [rad] of journal
             and bearing body (profiles are body-fixed).
@@ -183,7 +193,8 @@ def gauss_film_force(ecc, ecc_film, vel, omega_j, omega_b, phi_j, phi_b, radius,
         journal_profile, bearing_profile: :class:`~jaxclear.FourierProfile` or ``None``.
         n_elements, n_gauss: elements and Gauss points per element.
         film: ``"half"`` (:math:`\bar p \ge 0`) or ``"full"``.
-        h_min: floor of the film thickness [m].
+        blend: ``(blend_start, blend_end)`` of the film's saturation (module docstring), or
+            ``None`` (the film thickness as it is; it must stay positive).
     """
     s, w = gauss_nodes(n_elements, n_gauss)
     theta, weight = jnp.asarray(np.pi * (s + 1.0)), jnp.asarray(np.pi * w)
@@ -197,7 +208,13 @@ def gauss_film_force(ecc, ecc_film, vel, omega_j, omega_b, phi_j, phi_b, radius,
 
     d_j, dd_j = profile(journal_profile, phi_j)
     d_b, dd_b = profile(bearing_profile, phi_b)
-    h = jnp.maximum(clearance + d_b - d_j - (ecc_film[0] * cu + ecc_film[1] * su), h_min)
+    closure = d_j - d_b + ecc[0] * cu + ecc[1] * su  # c - h
+    if blend is not None:
+        eps_h = jnp.max(closure) / clearance
+        ok = eps_h > blend[0]  # below blend_start g is the identity: scale 1 (also keeps 0/0 out)
+        eps_safe = jnp.where(ok, eps_h, 1.0)
+        closure = closure * jnp.where(ok, film_ratio(eps_safe, blend[0], blend[1]) / eps_safe, 1.0)
+    h = clearance - closure
     g = (0.5 * (omega_j - omega_b) * (dd_b + dd_j) - 0.5 * (omega_j + omega_b) * (ecc[1] * cu - ecc[0] * su)
          - (vel[0] * cu + vel[1] * su))
     p = -viscosity * length**3 * g / h**3
@@ -223,11 +240,16 @@ class LubricatedJoint(AbstractJournalJoint):
         blend_start, blend_end: eccentricity ratios :math:`0 < \\varepsilon_0 < \\varepsilon_1 < 1`
             of the film's C1 saturation (transition to dry contact).
         film: film condition, one of :data:`FILMS` (static); ``"half"`` or ``"full"`` with profiles.
-        journal_profile, bearing_profile: :class:`~jaxclear.FourierProfile` radial deviations [m]
-            (body-fixed) or ``None`` (circles: the closed forms). With a profile the film force
-            is integrated at ``n_elements`` x ``n_gauss`` Gauss points (:func:`gauss_film_force`;
-            static, >= 1; default 180 x 4: the half film's edges fall inside elements, where the
-            rule loses its order, error O(element width^2), 1e-5 of the force at 180 elements).
+        journal_profile, bearing_profile (properties, the dry law's :attr:`profiles`):
+            :class:`~jaxclear.FourierProfile` radial deviations [m] (body-fixed) or ``None``
+            (circles: the closed forms). Given to the constructor, they are handed to the law
+            (:meth:`~jaxclear.contact.base.AbstractNormalLaw.with_profiles`: a law that
+            integrates profiles, ``HybridLaw(placement="fixed")``; the default law assumes
+            circles and raises :class:`~jaxclear.ParameterError`; so does a law that has its own
+            profiles). With a profile the film force is integrated at ``n_elements`` x
+            ``n_gauss`` Gauss points (:func:`gauss_film_force`; static, >= 1; default 180 x 4: the
+            half film's edges fall inside elements, where the rule loses its order, error
+            O(element width^2), 1e-5 of the force at 180 elements).
     """
 
     bearing_body: str = eqx.field(static=True)
@@ -245,8 +267,6 @@ class LubricatedJoint(AbstractJournalJoint):
     impact_velocity_floor: Scalar
     initial_offset: Vec2
     initial_velocity: Vec2
-    journal_profile: FourierProfile | None
-    bearing_profile: FourierProfile | None
     film: str = eqx.field(static=True)
     n_elements: int = eqx.field(static=True)
     n_gauss: int = eqx.field(static=True)
@@ -287,19 +307,18 @@ class LubricatedJoint(AbstractJournalJoint):
             )
         if film not in FILMS:
             raise ParameterError(f"film = {film!r} is not a film condition; valid: {list(FILMS)}")
-        profiled = journal_profile is not None or bearing_profile is not None
-        if profiled and film == "half-fixed":
+        law = ContactLaw() if law is None else law
+        if journal_profile is not None or bearing_profile is not None:
+            if any(p is not None for p in law.profiles):
+                raise ParameterError("profiles given twice: to the joint and to its law (give them once; the "
+                                     "joint hands its profiles to the law)")
+            law = law.with_profiles(journal_profile, bearing_profile)
+        if film == "half-fixed" and any(p is not None for p in law.profiles):
             raise ParameterError("film = 'half-fixed' has no meaning for profiles (its edges follow the line of "
                                  "centres of circles); valid with profiles: ['half', 'full']")
         check_range("n_elements", n_elements, low=1.0, unit="")
         check_range("n_gauss", n_gauss, low=1.0, unit="")
-        if profiled and all(is_concrete(v) for v in (bearing_radius, journal_radius, journal_profile, bearing_profile)):
-            j_max = journal_profile.extremes()[1] if journal_profile is not None else 0.0
-            b_min = bearing_profile.extremes()[0] if bearing_profile is not None else 0.0
-            if float(bearing_radius) - float(journal_radius) + b_min - j_max <= 0.0:
-                raise ParameterError(
-                    f"the profiles close the film: clearance {float(bearing_radius) - float(journal_radius):g} m + "
-                    f"smallest bearing deviation {b_min:g} m - largest journal deviation {j_max:g} m must be > 0")
+        # the law refuses profiles that close the clearance (HybridLaw.check_geometry)
         rb, rj, offset = check_journal_geometry(bearing_radius, journal_radius, length, impact_velocity_floor, law,
                                                 initial_offset)
         self.bearing_body, self.bearing_point = bearing_body, bearing_point
@@ -309,15 +328,24 @@ class LubricatedJoint(AbstractJournalJoint):
         self.viscosity = jnp.asarray(viscosity, dtype=float)
         self.blend_start = jnp.asarray(blend_start, dtype=float)
         self.blend_end = jnp.asarray(blend_end, dtype=float)
-        self.law = ContactLaw() if law is None else law
+        self.law = law
         self.friction = element_friction(friction, "LubricatedJoint", Friction())
         self.impact_velocity_floor = jnp.asarray(impact_velocity_floor, dtype=float)
         self.initial_offset = offset
         self.initial_velocity = jnp.asarray(initial_velocity, dtype=float).reshape(2)
         self.film = film
-        self.journal_profile, self.bearing_profile = journal_profile, bearing_profile
         self.n_elements, self.n_gauss = int(n_elements), int(n_gauss)
         self.name = name
+
+    @property
+    def journal_profile(self) -> FourierProfile | None:
+        """The journal's radial deviation [m] (the dry law's), or ``None`` (circle)."""
+        return self.law.profiles[0]
+
+    @property
+    def bearing_profile(self) -> FourierProfile | None:
+        """The bearing's radial deviation [m] (the dry law's), or ``None`` (circle)."""
+        return self.law.profiles[1]
 
     @property
     def width(self):
@@ -348,14 +376,13 @@ class LubricatedJoint(AbstractJournalJoint):
     def _film(self, kin):
         c = self.clearance
         v = kin.journal_velocity - kin.bearing_velocity
-        eps = film_ratio(kin.e / c, self.blend_start, self.blend_end)
         if self.journal_profile is not None or self.bearing_profile is not None:
-            e_film = eps * c * kin.normal  # the blended eccentricity (the wedge keeps the true one)
-            f = gauss_film_force(kin.ecc, e_film, v, kin.journal_omega, kin.bearing_omega, kin.journal_angle,
+            f = gauss_film_force(kin.ecc, v, kin.journal_omega, kin.bearing_omega, kin.journal_angle,
                                  kin.bearing_angle, self.journal_radius, c, self.length, self.viscosity,
                                  self.journal_profile, self.bearing_profile, self.n_elements, self.n_gauss,
-                                 self.film, (1.0 - self.blend_end) * c)
+                                 self.film, (self.blend_start, self.blend_end))
             return f[0] * kin.normal[0] + f[1] * kin.normal[1], f[0] * kin.tangent[0] + f[1] * kin.tangent[1]
+        eps = film_ratio(kin.e / c, self.blend_start, self.blend_end)
         eps_dot = (v[0] * kin.normal[0] + v[1] * kin.normal[1]) / c
         wedge = (0.5 * (kin.journal_omega + kin.bearing_omega) * kin.e - (v[0] * kin.tangent[0] + v[1] * kin.tangent[1])) / c
         return film_force(eps, eps_dot, wedge, self.journal_radius, c, self.length, self.viscosity, self.film)
