@@ -221,6 +221,11 @@ class StopOnNonFinite(AbstractWrappedController):
         return keep & finite, tprev, tnext, jump, state, result
 
 
+#: Retries of one step that :class:`OnsetController` may ask for in a row to locate a switch
+#: (one suffices for a smooth penetration; the bound keeps a kinked one from stalling the solve).
+MAX_SPLITS = 3
+
+
 class OnsetController(AbstractWrappedController):
     r"""Step-size controller for exact contact switches: delegates to ``inner`` and, when a
     candidate step ``[t0, t0 + h]`` must be split at the fraction ``s`` (the earliest contact
@@ -242,9 +247,14 @@ class OnsetController(AbstractWrappedController):
 
     inner: diffrax.AbstractAdaptiveStepSizeController
 
+    def init(self, terms, t0, t1, y0, dt0, args, func, error_order):
+        t1_, state = self.inner.init(terms, t0, t1, y0, dt0, args, func, error_order)
+        return t1_, (state, jnp.zeros((), jnp.int32))
+
     def adapt_step_size(self, t0, t1, y0, y1_candidate, args, y_error, error_order, controller_state):
+        inner_state, splits = controller_state
         keep, tprev, tnext, jump, state, result = self.inner.adapt_step_size(
-            t0, t1, y0, y1_candidate, args, y_error, error_order, controller_state
+            t0, t1, y0, y1_candidate, args, y_error, error_order, inner_state
         )
         mech = args[0]
         a, b = State.unpack(y0, mech), State.unpack(y1_candidate, mech)
@@ -260,9 +270,14 @@ class OnsetController(AbstractWrappedController):
         dt_inner = tnext - tprev
         dt_split = jax.lax.stop_gradient(jnp.minimum(dt_inner, s * h * (1.0 + eps)))
         split = split & (t0 + dt_split > t0)  # never a step below the resolution of t
+        # a switch that moves with the step (a penetration with kinks, e.g. the deepest of a
+        # profile's Gauss points) is located at most MAX_SPLITS times in a row, then accepted
+        split = split & (splits < MAX_SPLITS)
         tprev = jnp.where(split, t0, tprev)
         tnext = jnp.where(split, t0 + dt_split, tnext)
-        return keep & ~split, tprev, tnext, jump & ~split, state, result
+        accepted = keep & ~split
+        splits = jnp.where(split, splits + 1, jnp.where(accepted, 0, splits))
+        return accepted, tprev, tnext, jump & ~split, (state, splits), result
 
 
 class StateNorm(eqx.Module):
