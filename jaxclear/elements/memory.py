@@ -198,11 +198,12 @@ def onset_fraction(p0, p1, r0, r1, h) -> tuple[Scalar, BoolScalar]:
     sw = contact_switches(p0, p1, r0, r1, h)
     s, n = sw.first, sw.count
     eps = ONSET_MARGIN
+    deep = (n > 1) & (sw.excursion > EXCURSION_DEPTH)  # a contact or free flight inside the step
     # a single switch, or an excursion inside the step deep enough to resolve
-    resolve = (n == 1) | (n == 3) | ((n == 2) & (sw.excursion > EXCURSION_DEPTH))
+    resolve = (n == 1) | (n == 3) | deep
     before_end = resolve & (s < 1.0 / (1.0 + 2.0 * eps))
     at_start = s <= eps
-    onset_or_several = (jnp.asarray(p0) <= 0.0) | ((n > 1) & (sw.excursion > EXCURSION_DEPTH))
+    onset_or_several = (jnp.asarray(p0) <= 0.0) | deep
     # at the start only where the step's start is measurably off the switch: below
     # SWITCH_RESOLUTION the penetration is rounding noise of the coordinates, and retrying
     # would shrink the step towards the resolution of t
