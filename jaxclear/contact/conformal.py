@@ -36,6 +36,14 @@ ESDU-78035 (1978)          pi        :math:`4\pi L E^*\Delta R`                 
   loaded unlubricated elastic components" (1978), as quoted by Pereira et al.:
   :math:`\delta = \frac{F}{L E^*}[\ln(4\pi L E^*\Delta R/F) + 1]`.
 
+Pereira et al.'s text could not be read for this implementation: the expressions are the
+original sources' in one notation (:math:`\sigma_k = (1-\nu_k^2)/(\pi E_k)`). An independent open
+implementation of the same set (L. Škrinjar, ``MBD_system``, ``contact_model_cylinder.py``, GitHub)
+agrees on Johnson and on the form of Dubowsky-Freudenstein and ESDU, and differs in three
+variants (documentation, "Contact laws"): compliances without the :math:`1/\pi` (penetrations
+:math:`\pi` times these), Radzimovsky's half-width :math:`1.6\sqrt{FR^*/(LE^*)}` instead of Hertz's,
+and :math:`R^*` in Goldsmith's logarithm (which makes it Dubowsky-Freudenstein's law).
+
 Each is solved for :math:`F(\delta)` by Newton's method on :math:`\ln F` (:func:`log_law_force`,
 fixed iteration count, differentiable through the implicit function theorem). The relation is
 monotonic while :math:`\ln(B/F) + c > 1`; beyond that penetration (for Johnson
