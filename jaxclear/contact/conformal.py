@@ -202,8 +202,13 @@ def overlap_arc(delta, clearance):
 
 def persson_force(delta, clearance, length, modulus):
     r"""Persson's law [N] at penetration ``delta`` [m]: :func:`persson_load` of the
-    :func:`overlap_arc` (together :math:`\tfrac12\pi L E^*\delta`); 0 for delta <= 0."""
-    return persson_load(overlap_arc(delta, clearance), clearance, length, modulus)
+    :func:`overlap_arc` (together :math:`\tfrac12\pi L E^*\delta`); 0 for delta <= 0.
+
+    The ratio :math:`b^2/(1 - b^2)` of the overlap arc is evaluated in its closed form
+    :math:`\delta/(2\Delta R)`: computed as ``b2 / (1 - b2)`` it cancels for
+    :math:`\delta \gg \Delta R` (``inf`` at the penetrations of an overshooting trial step)."""
+    ratio = jnp.maximum(delta, 0.0) / (2.0 * clearance)  # b^2 / (1 - b^2) of overlap_arc
+    return jnp.pi * length * modulus * clearance * ratio
 
 
 #: clearance range [m] of Pereira et al.'s fit
