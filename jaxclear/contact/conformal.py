@@ -189,7 +189,12 @@ def persson_load(b2, clearance, length, modulus):
     r"""Persson's load [N] for a contact arc of half-angle :math:`\varepsilon`, given as
     ``b2`` = :math:`b^2 = \tan^2(\varepsilon/2) \in [0, 1)`:
     :math:`F = \pi L E^*\Delta R\,b^2/(1 - b^2)` (module docstring: the closed form, its limits)."""
-    return jnp.pi * length * modulus * clearance * b2 / (1.0 - b2)
+    return _persson_load_of_ratio(b2 / (1.0 - b2), clearance, length, modulus)
+
+
+def _persson_load_of_ratio(ratio, clearance, length, modulus):
+    r""":math:`F = \pi L E^*\Delta R\,r` [N] of the ratio :math:`r = b^2/(1 - b^2)`."""
+    return jnp.pi * length * modulus * clearance * ratio
 
 
 def overlap_arc(delta, clearance):
@@ -208,7 +213,7 @@ def persson_force(delta, clearance, length, modulus):
     :math:`\delta/(2\Delta R)`: computed as ``b2 / (1 - b2)`` it cancels for
     :math:`\delta \gg \Delta R` (``inf`` at the penetrations of an overshooting trial step)."""
     ratio = jnp.maximum(delta, 0.0) / (2.0 * clearance)  # b^2 / (1 - b^2) of overlap_arc
-    return jnp.pi * length * modulus * clearance * ratio
+    return _persson_load_of_ratio(ratio, clearance, length, modulus)
 
 
 #: clearance range [m] of Pereira et al.'s fit

@@ -77,9 +77,9 @@ hundreds of rows, so forward mode costs about one simulation per column while re
 cost one backward pass per row.
 
 Every stage is solved by :class:`optimistix.LevenbergMarquardt` (Gauss-Newton with damping
-``(J^T J + lambda I) dx = -J^T r``, ``lambda`` updated by Nielsen's rule, accepted steps extended
-along curved valleys, :mod:`.lm`; Levenberg 1944, Marquardt 1963, Nielsen 1999), driven one ``step`` at a time so that the state can
-be checkpointed between steps (:mod:`.solver`). The Jacobian is handed to it materialised (one
+``(J^T J + lambda I) dx = -J^T r``, ``lambda`` updated by Nielsen's rule, accepted steps
+extended along curved valleys, :mod:`.lm`; Levenberg 1944, Marquardt 1963, Nielsen 1999),
+driven one ``step`` at a time so that the state can be checkpointed between steps (:mod:`.solver`). The Jacobian is handed to it materialised (one
 forward-mode pass per window and step). An optax first-order optimiser may be passed instead
 (``optimizer=optax.adam(0.02)`` or ``"adam:0.05"``; run by :class:`optimistix.OptaxMinimiser`
 on ``0.5 |r|^2`` with the same forward-mode gradient ``J^T r``). It is not a good choice here:

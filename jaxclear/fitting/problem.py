@@ -180,8 +180,6 @@ def build_problem(data, mech: Mechanism, free: Sequence[str], start: dict | None
     z0 = z_vector(free, values0, win.scale)
     velocity_scale = abs(speed) if speed else 1.0 / window
     n_fine = int(round(window / h))
-    # exact onsets off (FIT_EXACT_ONSETS): their forward-mode Jacobian misses how the split step's
-    # end (placed just past the onset) moves with the parameters
     s = make_settings(n_fine * h, n_out=n_fine + 1, rtol=settings["rtol"], atol=settings["atol"], adjoint="forward",
                       throw=False, max_steps=settings["max_steps"], exact_onsets=FIT_EXACT_ONSETS)
     model = WindowModel(mech=mech, sensors=tuple(fc.sensor for _, fc in targets),

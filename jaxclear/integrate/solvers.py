@@ -180,7 +180,8 @@ class ImpactMemorySolver(_Forwarding):
 class AbstractWrappedController(diffrax.AbstractAdaptiveStepSizeController):
     """A step-size controller that delegates to ``inner`` (tolerances, norm, initial step) and
     changes only :meth:`adapt_step_size`: the base of :class:`OnsetController` and
-    :class:`StopOnNonFinite`."""
+    :class:`StopOnNonFinite`. Its state is ``(inner state, retries)``: the count of candidate
+    steps the wrapper has rejected in a row (0 at the start)."""
 
     inner: eqx.AbstractVar[diffrax.AbstractAdaptiveStepSizeController]
 
@@ -200,7 +201,8 @@ class AbstractWrappedController(diffrax.AbstractAdaptiveStepSizeController):
         return type(self)(self.inner.wrap(direction))
 
     def init(self, terms, t0, t1, y0, dt0, args, func, error_order):
-        return self.inner.init(terms, t0, t1, y0, dt0, args, func, error_order)
+        t1_, state = self.inner.init(terms, t0, t1, y0, dt0, args, func, error_order)
+        return t1_, (state, jnp.zeros((), jnp.int32))
 
 
 #: Consecutive non-finite candidate steps that :class:`StopOnNonFinite` retries, each with
@@ -222,10 +224,6 @@ class StopOnNonFinite(AbstractWrappedController):
     ``nonfinite_state``."""
 
     inner: diffrax.AbstractAdaptiveStepSizeController
-
-    def init(self, terms, t0, t1, y0, dt0, args, func, error_order):
-        t1_, state = self.inner.init(terms, t0, t1, y0, dt0, args, func, error_order)
-        return t1_, (state, jnp.zeros((), jnp.int32))
 
     def adapt_step_size(self, t0, t1, y0, y1_candidate, args, y_error, error_order, controller_state):
         inner_state, fails = controller_state
@@ -268,10 +266,6 @@ class OnsetController(AbstractWrappedController):
     :meth:`State.pack`."""
 
     inner: diffrax.AbstractAdaptiveStepSizeController
-
-    def init(self, terms, t0, t1, y0, dt0, args, func, error_order):
-        t1_, state = self.inner.init(terms, t0, t1, y0, dt0, args, func, error_order)
-        return t1_, (state, jnp.zeros((), jnp.int32))
 
     def adapt_step_size(self, t0, t1, y0, y1_candidate, args, y_error, error_order, controller_state):
         inner_state, splits = controller_state
