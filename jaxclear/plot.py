@@ -19,10 +19,17 @@ from matplotlib.ticker import MaxNLocator, MultipleLocator
 
 from .model import Mechanism
 from .integrate import Solution
+from .integrate.compile import jit
 
 DPI = 130
 FIGSIZE = (9.0, 4.8)
 COLORS = ("tab:blue", "tab:red", "tab:green", "tab:purple")
+
+
+@jit
+def _clearance_region(joint):
+    """``joint.clearance_region()`` as one compiled program (op by op, several small ones)."""
+    return joint.clearance_region()
 
 
 def _save(fig: Figure, path) -> Figure:
@@ -128,7 +135,7 @@ def plot_orbit(path, mech: Mechanism, sol: Solution) -> Figure:
     for j, joint in enumerate(mech.clearance_joints):
         ax = fig.add_subplot(1, k, j + 1)
         c = 1e3 * float(joint.clearance)
-        region = 1e3 * np.asarray(joint.clearance_region(), dtype=float)
+        region = 1e3 * np.asarray(_clearance_region(joint), dtype=float)
         ax.plot(region[:, 0], region[:, 1], color="black", lw=1.2, label=f"clearance region, c = {c:g} mm")
         ax.plot(ecc[:, j, 0], ecc[:, j, 1], color=COLORS[0], lw=0.7, label="orbit")
         ax.plot(ecc[0, j, 0], ecc[0, j, 1], "o", color="tab:green", ms=5, label="start")

@@ -9,6 +9,7 @@ import pytest
 from jax.experimental.compilation_cache import compilation_cache
 
 from jaxclear.cli import build_parser, cache
+from jaxclear.integrate import programs
 
 
 @pytest.fixture
@@ -20,6 +21,7 @@ def restore_cache_config():
     for k, v in saved.items():
         jax.config.update(k, v)
     compilation_cache.reset_cache()
+    programs.enable(None)
 
 
 def test_default_dir_from_environment(monkeypatch, tmp_path):
@@ -38,6 +40,7 @@ def test_cache_folder_used_and_switched_off(tmp_path, restore_cache_config):
     args = build_parser().parse_args(["--cache-dir", str(folder), "presets"])
     assert cache.configure(args) == folder and cache.active()
     assert jax.config.jax_compilation_cache_dir == str(folder)
+    assert programs.folder() == folder / cache.PROGRAMS  # traced programs kept beside the compiled ones
     assert not cache.progress_allowed(argparse.Namespace(no_progress=False))  # a callback is not cacheable
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)  # a tiny program, written anyway
     compilation_cache.reset_cache()
@@ -46,6 +49,6 @@ def test_cache_folder_used_and_switched_off(tmp_path, restore_cache_config):
 
     jax.config.update("jax_compilation_cache_dir", None)
     off = build_parser().parse_args(["--no-cache", "--cache-dir", str(tmp_path / "other"), "presets"])
-    assert cache.configure(off) is None and not cache.active()
+    assert cache.configure(off) is None and not cache.active() and programs.folder() is None
     assert not (tmp_path / "other").exists()
     assert cache.progress_allowed(argparse.Namespace(no_progress=False))

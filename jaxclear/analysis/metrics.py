@@ -18,6 +18,7 @@ import numpy as np
 
 from .._errors import STATUS
 from ..integrate import Solution
+from ..integrate.compile import jit
 from ..model import Mechanism, crank_driver
 
 #: Keys of :func:`summary`, in output order, with their units (``-`` for dimensionless).
@@ -215,7 +216,7 @@ def peak_slider_acceleration(mech: Mechanism, sol: Solution) -> float | None:
     """Largest ``|x''|`` of the slider body [m/s^2] over the samples, or None without a slider
     (``peak_slider_acc_m_s2`` of :func:`run_metrics`)."""
     acc = _slider_acc(mech, sol)
-    return None if acc is None else _float(jnp.max(jnp.abs(acc)))
+    return None if acc is None else _float(np.max(np.abs(np.asarray(acc))))
 
 
 def mode_fractions(sol: Solution) -> tuple[float, float, float] | None:
@@ -226,6 +227,13 @@ def mode_fractions(sol: Solution) -> tuple[float, float, float] | None:
         return None
     fractions = _mode_fractions(sol)
     return tuple(_float(fractions[key]) for key, _ in _MODES)  # type: ignore[return-value]
+
+
+@jit
+def _metrics_program(mech: Mechanism, sol: Solution) -> tuple[dict, dict]:
+    """:func:`run_metrics` and :func:`joint_metrics` over the whole run as one compiled program
+    (op by op they were some forty small programs, each compiled in a new process)."""
+    return run_metrics(mech, sol), joint_metrics(mech, sol)
 
 
 def summary(mech: Mechanism, sol: Solution, wall_time_s: float | None = None) -> dict:
@@ -240,8 +248,8 @@ def summary(mech: Mechanism, sol: Solution, wall_time_s: float | None = None) ->
     * ``status_message``: the text of ``status`` in :data:`jaxclear.STATUS`;
     * ``wall_time_s``: as given (the command line includes JIT compilation).
     """
-    m = run_metrics(mech, sol)
-    per_joint = {key: np.asarray(v, dtype=float) for key, v in joint_metrics(mech, sol).items()}
+    m, per_joint = _metrics_program(mech, sol)
+    per_joint = {key: np.asarray(v, dtype=float) for key, v in per_joint.items()}
     contact = bool(per_joint)
     status = int(np.asarray(m["status"]))
     ts = np.asarray(sol.ts, dtype=float)

@@ -5,8 +5,10 @@ skips XLA compilation.
 JAX's persistent compilation cache (``jax_compilation_cache_dir``) stores each compiled program
 under a key of its lowered program, compile options, backend and jax/jaxlib versions; a changed
 structure (another law, another joint set) or a new jaxlib is a cache miss, never a wrong
-program. Values of parameters are array leaves and do not enter the key. Tracing and lowering
-still happen in every process (the key is computed from the lowered program).
+program. Values of parameters are array leaves and do not enter the key. JAX computes that key
+from the lowered program, so a process would still trace and lower first; the traced programs
+themselves are kept beside it (subfolder ``programs``, :mod:`jaxclear.integrate.programs`), so a
+warm run skips tracing too.
 
 Where: ``$JAXCLEAR_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/jaxclear/xla`` (``XDG_CACHE_HOME``
 defaults to ``~/.cache``): per user, never a shared folder. Off: ``--no-cache``, or
@@ -21,9 +23,13 @@ from pathlib import Path
 
 import jax
 
+from ..integrate import programs
+
 #: Environment variable naming the cache folder (``off``, ``0``, ``none`` or empty: no cache).
 ENV = "JAXCLEAR_CACHE_DIR"
 _OFF = {"", "0", "off", "none", "false", "no"}
+#: Subfolder of the traced programs (:mod:`jaxclear.integrate.programs`).
+PROGRAMS = "programs"
 #: Programs that compile faster than this [s] are not written (the many tiny eager-op programs).
 MIN_COMPILE_TIME_S = 0.1
 
@@ -52,6 +58,7 @@ def enable(folder: Path | str | None) -> Path | None:
     jax.config.update("jax_compilation_cache_dir", str(folder))
     jax.config.update("jax_persistent_cache_min_compile_time_secs", MIN_COMPILE_TIME_S)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+    programs.enable(folder / PROGRAMS)
     return folder
 
 
@@ -70,6 +77,7 @@ def progress_allowed(args) -> bool:
 def configure(args) -> Path | None:
     """Enable the cache for a parsed command line (``--no-cache``, ``--cache-dir``, else the
     environment's :func:`default_dir`). Returns the folder in use, or None."""
+    programs.enable(None)  # until a folder is in use
     if getattr(args, "no_cache", False):
         return None
     folder = getattr(args, "cache_dir", None)

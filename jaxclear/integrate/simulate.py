@@ -26,7 +26,8 @@ import jax.numpy as jnp
 from .._errors import RESULTS, ParameterError, SolverError, invalid_codes, is_concrete, status_message
 from ..model.mechanism import Mechanism
 from .assembly import NEWTON_TOL, assemble, check_assembly, initial_state
-from .compile import jit, without_input_callbacks
+from . import programs
+from .compile import compiler_options, jit, without_input_callbacks
 from .dynamics import _accelerations, flat_vector_field
 from .settings import SOLVERS, Settings
 from .solution import Solution
@@ -161,6 +162,16 @@ def _too_deep(mech: Mechanism, pen, element_states):
     return jnp.any(pen > limits) | jnp.any(peak > limits)
 
 
+def solution_structure(mech: Mechanism):
+    """The pytree structure of :func:`simulate`'s :class:`Solution` for ``mech``, without
+    tracing the run (the element states' structure from :meth:`State.unpack` of an abstract
+    vector)."""
+    vector = jax.ShapeDtypeStruct((State.size(mech),), jnp.float64 if jax.config.jax_enable_x64 else jnp.float32)
+    states = jax.eval_shape(lambda v: State.unpack(v, mech).elements, vector)
+    return jax.tree_util.tree_structure(Solution(*([0] * 11), element_states=states, num_steps=0,
+                                                 num_accepted_steps=0, num_rejected_steps=0, status=0))
+
+
 @jit
 def _simulate(mech: Mechanism, s: Settings, y0: State | None) -> Solution:
     asm = assemble(mech, s.t_start)
@@ -192,7 +203,12 @@ def simulate(mech: Mechanism, s: Settings, y0: State | None = None) -> Solution:
         return _simulate(mech, s, y0)
     if y0 is None:
         check_assembly(mech, s)
-    sol = _simulate(mech, dataclasses.replace(s, throw=False), y0)
+    s = dataclasses.replace(s, throw=False)
+    # through the store of traced programs when the command line enabled it (programs.py)
+    sol = programs.call("simulate", _simulate.__wrapped__, (mech, s, y0), lambda: solution_structure(mech),
+                        compiler_options=compiler_options())
+    if sol is None:
+        sol = _simulate(mech, s, y0)
     code = int(sol.status)
     if code in invalid_codes():
         raise ParameterError(f"jaxclear: {status_message(code)}")

@@ -1,0 +1,199 @@
+"""Traced programs kept on disk, so that a new process skips tracing and lowering.
+
+JAX's persistent compilation cache (:mod:`jaxclear.cli.cache`) skips XLA compilation, but its
+key is computed from the *lowered* program, so every new process still traces and lowers
+:func:`~jaxclear.integrate.simulate` first: about 6 s of Python for the benchmark slider-crank
+and its ideal-joint companion on a 2-core machine, most of a warm ``jaxclear simulate``. This
+module stores the lowered program itself with :mod:`jax.export` (serialized StableHLO) under a
+key of everything the trace depends on; a later process of the same structure deserializes it
+(milliseconds) and calls it, and the compilation cache then finds the compiled program.
+
+The key (SHA-256) covers: the program's name; the versions of jax, jaxlib, diffrax, equinox,
+optimistix and lineax; the bytes of every jaxclear source file (any code change is a miss);
+JAX's x64 flag; the structure of the arguments with every non-array value in it (static fields
+of the mechanism and the settings: names, laws, tolerances, sample counts) by its ``repr``; and
+the shape and dtype of every array leaf. Array *values* (masses, clearance, stiffness, end time)
+are the program's inputs and do not enter the key. An argument whose ``repr`` does not show its
+value in full (an object shown by address, ``<... at 0x...>``, or an abbreviated array, ``...``)
+makes the call uncacheable: it is traced as usual, never served a program traced for another
+value.
+
+:mod:`jax.export` does not serialize equinox modules as pytree nodes, so the program takes and
+returns flat lists of arrays; the caller gives the output's structure (``out_structure``), which
+it knows without tracing.
+
+Off unless :func:`enable` is called (the command line does, in its cache folder); the library
+alone never reads or writes such files. Needs the ``flatbuffers`` package (jax's serializer).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import hashlib
+import importlib.metadata
+import os
+import tempfile
+import threading
+from pathlib import Path
+from typing import Callable
+
+import equinox as eqx
+import jax
+
+#: Suffix of the stored programs' file names.
+SUFFIX = ".jaxexport"
+#: Libraries whose versions enter the key.
+KEYED_PACKAGES = ("jax", "jaxlib", "diffrax", "equinox", "optimistix", "lineax")
+
+_FOLDER: list[Path | None] = [None]
+_RUNNERS: dict[str, Callable] = {}
+_LOCK = threading.Lock()
+
+
+def enable(folder: Path | str | None) -> Path | None:
+    """Store and reuse traced programs in ``folder`` (created, mode 0700); ``None`` switches the
+    store off. Returns the folder in use (None if off or if it cannot be created). Programs
+    already loaded in this process are forgotten (the next call reads ``folder``)."""
+    with _LOCK:
+        _RUNNERS.clear()
+    if folder is None:
+        _FOLDER[0] = None
+        return None
+    folder = Path(folder).expanduser()
+    try:
+        folder.mkdir(parents=True, exist_ok=True, mode=0o700)
+    except OSError:
+        folder = None
+    _FOLDER[0] = folder
+    return folder
+
+
+def folder() -> Path | None:
+    """The store's folder in this process, or None when it is off."""
+    return _FOLDER[0]
+
+
+@functools.cache
+def _environment_digest() -> str:
+    """Library versions and the bytes of every jaxclear source file."""
+    h = hashlib.sha256()
+    for name in KEYED_PACKAGES:
+        try:
+            version = importlib.metadata.version(name)
+        except importlib.metadata.PackageNotFoundError:
+            version = "-"
+        h.update(f"{name}={version};".encode())
+    root = Path(__file__).resolve().parents[1]
+    for path in sorted(root.rglob("*.py")):
+        h.update(str(path.relative_to(root)).encode())
+        h.update(path.read_bytes())
+    return h.hexdigest()
+
+
+def _faithful(text: str) -> bool:
+    """Whether a ``repr`` shows its value in full (no object address, no abbreviation)."""
+    return " at 0x" not in text and "..." not in text
+
+
+def program_key(name: str, args) -> tuple[str, list] | None:
+    """``(key, array leaves)`` of a call of program ``name`` on ``args``, or None when the
+    arguments' static part cannot be keyed faithfully."""
+    dynamic, static = eqx.partition(args, eqx.is_array)
+    leaves = jax.tree_util.tree_leaves(dynamic)
+    text = repr(jax.tree_util.tree_flatten(static))
+    if not _faithful(text):
+        return None
+    h = hashlib.sha256()
+    h.update(f"{name}\n{_environment_digest()}\nx64={jax.config.jax_enable_x64}\n".encode())
+    h.update(text.encode())
+    h.update(repr(jax.tree_util.tree_structure(dynamic)).encode())
+    for x in leaves:
+        h.update(f"{x.shape}{x.dtype};".encode())
+    return h.hexdigest(), leaves
+
+
+def _export(fun: Callable, args, leaves: list, wrap: Callable) -> jax.export.Exported:
+    dynamic, static = eqx.partition(args, eqx.is_array)
+    treedef = jax.tree_util.tree_structure(dynamic)
+
+    def flat(*xs):
+        out = fun(*eqx.combine(jax.tree_util.tree_unflatten(treedef, xs), static))
+        return jax.tree_util.tree_leaves(out)
+
+    avals = [jax.ShapeDtypeStruct(x.shape, x.dtype) for x in leaves]
+    with wrap():
+        return jax.export.export(jax.jit(flat))(*avals)
+
+
+def _write(path: Path, blob: bytes) -> None:
+    """Write atomically (a partial file is never read as a program)."""
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=SUFFIX)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(blob)
+        os.replace(tmp, path)
+    except OSError:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+
+
+def _load(key: str, fun: Callable, args, leaves: list, wrap: Callable) -> jax.export.Exported:
+    """The program ``key`` from its file, or traced, exported and written on a miss."""
+    exp = None
+    path = _FOLDER[0] / f"{key}{SUFFIX}"  # type: ignore[operator]
+    blob = None
+    if path.is_file():
+        try:
+            blob = path.read_bytes()
+            exp = jax.export.deserialize(bytearray(blob))
+        except Exception:  # an unreadable or truncated file: trace again and replace it
+            exp = None
+    if exp is None:
+        blob = _export(fun, args, leaves, wrap).serialize()
+        _write(path, blob)
+        # the deserialized form, also on this first call: it lowers to the same module as in
+        # later processes, so the compilation cache's key matches theirs
+        exp = jax.export.deserialize(bytearray(blob))
+    return exp
+
+
+def call(name: str, fun: Callable, args: tuple, out_structure: Callable[[], jax.tree_util.PyTreeDef],
+         *, compiler_options: dict | None = None, wrap: Callable | None = None):
+    """``fun(*args)`` through the store when it is enabled and the arguments can be keyed,
+    else ``None`` (the caller then runs its usual jitted function).
+
+    Args:
+        name: the program's name (part of the key).
+        fun: the function (traced on a miss, with ``wrap()`` as context manager).
+        args: its arguments (a tuple of pytrees: arrays are inputs, everything else is keyed).
+        out_structure: returns the pytree structure of ``fun``'s output without tracing it.
+        compiler_options: XLA options of the compilation (:func:`~jaxclear.integrate.compile.compiler_options`).
+    """
+    if _FOLDER[0] is None:
+        return None
+    keyed = program_key(name, args)
+    if keyed is None:
+        return None
+    key, leaves = keyed
+    run = _runner(key, fun, args, leaves, wrap or contextlib.nullcontext, compiler_options or {})
+    return jax.tree_util.tree_unflatten(out_structure(), run(leaves))
+
+
+def _runner(key: str, fun: Callable, args, leaves: list, wrap: Callable, options: dict) -> Callable:
+    """The jitted caller of the stored program ``key`` (one per program and process, so its
+    compiled executable is reused by later calls)."""
+    with _LOCK:
+        run = _RUNNERS.get(key)
+    if run is None:
+        exp = _load(key, fun, args, leaves, wrap)
+        kwargs = {"compiler_options": dict(options)} if options else {}
+        run = jax.jit(lambda xs: exp.call(*xs), **kwargs)
+        with _LOCK:
+            _RUNNERS[key] = run
+    return run
+
+
+__all__ = ["KEYED_PACKAGES", "SUFFIX", "call", "enable", "folder", "program_key"]

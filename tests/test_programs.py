@@ -1,0 +1,107 @@
+"""The store of traced programs (jaxclear/integrate/programs.py): a run through a stored program
+equals the usual jitted run bit for bit, array values are inputs (one program serves every
+value), static structure is part of the key, unkeyable arguments and damaged files fall back to
+tracing, and a new process loads the program instead of tracing it."""
+
+import dataclasses
+import importlib
+import os
+import subprocess
+import sys
+import textwrap
+
+import jax
+import numpy as np
+import pytest
+
+import jaxclear as jc
+from jaxclear.integrate import programs
+from jaxclear.integrate.compile import compiler_options
+from jaxclear.integrate.runs import revolution_settings
+
+simulate_module = importlib.import_module("jaxclear.integrate.simulate")
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+@pytest.fixture
+def store(tmp_path):
+    folder = programs.enable(tmp_path / "programs")
+    yield folder
+    programs.enable(None)
+
+
+def _files(folder):
+    return sorted(p.name for p in folder.iterdir() if p.name.endswith(programs.SUFFIX))
+
+
+def _plain(mech, s):
+    return simulate_module._simulate(mech, dataclasses.replace(s, throw=False), None)
+
+
+def _assert_same(a, b):
+    # the same program on the same inputs: equal to the last bit (XLA is deterministic on CPU)
+    for x, y in zip(jax.tree_util.tree_leaves(a), jax.tree_util.tree_leaves(b)):
+        np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
+    assert jax.tree_util.tree_structure(a) == jax.tree_util.tree_structure(b)
+
+
+def test_stored_program_equals_the_jitted_run_and_serves_every_value(store):
+    mech = jc.preset("flores-slider-crank")
+    s = revolution_settings(mech, 0.05, n_out=51)
+    sol = jc.simulate(mech, s)
+    # two programs: the eager assembly check and the run
+    assert len(_files(store)) == 2
+    _assert_same(sol, _plain(mech, s))
+    # another clearance (an array value): same programs, no new file, the other value's result
+    wider = jc.preset("flores-slider-crank", clearance=0.4e-3)
+    sol2 = jc.simulate(wider, s)
+    assert len(_files(store)) == 2
+    _assert_same(sol2, _plain(wider, s))
+    assert not np.array_equal(np.asarray(sol2.penetration), np.asarray(sol.penetration))
+    # another output grid (static structure): a new program
+    jc.simulate(mech, dataclasses.replace(s, n_out=52))
+    assert len(_files(store)) == 3
+
+
+def test_unkeyable_arguments_are_traced_as_usual(store):
+    class Opaque:  # repr shows an address: not a faithful key
+        pass
+
+    assert programs.program_key("p", (Opaque(),)) is None
+    assert programs.call("p", lambda x: x, (Opaque(),), lambda: None) is None
+    assert programs.program_key("p", (np.zeros(3), "name", 1.5)) is not None
+
+
+def test_damaged_file_is_traced_again_and_replaced(store):
+    mech = jc.preset("flores-slider-crank")
+    s = dataclasses.replace(revolution_settings(mech, 0.05, n_out=51), throw=False)
+    args = (mech, s, None)
+    key, _ = programs.program_key("simulate", args)
+    path = store / f"{key}{programs.SUFFIX}"
+    path.write_bytes(b"not a program")
+    sol = programs.call("simulate", simulate_module._simulate.__wrapped__, args,
+                        lambda: simulate_module.solution_structure(mech), compiler_options=compiler_options())
+    assert path.stat().st_size > 1000
+    _assert_same(sol, _plain(mech, s))
+
+
+def test_a_new_process_loads_instead_of_tracing(store):
+    mech = jc.preset("flores-slider-crank")
+    jc.simulate(mech, revolution_settings(mech, 0.05, n_out=51))
+    script = textwrap.dedent(f"""
+        import jaxclear as jc
+        from jaxclear.integrate import programs
+        from jaxclear.integrate.runs import revolution_settings
+        programs.enable({str(store)!r})
+        def no_trace(*a, **k):
+            raise AssertionError("traced although the program is stored")
+        programs._export = no_trace
+        mech = jc.preset("flores-slider-crank")
+        sol = jc.simulate(mech, revolution_settings(mech, 0.05, n_out=51))
+        print("steps", int(sol.num_steps))
+    """)
+    env = dict(os.environ, PYTHONPATH=ROOT + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    proc = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "steps" in proc.stdout
