@@ -13,8 +13,7 @@ from .._errors import InitialConditionError, MechanismError
 from .._types import Array, Float
 from ..model import constraints
 from ..model.mechanism import Mechanism
-from . import programs
-from .compile import compiler_options, jit
+from .compile import jit
 from .dynamics import spd_solve
 from .settings import Settings
 from .state import State
@@ -102,10 +101,7 @@ def _dependent_rows(d: np.ndarray, tol: float) -> list[int]:
 def check_assembly(mech: Mechanism, s: Settings) -> Assembly:
     """Eager checks with detailed messages (concrete inputs only): Newton convergence,
     redundant constraints, too few constraints for the drivers. Returns the assembly."""
-    asm = programs.call("assemble", assemble, (mech, s.t_start), lambda: jax.tree_util.tree_structure(Assembly(0, 0, 0, 0)),
-                        compiler_options=compiler_options())
-    if asm is None:  # the store of traced programs is off (programs.py)
-        asm = _assemble_jit(mech, s.t_start)
+    asm = _assemble_jit.stored("assemble", lambda: jax.tree_util.tree_structure(Assembly(0, 0, 0, 0)), mech, s.t_start)
     if not np.isfinite(float(asm.residual)) or float(asm.residual) > NEWTON_TOL:
         raise InitialConditionError(
             f"the Newton solve of Phi(q, {s.t_start:g}) = 0 did not converge: residual "

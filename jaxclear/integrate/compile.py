@@ -15,6 +15,8 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
+from . import programs
+
 #: XLA options for jaxclear's own compiled functions. ``xla_cpu_use_fusion_emitters=False``
 #: selects XLA:CPU's older elemental emitters for fused kernels; for the small scalar-heavy
 #: kernels of a planar mechanism they compile in about half the time (benchmark slider-crank:
@@ -63,6 +65,16 @@ class jit:  # noqa: N801 (used like a decorator, as eqx.filter_jit)
 
     def lower(self, *args, **kwargs):
         return self._get().lower(*args, **kwargs)
+
+    def stored(self, name: str, out_structure, *args):
+        """Call on concrete ``args`` through the store of traced programs
+        (:mod:`~jaxclear.integrate.programs`, enabled by the command line), so that a new
+        process skips tracing; as a plain call when the store is off or the arguments cannot
+        be keyed. ``out_structure()`` returns the output's pytree structure without tracing."""
+        if any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(args)):
+            return self(*args)
+        out = programs.call(name, self._fun, args, out_structure, compiler_options=compiler_options())
+        return self(*args) if out is None else out
 
 
 class _ChecksOff:

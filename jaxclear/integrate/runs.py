@@ -22,6 +22,7 @@ import jax
 from .._errors import check_range
 from ..model import Mechanism, crank_driver, crank_period
 from .settings import Settings, settings
+from .kinematics import is_kinematic, kinematic_solution
 from .simulate import simulate
 from .solution import Solution
 
@@ -91,11 +92,11 @@ class RunWithIdeal(NamedTuple):
     ideal_wall_time_s: float | None
 
 
-def timed_simulate(mech: Mechanism, s: Settings) -> tuple[Solution, float]:
-    """:func:`jaxclear.integrate.simulate` and its wall time [s] (until the results are ready,
-    including JIT compilation on the first call)."""
+def timed_simulate(mech: Mechanism, s: Settings, run=simulate) -> tuple[Solution, float]:
+    """``run(mech, s)`` (:func:`jaxclear.integrate.simulate` by default) and its wall time [s]
+    (until the results are ready, including JIT compilation on the first call)."""
     t0 = time.perf_counter()
-    sol = jax.block_until_ready(simulate(mech, s))
+    sol = jax.block_until_ready(run(mech, s))
     return sol, time.perf_counter() - t0
 
 
@@ -105,15 +106,19 @@ def simulate_with_ideal(mech: Mechanism, s: Settings, ideal: bool = True) -> Run
     settings, so both solutions share the output grid. Errors of either run propagate
     (:class:`jaxclear.JaxclearError`).
 
-    The two are different programs (the ideal mechanism has other equations), so a first call
-    compiles both; the ideal one runs in a second thread, so that its tracing and XLA
-    compilation (which release the GIL) overlap the clearance run's instead of following it."""
+    When the drivers determine the ideal mechanism's motion (:func:`~jaxclear.integrate.kinematics.is_kinematic`,
+    e.g. a crank-driven slider-crank or four-bar), its solution is the kinematic analysis at the
+    samples (:func:`~jaxclear.integrate.kinematics.kinematic_solution`): no integration, a small
+    program, exact to the Newton tolerance. Otherwise it is integrated with ``s``. Either way it
+    is another program than the clearance run's; it runs in a second thread, so that its tracing
+    and XLA compilation (which release the GIL) overlap the clearance run's."""
     if not (ideal and mech.clearance_joints):
         sol, wall = timed_simulate(mech, s)
         return RunWithIdeal(sol, None, None, wall, None)
     ideal_mech = mech.ideal()
     with ThreadPoolExecutor(max_workers=1, thread_name_prefix="jaxclear-ideal") as pool:
-        pending = pool.submit(timed_simulate, ideal_mech, dataclasses.replace(s, progress=False))
+        pending = pool.submit(timed_simulate, ideal_mech, dataclasses.replace(s, progress=False),
+                              kinematic_solution if is_kinematic(ideal_mech) else simulate)
         sol, wall = timed_simulate(mech, s)
         ideal_sol, ideal_wall = pending.result()
     return RunWithIdeal(sol, ideal_sol, ideal_mech, wall, ideal_wall)

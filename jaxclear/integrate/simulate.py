@@ -26,8 +26,7 @@ import jax.numpy as jnp
 from .._errors import RESULTS, ParameterError, SolverError, invalid_codes, is_concrete, status_message
 from ..model.mechanism import Mechanism
 from .assembly import NEWTON_TOL, assemble, check_assembly, initial_state
-from . import programs
-from .compile import compiler_options, jit, without_input_callbacks
+from .compile import jit, without_input_callbacks
 from .dynamics import _accelerations, flat_vector_field
 from .settings import SOLVERS, Settings
 from .solution import Solution
@@ -88,12 +87,18 @@ def _postprocess(mech: Mechanism, s: Settings, ts, packed, ys: State):
     return qdd, lam, drift, contact.ecc, contact.penetration, contact.normal_force, contact.friction_force, mode
 
 
+def output_grid(s: Settings, dtype, run=True):
+    """``(t0, t1, ts)``: start, end and the ``s.n_out`` uniform output samples [s], sorted and
+    inside ``[t0, t1]`` by construction; ``t1 = t0`` where ``run`` is False."""
+    t0 = jnp.asarray(s.t_start, dtype)
+    t1 = jnp.where(run, jnp.asarray(s.t_end, dtype), t0)
+    ts = t0 + (t1 - t0) * jnp.linspace(0.0, 1.0, s.n_out, dtype=dtype)
+    return t0, t1, jnp.minimum(ts, t1).at[-1].set(t1)
+
+
 def _solve(mech: Mechanism, s: Settings, y0: State, assembled_ok, valid=RESULTS.successful):
-    t0 = jnp.asarray(s.t_start, y0.q.dtype)
     # an invalid member (parameters outside their ranges) is not integrated: zero-length run
-    t1 = jnp.where(valid == RESULTS.successful, jnp.asarray(s.t_end, y0.q.dtype), t0)
-    ts = t0 + (t1 - t0) * jnp.linspace(0.0, 1.0, s.n_out, dtype=y0.q.dtype)
-    ts = jnp.minimum(ts, t1).at[-1].set(t1)  # sorted and inside [t0, t1] by construction
+    t0, t1, ts = output_grid(s, y0.q.dtype, valid == RESULTS.successful)
     norm = StateNorm(mech.n_coordinates)
     controller = StopOnNonFinite(diffrax.PIDController(rtol=s.rtol, atol=s.atol, dtmax=s.dtmax, norm=norm))
     if s.exact_onsets and mech.clearance_joints:
@@ -204,11 +209,7 @@ def simulate(mech: Mechanism, s: Settings, y0: State | None = None) -> Solution:
     if y0 is None:
         check_assembly(mech, s)
     s = dataclasses.replace(s, throw=False)
-    # through the store of traced programs when the command line enabled it (programs.py)
-    sol = programs.call("simulate", _simulate.__wrapped__, (mech, s, y0), lambda: solution_structure(mech),
-                        compiler_options=compiler_options())
-    if sol is None:
-        sol = _simulate(mech, s, y0)
+    sol = _simulate.stored("simulate", lambda: solution_structure(mech), mech, s, y0)
     code = int(sol.status)
     if code in invalid_codes():
         raise ParameterError(f"jaxclear: {status_message(code)}")
