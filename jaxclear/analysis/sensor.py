@@ -46,7 +46,6 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-import scipy.linalg
 
 from .._errors import ParameterError, check_range
 
@@ -117,6 +116,8 @@ def _foh_matrices(cutoff_hz: float, dt: float):
     m[:2, :2] = a
     m[:2, 2] = b
     m[2, 3] = 1.0
+    import scipy.linalg  # here, not at module level: it adds ~0.2 s to every `import jaxclear`
+
     e = scipy.linalg.expm(m * dt)
     return e[:2, :2], e[:2, 2], e[:2, 3] / dt
 
