@@ -259,7 +259,9 @@ def profile_child(revolutions, rtol, atol, solver, n_out, loops=5000):
     import jax.numpy as jnp
 
     import jaxclear as jc
-    from jaxclear.integrate import simulate as jsolve
+    import importlib
+
+    jsolve = importlib.import_module("jaxclear.integrate.simulate")  # the module (the package exports the function)
     from jaxclear.integrate import check_assembly, compiler_options, UnrolledExplicitRK
     from jaxclear.integrate import flat_vector_field, spd_solve
 
@@ -306,8 +308,8 @@ def profile_child(revolutions, rtol, atol, solver, n_out, loops=5000):
 
     term = diffrax.ODETerm(flat_vector_field)
 
-    def step_time(inner):  # one solver step (all stages + memory update), tiny dt
-        wrapped = jc.ImpactMemorySolver(inner)
+    def step_time(inner, memory=True):  # one solver step (all stages + memory update), tiny dt
+        wrapped = jc.ImpactMemorySolver(inner) if memory else inner
         state0 = wrapped.init(term, 0.0, 1e-8, y0, args)
 
         def step_body(i, carry, args):
@@ -319,6 +321,20 @@ def profile_child(revolutions, rtol, atol, solver, n_out, loops=5000):
         return per_iteration(step_body, (y0, state0))
 
     out["solver_step_s"] = step_time(jsolve._inner_solver(s))
+    out["solver_step_no_memory_s"] = step_time(jsolve._inner_solver(s), memory=False)
+
+    def whole_run_per_step(settings):  # steady state of jc.simulate, per step (accepted + rejected)
+        jax.block_until_ready(jc.simulate(mech, settings))
+        walls = []
+        for _ in range(5):
+            t0 = time.perf_counter()
+            sol = jax.block_until_ready(jc.simulate(mech, settings))
+            walls.append(time.perf_counter() - t0)
+        return _median(walls) / int(sol.num_steps), int(sol.num_steps)
+
+    out["whole_run_per_step_s"], out["whole_run_steps"] = whole_run_per_step(s)
+    out["whole_run_no_onsets_per_step_s"], out["whole_run_no_onsets_steps"] = whole_run_per_step(
+        dataclasses.replace(s, exact_onsets=False))
     if isinstance(jsolve._inner_solver(s), UnrolledExplicitRK):
         # the whole benchmark run with diffrax's own stage loop (Settings(stages="loop")), per step
         s_loop = dataclasses.replace(s, stages="loop")
@@ -436,7 +452,9 @@ def main(argv=None):
     import jax.numpy as jnp
 
     import jaxclear as jc
-    from jaxclear.integrate import simulate as jsolve
+    import importlib
+
+    jsolve = importlib.import_module("jaxclear.integrate.simulate")  # the module (the package exports the function)
     from jaxclear.integrate import check_assembly, compiler_options, UnrolledExplicitRK
     import scipy_reference as ref
 
@@ -662,7 +680,12 @@ def main(argv=None):
             ("  XLA compile", [_fmt(prof["xla_compile_s"], "s")]),
             ("steady state, per step attempt:", []),
             ("  whole run: steady / step attempts", [_fmt(per_step, "us")]),
+            ("  whole run in the profile process (exact onsets)",
+             [_fmt(prof["whole_run_per_step_s"], "us") + f" x {prof['whole_run_steps']}"]),
+            ("  whole run without exact onsets",
+             [_fmt(prof["whole_run_no_onsets_per_step_s"], "us") + f" x {prof['whole_run_no_onsets_steps']}"]),
             ("  one solver step in a fori_loop (stages + memory)", [_fmt(prof["solver_step_s"], "us")]),
+            ("  the same without the memory update", [_fmt(prof["solver_step_no_memory_s"], "us")]),
             *([("  whole run with diffrax's stage loop (stages='loop')", [_fmt(prof["whole_run_loop_per_step_s"], "us")])]
               if "whole_run_loop_per_step_s" in prof else []),
             (f"  {k} x one RHS evaluation" if k else "  one RHS evaluation",

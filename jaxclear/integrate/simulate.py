@@ -9,8 +9,9 @@ status.
 
 Speed (the benchmark slider-crank takes a few thousand steps of a vector field with only a few
 dozen flops per kernel, so per-kernel overhead dominates): the solver integrates one packed
-vector rather than a pytree, the explicit Runge-Kutta stages are unrolled
-(:class:`~jaxclear.integrate.solvers.UnrolledExplicitRK`), and XLA compiles with
+vector rather than a pytree, the Runge-Kutta stages run in diffrax's stage loop (one copy of
+the vector field; :class:`~jaxclear.integrate.solvers.UnrolledExplicitRK` unrolls them, see
+``Settings.stages``), and XLA compiles with
 :func:`~jaxclear.integrate.compile.compiler_options`. ``benchmarks/bench_engine.py --profile``
 measures each part.
 """

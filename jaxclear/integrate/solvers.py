@@ -2,8 +2,9 @@ r"""Solver wrappers around diffrax's Runge-Kutta solvers.
 
 * :class:`UnrolledExplicitRK`: the same step as a diffrax explicit Runge-Kutta solver (its
   tableau and interpolation), with the stages unrolled into straight-line code; per-kernel
-  overhead dominates the small right-hand side of a planar mechanism, and the unrolled form
-  takes about 17 us per step against 25 us for diffrax's stage loop on the benchmark.
+  overhead dominates the small right-hand side of a planar mechanism (``Settings(stages=
+  "unrolled")``; the default since 2026-11-25 is diffrax's stage loop, which now compiles in
+  half the time and runs as fast or faster on the benchmark: see ``Settings.stages``).
 * :class:`ImpactMemorySolver`: wraps any solver; after every accepted step it calls every force
   element's ``after_step`` (the impact-memory rule), so history-dependent force laws see the
   approach speed at the onset; the step's dense output carries the updated memory.
