@@ -1,7 +1,5 @@
 """``python -m jaxclear``: the command line (see :mod:`jaxclear.cli`)."""
 
-import sys
+from .cli import run
 
-from .cli import main
-
-sys.exit(main())
+run()

@@ -50,18 +50,18 @@ def test_stored_program_equals_the_jitted_run_and_serves_every_value(store):
     mech = jc.preset("flores-slider-crank")
     s = revolution_settings(mech, 0.05, n_out=51)
     sol = jc.simulate(mech, s)
-    # two programs: the eager assembly check and the run
-    assert len(_files(store)) == 2
+    # one program: the run, which also returns the assembly that the eager checks read
+    assert len(_files(store)) == 1
     _assert_same(sol, _plain(mech, s))
     # another clearance (an array value): same programs, no new file, the other value's result
     wider = jc.preset("flores-slider-crank", clearance=0.4e-3)
     sol2 = jc.simulate(wider, s)
-    assert len(_files(store)) == 2
+    assert len(_files(store)) == 1
     _assert_same(sol2, _plain(wider, s))
     assert not np.array_equal(np.asarray(sol2.penetration), np.asarray(sol.penetration))
     # another output grid (static structure): a new program
     jc.simulate(mech, dataclasses.replace(s, n_out=52))
-    assert len(_files(store)) == 3
+    assert len(_files(store)) == 2
 
 
 def test_unkeyable_arguments_are_traced_as_usual(store):
@@ -77,10 +77,11 @@ def test_damaged_file_is_traced_again_and_replaced(store):
     mech = jc.preset("flores-slider-crank")
     s = dataclasses.replace(revolution_settings(mech, 0.05, n_out=51), throw=False)
     args = (mech, s, None)
-    key, _ = programs.program_key("simulate", args)
+    fun = simulate_module._simulate.__wrapped__
+    key, _ = programs.program_key(f"simulate:{fun.__module__}.{fun.__qualname__}", args)
     path = store / f"{key}{programs.SUFFIX}"
     path.write_bytes(b"not a program")
-    sol = programs.call("simulate", simulate_module._simulate.__wrapped__, args,
+    sol = programs.call("simulate", fun, args,
                         lambda: simulate_module.solution_structure(mech), compiler_options=compiler_options())
     assert path.stat().st_size > 1000
     _assert_same(sol, _plain(mech, s))
@@ -105,3 +106,25 @@ def test_a_new_process_loads_instead_of_tracing(store):
     proc = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert "steps" in proc.stdout
+
+
+def test_prepare_traces_once_and_the_overlay_runs_through_the_store(store, monkeypatch):
+    """simulate_with_ideal traces the clearance run first (prepare_simulate), then runs both;
+    the call after prepare does not trace again, and the results equal the plain runs."""
+    from jaxclear.integrate.runs import simulate_with_ideal
+
+    mech = jc.preset("flores-slider-crank")
+    s = revolution_settings(mech, 0.05, n_out=51)
+    simulate_module.prepare_simulate(mech, s)
+    assert len(_files(store)) == 1
+
+    def no_trace(*a, **k):
+        raise AssertionError("traced again after prepare")
+
+    monkeypatch.setattr(programs, "_export", no_trace)
+    sol = jc.simulate(mech, s)
+    _assert_same(sol, _plain(mech, s))
+    monkeypatch.undo()
+    r = simulate_with_ideal(mech, s)
+    _assert_same(r.sol, sol)
+    assert int(r.ideal_sol.status) == 0 and len(_files(store)) == 2  # the kinematic overlay's program

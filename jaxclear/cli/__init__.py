@@ -25,6 +25,8 @@ compilation; ``jaxclear --no-cache COMMAND`` or ``JAXCLEAR_CACHE_DIR=off`` switc
 from __future__ import annotations
 
 import argparse
+import logging
+import os
 import sys
 
 from .. import __version__
@@ -86,6 +88,19 @@ def main(argv: list[str] | None = None) -> int:
         return 130
 
 
+def run() -> None:
+    """Entry point of the ``jaxclear`` console script and of ``python -m jaxclear``: :func:`main`,
+    then the process ends at once with its exit code (``os._exit``), after flushing the standard
+    streams and the logging handlers. Every command has closed its files by then; what is
+    skipped is Python's teardown of JAX's objects (compiled programs, traces, the backend),
+    measured 0.1-1.3 s of a warm ``jaxclear simulate`` on a 2-core machine."""
+    code = main()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    logging.shutdown()
+    os._exit(code)
+
+
 def _saved(args) -> str:
     """What an interrupted command left on disk and how to resume (one line)."""
     out = getattr(args, "out", None)
@@ -98,4 +113,4 @@ def _saved(args) -> str:
     return "nothing was saved"
 
 
-__all__ = ["COMMANDS", "build_parser", "main"]
+__all__ = ["COMMANDS", "build_parser", "main", "run"]

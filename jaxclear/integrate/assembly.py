@@ -84,6 +84,8 @@ def assemble(mech: Mechanism, t0=0.0) -> Assembly:
 
 
 _assemble_jit = jit(assemble)
+#: An :class:`Assembly` whose pytree structure is that of every assembly (for stored programs).
+ASSEMBLY_TEMPLATE = Assembly(0, 0, 0, 0)
 
 
 def _dependent_rows(d: np.ndarray, tol: float) -> list[int]:
@@ -98,10 +100,16 @@ def _dependent_rows(d: np.ndarray, tol: float) -> list[int]:
     return rows
 
 
-def check_assembly(mech: Mechanism, s: Settings) -> Assembly:
+def check_assembly(mech: Mechanism, s: Settings, asm: Assembly | None = None) -> Assembly:
     """Eager checks with detailed messages (concrete inputs only): Newton convergence,
-    redundant constraints, too few constraints for the drivers. Returns the assembly."""
-    asm = _assemble_jit.stored("assemble", lambda: jax.tree_util.tree_structure(Assembly(0, 0, 0, 0)), mech, s.t_start)
+    redundant constraints, too few constraints for the drivers. Returns the assembly.
+
+    ``asm``: the assembly at ``s.t_start`` if already computed (:func:`~jaxclear.simulate`
+    returns it from its own program, so a first call compiles one program, not two); else it is
+    computed here."""
+    if asm is None:
+        asm = _assemble_jit.stored("assemble", lambda: jax.tree_util.tree_structure(ASSEMBLY_TEMPLATE), mech,
+                                   s.t_start)
     if not np.isfinite(float(asm.residual)) or float(asm.residual) > NEWTON_TOL:
         raise InitialConditionError(
             f"the Newton solve of Phi(q, {s.t_start:g}) = 0 did not converge: residual "

@@ -76,6 +76,13 @@ class jit:  # noqa: N801 (used like a decorator, as eqx.filter_jit)
         out = programs.call(name, self._fun, args, out_structure, compiler_options=compiler_options())
         return self(*args) if out is None else out
 
+    def prepare(self, name: str, *args) -> None:
+        """Trace (or load) what :meth:`stored` with the same arguments will run, without
+        compiling it (:func:`~jaxclear.integrate.programs.prepare`); with the store off, lower
+        it (JAX keeps the trace for the call)."""
+        if not programs.prepare(name, self._fun, args, compiler_options=compiler_options()):
+            self.lower(*args)
+
 
 class _ChecksOff:
     """``equinox.internal`` as diffrax's integrator sees it, with ``error_if`` returning its

@@ -8,7 +8,7 @@ module stores the lowered program itself with :mod:`jax.export` (serialized Stab
 key of everything the trace depends on; a later process of the same structure deserializes it
 (milliseconds) and calls it, and the compilation cache then finds the compiled program.
 
-The key (SHA-256) covers: the program's name; the versions of jax, jaxlib, diffrax, equinox,
+The key (SHA-256) covers: the program's name and its function's qualified name; the versions of jax, jaxlib, diffrax, equinox,
 optimistix and lineax; the bytes of every jaxclear source file (any code change is a miss);
 JAX's x64 flag; the structure of the arguments with every non-array value in it (static fields
 of the mechanism and the settings: names, laws, tolerances, sample counts) by its ``repr``; and
@@ -172,14 +172,36 @@ def call(name: str, fun: Callable, args: tuple, out_structure: Callable[[], jax.
         out_structure: returns the pytree structure of ``fun``'s output without tracing it.
         compiler_options: XLA options of the compilation (:func:`~jaxclear.integrate.compile.compiler_options`).
     """
+    run = _prepared(name, fun, args, compiler_options, wrap)
+    if run is None:
+        return None
+    run, leaves = run
+    return jax.tree_util.tree_unflatten(out_structure(), run(leaves))
+
+
+def prepare(name: str, fun: Callable, args: tuple, *, compiler_options: dict | None = None,
+            wrap: Callable | None = None) -> bool:
+    """Load (or, on a miss, trace and store) the program that :func:`call` with the same
+    arguments will run, without compiling or running it; returns whether the store took it.
+    Tracing holds Python's lock and XLA's compilation does not: a caller that runs two programs
+    in two threads prepares the first, so that the second's tracing overlaps the first's
+    compilation instead of competing with its tracing."""
+    prepared = _prepared(name, fun, args, compiler_options, wrap)
+    if prepared is None:
+        return False
+    run, leaves = prepared
+    run.lower(leaves)  # JAX keeps the lowering for the call
+    return True
+
+
+def _prepared(name, fun, args, compiler_options, wrap):
     if _FOLDER[0] is None:
         return None
-    keyed = program_key(name, args)
+    keyed = program_key(f"{name}:{getattr(fun, '__module__', '')}.{getattr(fun, '__qualname__', '')}", args)
     if keyed is None:
         return None
     key, leaves = keyed
-    run = _runner(key, fun, args, leaves, wrap or contextlib.nullcontext, compiler_options or {})
-    return jax.tree_util.tree_unflatten(out_structure(), run(leaves))
+    return _runner(key, fun, args, leaves, wrap or contextlib.nullcontext, compiler_options or {}), leaves
 
 
 def _runner(key: str, fun: Callable, args, leaves: list, wrap: Callable, options: dict) -> Callable:
@@ -196,4 +218,4 @@ def _runner(key: str, fun: Callable, args, leaves: list, wrap: Callable, options
     return run
 
 
-__all__ = ["KEYED_PACKAGES", "SUFFIX", "call", "enable", "folder", "program_key"]
+__all__ = ["KEYED_PACKAGES", "SUFFIX", "call", "enable", "folder", "prepare", "program_key"]

@@ -26,7 +26,7 @@ import jax.numpy as jnp
 
 from .._errors import RESULTS, ParameterError, SolverError, invalid_codes, is_concrete, status_message
 from ..model.mechanism import Mechanism
-from .assembly import NEWTON_TOL, assemble, check_assembly, initial_state
+from .assembly import ASSEMBLY_TEMPLATE, NEWTON_TOL, assemble, check_assembly, initial_state
 from .compile import jit, without_input_callbacks
 from .dynamics import _accelerations, flat_vector_field
 from .settings import SOLVERS, Settings
@@ -98,8 +98,9 @@ def output_grid(s: Settings, dtype, run=True):
 
 
 def _solve(mech: Mechanism, s: Settings, y0: State, assembled_ok, valid=RESULTS.successful):
-    # an invalid member (parameters outside their ranges) is not integrated: zero-length run
-    t0, t1, ts = output_grid(s, y0.q.dtype, valid == RESULTS.successful)
+    # an invalid member (parameters outside their ranges) or one that cannot be assembled is not
+    # integrated: zero-length run
+    t0, t1, ts = output_grid(s, y0.q.dtype, (valid == RESULTS.successful) & assembled_ok)
     norm = StateNorm(mech.n_coordinates)
     controller = StopOnNonFinite(diffrax.PIDController(rtol=s.rtol, atol=s.atol, dtmax=s.dtmax, norm=norm))
     if s.exact_onsets and mech.clearance_joints:
@@ -168,25 +169,61 @@ def _too_deep(mech: Mechanism, pen, element_states):
     return jnp.any(pen > limits) | jnp.any(peak > limits)
 
 
-def solution_structure(mech: Mechanism):
-    """The pytree structure of :func:`simulate`'s :class:`Solution` for ``mech``, without
-    tracing the run (the element states' structure from :meth:`State.unpack` of an abstract
-    vector)."""
+def solution_template(mech: Mechanism) -> Solution:
+    """A :class:`Solution` with the pytree structure of :func:`simulate`'s for ``mech`` (leaves
+    are placeholders), built without tracing the run: the element states' structure comes from
+    :meth:`State.unpack` of an abstract vector."""
     vector = jax.ShapeDtypeStruct((State.size(mech),), jnp.float64 if jax.config.jax_enable_x64 else jnp.float32)
     states = jax.eval_shape(lambda v: State.unpack(v, mech).elements, vector)
-    return jax.tree_util.tree_structure(Solution(*([0] * 11), element_states=states, num_steps=0,
-                                                 num_accepted_steps=0, num_rejected_steps=0, status=0))
+    return Solution(*([0] * 11), element_states=states, num_steps=0, num_accepted_steps=0, num_rejected_steps=0,
+                    status=0)
 
 
-@jit
-def _simulate(mech: Mechanism, s: Settings, y0: State | None) -> Solution:
+def solution_structure(mech: Mechanism):
+    """The pytree structure of :func:`simulate`'s :class:`Solution` for ``mech``."""
+    return jax.tree_util.tree_structure(solution_template(mech))
+
+
+def _run(mech: Mechanism, s: Settings, y0: State | None):
+    """The solution and the assembly at ``s.t_start`` (a member that cannot be assembled is not
+    integrated: status ``assembly_failed``, a zero-length run)."""
     asm = assemble(mech, s.t_start)
     assembled_ok = jnp.isfinite(asm.residual) & (asm.residual <= NEWTON_TOL)
     if y0 is None:
         y0 = initial_state(mech, s, asm)
     else:
         assembled_ok = jnp.asarray(True)
-    return _solve(mech, s, y0, assembled_ok, mech.check())
+    return _solve(mech, s, y0, assembled_ok, mech.check()), asm
+
+
+@jit
+def _simulate(mech: Mechanism, s: Settings, y0: State | None) -> Solution:
+    return _run(mech, s, y0)[0]
+
+
+@jit
+def _simulate_and_assemble(mech: Mechanism, s: Settings):
+    """``(solution, assembly)``: one program for a concrete :func:`simulate`, whose assembly
+    checks (:func:`check_assembly`) then read the assembly it returns."""
+    return _run(mech, s, None)
+
+
+def _concrete_call(mech: Mechanism, s: Settings):
+    """The program, name, output structure and arguments of a concrete :func:`simulate` without
+    a start state."""
+    return (_simulate_and_assemble, "simulate",
+            lambda: jax.tree_util.tree_structure((solution_template(mech), ASSEMBLY_TEMPLATE)),
+            (mech, dataclasses.replace(s, throw=False)))
+
+
+def prepare_simulate(mech: Mechanism, s: Settings) -> None:
+    """Trace (or load from the store of traced programs) what ``simulate(mech, s)`` will run,
+    without compiling it: :func:`~jaxclear.integrate.runs.simulate_with_ideal` does this before
+    it starts the ideal-joint run in a second thread, so that run's tracing overlaps this run's
+    XLA compilation (which releases Python's lock) rather than its tracing."""
+    if s.throw and is_concrete((mech, s)):
+        program, name, _, args = _concrete_call(mech, s)
+        program.prepare(name, *args)
 
 
 def simulate(mech: Mechanism, s: Settings, y0: State | None = None) -> Solution:
@@ -208,9 +245,12 @@ def simulate(mech: Mechanism, s: Settings, y0: State | None = None) -> Solution:
     if not (s.throw and is_concrete((mech, s, y0))):
         return _simulate(mech, s, y0)
     if y0 is None:
-        check_assembly(mech, s)
-    s = dataclasses.replace(s, throw=False)
-    sol = _simulate.stored("simulate", lambda: solution_structure(mech), mech, s, y0)
+        program, name, structure, args = _concrete_call(mech, s)
+        sol, asm = program.stored(name, structure, *args)
+        check_assembly(mech, s, asm)  # its detailed messages take precedence over the run's status
+    else:
+        s = dataclasses.replace(s, throw=False)
+        sol = _simulate.stored("simulate-from-state", lambda: solution_structure(mech), mech, s, y0)
     code = int(sol.status)
     if code in invalid_codes():
         raise ParameterError(f"jaxclear: {status_message(code)}")
