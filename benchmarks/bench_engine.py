@@ -323,22 +323,24 @@ def profile_child(revolutions, rtol, atol, solver, n_out, loops=5000):
     out["solver_step_s"] = step_time(jsolve._inner_solver(s))
     out["solver_step_no_memory_s"] = step_time(jsolve._inner_solver(s), memory=False)
 
-    def whole_run_per_step(settings):  # steady state of jc.simulate, per step (accepted + rejected)
-        jax.block_until_ready(jc.simulate(mech, settings))
-        walls = []
-        for _ in range(5):
-            t0 = time.perf_counter()
-            sol = jax.block_until_ready(jc.simulate(mech, settings))
-            walls.append(time.perf_counter() - t0)
-        return _median(walls) / int(sol.num_steps), int(sol.num_steps)
-
-    out["whole_run_per_step_s"], out["whole_run_steps"] = whole_run_per_step(s)
-    out["whole_run_no_onsets_per_step_s"], out["whole_run_no_onsets_steps"] = whole_run_per_step(
-        dataclasses.replace(s, exact_onsets=False))
-    # the whole benchmark run with the other stage form (Settings.stages), per step
+    # the whole benchmark run, per step attempt, in three variants measured interleaved (each
+    # round runs every variant once, in turn): measured one after another, the first variant
+    # came out slowest whichever it was (up to 2x on the shared 2-core machine)
     other = "loop" if isinstance(jsolve._inner_solver(s), UnrolledExplicitRK) else "unrolled"
     out["other_stages"] = other
-    out["whole_run_other_stages_per_step_s"], _ = whole_run_per_step(dataclasses.replace(s, stages=other))
+    variants = {"whole_run": s, "whole_run_no_onsets": dataclasses.replace(s, exact_onsets=False),
+                "whole_run_other_stages": dataclasses.replace(s, stages=other)}
+    steps, walls = {}, {k: [] for k in variants}
+    for key, settings in variants.items():
+        steps[key] = int(jax.block_until_ready(jc.simulate(mech, settings)).num_steps)
+    for _ in range(9):
+        for key, settings in variants.items():
+            t0 = time.perf_counter()
+            jax.block_until_ready(jc.simulate(mech, settings))
+            walls[key].append(time.perf_counter() - t0)
+    for key in variants:
+        out[f"{key}_per_step_s"] = _median(walls[key]) / steps[key]
+        out[f"{key}_steps"] = steps[key]
 
     hlo = jax.jit(flat_vector_field, compiler_options=opts).lower(0.0, y0, args).compile().as_text()
     out["rhs_hlo_fusions"] = len(re.findall(r"= \S+ fusion\(", hlo))
@@ -674,13 +676,14 @@ def main(argv=None):
             ("  XLA compile", [_fmt(prof["xla_compile_s"], "s")]),
             ("steady state, per step attempt:", []),
             ("  whole run: steady / step attempts", [_fmt(per_step, "us")]),
-            ("  whole run in the profile process (exact onsets)",
+            ("  whole run in the profile process (interleaved, median of 9)",
              [_fmt(prof["whole_run_per_step_s"], "us") + f" x {prof['whole_run_steps']}"]),
             ("  whole run without exact onsets",
              [_fmt(prof["whole_run_no_onsets_per_step_s"], "us") + f" x {prof['whole_run_no_onsets_steps']}"]),
             ("  one solver step in a fori_loop (stages + memory)", [_fmt(prof["solver_step_s"], "us")]),
             ("  the same without the memory update", [_fmt(prof["solver_step_no_memory_s"], "us")]),
-            (f"  whole run with stages='{prof['other_stages']}'", [_fmt(prof["whole_run_other_stages_per_step_s"], "us")]),
+            (f"  whole run with stages='{prof['other_stages']}'",
+             [_fmt(prof["whole_run_other_stages_per_step_s"], "us") + f" x {prof['whole_run_other_stages_steps']}"]),
             (f"  {k} x one RHS evaluation" if k else "  one RHS evaluation",
              [_fmt(prof["rhs_eval_s"] * (k or 1), "us")]),
             ("  one RHS evaluation", [_fmt(prof["rhs_eval_s"], "us")]),
