@@ -51,6 +51,16 @@ def test_agrees_with_the_integrated_ideal_run(name):
     assert jax.tree_util.tree_structure(kin) == jax.tree_util.tree_structure(ref)
 
 
+def test_invalid_parameter_is_a_named_error():
+    """A parameter outside its range (a negative mass, which enters only the reactions) is
+    reported as for simulate, not returned as a successful run."""
+    mech = params.replace(jc.preset("flores-slider-crank", ideal=True), "mass:rod", jnp.asarray(-1.0))
+    s = revolution_settings(mech, 0.1, n_out=11)
+    with pytest.raises(jc.ParameterError, match="mass"):
+        kinematic_solution(mech, s)
+    assert int(kinematic_solution(mech, dataclasses.replace(s, throw=False)).status) != 0
+
+
 def test_clearance_mechanism_is_refused():
     mech = jc.preset("flores-slider-crank")
     assert not is_kinematic(mech)

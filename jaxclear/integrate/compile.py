@@ -15,6 +15,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
+from .._errors import is_concrete
 from . import programs
 
 #: XLA options for jaxclear's own compiled functions. ``xla_cpu_use_fusion_emitters=False``
@@ -54,7 +55,7 @@ class jit:  # noqa: N801 (used like a decorator, as eqx.filter_jit)
         return self._top
 
     def __call__(self, *args, **kwargs):
-        if any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves((args, kwargs))):
+        if not is_concrete((args, kwargs)):
             return self._plain(*args, **kwargs)
         try:
             return self._get()(*args, **kwargs)
@@ -71,7 +72,7 @@ class jit:  # noqa: N801 (used like a decorator, as eqx.filter_jit)
         (:mod:`~jaxclear.integrate.programs`, enabled by the command line), so that a new
         process skips tracing; as a plain call when the store is off or the arguments cannot
         be keyed. ``out_structure()`` returns the output's pytree structure without tracing."""
-        if any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(args)):
+        if not is_concrete(args):
             return self(*args)
         out = programs.call(name, self._fun, args, out_structure, compiler_options=compiler_options())
         return self(*args) if out is None else out
@@ -79,7 +80,9 @@ class jit:  # noqa: N801 (used like a decorator, as eqx.filter_jit)
     def prepare(self, name: str, *args) -> None:
         """Trace (or load) what :meth:`stored` with the same arguments will run, without
         compiling it (:func:`~jaxclear.integrate.programs.prepare`); with the store off, lower
-        it (JAX keeps the trace for the call)."""
+        it (JAX keeps the trace for the call). Nothing under a transformation."""
+        if not is_concrete(args):
+            return
         if not programs.prepare(name, self._fun, args, compiler_options=compiler_options()):
             self.lower(*args)
 

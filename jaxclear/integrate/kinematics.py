@@ -27,14 +27,14 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from .._errors import RESULTS, SolverError, is_concrete, status_message
+from .._errors import RESULTS, is_concrete
 from ..model import constraints
 from ..model.mechanism import Mechanism
 from .assembly import NEWTON_TOL, assemble
 from .compile import jit
 from .dynamics import applied_forces
 from .settings import Settings
-from .simulate import output_grid, solution_structure
+from .simulate import output_grid, raise_for_status, solution_structure
 from .solution import Solution
 
 #: Newton iterations per output sample (from the previous sample's positions: at the default
@@ -70,6 +70,8 @@ def _kinematic_run(mech: Mechanism, s: Settings) -> Solution:
     finite = jnp.all(jnp.isfinite(q)) & jnp.all(jnp.isfinite(qdot)) & jnp.all(jnp.isfinite(qddot))
     result = RESULTS.where(finite, RESULTS.successful, RESULTS.nonfinite_state)
     result = RESULTS.where(jnp.all(drift <= NEWTON_TOL), result, RESULTS.assembly_failed)
+    valid = mech.check()  # masses and inertias enter the reactions
+    result = RESULTS.where(valid == RESULTS.successful, result, valid)
     t_count, zero = ts.shape[0], jnp.zeros((), jnp.int32)
     empty = jnp.zeros((t_count, 0), ts.dtype)
     return Solution(ts=ts, q=q, qdot=qdot, qddot=qddot, reactions=lam, drift=drift,
@@ -88,14 +90,16 @@ def kinematic_solution(mech: Mechanism, s: Settings) -> Solution:
 
     Raises:
         ValueError: ``mech`` is not kinematically driven (use :func:`jaxclear.simulate`).
+        ParameterError, SolverError: with concrete inputs and ``s.throw``, a status other than
+            successful (:func:`~jaxclear.integrate.simulate.raise_for_status`).
     """
     if not is_kinematic(mech):
         raise ValueError(f"{mech.name!r} is not kinematically driven ({mech.n_constraints} constraint equations "
                          f"for {mech.n_coordinates} coordinates, {len(mech.clearance_joints)} force elements): "
                          "simulate it instead")
     sol = _kinematic_run.stored("kinematics", lambda: solution_structure(mech), mech, s)
-    if s.throw and is_concrete(sol.status) and int(sol.status) != 0:
-        raise SolverError(f"jaxclear: {status_message(int(sol.status))} (kinematic analysis of {mech.name!r})")
+    if s.throw and is_concrete(sol.status):
+        raise_for_status(sol, s, f" (kinematic analysis of {mech.name!r})")
     return sol
 
 

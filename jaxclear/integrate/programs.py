@@ -28,7 +28,6 @@ alone never reads or writes such files. Needs the ``flatbuffers`` package (jax's
 
 from __future__ import annotations
 
-import contextlib
 import functools
 import hashlib
 import importlib.metadata
@@ -96,34 +95,39 @@ def _faithful(text: str) -> bool:
     return " at 0x" not in text and "..." not in text
 
 
+def _split(args):
+    """``(array leaves, their tree structure, the non-array rest)`` of ``args``."""
+    dynamic, static = eqx.partition(args, eqx.is_array)
+    leaves, treedef = jax.tree_util.tree_flatten(dynamic)
+    return leaves, treedef, static
+
+
 def program_key(name: str, args) -> tuple[str, list] | None:
     """``(key, array leaves)`` of a call of program ``name`` on ``args``, or None when the
     arguments' static part cannot be keyed faithfully."""
-    dynamic, static = eqx.partition(args, eqx.is_array)
-    leaves = jax.tree_util.tree_leaves(dynamic)
+    leaves, treedef, static = _split(args)
     text = repr(jax.tree_util.tree_flatten(static))
     if not _faithful(text):
         return None
     h = hashlib.sha256()
     h.update(f"{name}\n{_environment_digest()}\nx64={jax.config.jax_enable_x64}\n".encode())
     h.update(text.encode())
-    h.update(repr(jax.tree_util.tree_structure(dynamic)).encode())
+    h.update(repr(treedef).encode())
     for x in leaves:
         h.update(f"{x.shape}{x.dtype};".encode())
     return h.hexdigest(), leaves
 
 
-def _export(fun: Callable, args, leaves: list, wrap: Callable) -> jax.export.Exported:
-    dynamic, static = eqx.partition(args, eqx.is_array)
-    treedef = jax.tree_util.tree_structure(dynamic)
+def _export(fun: Callable, args) -> jax.export.Exported:
+    """``fun`` traced and lowered on the shapes of ``args``' arrays, taking and returning flat
+    lists of arrays (:mod:`jax.export` serializes no equinox module as a pytree node)."""
+    leaves, treedef, static = _split(args)
 
     def flat(*xs):
         out = fun(*eqx.combine(jax.tree_util.tree_unflatten(treedef, xs), static))
         return jax.tree_util.tree_leaves(out)
 
-    avals = [jax.ShapeDtypeStruct(x.shape, x.dtype) for x in leaves]
-    with wrap():
-        return jax.export.export(jax.jit(flat))(*avals)
+    return jax.export.export(jax.jit(flat))(*[jax.ShapeDtypeStruct(x.shape, x.dtype) for x in leaves])
 
 
 def _write(path: Path, blob: bytes) -> None:
@@ -140,7 +144,7 @@ def _write(path: Path, blob: bytes) -> None:
             pass
 
 
-def _load(key: str, fun: Callable, args, leaves: list, wrap: Callable) -> jax.export.Exported:
+def _load(key: str, fun: Callable, args) -> jax.export.Exported:
     """The program ``key`` from its file, or traced, exported and written on a miss."""
     exp = None
     path = _FOLDER[0] / f"{key}{SUFFIX}"  # type: ignore[operator]
@@ -152,7 +156,7 @@ def _load(key: str, fun: Callable, args, leaves: list, wrap: Callable) -> jax.ex
         except Exception:  # an unreadable or truncated file: trace again and replace it
             exp = None
     if exp is None:
-        blob = _export(fun, args, leaves, wrap).serialize()
+        blob = _export(fun, args).serialize()
         _write(path, blob)
         # the deserialized form, also on this first call: it lowers to the same module as in
         # later processes, so the compilation cache's key matches theirs
@@ -161,32 +165,31 @@ def _load(key: str, fun: Callable, args, leaves: list, wrap: Callable) -> jax.ex
 
 
 def call(name: str, fun: Callable, args: tuple, out_structure: Callable[[], jax.tree_util.PyTreeDef],
-         *, compiler_options: dict | None = None, wrap: Callable | None = None):
+         *, compiler_options: dict | None = None):
     """``fun(*args)`` through the store when it is enabled and the arguments can be keyed,
     else ``None`` (the caller then runs its usual jitted function).
 
     Args:
         name: the program's name (part of the key).
-        fun: the function (traced on a miss, with ``wrap()`` as context manager).
+        fun: the function (traced on a miss).
         args: its arguments (a tuple of pytrees: arrays are inputs, everything else is keyed).
         out_structure: returns the pytree structure of ``fun``'s output without tracing it.
         compiler_options: XLA options of the compilation (:func:`~jaxclear.integrate.compile.compiler_options`).
     """
-    run = _prepared(name, fun, args, compiler_options, wrap)
-    if run is None:
+    prepared = _prepared(name, fun, args, compiler_options)
+    if prepared is None:
         return None
-    run, leaves = run
+    run, leaves = prepared
     return jax.tree_util.tree_unflatten(out_structure(), run(leaves))
 
 
-def prepare(name: str, fun: Callable, args: tuple, *, compiler_options: dict | None = None,
-            wrap: Callable | None = None) -> bool:
+def prepare(name: str, fun: Callable, args: tuple, *, compiler_options: dict | None = None) -> bool:
     """Load (or, on a miss, trace and store) the program that :func:`call` with the same
     arguments will run, without compiling or running it; returns whether the store took it.
     Tracing holds Python's lock and XLA's compilation does not: a caller that runs two programs
     in two threads prepares the first, so that the second's tracing overlaps the first's
     compilation instead of competing with its tracing."""
-    prepared = _prepared(name, fun, args, compiler_options, wrap)
+    prepared = _prepared(name, fun, args, compiler_options)
     if prepared is None:
         return False
     run, leaves = prepared
@@ -194,23 +197,25 @@ def prepare(name: str, fun: Callable, args: tuple, *, compiler_options: dict | N
     return True
 
 
-def _prepared(name, fun, args, compiler_options, wrap):
+def _prepared(name, fun, args, compiler_options):
+    """``(jitted caller, array leaves)`` of the stored program for this call, or None when the
+    store is off or the arguments cannot be keyed."""
     if _FOLDER[0] is None:
         return None
     keyed = program_key(f"{name}:{getattr(fun, '__module__', '')}.{getattr(fun, '__qualname__', '')}", args)
     if keyed is None:
         return None
     key, leaves = keyed
-    return _runner(key, fun, args, leaves, wrap or contextlib.nullcontext, compiler_options or {}), leaves
+    return _runner(key, fun, args, compiler_options or {}), leaves
 
 
-def _runner(key: str, fun: Callable, args, leaves: list, wrap: Callable, options: dict) -> Callable:
+def _runner(key: str, fun: Callable, args, options: dict) -> Callable:
     """The jitted caller of the stored program ``key`` (one per program and process, so its
     compiled executable is reused by later calls)."""
     with _LOCK:
         run = _RUNNERS.get(key)
     if run is None:
-        exp = _load(key, fun, args, leaves, wrap)
+        exp = _load(key, fun, args)
         kwargs = {"compiler_options": dict(options)} if options else {}
         run = jax.jit(lambda xs: exp.call(*xs), **kwargs)
         with _LOCK:

@@ -255,9 +255,17 @@ def simulate(mech: Mechanism, s: Settings, y0: State | None = None) -> Solution:
     else:
         s = dataclasses.replace(s, throw=False)
         sol = _simulate.stored("simulate-from-state", lambda: solution_structure(mech), mech, s, y0)
+    raise_for_status(sol, s)
+    return sol
+
+
+def raise_for_status(sol: Solution, s: Settings, what: str = "") -> None:
+    """Raise for a concrete solution whose status is not successful: a
+    :class:`~jaxclear.ParameterError` for an ``invalid_*`` status (a parameter outside its
+    range), else a :class:`~jaxclear.SolverError`; the message is the status's text
+    (``what`` appended)."""
     code = int(sol.status)
     if code in invalid_codes():
-        raise ParameterError(f"jaxclear: {status_message(code)}")
+        raise ParameterError(f"jaxclear: {status_message(code)}{what}")
     if code != int(RESULTS.successful._value):
-        raise SolverError(f"jaxclear: {status_message(code, max_steps=s.max_steps)}")
-    return sol
+        raise SolverError(f"jaxclear: {status_message(code, max_steps=s.max_steps)}{what}")
