@@ -24,13 +24,11 @@ from .targets import DEFAULT_COLUMN, resolve_targets
 from .window import WindowInput, WindowModel, WindowSet, cut_windows, state_to_z
 
 #: Whether the fit's model integrates with exact contact onsets (:class:`~jaxclear.Settings`
-#: ``exact_onsets``). Off: with them, the forward-mode Jacobian through an onset is off by ~7 %
-#: per impact in the stiffness direction on the 2011 rig record (measured against central
-#: differences of the same model, which are smooth there; the error grows as the margin
-#: ``ONSET_MARGIN`` past the onset shrinks: 7.7 % at 1e-4, 0.65 % at 1e-2), and that record's
-#: fit stalled at -10 % stiffness. Without them the Jacobian agrees with those differences to
-#: 0.5 %, and at the fit's rtol (1e-8) the stale onset memory costs little.
-FIT_EXACT_ONSETS = False
+#: ``exact_onsets``), as every other run does. It was off while the forward-mode derivative of
+#: the approach speed at an onset was noise on the short steps that end just past an onset (the
+#: rig record's Jacobian 10 to 600 times too large, its fit stalled at -10 % stiffness; fixed in
+#: :func:`jaxclear.elements.memory.contact_switches`, see "Impact memory" in the documentation).
+FIT_EXACT_ONSETS = True
 
 
 @dataclass(frozen=True)
