@@ -9,6 +9,7 @@ differences, and per-member runs for vmap.
 
 import jaxclear  # noqa: F401  (float64 first)
 
+import dataclasses
 import math
 
 import jax
@@ -73,24 +74,35 @@ def _run(mech, rtol, exact, n_out=161):
 
 def test_exact_onsets_match_an_event_restart_integration():
     """At rtol = 1e-6 the position history of the falling journal (one Flores impact with c_r = 0.3,
-    after which it stays in contact) matches the event-restart SciPy solution to 1e-6 of the
-    clearance with exact onsets (measured 1.4e-7), and the stored approach speed is the closed
-    form sqrt(2 G c) to 1e-9; with the onset found only after the step (exact_onsets=False) the
-    stale approach speed of the crossing step costs more than 10x (measured 2.2e-5)."""
+    after which it stays in contact) matches the event-restart SciPy solution, and the stored
+    approach speed is the closed form sqrt(2 G c); with the onset found only after the
+    step (exact_onsets=False) the stale approach speed of the crossing step costs much more.
+    The approach speed: to 1e-7 (measured 1e-15 to 1.3e-8 over the six runs; the interpolant of
+    the crossing step is exact for the free flight's parabola, and the step ends inside the
+    contact, where the force has begun to act).
+
+    The error in contact depends on the step sequence (at rtol 1e-6 it is a few nm either way:
+    over initial steps of 0.1-0.7 ms, 1.1e-7 to 5.0e-6 of the clearance with exact onsets and
+    2.8e-6 to 2.6e-5 without, measured 2026-11-25), so six runs of slightly different lengths
+    (their own grids, so their own steps) are compared: every exact-onset error below 1e-5 of the
+    clearance (measured 1.1e-7 to 5.2e-6), and the median error without exact onsets more than
+    10x the median with them (measured 2.3e-5 against 1.8e-7)."""
     mech = falling_journal()
-    ts = np.linspace(0.0, T_END, 161)
-    x_ref = scipy_bouncing(0.3, ts)
-    assert x_ref.max() > CLEARANCE
+    factors = np.array([1.0, 1.02, 1.05, 1.08, 1.11, 1.14])
+    refs = [scipy_bouncing(0.3, np.linspace(0.0, T_END * f, 161)) for f in factors]
+    assert all(r.max() > CLEARANCE for r in refs)
     errs = {}
     for exact in (True, False):
-        sol = _run(mech, 1e-6, exact)
-        assert int(sol.impacts[0]) == 1
-        errs[exact] = float(np.max(np.abs(np.asarray(sol.q[:, 0]) - x_ref))) / CLEARANCE
+        s = jc.settings(T_END, n_out=161, rtol=1e-6, atol=1e-12, exact_onsets=exact)
+        run = jax.jit(jax.vmap(lambda te: jc.simulate(mech, dataclasses.replace(s, t_end=te))))
+        sol = run(jnp.asarray(T_END * factors))
+        assert np.all(np.asarray(sol.impacts[:, 0]) == 1)
+        errs[exact] = np.array([np.max(np.abs(np.asarray(x) - r)) for x, r in zip(sol.q[:, :, 0], refs)]) / CLEARANCE
         if exact:
-            v0 = float(sol.memory.impact_velocity[-1, 0])
-            assert abs(v0 - math.sqrt(2 * G * CLEARANCE)) < 1e-9 * v0, v0
-    assert errs[True] < 1e-6, errs
-    assert errs[False] > 10 * errs[True], errs
+            v0 = np.asarray(sol.memory.impact_velocity[:, -1, 0])
+            assert np.all(np.abs(v0 - math.sqrt(2 * G * CLEARANCE)) < 1e-7 * v0), v0
+    assert np.all(errs[True] < 1e-5), errs
+    assert np.median(errs[False]) > 10 * np.median(errs[True]), errs
 
 
 def test_four_bar_samples_inside_the_onset_step_read_the_impact_mode():

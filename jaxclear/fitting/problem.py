@@ -179,7 +179,7 @@ def build_problem(data, mech: Mechanism, free: Sequence[str], start: dict | None
     velocity_scale = abs(speed) if speed else 1.0 / window
     n_fine = int(round(window / h))
     s = make_settings(n_fine * h, n_out=n_fine + 1, rtol=settings["rtol"], atol=settings["atol"], adjoint="forward",
-                      throw=False, max_steps=settings["max_steps"], exact_onsets=FIT_EXACT_ONSETS)
+                      throw=False, max_steps=settings["max_steps"], exact_onsets=FIT_EXACT_ONSETS, sampling="block")
     model = WindowModel(mech=mech, sensors=tuple(fc.sensor for _, fc in targets),
                         weights=jnp.asarray([fc.weight for _, fc in targets], dtype=float), settings=s,
                         bias_scale=jnp.asarray(win.scale), velocity_scale=jnp.asarray(velocity_scale), free=free,

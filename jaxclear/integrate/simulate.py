@@ -31,6 +31,7 @@ from .compile import jit, without_input_callbacks
 from .dynamics import _accelerations, flat_vector_field
 from .settings import SOLVERS, Settings
 from .solution import Solution
+from . import sampling
 from .solvers import ImpactMemorySolver, OnsetController, StateNorm, StopOnNonFinite, UnrolledExplicitRK
 from .state import State, stack_memory
 
@@ -42,14 +43,6 @@ def _inner_solver(s: Settings):
     if s.adjoint in ("forward", "direct"):
         return SOLVERS[s.solver](scan_kind="bounded")
     return solver
-
-
-def _adjoint(s: Settings):
-    if s.adjoint == "forward":
-        return diffrax.ForwardMode()
-    if s.adjoint == "direct":
-        return diffrax.DirectAdjoint()
-    return diffrax.RecursiveCheckpointAdjoint(checkpoints=s.checkpoints)
 
 
 #: Most output samples whose accelerations and contact outputs are evaluated together (one
@@ -65,7 +58,7 @@ def _postprocess(mech: Mechanism, s: Settings, ts, packed, ys: State):
     ``ts`` (T,) of the packed states ``packed`` (T, N) (``ys`` the same, unpacked)."""
     def one(t, v):
         y = State.unpack(v, mech)
-        qdd, lam, value, _, contact = _accelerations(mech, t, y.q, y.qdot, y.elements, s.baumgarte)
+        qdd, lam, value, _, contact = _accelerations(mech, t, y.q, y.qdot, y.elements, s.baumgarte, entrywise=True)
         return qdd, lam, value, contact
 
     # in equal batches of at most POSTPROCESS_BATCH samples (vmap inside, a scan over the
@@ -109,25 +102,34 @@ def _solve(mech: Mechanism, s: Settings, y0: State, assembled_ok, valid=RESULTS.
     controller = StopOnNonFinite(diffrax.PIDController(rtol=s.rtol, atol=s.atol, dtmax=s.dtmax, norm=norm))
     if s.exact_onsets and mech.clearance_joints:
         controller = OnsetController(controller)
+    block = s.sampling == "block"
+    solver = ImpactMemorySolver(_inner_solver(s), dense_to_controller=block)
+    if block:  # the output samples are written by the controller, a block per accepted step
+        controller = sampling.SampleWriter(controller, ts, solver.interpolation_cls, sampling.BLOCK)
+        saveat = diffrax.SaveAt(t1=True, controller_state=True)
+    else:  # diffrax's saving loop, one sample per iteration
+        saveat = diffrax.SaveAt(ts=ts)
     meter = diffrax.TqdmProgressMeter(refresh_steps=200) if s.progress else diffrax.NoProgressMeter()
+    y0_packed = y0.pack()
     with without_input_callbacks():
         sol = diffrax.diffeqsolve(
             diffrax.ODETerm(flat_vector_field),
-            ImpactMemorySolver(_inner_solver(s)),
+            solver,
             t0,
             t1,
             s.dt0,
-            y0.pack(),
+            y0_packed,
             args=(mech, s.baumgarte),
-            saveat=diffrax.SaveAt(ts=ts),
+            saveat=saveat,
             stepsize_controller=controller,
             max_steps=s.max_steps,
-            adjoint=_adjoint(s),
+            adjoint=sampling.adjoint(s.adjoint, s.checkpoints, block),
             throw=False,
             progress_meter=meter,
         )
-    ys: State = jax.vmap(lambda v: State.unpack(v, mech))(sol.ys)
-    qdd, lam, drift, ecc, pen, fn, ft, mode = _postprocess(mech, s, ts, sol.ys, ys)
+    packed = controller.samples(sol.controller_state, y0_packed, t1 > t0) if block else sol.ys
+    ys: State = jax.vmap(lambda v: State.unpack(v, mech))(packed)
+    qdd, lam, drift, ecc, pen, fn, ft, mode = _postprocess(mech, s, ts, packed, ys)
     finite = jnp.all(jnp.isfinite(ys.q)) & jnp.all(jnp.isfinite(ys.qdot)) & jnp.all(jnp.isfinite(qdd))
     result = RESULTS.where(finite, RESULTS.successful, RESULTS.nonfinite_state)
     result = RESULTS.where(sol.result == diffrax.RESULTS.successful, result, RESULTS.solver_failed)

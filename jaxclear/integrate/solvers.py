@@ -139,9 +139,14 @@ class ImpactMemorySolver(_Forwarding):
     contact onset) the next step re-evaluates its first stage, so FSAL solvers stay exact.
     The state is the packed vector of :meth:`State.pack` and the term
     :func:`~jaxclear.integrate.dynamics.flat_vector_field`; ``args`` of the solve must be
-    ``(mechanism, baumgarte)``."""
+    ``(mechanism, baumgarte)``.
+
+    With ``dense_to_controller`` the step's error estimate is handed on as the pair ``(error
+    estimate, dense output)``, for :class:`~jaxclear.integrate.sampling.SampleWriter`, which
+    writes the output samples of each accepted step (the controller must be one)."""
 
     solver: diffrax.AbstractSolver
+    dense_to_controller: bool = eqx.field(static=True, default=False)
 
 
     @property
@@ -172,6 +177,8 @@ class ImpactMemorySolver(_Forwarding):
         # (interpolations reproduce a common shift of their end values)
         jump = y1_new - y1
         dense_info = {k: (v + jump if k in ("y0", "y1") else v) for k, v in dense_info.items()}
+        if self.dense_to_controller:
+            y_error = (y_error, dense_info)
         return y1_new, y_error, dense_info, (inner_state, changed), result
 
     def func(self, terms, t0, y0, args):
