@@ -226,7 +226,26 @@ def test_accuracy_benchmark_quick(tmp_path):
     assert (tmp_path / "accuracy_quick.json").exists() and (tmp_path / "accuracy_quick.png").exists()
     errs = [r["error"] for r in res["rows"] if r["code"] == "jaxclear"]
     assert all(math.isfinite(e) for e in errs)
-    assert len(res["speedups"]) == 1
+    assert len(res["speedups"]) == 1 and len(res["interpolated_speedups"]) == 1
+
+
+def test_accuracy_benchmark_interpolates_on_the_front():
+    """The interpolated equal-accuracy time: on a front with time proportional to error^-1/4
+    (a fourth-order method), log-linear interpolation is exact; a dominated run is ignored; a
+    SciPy error above the fastest run's error takes that run's time (no extrapolation to
+    faster); one below every jaxclear error gets none."""
+    import bench_accuracy
+
+    def row(code, err, t, rtol=1e-6):
+        return dict(code=code, case="c", solver="x", rtol=rtol, error=err, steady_s=t)
+
+    jax_rows = [row("jaxclear", e, 0.01 * e ** -0.25) for e in (1e-2, 1e-4, 1e-6)]
+    jax_rows.append(row("jaxclear", 1e-3, 1.0))  # dominated: slower than the 1e-4 run
+    scipy_rows = [row("scipy", 1e-3, 5.0), row("scipy", 1e-1, 1.0), row("scipy", 1e-8, 9.0)]
+    ups = bench_accuracy.interpolated_speedups(jax_rows + scipy_rows)
+    assert abs(ups[0]["jaxclear_s"] - 0.01 * 1e-3 ** -0.25) < 1e-12
+    assert abs(ups[1]["jaxclear_s"] - 0.01 * 1e-2 ** -0.25) < 1e-12
+    assert ups[2]["speedup"] is None
 
 
 def test_contact_switches_match_the_roots_of_the_cubic():

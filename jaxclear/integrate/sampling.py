@@ -34,6 +34,7 @@ import jax
 import jax.numpy as jnp
 
 from .._types import Array, Float, Int
+from .solvers import AbstractDelegatingController
 
 #: Most output samples one accepted step writes (its interpolant evaluated at once, vectorised);
 #: a step is ended no later than the BLOCK-th unwritten sample. Measured 2026-11-25 on the
@@ -72,7 +73,7 @@ class Samples(eqx.Module):
     staging: Float[Array, "2B N"]
 
 
-class SampleWriter(diffrax.AbstractAdaptiveStepSizeController):
+class SampleWriter(AbstractDelegatingController):
     r"""A step-size controller that delegates to ``inner`` and writes the output samples of
     every accepted step (module docstring). ``y_error`` of the solver's step must be the pair
     ``(error estimate, dense output)`` (:class:`~jaxclear.integrate.solvers.ImpactMemorySolver`
@@ -90,21 +91,6 @@ class SampleWriter(diffrax.AbstractAdaptiveStepSizeController):
     ts: Float[Array, " T"]
     interpolation: type = eqx.field(static=True)
     block: int = eqx.field(static=True, default=BLOCK)
-
-    @property
-    def rtol(self):
-        return self.inner.rtol
-
-    @property
-    def atol(self):
-        return self.inner.atol
-
-    @property
-    def norm(self):
-        return self.inner.norm
-
-    def wrap(self, direction):
-        return eqx.tree_at(lambda c: c.inner, self, self.inner.wrap(direction))
 
     @property
     def _size(self) -> tuple[int, int, int]:

@@ -185,11 +185,10 @@ class ImpactMemorySolver(_Forwarding):
         return self.solver.func(terms, t0, y0, args)
 
 
-class AbstractWrappedController(diffrax.AbstractAdaptiveStepSizeController):
-    """A step-size controller that delegates to ``inner`` (tolerances, norm, initial step) and
-    changes only :meth:`adapt_step_size`: the base of :class:`OnsetController` and
-    :class:`StopOnNonFinite`. Its state is ``(inner state, retries)``: the count of candidate
-    steps the wrapper has rejected in a row (0 at the start)."""
+class AbstractDelegatingController(diffrax.AbstractAdaptiveStepSizeController):
+    """A step-size controller that wraps ``inner`` and takes its tolerances and norm: the base
+    of :class:`AbstractWrappedController` and of
+    :class:`~jaxclear.integrate.sampling.SampleWriter`."""
 
     inner: eqx.AbstractVar[diffrax.AbstractAdaptiveStepSizeController]
 
@@ -206,7 +205,14 @@ class AbstractWrappedController(diffrax.AbstractAdaptiveStepSizeController):
         return self.inner.norm
 
     def wrap(self, direction):
-        return type(self)(self.inner.wrap(direction))
+        return eqx.tree_at(lambda c: c.inner, self, self.inner.wrap(direction))
+
+
+class AbstractWrappedController(AbstractDelegatingController):
+    """A step-size controller that delegates to ``inner`` (tolerances, norm, initial step) and
+    changes only :meth:`adapt_step_size`: the base of :class:`OnsetController` and
+    :class:`StopOnNonFinite`. Its state is ``(inner state, retries)``: the count of candidate
+    steps the wrapper has rejected in a row (0 at the start)."""
 
     def init(self, terms, t0, t1, y0, dt0, args, func, error_order):
         t1_, state = self.inner.init(terms, t0, t1, y0, dt0, args, func, error_order)
