@@ -88,6 +88,11 @@ def main(argv=None):
         per_step = b["simulate_wall_s"] / b["steps"] / (a["simulate_wall_s"] / a["steps"]) - 1
         lines.append(f"  fine grid adds {d / a['simulate_wall_s']:.0%} to the run ({d / extra * 1e6:.2f} us per extra "
                      f"sample; per step {per_step:+.0%}, the step counts differing)")
+    base = res[f"loop_{args.coarse}"]["simulate_wall_s"]
+    d = res[f"block_{args.fine}"]["simulate_wall_s"] - base
+    lines.append(f"sampling='block' with {args.fine} samples against the default ('loop') with {args.coarse}: "
+                 f"{d / base:+.0%} ({d / extra * 1e6:.2f} us per extra sample)")
+    res["block_fine_over_default_coarse"] = d / base
     for n in (args.coarse, args.fine):
         w, c = timed[("post", n)]
         lines.append(f"{f'  output post-processing alone, {n} samples':<52}{w * 1e3:>8.1f}ms{c * 1e3:>8.1f}ms")

@@ -64,10 +64,10 @@ class Settings(eqx.Module):
         sampling: how the output samples are written: ``"loop"`` (default; diffrax's saving,
             one sample per iteration of a loop inside each step) or ``"block"``
             (:class:`~jaxclear.integrate.sampling.SampleWriter`: all of a step's samples at
-            once, a step ending by the 64th sample). For grids denser than a few samples per
-            step: measured 2026-11-25 on the benchmark (1 revolution, ~1200 steps), 24,001
-            samples cost 63-66 ms with "loop" and 44-49 ms with "block", 241 samples 27-30 ms
-            against 34-39 ms (the block's fixed cost per step, about 5 us). The fits use it.
+            once, a step ending by its 64th sample). For grids of more than about 10 samples
+            per step: measured 2026-11-25 on the benchmark (1 revolution, about 1200 steps),
+            24,001 samples cost 63 ms with "loop" and 52.5 ms with "block", but 241 samples
+            31 ms against 45 ms (the block's cost per step, about 10 us). The fits use it.
     """
 
     t_end: Float[Array, ""]
