@@ -195,8 +195,8 @@ def contact_switches(p0, p1, r0, r1, h) -> Switches:
     first = _root_in(val, slope, lo_f, hi_f, ~touching[0])
     last = _root_in(val, slope, lo_l, hi_l, touching[3])
     some = count > 0
-    return Switches(count, jnp.where(some, first, 1.0), jnp.where(some, last, 1.0), _hermite_rate(last, p0, p1, r0, r1, hs),
-                    jax.lax.stop_gradient(excursion))
+    return Switches(count, jnp.where(some, first, 1.0), jnp.where(some, last, 1.0),
+                    _hermite_rate(last, p0, p1, r0, r1, hs), jax.lax.stop_gradient(excursion))
 
 
 def onset_fraction(p0, p1, r0, r1, h) -> tuple[Scalar, BoolScalar]:

@@ -7,9 +7,11 @@ crank revolution (19 per step) cost more than the integration itself. :class:`Sa
 writes all of a step's samples at once: it wraps the step-size controller (the one place that
 sees whether a step is accepted and keeps a state that diffrax passes on without selecting it
 whole at every step), evaluates the step's interpolant at up to :data:`BLOCK` sample times in
-one vectorised call and writes them with one scatter. So that one block always suffices, it
-ends a step no later than the :data:`BLOCK`-th unwritten sample (a long step on a dense grid is
-cut there, as diffrax's ``step_ts`` would cut it); coarser grids never notice.
+one vectorised call and gathers the rows into whole blocks of its buffer (:class:`Samples`).
+So that one block always suffices, it ends a step no later than the :data:`BLOCK`-th unwritten
+sample (a long step on a dense grid is cut there, as diffrax's ``step_ts`` would cut it). Its
+cost per step (the block's interpolation and the gathering, about 10 us on the benchmark) makes
+it pay only from about 10 samples per step: ``Settings(sampling="block")`` is opt-in.
 
 The step's interpolant comes from the solver (:class:`~jaxclear.integrate.solvers.ImpactMemorySolver`
 with ``dense_to_controller``, which hands its dense output to the controller beside the error
@@ -38,9 +40,9 @@ from .solvers import AbstractDelegatingController
 
 #: Most output samples one accepted step writes (its interpolant evaluated at once, vectorised);
 #: a step is ended no later than the BLOCK-th unwritten sample. Measured 2026-11-25 on the
-#: benchmark slider-crank, one revolution, interleaved: per step 24.0-24.6 us with 16, 32 or 64
-#: at 241 samples (27.6 us with 128); with 24,001 samples 1798, 1295, 1166 and 1146 steps for
-#: 16, 32, 64 and 128 (the cut steps), 60.1, 46.2, 43.0 and 44.1 ms.
+#: benchmark slider-crank, one revolution, 24,001 samples: 1798, 1295 and 1166 steps (the cut
+#: steps) and 60.7, 50.5 and 46.1 ms with 16, 32 and 64; at 241 samples 25.2, 26.7 and 29.0 us
+#: per step (diffrax's loop: 22-24 us).
 BLOCK = 64
 
 
@@ -61,15 +63,13 @@ class Samples(eqx.Module):
         start: rows ``start ... count - 1`` belong to the last attempted step (accepted).
         pending: (block, N) the last attempted step's interpolant at the times of rows
             ``start ...``.
-        filled: index of the block that ``staging`` begins with.
-        staging: (2 block, N) rows of blocks ``filled`` and ``filled + 1`` gathered so far.
+        staging: (2 block, N) rows gathered so far of blocks ``start // block`` and the next.
     """
 
     values: Float[Array, "nb B N"]
     count: Int[Array, ""]
     start: Int[Array, ""]
     pending: Float[Array, "B N"]
-    filled: Int[Array, ""]
     staging: Float[Array, "2B N"]
 
 
@@ -111,20 +111,24 @@ class SampleWriter(AbstractDelegatingController):
         dtype, width = jnp.result_type(y0), jnp.size(y0)
         zero = jnp.zeros((), jnp.int32)
         samples = Samples(jnp.full((nb + 1, b, width), jnp.inf, dtype), zero, zero, jnp.zeros((b, width), dtype),
-                          zero, jnp.zeros((2 * b, width), dtype))
+                          jnp.zeros((2 * b, width), dtype))
         return self._limit(tnext, zero), (state, samples)
 
     def _gather(self, samples: Samples):
         """The pending rows moved into ``staging``; a completed block written. Returns
-        ``(values, filled, staging)``. The pending rows past ``count`` are zeros (rows that a
-        later step fills in; their cotangents, if any, end at these constants)."""
+        ``(values, staging, filled)``, ``filled`` the block that ``staging`` then begins with.
+        Staging begins at block ``start // block`` (a step's rows, at most a block, complete at
+        most that one). The pending rows past ``count`` are zeros (rows that a later step fills
+        in; their cotangents, if any, end at these constants)."""
         _, b, nb = self._size
+        filled = samples.start // b
         rows = jnp.where((samples.start + jnp.arange(b) < samples.count)[:, None], samples.pending, 0.0)
-        staging = jax.lax.dynamic_update_slice(samples.staging, rows, (samples.start - samples.filled * b, jnp.zeros((), jnp.int32)))
-        complete = samples.count >= (samples.filled + 1) * b
-        values = samples.values.at[jnp.where(complete, samples.filled, nb)].set(staging[:b])
+        offset = (samples.start - filled * b, jnp.zeros((), jnp.int32))
+        staging = jax.lax.dynamic_update_slice(samples.staging, rows, offset)
+        complete = samples.count >= (filled + 1) * b
+        values = samples.values.at[jnp.where(complete, filled, nb)].set(staging[:b])
         staging = jnp.where(complete, jnp.concatenate([staging[b:], jnp.zeros_like(staging[b:])]), staging)
-        return values, samples.filled + complete.astype(jnp.int32), staging
+        return values, staging, filled + complete.astype(jnp.int32)
 
     def adapt_step_size(self, t0, t1, y0, y1_candidate, args, y_error, error_order, controller_state):
         inner_state, samples = controller_state
@@ -133,7 +137,7 @@ class SampleWriter(AbstractDelegatingController):
         # fused into the rows directly, the accept decision (the controllers' root brackets)
         # was recomputed per row in a vmapped run, or, fused into scatter indices, made an
         # expression that LLVM took minutes to vectorise
-        values, filled, staging = self._gather(samples)
+        values, staging, _ = self._gather(samples)
         keep, tprev, tnext, jump, state, result = self.inner.adapt_step_size(
             t0, t1, y0, y1_candidate, args, y_error, error_order, inner_state
         )
@@ -143,7 +147,7 @@ class SampleWriter(AbstractDelegatingController):
         inside = (index < n) & (times <= t1)
         rows = jax.vmap(self.interpolation(t0=t0, t1=t1, **dense_info).evaluate)(times)
         count = samples.count + jnp.where(keep, jnp.sum(inside, dtype=jnp.int32), 0)
-        new = Samples(values, count, samples.count, rows.astype(staging.dtype), filled, staging)
+        new = Samples(values, count, samples.count, rows.astype(staging.dtype), staging)
         return keep, tprev, self._limit(tnext, count), jump, (state, new), result
 
     def samples(self, final_state, y0, ran) -> Float[Array, "T N"]:
@@ -153,7 +157,7 @@ class SampleWriter(AbstractDelegatingController):
         diffrax takes no step, and every sample is the start)."""
         samples = final_state[1]
         n, b, nb = self._size
-        values, filled, staging = self._gather(samples)
+        values, staging, filled = self._gather(samples)
         values = values.at[filled].set(staging[:b]).at[jnp.minimum(filled + 1, nb)].set(staging[b:])
         values = values[:nb].reshape(nb * b, -1)[:n]
         values = jnp.where((jnp.arange(n) < samples.count)[:, None], values, jnp.inf)
