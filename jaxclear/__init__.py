@@ -1,6 +1,8 @@
 """jaxclear: a differentiable JAX engine for planar mechanisms with clearance joints.
 
-Importing jaxclear switches JAX to double precision (contact penetrations are micrometres).
+Importing jaxclear switches JAX to double precision (contact penetrations are micrometres) and,
+before JAX starts its backends, asks XLA:CPU to compile small loops as single kernels
+(``XLA_FLAGS``; see ``jaxclear/_xla_flags.py``).
 This module only re-exports the public API; the implementation lives in subpackages by layer:
 ``model`` (what a mechanism is) -> ``contact`` (force laws) -> ``elements`` (force elements
 with state) -> ``integrate`` (equations of motion, solvers, ``simulate``) -> ``analysis``,
@@ -12,6 +14,11 @@ from importlib.metadata import version as _version
 
 import jax
 
+from . import _xla_flags
+
+# before any JAX computation: XLA compiles jaxclear's solver loops as single kernels (see
+# jaxclear/_xla_flags.py; JAXCLEAR_SMALL_LOOP_BYTES=0 leaves XLA's default)
+_xla_flags.apply(jax._src.xla_bridge.backends_are_initialized())
 jax.config.update("jax_enable_x64", True)
 
 from ._errors import (  # noqa: E402

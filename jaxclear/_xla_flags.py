@@ -1,0 +1,105 @@
+"""XLA:CPU option for loops of small kernels, set in ``XLA_FLAGS`` when jaxclear is imported.
+
+Why: since JAX 0.4.32 XLA:CPU runs a compiled program as a sequence of *thunks*, one kernel
+launch (and a dispatch over its thread pool) per fused operation. A solver step of a planar
+mechanism is a few hundred tiny kernels (scalars, 2-vectors, a 7 x 7 solve), so on CPU the
+launches, not the arithmetic, set the speed: about 350 launches of about 65 ns per step of the
+benchmark slider-crank. XLA has a pass, ``SmallWhileLoopHoistingPass``, that compiles a
+``while`` loop whose buffers are small into one kernel (the loop body becomes straight-line
+machine code, as in XLA:CPU's runtime before thunks); its size limit is the backend option
+``xla_cpu_small_while_loop_byte_threshold`` (1 kB by default, which none of jaxclear's loops
+meets). Raising it runs a crank revolution about 3.5x faster on 2 cores (benchmarks/README.md).
+
+The option can only be given through the ``XLA_FLAGS`` environment variable (JAX's per-call
+``compiler_options`` cannot set XLA's map-valued ``xla_backend_extra_options``), and XLA reads
+that variable once, when JAX starts its backends. So it is added here, at import, before any
+JAX computation; it affects the whole process (every program XLA:CPU compiles: loops with small
+buffers become single kernels; results agree to rounding). Rules:
+
+* ``JAXCLEAR_SMALL_LOOP_BYTES`` (environment) sets the limit in bytes; ``0`` leaves XLA's
+  default alone (jaxclear then runs at the thunk runtime's speed).
+* A limit the user already set in ``XLA_FLAGS`` is kept as it is.
+* Where JAX's backends were started before jaxclear was imported, ``XLA_FLAGS`` is no longer
+  read: nothing is changed and a :class:`SlowLoopsWarning` says how to get the speed (import
+  jaxclear first, or set the flag before starting Python).
+
+Written by hand because no library sets XLA options of this kind; the only other route, a
+patched ``CompileOptions`` protocol buffer per compilation, depends on JAX internals.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+
+from ._errors import ParameterError
+
+#: The XLA backend option that limits which while loops become single kernels.
+OPTION = "xla_cpu_small_while_loop_byte_threshold"
+#: jaxclear's limit (bytes): every loop of a simulation, sweep or fit, dense output included.
+DEFAULT_BYTES = 1_000_000_000
+#: Environment variable overriding :data:`DEFAULT_BYTES` (``0``: leave XLA's default).
+ENV = "JAXCLEAR_SMALL_LOOP_BYTES"
+_EXTRA = "--xla_backend_extra_options="
+
+
+class SlowLoopsWarning(UserWarning):
+    """JAX's backends started before jaxclear was imported, so XLA runs jaxclear's solver loops
+    as many small kernels (about 3.5x slower on CPU); see :mod:`jaxclear._xla_flags`."""
+
+
+def with_loop_option(flags: str, nbytes: int) -> str:
+    """``flags`` (an ``XLA_FLAGS`` value) with ``OPTION=nbytes`` added to its
+    ``--xla_backend_extra_options`` (a comma-separated ``key=value`` list), or that flag
+    appended; unchanged where ``OPTION`` is already there."""
+    if OPTION in flags:
+        return flags
+    tokens = flags.split()
+    for i, token in enumerate(tokens):
+        if token.startswith(_EXTRA):
+            value = token[len(_EXTRA):]
+            tokens[i] = f"{_EXTRA}{value},{OPTION}={nbytes}" if value else f"{_EXTRA}{OPTION}={nbytes}"
+            return " ".join(tokens)
+    return " ".join(tokens + [f"{_EXTRA}{OPTION}={nbytes}"])
+
+
+def requested_bytes() -> int:
+    """The limit asked for: ``JAXCLEAR_SMALL_LOOP_BYTES`` or :data:`DEFAULT_BYTES`."""
+    raw = os.environ.get(ENV, "").strip()
+    if not raw:
+        return DEFAULT_BYTES
+    message = f"{ENV}={raw!r}: expected a whole number of bytes >= 0 (0 keeps XLA's default)"
+    try:
+        value = float(raw)
+    except ValueError:
+        raise ParameterError(message) from None
+    if not (value >= 0 and value == int(value)):
+        raise ParameterError(message)
+    return int(value)
+
+
+def loop_kernels_active() -> bool:
+    """Whether ``XLA_FLAGS`` (as this process has it now) raises XLA's small-loop limit. Only
+    meaningful before JAX's backends start or when the flag was set before they did."""
+    return OPTION in os.environ.get("XLA_FLAGS", "")
+
+
+def apply(backends_started: bool) -> bool:
+    """Add the option to ``XLA_FLAGS`` (see the module docstring); returns whether it is in
+    effect for this process."""
+    nbytes = requested_bytes()
+    flags = os.environ.get("XLA_FLAGS", "")
+    if nbytes == 0 or OPTION in flags:
+        return OPTION in flags
+    if backends_started:
+        warnings.warn(
+            "JAX's backends were started before jaxclear was imported, so XLA cannot be told to "
+            "compile jaxclear's solver loops as single kernels (about 3.5x slower on CPU). Import "
+            f"jaxclear before running any JAX computation, or start Python with XLA_FLAGS="
+            f"'{_EXTRA}{OPTION}={nbytes}'; set {ENV}=0 to silence this.",
+            SlowLoopsWarning,
+            stacklevel=3,
+        )
+        return False
+    os.environ["XLA_FLAGS"] = with_loop_option(flags, nbytes)
+    return True
