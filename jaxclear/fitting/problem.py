@@ -29,6 +29,8 @@ from .window import WindowInput, WindowModel, WindowSet, cut_windows, state_to_z
 #: rig record's Jacobian 10 to 600 times too large, its fit stalled at -10 % stiffness; fixed in
 #: :func:`jaxclear.elements.memory.contact_switches`, see "Impact memory" in the documentation).
 FIT_EXACT_ONSETS = True
+#: How the fit's model writes its dense output samples (:class:`~jaxclear.Settings` ``sampling``).
+FIT_SAMPLING = "block"
 
 
 @dataclass(frozen=True)
@@ -179,7 +181,7 @@ def build_problem(data, mech: Mechanism, free: Sequence[str], start: dict | None
     velocity_scale = abs(speed) if speed else 1.0 / window
     n_fine = int(round(window / h))
     s = make_settings(n_fine * h, n_out=n_fine + 1, rtol=settings["rtol"], atol=settings["atol"], adjoint="forward",
-                      throw=False, max_steps=settings["max_steps"], exact_onsets=FIT_EXACT_ONSETS, sampling="block")
+                      throw=False, max_steps=settings["max_steps"], exact_onsets=FIT_EXACT_ONSETS, sampling=FIT_SAMPLING)
     model = WindowModel(mech=mech, sensors=tuple(fc.sensor for _, fc in targets),
                         weights=jnp.asarray([fc.weight for _, fc in targets], dtype=float), settings=s,
                         bias_scale=jnp.asarray(win.scale), velocity_scale=jnp.asarray(velocity_scale), free=free,

@@ -64,10 +64,14 @@ class Settings(eqx.Module):
         sampling: how the output samples are written: ``"loop"`` (default; diffrax's saving,
             one sample per iteration of a loop inside each step) or ``"block"``
             (:class:`~jaxclear.integrate.sampling.SampleWriter`: all of a step's samples at
-            once, a step ending by its 64th sample). For grids of more than about 10 samples
-            per step: measured 2026-11-25 on the benchmark (1 revolution, about 1200 steps),
-            24,001 samples cost 63 ms with "loop" and 52.5 ms with "block", but 241 samples
-            31 ms against 45 ms (the block's cost per step, about 10 us). The fits use it.
+            once, a step ending by its 64th sample). Measured 2026-11-25 on the benchmark (1
+            revolution, about 1200 steps, Intel Xeon): with XLA's single-kernel loops
+            (jaxclear's default, ``jaxclear/_xla_flags.py``) "loop" is faster on every grid
+            (241 samples 8.3 ms against 13.7 ms, 24,001 samples 21.3 ms against 24.7 ms);
+            without them (``JAXCLEAR_SMALL_LOOP_BYTES=0``) "block" pays from about 10 samples
+            per step (24,001 samples 52.5 ms against 63 ms, 241 samples 45 ms against 31 ms).
+            The fits use "block" (their wall time is the same either way with single-kernel
+            loops: the rig record's fit 54 s against 55 s).
     """
 
     t_end: Float[Array, ""]
