@@ -21,6 +21,8 @@ from . import _xla_flags
 _xla_flags.apply(jax._src.xla_bridge.backends_are_initialized())
 jax.config.update("jax_enable_x64", True)
 
+from ._xla_flags import SlowLoopsWarning  # noqa: E402
+
 from ._errors import (  # noqa: E402
     RESULTS,
     STATUS,
