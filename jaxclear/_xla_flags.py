@@ -8,7 +8,7 @@ benchmark slider-crank. XLA has a pass, ``SmallWhileLoopHoistingPass``, that com
 ``while`` loop whose buffers are small into one kernel (the loop body becomes straight-line
 machine code, as in XLA:CPU's runtime before thunks); its size limit is the backend option
 ``xla_cpu_small_while_loop_byte_threshold`` (1 kB by default, which none of jaxclear's loops
-meets). Raising it runs a crank revolution about 3.5x faster on 2 cores (benchmarks/README.md).
+meets). Raising it runs a crank revolution about 4x faster on 2 cores (benchmarks/README.md).
 
 The option can only be given through the ``XLA_FLAGS`` environment variable (JAX's per-call
 ``compiler_options`` cannot set XLA's map-valued ``xla_backend_extra_options``), and XLA reads
@@ -45,7 +45,7 @@ _EXTRA = "--xla_backend_extra_options="
 
 class SlowLoopsWarning(UserWarning):
     """JAX's backends started before jaxclear was imported, so XLA runs jaxclear's solver loops
-    as many small kernels (about 3.5x slower on CPU); see :mod:`jaxclear._xla_flags`."""
+    as many small kernels (about 4x slower on CPU); see :mod:`jaxclear._xla_flags`."""
 
 
 def with_loop_option(flags: str, nbytes: int) -> str:
@@ -94,7 +94,7 @@ def apply(backends_started: bool) -> bool:
     if backends_started:
         warnings.warn(
             "JAX's backends were started before jaxclear was imported, so XLA cannot be told to "
-            "compile jaxclear's solver loops as single kernels (about 3.5x slower on CPU). Import "
+            "compile jaxclear's solver loops as single kernels (about 4x slower on CPU). Import "
             f"jaxclear before running any JAX computation, or start Python with XLA_FLAGS="
             f"'{_EXTRA}{OPTION}={nbytes}'; set {ENV}=0 to silence this.",
             SlowLoopsWarning,
