@@ -33,39 +33,62 @@ class Baumgarte(eqx.Module):
 
 
 UNROLL_LIMIT = 24  # constraint count up to which the elimination is unrolled
+ENTRYWISE_LIMIT = 12  # constraint count up to which it is written entry by entry (spd_solve)
 
 
-def spd_solve(a, b, entrywise: bool = False):
+def _gauss_jordan(a, b):
+    """The unrolled elimination of :func:`spd_solve` written on the entries one by one: ``a``
+    (m, m), ``b`` (m,); every entry is a scalar (under ``vmap`` a vector over the batch)."""
+    m = a.shape[0]
+    rows = [[a[i, j] for j in range(m)] + [b[i]] for i in range(m)]
+    for k in range(m):
+        pivot = [x / rows[k][k] for x in rows[k]]
+        rows = [pivot if i == k else [x - r[k] * p for x, p in zip(r, pivot)] for i, r in enumerate(rows)]
+    return jnp.stack([r[m] for r in rows])
+
+
+@jax.custom_jvp
+def _solve_entrywise(a, b):
+    return _gauss_jordan(a, b)
+
+
+@_solve_entrywise.defjvp
+def _solve_entrywise_jvp(primals, tangents):
+    # a x = b  =>  a dx = db - da x: one more elimination with the same matrix (XLA shares its
+    # matrix part with the primal's) instead of the derivative of each of its scalar operations,
+    # whose forward-mode programs compiled far more slowly (a fit test 92 s against 53 s)
+    a, b = primals
+    da, db = tangents
+    x = _gauss_jordan(a, b)
+    return x, _gauss_jordan(a, db - jnp.sum(da * x[None, :], axis=1))
+
+
+def spd_solve(a, b, entrywise: bool | None = None):
     r"""Solve ``a x = b`` for a small symmetric positive definite ``a`` (m, m).
 
     Up to :data:`UNROLL_LIMIT` equations: Gauss-Jordan elimination without pivoting, unrolled
     (no pivoting is needed: every trailing Schur complement of an SPD matrix is SPD, so every
-    pivot is positive). Each pivot is a whole-matrix update
-    :math:`A \leftarrow A - (A_{:k} - e_k) A_{k:} / a_{kk}` that XLA compiles to one or two small
-    elementwise kernels; for the few-equation systems of planar mechanisms this is several times
+    pivot is positive); for the few-equation systems of planar mechanisms this is several times
     faster than a LAPACK call, and it avoids jaxlib's batched LAPACK path under ``vmap`` (which,
     in jaxlib 0.10, splits large batches over the CPU thread pool and can deadlock when two such
     solves run concurrently). Larger systems use a Cholesky factorization (LAPACK).
 
-    ``entrywise``: the same elimination written on the entries one by one (for evaluation
-    under ``vmap`` over many samples: the output post-processing of
-    :func:`~jaxclear.simulate`). Measured 2026-11-25 on the post-processing of 24,001 samples
-    of the benchmark: 12 ms against 16 ms with the whole-matrix form; inside the integration
-    loop (one instance) the two run equally fast, and the whole-matrix form compiles faster
-    (0.75 s less for the benchmark run), so it stays the default.
+    Two forms of the elimination: ``entrywise`` (the default up to :data:`ENTRYWISE_LIMIT`
+    equations, ``None``) writes it on the entries one by one, with its derivative as one more
+    solve (:math:`a\,\dot x = \dot b - \dot a\,x`, a custom JVP); otherwise each pivot is a
+    whole-matrix update :math:`A \leftarrow A - (A_{:k} - e_k) A_{k:} / a_{kk}` (its trace grows
+    like m, the entry-wise one's like m^3). Measured 2026-11-25 (Intel Xeon, 2 cores) on the
+    benchmark (m = 7): the output post-processing of 24,001 samples 12 ms against 16 ms under
+    ``vmap``; inside the integration loop compiled as one kernel (``jaxclear/_xla_flags.py``)
+    15-20 % less time per step, 10-30 % less at equal accuracy (``bench_accuracy.py``).
     """
     m = a.shape[0]
     if m > UNROLL_LIMIT:
         return jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(a), b)
+    if entrywise is None:
+        entrywise = m <= ENTRYWISE_LIMIT
     if entrywise:
-        # the same elimination entry by entry: under vmap every entry is a vector over the batch
-        # and XLA fuses the updates into few passes over memory, where the whole-matrix form
-        # writes all of the batch's matrices once per pivot
-        rows = [[a[i, j] for j in range(m)] + [b[i]] for i in range(m)]
-        for k in range(m):
-            pivot = [x / rows[k][k] for x in rows[k]]
-            rows = [pivot if i == k else [x - r[k] * p for x, p in zip(r, pivot)] for i, r in enumerate(rows)]
-        return jnp.stack([r[m] for r in rows])
+        return _solve_entrywise(a, b)
     aug = jnp.concatenate([a, b[:, None]], axis=1)
     unit = jnp.eye(m, dtype=aug.dtype)
     for k in range(m):
@@ -96,7 +119,7 @@ def element_forces(mech: Mechanism, t, q, qdot, states: tuple):
     return total, tuple(rates), stack_outputs(outs)
 
 
-def _accelerations(mech: Mechanism, t, q, qdot, states: tuple, baumgarte: Baumgarte, entrywise: bool = False):
+def _accelerations(mech: Mechanism, t, q, qdot, states: tuple, baumgarte: Baumgarte):
     """Solve the augmented system. Returns ``(qddot, lambda, Phi, element rates, outputs)``."""
     t = jnp.asarray(t, q.dtype)
     f_e, rates, contact = element_forces(mech, t, q, qdot, states)
@@ -113,7 +136,7 @@ def _accelerations(mech: Mechanism, t, q, qdot, states: tuple, baumgarte: Baumga
     # reported as a non-finite state).
     dm = d / m_diag
     # products written as broadcast-multiply-and-sum: XLA fuses them with their neighbours
-    lam = spd_solve(jnp.sum(dm[:, None, :] * d[None, :, :], axis=-1), jnp.sum(dm * g, axis=-1) - rhs_c, entrywise)
+    lam = spd_solve(jnp.sum(dm[:, None, :] * d[None, :, :], axis=-1), jnp.sum(dm * g, axis=-1) - rhs_c)
     return (g - jnp.sum(d * lam[:, None], axis=0)) / m_diag, lam, value, rates, contact
 
 

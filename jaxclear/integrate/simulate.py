@@ -62,7 +62,7 @@ def _postprocess(mech: Mechanism, s: Settings, ts, packed, ys: State):
     ``ts`` (T,) of the packed states ``packed`` (T, N) (``ys`` the same, unpacked)."""
     def one(t, v):
         y = State.unpack(v, mech)
-        qdd, lam, value, _, contact = _accelerations(mech, t, y.q, y.qdot, y.elements, s.baumgarte, entrywise=True)
+        qdd, lam, value, _, contact = _accelerations(mech, t, y.q, y.qdot, y.elements, s.baumgarte)
         return qdd, lam, value, contact
 
     # with single-kernel loops: sample by sample; else in equal batches of at most
