@@ -67,7 +67,7 @@ class Settings(eqx.Module):
             once, a step ending by its 64th sample). Measured 2026-11-25 on the benchmark (1
             revolution, about 1200 steps, Intel Xeon): with XLA's single-kernel loops
             (jaxclear's default, ``jaxclear/_xla_flags.py``) "loop" is faster on every grid
-            (241 samples 8.3 ms against 13.7 ms, 24,001 samples 21.3 ms against 24.7 ms);
+            (241 samples 7.6 ms against 12.0 ms, 24,001 samples 20.0 ms against 23.0 ms);
             without them (``JAXCLEAR_SMALL_LOOP_BYTES=0``) "block" pays from about 10 samples
             per step (24,001 samples 52.5 ms against 63 ms, 241 samples 45 ms against 31 ms).
             The fits use "block" (their wall time is the same either way with single-kernel
