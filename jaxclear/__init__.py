@@ -15,13 +15,12 @@ from importlib.metadata import version as _version
 import jax
 
 from . import _xla_flags
+from ._xla_flags import SlowLoopsWarning
 
 # before any JAX computation: XLA compiles jaxclear's solver loops as single kernels (see
 # jaxclear/_xla_flags.py; JAXCLEAR_SMALL_LOOP_BYTES=0 leaves XLA's default)
-_xla_flags.apply(jax._src.xla_bridge.backends_are_initialized())
+_xla_flags.apply()
 jax.config.update("jax_enable_x64", True)
-
-from ._xla_flags import SlowLoopsWarning  # noqa: E402
 
 from ._errors import (  # noqa: E402
     RESULTS,

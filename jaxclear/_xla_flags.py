@@ -84,14 +84,26 @@ def loop_kernels_active() -> bool:
     return OPTION in os.environ.get("XLA_FLAGS", "")
 
 
-def apply(backends_started: bool) -> bool:
+def backends_started() -> bool:
+    """Whether JAX has started its backends (and so read ``XLA_FLAGS``); False where this JAX
+    does not say (its private ``xla_bridge.backends_are_initialized``)."""
+    import jax
+
+    probe = getattr(getattr(getattr(jax, "_src", None), "xla_bridge", None), "backends_are_initialized", None)
+    return bool(probe()) if probe is not None else False
+
+
+def apply(started: bool | None = None) -> bool:
     """Add the option to ``XLA_FLAGS`` (see the module docstring); returns whether it is in
-    effect for this process."""
+    effect for this process. ``started``: whether JAX's backends have started (default: ask
+    JAX, :func:`backends_started`)."""
+    if started is None:
+        started = backends_started()
     nbytes = requested_bytes()
     flags = os.environ.get("XLA_FLAGS", "")
     if nbytes == 0 or OPTION in flags:
         return OPTION in flags
-    if backends_started:
+    if started:
         warnings.warn(
             "JAX's backends were started before jaxclear was imported, so XLA cannot be told to "
             "compile jaxclear's solver loops as single kernels (about 4x slower on CPU). Import "

@@ -46,13 +46,13 @@ def test_started_backends_are_left_alone_with_a_warning(monkeypatch):
     monkeypatch.setenv("XLA_FLAGS", "--xla_force_host_platform_device_count=1")
     monkeypatch.delenv(X.ENV, raising=False)
     with pytest.warns(X.SlowLoopsWarning, match="Import jaxclear before"):
-        assert X.apply(backends_started=True) is False
+        assert X.apply(started=True) is False
     assert os.environ["XLA_FLAGS"] == "--xla_force_host_platform_device_count=1"
     monkeypatch.setenv(X.ENV, "0")  # switched off: silent, unchanged
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        assert X.apply(backends_started=True) is False
-        assert X.apply(backends_started=False) is False
+        assert X.apply(started=True) is False
+        assert X.apply(started=False) is False
     assert os.environ["XLA_FLAGS"] == "--xla_force_host_platform_device_count=1"
 
 

@@ -10,8 +10,10 @@ whole at every step), evaluates the step's interpolant at up to :data:`BLOCK` sa
 one vectorised call and gathers the rows into whole blocks of its buffer (:class:`Samples`).
 So that one block always suffices, it ends a step no later than the :data:`BLOCK`-th unwritten
 sample (a long step on a dense grid is cut there, as diffrax's ``step_ts`` would cut it). Its
-cost per step (the block's interpolation and the gathering, about 10 us on the benchmark) makes
-it pay only from about 10 samples per step: ``Settings(sampling="block")`` is opt-in.
+cost per step (the block's interpolation and the gathering, about 10 us on the benchmark with
+XLA's kernel-per-operation runtime) makes it pay only from about 10 samples per step there;
+with jaxclear's single-kernel loops (``jaxclear/_xla_flags.py``) diffrax's saving is faster on
+every grid measured (``Settings.sampling``), so ``Settings(sampling="block")`` is opt-in.
 
 The step's interpolant comes from the solver (:class:`~jaxclear.integrate.solvers.ImpactMemorySolver`
 with ``dense_to_controller``, which hands its dense output to the controller beside the error
