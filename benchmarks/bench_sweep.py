@@ -6,16 +6,17 @@ The same ``--runs`` simulations of the Flores benchmark (``jc.preset("flores-sli
 atol 1e-9, ``--samples`` output samples per revolution, clearance 0.25 to 1.0 mm and
 restitution 0.5 to 0.95 drawn from a fixed grid) are computed
 
-* by the sweep's compiled chunk function (``jaxclear.sweep._run_chunk``: ``jax.vmap`` of the
-  per-run function inside ``jax.shard_map``) in chunks of each ``--batch-sizes`` value, on one
-  device;
+* by the sweep's compiled chunk function (``jaxclear.sweep._run_chunk``: the per-run function
+  mapped over a device's rows inside ``jax.shard_map``) in chunks of each ``--batch-sizes``
+  value, on one device, in each of the ``--modes``: ``auto`` (what a sweep does: on CPU with
+  single-kernel loops the runs of a device one after another, ``jax.lax.map``) and ``vmap``
+  (side by side, ``Plan(side_by_side=True)``);
 * by a serial Python loop over the *same* per-run function (``jaxclear.sweep._one_run``,
   unbatched, jitted once with ``equinox.filter_jit``), one call per run; this is the baseline of
   the "vs serial" column and of the issue's target. The sweep integrates with diffrax's
   ``while_loop`` over the Runge-Kutta stages (``Settings(stages="loop")``), the faster form
   under ``vmap``;
-* by the same serial loop with the stages unrolled (``stages="unrolled"``, what
-  ``jc.simulate`` does by default for one run): the fastest serial path, reported alongside;
+* by the same serial loop with the stages unrolled (``stages="unrolled"``), reported alongside;
 * by the plain SciPy implementation (``benchmarks/scipy_reference.py``, RK45, same tolerances,
   same output grid) for the first ``--scipy-runs`` runs;
 * (``--two-devices``) in a child process with two host CPU devices forced
@@ -29,7 +30,8 @@ Every jaxclear row runs the per-run metrics too (no ideal-joint reference run, s
 equals SciPy's: one clearance simulation per run). Throughput = runs / wall time of the whole
 set after compilation; compile = first chunk call - the mean chunk time. A vmapped batch runs
 until its slowest member is done (the others idle, masked), so the table also gives the lane
-efficiency: total solver steps / (sum over chunks of batch size x the chunk's largest step count).
+efficiency of the vmap rows: total solver steps / (sum over chunks of batch size x the chunk's
+largest step count).
 
 Run from the repository root (about 3 to 5 minutes on 2 cores)::
 
@@ -83,8 +85,11 @@ def _plan(cfg, mesh):
     return sweep.make_plan(cfg, mesh, trajectories=False, ideal=False)
 
 
-def time_batched(args, values, batch: int, devices: int = 1) -> dict:
-    """All runs in chunks of ``batch`` through the sweep's chunk function (padded last chunk)."""
+def time_batched(args, values, batch: int, devices: int = 1, mode: str = "auto") -> dict:
+    """All runs in chunks of ``batch`` through the sweep's chunk function (padded last chunk);
+    ``mode`` ``"vmap"``: side by side on each device, ``"auto"``: as a sweep chooses."""
+    import dataclasses
+
     import jax
 
     from jaxclear import sweep
@@ -92,6 +97,9 @@ def time_batched(args, values, batch: int, devices: int = 1) -> dict:
     cfg = _config(args, values, batch, devices)
     mesh = sweep.make_mesh(devices)
     plan = _plan(cfg, mesh)
+    if mode == "vmap":
+        plan = dataclasses.replace(plan, side_by_side=True)
+    side = not sweep.batch.one_by_one(plan)
     n = len(values)
     chunks = []
     for lo in range(0, n, batch):
@@ -109,10 +117,11 @@ def time_batched(args, values, batch: int, devices: int = 1) -> dict:
         status.extend(out["status"][:real].tolist())
         lane_slots += batch * int(np.max(out["num_steps"]))
     wall = time.perf_counter() - t
-    return {"method": "vmap chunks" if devices == 1 else f"vmap chunks sharded over {devices} devices",
+    kind = "vmap chunks" if side else "chunks, one after another"
+    return {"method": kind if devices == 1 else f"{kind}, {devices} devices",
             "batch": batch, "devices": devices, "runs": n, "first_call_s": first,
             "compile_s": max(first - wall / len(chunks), 0.0), "wall_s": wall, "sims_per_s": n / wall,
-            "steps_total": int(sum(steps)), "steps_max": int(max(steps)), "lane_efficiency": sum(steps) / lane_slots,
+            "steps_total": int(sum(steps)), "steps_max": int(max(steps)), "lane_efficiency": sum(steps) / lane_slots if side else None,
             "failed": int(sum(1 for s in status if s != 0))}
 
 
@@ -153,7 +162,7 @@ def time_serial(args, values, stages="loop") -> dict:
         batch._settings = original
     n = len(values)
     method = ("serial loop (same function, jitted, unbatched)" if stages == "loop"
-              else "serial loop, unrolled stages (jc.simulate default)")
+              else "serial loop, unrolled stages")
     return {"method": method, "batch": 1, "devices": 1, "runs": n,
             "first_call_s": first, "compile_s": max(first - wall / n, 0.0), "wall_s": wall, "sims_per_s": n / wall,
             "steps_total": int(sum(steps)), "steps_max": int(max(steps)), "lane_efficiency": 1.0,
@@ -225,19 +234,25 @@ def main(argv=None) -> int:
                    help="chunk sizes sharded over 2 forced host devices in a child process ('' skips; default 4,8,16)")
     p.add_argument("--two-devices-samples", type=int, default=None,
                    help="output samples per revolution in the two-device rows (default: --samples)")
+    p.add_argument("--modes", default="auto,vmap",
+                   help="chunk modes, comma-separated: auto (what a sweep does), vmap (runs side by side); default both")
     p.add_argument("--json", default=str(HERE / "results" / "sweep.json"), help="where the JSON results go")
     p.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = p.parse_args(argv)
     values = _grid(args.runs)
     sizes = [int(s) for s in args.batch_sizes.split(",") if s]
+    modes = [m for m in args.modes.split(",") if m]
+    if not modes or set(modes) - {"auto", "vmap"}:
+        p.error(f"--modes: a comma-separated list of auto and vmap, got {args.modes!r}")
 
     if args.child:  # two forced host devices: sharded rows and the same chunks on one device
         rows = []
-        for b in sizes:
-            rows.append(time_batched(args, values, b, devices=1))
-            rows[-1]["method"] = f"vmap chunks, 1 device ({args.samples}/rev)"
-            rows.append(time_batched(args, values, b, devices=2))
-            rows[-1]["method"] = f"vmap chunks sharded over 2 devices ({args.samples}/rev)"
+        for mode in modes:
+            for b in sizes:
+                for devices in (1, 2):
+                    rows.append(time_batched(args, values, b, devices=devices, mode=mode))
+                    rows[-1]["method"] = rows[-1]["method"].split(",")[0] + f", {devices} device{'s' if devices > 1 else ''} ({args.samples}/rev)"
+                    rows[-1]["mode"] = mode
         print(json.dumps(rows))
         return 0
 
@@ -254,15 +269,17 @@ def main(argv=None) -> int:
     print(f"serial loop of {args.runs} runs, unrolled stages...", file=sys.stderr, flush=True)
     serial_unrolled = time_serial(args, values, stages="unrolled")
     rows.append(serial_unrolled)
-    for b in sizes:
-        print(f"vmap chunks of {b}...", file=sys.stderr, flush=True)
-        rows.append(time_batched(args, values, b))
+    for mode in modes:
+        for b in sizes:
+            print(f"chunks of {b}, mode {mode}...", file=sys.stderr, flush=True)
+            rows.append(dict(time_batched(args, values, b, mode=mode), mode=mode))
     if args.two_devices:
         print(f"two host devices, chunks of {args.two_devices} (child process)...", file=sys.stderr, flush=True)
         env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2",
                    PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
         cmd = [sys.executable, __file__, "--child", "--runs", str(args.runs), "--revolutions", str(args.revolutions),
-               "--samples", str(args.two_devices_samples or args.samples), "--batch-sizes", args.two_devices]
+               "--samples", str(args.two_devices_samples or args.samples), "--batch-sizes", args.two_devices,
+               "--modes", args.modes]
         done = subprocess.run(cmd, env=env, capture_output=True, text=True)
         if done.returncode == 0:
             child_rows = json.loads(done.stdout.strip().splitlines()[-1])
@@ -276,15 +293,18 @@ def main(argv=None) -> int:
         rows.append(time_scipy(args, values[: args.scipy_runs]))
     load_end = os.getloadavg()
     info = machine_info()
-    best = max((r for r in rows if r["method"].startswith("vmap chunks") and r["devices"] == 1
-                and not r.get("child")),
-               key=lambda r: r["sims_per_s"])
+    single = [r for r in rows if r.get("mode") and r["devices"] == 1 and not r.get("child")]
+    best = max(single, key=lambda r: r["sims_per_s"])
+    best_mode = {m: max((r for r in single if r["mode"] == m), key=lambda r: r["sims_per_s"]) for m in modes}
     title = (f"sweep throughput: flores-slider-crank, {args.revolutions:g} revolution(s) per run at 5000 rpm, "
              f"tsit5 rtol 1e-6 atol 1e-9, {int(round(args.revolutions * args.samples)) + 1} samples, "
              f"{args.runs} runs (clearance 0.25-1 mm x c_r 0.5-0.95)")
     text = [title, "=" * len(title), table(rows, serial["sims_per_s"]), "",
-            f"best single-device batching: {best['sims_per_s'] / serial['sims_per_s']:.2f}x the serial loop "
-            f"(batch {best['batch']}); target >= 2x: {'met' if best['sims_per_s'] >= 2 * serial['sims_per_s'] else 'NOT met'}",
+            f"best single-device chunks: {best['sims_per_s'] / serial['sims_per_s']:.2f}x the serial loop "
+            f"({best['method']}, batch {best['batch']}); target >= 2x: "
+            f"{'met' if best['sims_per_s'] >= 2 * serial['sims_per_s'] else 'NOT met'}",
+            "best per mode, one device: " + ", ".join(
+                f"{m} {r['sims_per_s']:.0f} sims/s (batch {r['batch']})" for m, r in best_mode.items()),
             f"against the fastest serial path (unrolled stages): "
             f"{best['sims_per_s'] / serial_unrolled['sims_per_s']:.2f}x",
             "per solver step (wall / total steps; insensitive to which runs happen to take many steps): "
@@ -296,10 +316,10 @@ def main(argv=None) -> int:
             f"machine: {info['platform']}, {info['cpu_model']}, jax {info['jax']} on {info['devices']}; "
             f"{info['date_utc']}; whole script {time.perf_counter() - t0:.0f} s"]
     pairs = [(a, b) for a, b in zip(rows, rows[1:]) if a.get("child") and b.get("child") and a["devices"] == 1
-             and b["devices"] == 2 and a["batch"] == b["batch"]]
+             and b["devices"] == 2 and a["batch"] == b["batch"] and a["mode"] == b["mode"]]
     if pairs:
         text.insert(4, "two devices / one device (same chunks, child process): " + ", ".join(
-            f"batch {a['batch']}: {b['sims_per_s'] / a['sims_per_s']:.2f}x" for a, b in pairs))
+            f"{a['mode']} batch {a['batch']}: {b['sims_per_s'] / a['sims_per_s']:.2f}x" for a, b in pairs))
     print("\n".join(text))
     os.makedirs(os.path.dirname(args.json), exist_ok=True)
     with open(args.json, "w") as f:

@@ -1,8 +1,9 @@
 r"""The compiled batch function: one pure function ``values (B, P) -> outputs``, jitted once
 per sweep structure.
 
-A run has three phases, each ``jax.vmap``-ped over the batch inside ``jax.shard_map`` over a
-1-D mesh of the devices (batch axis ``"batch"``):
+A run has three phases, mapped over each device's rows inside ``jax.shard_map`` over a 1-D
+mesh of the devices (batch axis ``"batch"``); the clearance runs side by side (``jax.vmap``) or
+one after another (``jax.lax.map``, on CPU: :func:`one_by_one`), the other phases vmapped:
 
 1. :func:`_clearance_run`: the mechanism with the row's parameters, integrated to
    :math:`t_{end} = N_{rev}\, 2\pi / |\omega|` with ``n_out`` output samples;
@@ -28,6 +29,7 @@ import jax.numpy as jnp
 from jax.sharding import PartitionSpec
 
 from .. import params
+from .._xla_flags import loop_kernels_active
 from ..elements import journal_state
 from ..model import Mechanism, crank_driver
 from ..analysis.metrics import run_metrics
@@ -141,11 +143,29 @@ def _one_run(plan: Plan, mech: Mechanism, ideal: Mechanism | None, row):
     return _finish(plan, mech, row, sol, ideal_acc, ideal_status)
 
 
+def one_by_one(plan: Plan) -> bool:
+    """Whether a device integrates its runs one after another (``jax.lax.map``) rather than side
+    by side (``jax.vmap``): ``not plan.side_by_side`` where that is set, else on CPU with
+    single-kernel loops (``jaxclear/_xla_flags.py``). There the lanes of a ``vmap`` batch run
+    one after another inside the loop's kernel anyway, and the batch runs until its slowest
+    member is done. Measured 2026-11-26 (Intel Xeon, 2 cores, ``benchmarks/bench_sweep.py``, 32
+    runs of one revolution, 16 runs per device): side by side 127 sims/s on one device and 212
+    on two, one after another 228 and 401. On accelerators ``vmap`` is what fills the device."""
+    if plan.side_by_side is not None:
+        return not plan.side_by_side
+    devices = jax.devices() if plan.mesh is None else plan.mesh.devices.flat
+    return next(iter(devices)).platform == "cpu" and loop_kernels_active()
+
+
 def _runs(plan: Plan, mech: Mechanism, ideal: Mechanism | None, rows):
-    """A batch of runs (B, P) -> dict of (B, ...): each phase vmapped over the batch. An ideal
-    mechanism that no swept parameter changes is integrated once, unbatched (vmap leaves it
-    unbatched)."""
-    sol = jax.vmap(lambda r: _clearance_run(plan, mech, r))(rows)
+    """A batch of runs (B, P) -> dict of (B, ...). The clearance runs go one after another or
+    side by side (:func:`one_by_one`); the ideal runs and the metrics are vmapped over the batch
+    (an ideal mechanism that no swept parameter changes is integrated once, unbatched: vmap
+    leaves it unbatched)."""
+    if one_by_one(plan):
+        sol = jax.lax.map(lambda r: _clearance_run(plan, mech, r), rows)
+    else:
+        sol = jax.vmap(lambda r: _clearance_run(plan, mech, r))(rows)
     ideal_acc = ideal_status = None
     if ideal is not None:
         ideal_acc, ideal_status = jax.vmap(lambda r: _ideal_run(plan, mech, ideal, r))(rows)

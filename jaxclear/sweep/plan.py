@@ -23,6 +23,9 @@ class Plan:
         trajectories: also return the time series.
         mesh: the 1-D ``jax.sharding.Mesh`` (axis ``"batch"``) the chunk is sharded over
             (``None`` for an unbatched call of the per-run function).
+        side_by_side: whether a device integrates its runs side by side (``jax.vmap``, True)
+            or one after another (``jax.lax.map``, False); ``None`` (default): chosen for the
+            device (:func:`jaxclear.sweep.batch.one_by_one`).
     """
 
     names: tuple[str, ...]
@@ -37,6 +40,7 @@ class Plan:
     max_steps: int
     trajectories: bool
     mesh: Any
+    side_by_side: bool | None = None
 
 
 def make_plan(cfg, mesh, trajectories: bool | None = None, ideal: bool = True) -> Plan:
