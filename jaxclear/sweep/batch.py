@@ -149,8 +149,9 @@ def one_by_one(plan: Plan) -> bool:
     single-kernel loops (``jaxclear/_xla_flags.py``). There the lanes of a ``vmap`` batch run
     one after another inside the loop's kernel anyway, and the batch runs until its slowest
     member is done. Measured 2026-11-26 (Intel Xeon, 2 cores, ``benchmarks/bench_sweep.py``, 32
-    runs of one revolution, 16 runs per device): side by side 127 sims/s on one device and 212
-    on two, one after another 228 and 401. On accelerators ``vmap`` is what fills the device."""
+    runs of one revolution): chunks of 16 runs 217 sims/s one after another against 130 side by
+    side on one device, 423 against 217 on two. On accelerators ``vmap`` is what fills the
+    device."""
     if plan.side_by_side is not None:
         return not plan.side_by_side
     devices = jax.devices() if plan.mesh is None else plan.mesh.devices.flat
