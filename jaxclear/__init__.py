@@ -15,7 +15,7 @@ from importlib.metadata import version as _version
 import jax
 
 from . import _xla_flags
-from ._xla_flags import SlowLoopsWarning
+from ._xla_flags import SlowLoopsWarning, request_host_devices
 
 # before any JAX computation: XLA compiles jaxclear's solver loops as single kernels (see
 # jaxclear/_xla_flags.py; JAXCLEAR_SMALL_LOOP_BYTES=0 leaves XLA's default)

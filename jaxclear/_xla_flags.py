@@ -23,6 +23,10 @@ buffers become single kernels; results agree to rounding). Rules:
   read: nothing is changed and a :class:`SlowLoopsWarning` says how to get the speed (import
   jaxclear first, or set the flag before starting Python).
 
+The command line's ``jaxclear sweep`` also asks, through the same variable and before JAX
+starts, for one host CPU device per usable core (:func:`request_host_devices`): a sweep's chunk
+is split over the devices, and each device runs its runs one after another on a core of its own.
+
 Written by hand because no library sets XLA options of this kind; the only other route, a
 patched ``CompileOptions`` protocol buffer per compilation, depends on JAX internals.
 """
@@ -41,6 +45,8 @@ DEFAULT_BYTES = 1_000_000_000
 #: Environment variable overriding :data:`DEFAULT_BYTES` (``0``: leave XLA's default).
 ENV = "JAXCLEAR_SMALL_LOOP_BYTES"
 _EXTRA = "--xla_backend_extra_options="
+#: The XLA flag that splits the host CPU into several JAX devices.
+HOST_DEVICES_FLAG = "--xla_force_host_platform_device_count"
 
 
 class SlowLoopsWarning(UserWarning):
@@ -114,4 +120,34 @@ def apply(started: bool | None = None) -> bool:
         )
         return False
     os.environ["XLA_FLAGS"] = with_loop_option(flags, nbytes)
+    return True
+
+
+def usable_cpus() -> int:
+    """CPU cores this process may run on (its affinity mask; ``os.cpu_count()`` where the
+    platform has none)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def request_host_devices(n: int | None = None, started: bool | None = None) -> bool:
+    """Ask XLA for ``n`` host CPU devices (default: one per usable core, :func:`usable_cpus`) by
+    adding ``--xla_force_host_platform_device_count=n`` to ``XLA_FLAGS``, so that a sweep
+    (``jaxclear.sweep.run_sweep``) splits its chunks over the cores. Call it after
+    ``import jaxclear`` and before any JAX computation: nothing is changed where JAX's backends
+    have started (``started``; default: ask JAX), since XLA reads the variable only then, where
+    ``XLA_FLAGS`` already names a count (the user's choice), or where ``n < 2``. Returns whether
+    it was added. ``jaxclear sweep`` calls it."""
+    if n is None:
+        n = usable_cpus()
+    if n < 2:
+        return False
+    if started is None:
+        started = backends_started()
+    flags = os.environ.get("XLA_FLAGS", "")
+    if started or HOST_DEVICES_FLAG in flags:
+        return False
+    os.environ["XLA_FLAGS"] = " ".join(flags.split() + [f"{HOST_DEVICES_FLAG}={int(n)}"])
     return True

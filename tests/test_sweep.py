@@ -488,7 +488,10 @@ def test_kill_and_resume(tmp_path):
     a partial line appended, as a kill in the middle of a write leaves), then the same command
     again: every index exactly once, and every row identical (exact) to an uninterrupted
     reference sweep run afterwards in that second process."""
-    env = _env(JAX_COMPILATION_CACHE_DIR=str(tmp_path / "xla-cache"))  # the second process reuses the compile
+    # the second process reuses the compile; two host devices named (the command line would
+    # otherwise take one per core, and on many cores one chunk would hold every run)
+    env = _env(JAX_COMPILATION_CACHE_DIR=str(tmp_path / "xla-cache"),
+               XLA_FLAGS="--xla_force_host_platform_device_count=2")
     ref_cfg, cfg = tmp_path / "ref.toml", tmp_path / "cfg.toml"
     ref_cfg.write_text(KILL_TOML.format(out=tmp_path / "ref"))
     cfg.write_text(KILL_TOML.format(out=tmp_path / "out"))
@@ -516,6 +519,7 @@ def test_kill_and_resume(tmp_path):
                              text=True, timeout=400)
     assert resumed.returncode == 0, resumed.stderr[-3000:]
     assert f"({12 - len(partial)} computed now)" in resumed.stdout
+    assert "on 2 CPU devices" in resumed.stdout
     with open(csv_path, newline="") as f:
         indices = [int(r[0]) for r in list(csv.reader(f))[1:]]
     assert sorted(indices) == list(range(12))  # each exactly once

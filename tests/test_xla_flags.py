@@ -92,3 +92,53 @@ def test_same_results_with_and_without_single_kernel_loops():
     assert on["steps"] == off["steps"]
     np.testing.assert_allclose(on["q"], off["q"], rtol=1e-9, atol=1e-15)
     assert on["fn"] == pytest.approx(off["fn"], rel=1e-9)
+
+
+def test_host_devices_request(monkeypatch):
+    """``request_host_devices`` adds XLA's host-device count to ``XLA_FLAGS``, except where the
+    user named one, where fewer than two are asked for, or where JAX has started."""
+    monkeypatch.setenv("XLA_FLAGS", "--xla_backend_extra_options=a=1")
+    assert X.request_host_devices(3, started=False) is True
+    assert os.environ["XLA_FLAGS"] == "--xla_backend_extra_options=a=1 --xla_force_host_platform_device_count=3"
+    assert X.request_host_devices(5, started=False) is False  # a count is there: kept
+    assert os.environ["XLA_FLAGS"].endswith("count=3")
+    monkeypatch.setenv("XLA_FLAGS", "")
+    assert X.request_host_devices(1, started=False) is False
+    assert X.request_host_devices(4, started=True) is False
+    assert os.environ["XLA_FLAGS"] == ""
+    assert X.usable_cpus() >= 1
+
+
+_FRESH = r"""
+import jaxclear as jc
+from jax._src import xla_bridge
+from jaxclear import _xla_flags as X
+started = xla_bridge.backends_are_initialized()
+asked = X.request_host_devices(3)
+mech = jc.preset("flores-slider-crank")
+import jax
+print(started, asked, jax.device_count())
+"""
+
+
+def test_import_starts_no_jax_backend():
+    """``import jaxclear`` creates no JAX array (module constants such as ``STEEL`` hold NumPy
+    scalars), so options set after the import still reach XLA: a fresh process asks for three
+    host devices after importing jaxclear and gets them."""
+    env = dict(os.environ)
+    env.pop("XLA_FLAGS", None)
+    done = subprocess.run([sys.executable, "-c", _FRESH], env=env, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.split()[-3:] == ["False", "True", "3"]
+
+
+def test_sweep_command_asks_for_one_device_per_core(monkeypatch, tmp_path, capsys):
+    """``jaxclear sweep`` asks for one host device per usable core before anything else (here
+    recorded: this test process's backends run already)."""
+    from jaxclear.cli import main
+    from jaxclear.cli import sweep as cli_sweep
+
+    asked = []
+    monkeypatch.setattr(cli_sweep, "request_host_devices", lambda n=None: asked.append(n) or False)
+    assert main(["sweep", str(tmp_path / "missing.toml")]) != 0
+    assert asked == [None]  # the default: one per usable core

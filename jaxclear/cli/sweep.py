@@ -8,14 +8,16 @@ import os
 import jax
 
 from .._errors import ParameterError
+from .._xla_flags import request_host_devices
 from .common import number_in
 from ..sweep import CSV_NAME, MANIFEST_NAME, NETCDF_NAME, bifurcation, heatmap, load_config, poincare_plot, run_sweep
 
 HELP = "run a parameter sweep from a TOML file (CSV, NetCDF, NPZ, PNG)"
 DESCRIPTION = """\
 Run a parameter sweep described by a TOML file (see examples/sweep.toml): a grid or a list
-over any numeric parameters, batched with jax.vmap over all local devices, compiled once,
-written chunk by chunk to the output folder:
+over any numeric parameters, split over all local devices (on CPU one device per core unless
+XLA_FLAGS sets --xla_force_host_platform_device_count), compiled once, written chunk by chunk
+to the output folder:
   runs.csv                one row per run: index, parameters, metrics, status, status message
   manifest.json           the sweep's definition and hash (a re-run resumes the same sweep)
   chunks/chunk_NNNNNN.npz Poincare points (and time series with --trajectories)
@@ -47,15 +49,21 @@ def configure(p: argparse.ArgumentParser):
 
 
 def run(args) -> int:
-    """Load the configuration, run (or resume) the sweep, draw its plots, print a summary."""
+    """Load the configuration, run (or resume) the sweep, draw its plots, print a summary. On
+    CPU the process first asks XLA for one host device per usable core
+    (:func:`jaxclear._xla_flags.request_host_devices`; before JAX starts, so only where nothing
+    has computed yet: a fresh ``jaxclear sweep`` process)."""
+    request_host_devices()
     if args.devices is not None and args.devices > len(jax.devices()):
         raise ParameterError(f"--devices = {args.devices} is outside the allowed range [1, {len(jax.devices())}] "
                              f"(devices available: {len(jax.devices())})")
     cfg = load_config(args.config, out=args.out, chunk_size=args.chunk_size, devices=args.devices,
                       trajectories=args.trajectories, progress=False if args.no_progress else None)
     mode = "grid" if cfg.grid is not None else "list"
+    n_dev = cfg.devices or len(jax.devices())
     print(f"jaxclear sweep: {cfg.n_runs} runs ({mode} over {', '.join(cfg.names)}), {cfg.revolutions:g} revolutions "
-          f"each, output {cfg.out}", flush=True)
+          f"each, on {n_dev} {jax.default_backend().upper()} device{'s' if n_dev > 1 else ''}, output {cfg.out}",
+          flush=True)
     res = run_sweep(cfg, restart=args.restart)
     table = res.table
     failed = int(sum(1 for s in table["status"] if s != 0))

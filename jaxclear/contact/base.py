@@ -23,6 +23,7 @@ from typing import ClassVar
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 
 from .._errors import RESULTS, ParameterError, check_range, first_failure, in_range
 from .._types import ArrayLike, Scalar, Vec2
@@ -83,8 +84,18 @@ class Material(eqx.Module):
         return compliance(self.young, self.poisson)
 
 
+def _numpy_material(young: float, poisson: float) -> Material:
+    """A :class:`Material` whose leaves are NumPy scalars (0-d arrays), for module constants:
+    creating a JAX array at import would start JAX's backends, after which XLA no longer reads
+    ``XLA_FLAGS`` (``jaxclear/_xla_flags.py``); JAX converts the leaves when it traces them."""
+    material = object.__new__(Material)
+    object.__setattr__(material, "young", np.asarray(young, dtype=np.float64))
+    object.__setattr__(material, "poisson", np.asarray(poisson, dtype=np.float64))
+    return material
+
+
 #: Structural steel as used in the Flores benchmark (E = 207 GPa, nu = 0.3).
-STEEL = Material(207e9, 0.3)
+STEEL = _numpy_material(207e9, 0.3)
 
 
 def effective_modulus(bearing: Material, journal: Material):
