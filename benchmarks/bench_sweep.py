@@ -118,7 +118,7 @@ def time_batched(args, values, batch: int, devices: int = 1, mode: str = "auto")
         lane_slots += batch * int(np.max(out["num_steps"]))
     wall = time.perf_counter() - t
     kind = "vmap chunks" if side else "chunks, one after another"
-    return {"method": kind if devices == 1 else f"{kind}, {devices} devices",
+    return {"method": f"{kind}, {devices} device{'s' if devices > 1 else ''}",
             "batch": batch, "devices": devices, "runs": n, "first_call_s": first,
             "compile_s": max(first - wall / len(chunks), 0.0), "wall_s": wall, "sims_per_s": n / wall,
             "steps_total": int(sum(steps)), "steps_max": int(max(steps)), "lane_efficiency": sum(steps) / lane_slots if side else None,
@@ -251,7 +251,7 @@ def main(argv=None) -> int:
             for b in sizes:
                 for devices in (1, 2):
                     rows.append(time_batched(args, values, b, devices=devices, mode=mode))
-                    rows[-1]["method"] = rows[-1]["method"].split(",")[0] + f", {devices} device{'s' if devices > 1 else ''} ({args.samples}/rev)"
+                    rows[-1]["method"] += f" ({args.samples}/rev)"
                     rows[-1]["mode"] = mode
         print(json.dumps(rows))
         return 0

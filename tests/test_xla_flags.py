@@ -132,7 +132,7 @@ def test_import_starts_no_jax_backend():
     assert done.stdout.split()[-3:] == ["False", "True", "3"]
 
 
-def test_sweep_command_asks_for_one_device_per_core(monkeypatch, tmp_path, capsys):
+def test_sweep_command_asks_for_one_device_per_core(monkeypatch, tmp_path):
     """``jaxclear sweep`` asks for one host device per usable core before anything else (here
     recorded: this test process's backends run already)."""
     from jaxclear.cli import main

@@ -10,7 +10,8 @@ import jax
 from .._errors import ParameterError
 from .._xla_flags import request_host_devices
 from .common import number_in
-from ..sweep import CSV_NAME, MANIFEST_NAME, NETCDF_NAME, bifurcation, heatmap, load_config, poincare_plot, run_sweep
+from ..sweep import (CSV_NAME, MANIFEST_NAME, NETCDF_NAME, bifurcation, heatmap, load_config, make_mesh, poincare_plot,
+                     run_sweep)
 
 HELP = "run a parameter sweep from a TOML file (CSV, NetCDF, NPZ, PNG)"
 DESCRIPTION = """\
@@ -54,16 +55,17 @@ def run(args) -> int:
     (:func:`jaxclear._xla_flags.request_host_devices`; before JAX starts, so only where nothing
     has computed yet: a fresh ``jaxclear sweep`` process)."""
     request_host_devices()
-    if args.devices is not None and args.devices > len(jax.devices()):
-        raise ParameterError(f"--devices = {args.devices} is outside the allowed range [1, {len(jax.devices())}] "
-                             f"(devices available: {len(jax.devices())})")
+    available = len(jax.devices())
+    if args.devices is not None and args.devices > available:
+        raise ParameterError(f"--devices = {args.devices} is outside the allowed range [1, {available}] "
+                             f"(devices available: {available})")
     cfg = load_config(args.config, out=args.out, chunk_size=args.chunk_size, devices=args.devices,
                       trajectories=args.trajectories, progress=False if args.no_progress else None)
     mode = "grid" if cfg.grid is not None else "list"
-    n_dev = cfg.devices or len(jax.devices())
+    mesh = make_mesh(cfg.devices)  # the devices the sweep runs on
     print(f"jaxclear sweep: {cfg.n_runs} runs ({mode} over {', '.join(cfg.names)}), {cfg.revolutions:g} revolutions "
-          f"each, on {n_dev} {jax.default_backend().upper()} device{'s' if n_dev > 1 else ''}, output {cfg.out}",
-          flush=True)
+          f"each, on {mesh.size} {mesh.devices.flat[0].platform.upper()} device{'s' if mesh.size > 1 else ''}, "
+          f"output {cfg.out}", flush=True)
     res = run_sweep(cfg, restart=args.restart)
     table = res.table
     failed = int(sum(1 for s in table["status"] if s != 0))

@@ -154,8 +154,8 @@ def one_by_one(plan: Plan) -> bool:
     device."""
     if plan.side_by_side is not None:
         return not plan.side_by_side
-    devices = jax.devices() if plan.mesh is None else plan.mesh.devices.flat
-    return next(iter(devices)).platform == "cpu" and loop_kernels_active()
+    platform = jax.default_backend() if plan.mesh is None else plan.mesh.devices.flat[0].platform
+    return platform == "cpu" and loop_kernels_active()
 
 
 def _runs(plan: Plan, mech: Mechanism, ideal: Mechanism | None, rows):
@@ -163,10 +163,8 @@ def _runs(plan: Plan, mech: Mechanism, ideal: Mechanism | None, rows):
     side by side (:func:`one_by_one`); the ideal runs and the metrics are vmapped over the batch
     (an ideal mechanism that no swept parameter changes is integrated once, unbatched: vmap
     leaves it unbatched)."""
-    if one_by_one(plan):
-        sol = jax.lax.map(lambda r: _clearance_run(plan, mech, r), rows)
-    else:
-        sol = jax.vmap(lambda r: _clearance_run(plan, mech, r))(rows)
+    run = lambda r: _clearance_run(plan, mech, r)  # noqa: E731
+    sol = jax.lax.map(run, rows) if one_by_one(plan) else jax.vmap(run)(rows)
     ideal_acc = ideal_status = None
     if ideal is not None:
         ideal_acc, ideal_status = jax.vmap(lambda r: _ideal_run(plan, mech, ideal, r))(rows)
