@@ -264,6 +264,7 @@ def profile_child(revolutions, rtol, atol, solver, n_out, loops=5000):
     jsolve = importlib.import_module("jaxclear.integrate.simulate")  # the module (the package exports the function)
     from jaxclear.integrate import check_assembly, compiler_options, UnrolledExplicitRK
     from jaxclear.integrate import flat_vector_field, spd_solve
+    from jaxclear.integrate.system import MechanismSystem, system_field
 
     mech = jc.preset("flores-slider-crank")
     s = jc.settings(revolutions * jc.crank_period(mech), n_out=n_out, rtol=rtol, atol=atol, solver=solver)
@@ -282,7 +283,7 @@ def profile_child(revolutions, rtol, atol, solver, n_out, loops=5000):
     args = (mech, s.baumgarte)
     opts = compiler_options()
 
-    def per_iteration(body, carry):
+    def per_iteration(body, carry, args=args):
         # the mechanism is an argument of the compiled loop, as in jc.simulate (a closed-over
         # mechanism would be constant-folded into the kernels and flatter the numbers)
         loop = jax.jit(lambda c, a: jax.lax.fori_loop(0, loops, lambda i, cc: body(i, cc, a), c),
@@ -306,11 +307,12 @@ def profile_child(revolutions, rtol, atol, solver, n_out, loops=5000):
     out["constraint_solve_s"] = per_iteration(solve_body, y0)
     out["constraint_solve_size"] = m
 
-    term = diffrax.ODETerm(flat_vector_field)
+    term = diffrax.ODETerm(system_field)
+    system = MechanismSystem(mech, s.baumgarte)
 
     def step_time(inner, memory=True):  # one solver step (all stages + memory update), tiny dt
         wrapped = jc.ImpactMemorySolver(inner) if memory else inner
-        state0 = wrapped.init(term, 0.0, 1e-8, y0, args)
+        state0 = wrapped.init(term, 0.0, 1e-8, y0, system)
 
         def step_body(i, carry, args):
             y, st = carry
@@ -318,15 +320,15 @@ def profile_child(revolutions, rtol, atol, solver, n_out, loops=5000):
             y1, _, _, st1, _ = wrapped.step(term, t, t + 1e-8, y, args, st, False)
             return y1, st1
 
-        return per_iteration(step_body, (y0, state0))
+        return per_iteration(step_body, (y0, state0), system)
 
-    out["solver_step_s"] = step_time(jsolve._inner_solver(s))
-    out["solver_step_no_memory_s"] = step_time(jsolve._inner_solver(s), memory=False)
+    out["solver_step_s"] = step_time(jsolve.solve._inner_solver(s))
+    out["solver_step_no_memory_s"] = step_time(jsolve.solve._inner_solver(s), memory=False)
 
     # the whole benchmark run, per step attempt, in three variants measured interleaved (each
     # round runs every variant once, in turn): measured one after another, the first variant
     # came out slowest whichever it was (up to 2x on the shared 2-core machine)
-    other = "loop" if isinstance(jsolve._inner_solver(s), UnrolledExplicitRK) else "unrolled"
+    other = "loop" if isinstance(jsolve.solve._inner_solver(s), UnrolledExplicitRK) else "unrolled"
     out["other_stages"] = other
     variants = {"whole_run": s, "whole_run_no_onsets": dataclasses.replace(s, exact_onsets=False),
                 "whole_run_other_stages": dataclasses.replace(s, stages=other)}

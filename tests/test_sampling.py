@@ -18,8 +18,8 @@ import pytest
 import jaxclear as jc
 from jaxclear.integrate import sampling
 from jaxclear.integrate.assembly import assemble, initial_state
-from jaxclear.integrate.dynamics import flat_vector_field
-from jaxclear.integrate.solvers import ImpactMemorySolver, OnsetController, StateNorm, StopOnNonFinite
+from jaxclear.integrate.solvers import ImpactMemorySolver, OnsetController, StopOnNonFinite
+from jaxclear.integrate.system import MechanismSystem, StateNorm, system_field
 
 SIM = sys.modules["jaxclear.integrate.simulate"]  # the module (jaxclear.integrate.simulate is the function)
 
@@ -31,14 +31,14 @@ def _solve(mech, s, block=None):
     t0, t1, ts = SIM.output_grid(s, y0.q.dtype)
     controller = OnsetController(StopOnNonFinite(diffrax.PIDController(
         rtol=s.rtol, atol=s.atol, norm=StateNorm(mech.n_coordinates))))
-    solver = ImpactMemorySolver(SIM._inner_solver(s), dense_to_controller=block is not None)
-    kw = dict(args=(mech, s.baumgarte), max_steps=s.max_steps, throw=False)
+    solver = ImpactMemorySolver(SIM.solve._inner_solver(s), dense_to_controller=block is not None)
+    kw = dict(args=MechanismSystem(mech, s.baumgarte), max_steps=s.max_steps, throw=False)
     if block is None:
-        sol = diffrax.diffeqsolve(diffrax.ODETerm(flat_vector_field), solver, t0, t1, None, y0.pack(),
+        sol = diffrax.diffeqsolve(diffrax.ODETerm(system_field), solver, t0, t1, None, y0.pack(),
                                   saveat=diffrax.SaveAt(ts=ts), stepsize_controller=controller, **kw)
         return sol.ys, sol.stats["num_accepted_steps"]
     writer = sampling.SampleWriter(controller, ts, solver.interpolation_cls, block)
-    sol = diffrax.diffeqsolve(diffrax.ODETerm(flat_vector_field), solver, t0, t1, None, y0.pack(),
+    sol = diffrax.diffeqsolve(diffrax.ODETerm(system_field), solver, t0, t1, None, y0.pack(),
                               saveat=diffrax.SaveAt(t1=True, controller_state=True), stepsize_controller=writer,
                               adjoint=sampling.adjoint("recursive"), **kw)
     return writer.samples(sol.controller_state, y0.pack(), True), sol.stats["num_accepted_steps"]

@@ -26,7 +26,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._errors import RESULTS, ParameterError, check_range, first_failure, in_range
-from .._types import ArrayLike, Scalar, Vec2
+from .._types import Array, ArrayLike, Float, Scalar, Vec2
 
 
 class ContactKinematics(eqx.Module):
@@ -221,6 +221,15 @@ class AbstractFriction(eqx.Module):
         """Traceable range check (run time): ``invalid_friction`` unless the coefficient is
         finite and >= 0; laws with more numbers extend it."""
         return first_failure((in_range(self.coefficient, low=0.0), RESULTS.invalid_friction))
+
+    def kinks(self, v_t: Scalar) -> Float[Array, " k"]:
+        """Switch functions of the slip ``v_t`` [m/s] ``(k,)`` whose sign changes mark the slip
+        speeds where the force or its derivative with respect to the slip jumps (a sign
+        function, the ends of a dead band or of a linear ramp). The error-controlled
+        sensitivities end a step at each (:func:`~jaxclear.elements.memory.kink_fraction`), so
+        that no step integrates the tangents across a jump of the law's derivative. Default: a
+        smooth law, none."""
+        return jnp.zeros((0,), jnp.result_type(v_t))
 
     @abc.abstractmethod
     def __call__(self, v_t: Scalar, normal_force: Scalar) -> Scalar:

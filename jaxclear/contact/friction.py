@@ -79,6 +79,10 @@ class AmbrosioFriction(AbstractFriction):
     def __call__(self, v_t, normal_force):
         return ambrosio(v_t, normal_force, self.coefficient, self.v0, self.v1)
 
+    def kinks(self, v_t):
+        """The ends of the ramps: :math:`|v_T| = v_0` and :math:`|v_T| = v_1`."""
+        return jnp.stack([v_t - self.v1, v_t - self.v0, v_t + self.v0, v_t + self.v1])
+
 
 class CoulombFriction(AbstractFriction):
     r"""Plain Coulomb friction (:func:`coulomb`), ``coefficient`` :math:`\mu \ge 0`."""
@@ -90,6 +94,10 @@ class CoulombFriction(AbstractFriction):
 
     def __call__(self, v_t, normal_force):
         return coulomb(v_t, normal_force, self.coefficient)
+
+    def kinks(self, v_t):
+        """The sign change at zero slip."""
+        return jnp.stack([v_t])
 
 
 class SmoothCoulombFriction(AbstractFriction):

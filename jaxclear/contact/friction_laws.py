@@ -140,6 +140,10 @@ class ViscousFriction(AbstractFriction):
     def __call__(self, v_t, normal_force):
         return viscous(v_t, normal_force, self.coefficient, self.viscous)
 
+    def kinks(self, v_t):
+        """The sign change at zero slip."""
+        return jnp.stack([v_t])
+
 
 class StribeckFriction(AbstractFriction):
     r"""Stribeck friction (:func:`stribeck`): kinetic ``coefficient`` :math:`\mu_k \ge 0`,
@@ -171,6 +175,10 @@ class StribeckFriction(AbstractFriction):
     def __call__(self, v_t, normal_force):
         return stribeck(v_t, normal_force, self.coefficient, self.static, self.v_stribeck, self.stribeck_exponent,
                         self.viscous)
+
+    def kinks(self, v_t):
+        """The sign change at zero slip."""
+        return jnp.stack([v_t])
 
 
 class KarnoppFriction(AbstractFriction):

@@ -112,6 +112,16 @@ class AbstractForceElement(eqx.Module):
         without a memory of the approach speed)."""
         return jnp.ones((), jnp.result_type(t1)), jnp.zeros((), bool)
 
+    def kinks(self, mech: Mechanism, t0, q0, qd0, qdd0, t1, q1, qd1, state) -> tuple[Scalar, BoolScalar]:
+        """Where a candidate step ``[t0, t1]`` must be split for its friction law's kinks (the
+        slip speeds where the friction force's derivative jumps,
+        :meth:`~jaxclear.contact.base.AbstractFriction.kinks`) to lie at step boundaries:
+        ``(s, split)`` as :meth:`onset`, for the contacts in contact at both ends
+        (:func:`~jaxclear.elements.memory.kink_fraction`; ``qdd0`` the accelerations at ``t0``,
+        for the slips' rates there). Used by the error-controlled sensitivities, whose tangents
+        jump in rate there. Default: none."""
+        return jnp.ones((), jnp.result_type(t1)), jnp.zeros((), bool)
+
     @abc.abstractmethod
     def relative_state(self, mech: Mechanism, q, qdot) -> Float[Array, "4"]:
         """``[x, y, v_x, v_y]`` of the element's moving part relative to its seat (the journal

@@ -44,7 +44,7 @@ from ..model.geometry import perp, safe_normal
 from ..model.joints import Revolute
 from ..model.mechanism import Mechanism, point_load, point_position, point_velocity
 from .base import AbstractForceElement, ContactOutput
-from .memory import N_FIELDS, ContactMemory, onset_fraction, onset_update, with_peak_force
+from .memory import N_FIELDS, ContactMemory, kink_fraction, onset_fraction, onset_update, with_peak_force
 
 
 class JournalState(eqx.Module):
@@ -218,6 +218,15 @@ class AbstractJournalJoint(AbstractForceElement):
         kin0, kin1 = self.kinematics(mech, q0, qd0), self.kinematics(mech, q1, qd1)
         p0, p1 = self.law.penetration(kin0), self.law.penetration(kin1)
         return onset_fraction(p0, p1, kin0.deltadot, kin1.deltadot, t1 - t0)
+
+    def kinks(self, mech: Mechanism, t0, q0, qd0, qdd0, t1, q1, qd1, state):
+        """Fraction of ``[t0, t1]`` at the first kink of the friction law while in contact
+        (:func:`~jaxclear.elements.memory.kink_fraction`)."""
+        kinks = lambda q, qd: self.friction.kinks(self.kinematics(mech, q, qd).slip)  # noqa: E731
+        g0, rate0 = jax.jvp(kinks, (q0, qd0), (qd0, qdd0))
+        kin0, kin1 = self.kinematics(mech, q0, qd0), self.kinematics(mech, q1, qd1)
+        active = (self.law.penetration(kin0) > 0.0) & (self.law.penetration(kin1) > 0.0)
+        return kink_fraction(g0, kinks(q1, qd1), rate0, t1 - t0, active)
 
     # ---- initial assembly: hold the journal at its initial offset ---------------------
     n_equations: ClassVar[int] = 2

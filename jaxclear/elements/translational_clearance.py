@@ -58,7 +58,7 @@ from ..model.geometry import perp, rotate
 from ..model.joints import Translational
 from ..model.mechanism import Mechanism, point_load, point_position, point_velocity
 from .base import AbstractForceElement, ContactOutput
-from .memory import N_FIELDS, ContactMemory, onset_fraction, onset_update, with_peak_force
+from .memory import N_FIELDS, ContactMemory, kink_fraction, onset_fraction, onset_update, with_peak_force
 
 #: Corner signs (sigma along the slider, tau across it): rear-lower, front-lower, rear-upper, front-upper.
 SIGMA = np.array([-1.0, 1.0, -1.0, 1.0])
@@ -432,6 +432,14 @@ class TranslationalClearanceJoint(AbstractForceElement):
         pen = jax.vmap(self.law.penetration)
         s, crossed = onset_fraction(pen(k0), pen(k1), k0.deltadot, k1.deltadot, t1 - t0)
         return jnp.min(s), jnp.any(crossed)
+
+    def kinks(self, mech: Mechanism, t0, q0, qd0, qdd0, t1, q1, qd1, state: CornerMemory):
+        """Fraction of ``[t0, t1]`` at the first friction kink among the corners in contact."""
+        kinks = lambda q, qd: jax.vmap(self.friction.kinks)(self.corner_kinematics(mech, q, qd).slip)  # noqa: E731
+        g0, rate0 = jax.jvp(kinks, (q0, qd0), (qd0, qdd0))
+        k0, k1 = self.corner_kinematics(mech, q0, qd0), self.corner_kinematics(mech, q1, qd1)
+        pen = jax.vmap(self.law.penetration)
+        return kink_fraction(g0, kinks(q1, qd1), rate0, t1 - t0, (pen(k0) > 0.0) & (pen(k1) > 0.0))
 
     # ---- initial assembly: hold the block at its initial offset and tilt ----------------
     n_equations: ClassVar[int] = 2

@@ -20,166 +20,20 @@ from __future__ import annotations
 
 import dataclasses
 
-import diffrax
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 
 from .._errors import RESULTS, ParameterError, SolverError, invalid_codes, is_concrete, status_message
-from .._xla_flags import loop_kernels_active
 from ..model.mechanism import Mechanism
-from .assembly import ASSEMBLY_TEMPLATE, NEWTON_TOL, assemble, check_assembly, initial_state
-from .compile import jit, without_input_callbacks
-from .dynamics import _accelerations, flat_vector_field
-from .settings import SOLVERS, Settings
+from . import solve
+from .assembly import ASSEMBLY_TEMPLATE, check_assembly
+from .compile import jit
+from .sensitivity import tangent_run
+from .settings import Settings
 from .solution import Solution
-from . import sampling
-from .solvers import ImpactMemorySolver, OnsetController, StateNorm, StopOnNonFinite, UnrolledExplicitRK
-from .state import State, stack_memory
-
-
-def _inner_solver(s: Settings):
-    solver = SOLVERS[s.solver]()
-    if not solver.tableau.implicit and s.stages == "unrolled":
-        return UnrolledExplicitRK(solver)
-    if s.adjoint in ("forward", "direct"):
-        return SOLVERS[s.solver](scan_kind="bounded")
-    return solver
-
-
-#: Without single-kernel loops (``JAXCLEAR_SMALL_LOOP_BYTES=0``, see ``jaxclear/_xla_flags.py``):
-#: most output samples whose accelerations and contact outputs are evaluated together (one
-#: ``vmap`` batch of a ``lax.map``; a grid is cut into the fewest batches of at most this size,
-#: of equal size). Measured 2026-11-25 on the post-processing of 24,001 samples (2 cores):
-#: 21-24 ms with batches of 4096 (4001 after equal splitting), 39-48 ms with 256, 47-51 ms
-#: with one batch of all. With single-kernel loops the samples are evaluated one by one in a
-#: loop that XLA compiles into one kernel: 10.7 ms (0.45 us per sample) where the batches
-#: took 24.9 ms (Intel Xeon, 2 cores).
-POSTPROCESS_BATCH = 4096
-
-
-def _postprocess(mech: Mechanism, s: Settings, ts, packed, ys: State):
-    """Accelerations, reactions, constraint drift and contact outputs at the output samples
-    ``ts`` (T,) of the packed states ``packed`` (T, N) (``ys`` the same, unpacked)."""
-    def one(t, v):
-        y = State.unpack(v, mech)
-        qdd, lam, value, _, contact = _accelerations(mech, t, y.q, y.qdot, y.elements, s.baumgarte)
-        return qdd, lam, value, contact
-
-    # with single-kernel loops: sample by sample; else in equal batches of at most
-    # POSTPROCESS_BATCH samples (vmap inside, a scan over the batches): one vmap over a long
-    # grid at once is slower per sample
-    n = ts.shape[0]
-    if loop_kernels_active():
-        qdd, lam, value, contact = jax.lax.map(lambda a: one(*a), (ts, packed))
-    elif n <= POSTPROCESS_BATCH:
-        qdd, lam, value, contact = jax.vmap(one)(ts, packed)
-    else:
-        m = -(-n // POSTPROCESS_BATCH)
-        b = -(-n // m)
-        pad = m * b - n
-        tb = jnp.concatenate([ts, jnp.broadcast_to(ts[-1], (pad,))]).reshape(m, b)
-        vb = jnp.concatenate([packed, jnp.broadcast_to(packed[-1], (pad, packed.shape[1]))]).reshape(m, b, -1)
-        out = jax.lax.map(lambda a: jax.vmap(one)(*a), (tb, vb))
-        qdd, lam, value, contact = jax.tree_util.tree_map(
-            lambda x: x.reshape((m * b,) + x.shape[2:])[:n], out)
-    drift = jnp.linalg.norm(value, axis=-1) if value.shape[-1] else jnp.zeros_like(ts)
-    if contact is None:
-        z = jnp.zeros((ts.shape[0], 0), ts.dtype)
-        return qdd, lam, drift, jnp.zeros((ts.shape[0], 0, 2)), z, z, z, z.astype(jnp.int32)
-    in_contact = contact.penetration > 0.0
-    long = (ts[:, None] - ys.memory.contact_start) > s.continuous_contact_after
-    mode = jnp.where(in_contact, jnp.where(long, 2, 1), 0).astype(jnp.int32)
-    return qdd, lam, drift, contact.ecc, contact.penetration, contact.normal_force, contact.friction_force, mode
-
-
-def output_grid(s: Settings, dtype, run=True):
-    """``(t0, t1, ts)``: start, end and the ``s.n_out`` uniform output samples [s], sorted and
-    inside ``[t0, t1]`` by construction; ``t1 = t0`` where ``run`` is False."""
-    t0 = jnp.asarray(s.t_start, dtype)
-    t1 = jnp.where(run, jnp.asarray(s.t_end, dtype), t0)
-    ts = t0 + (t1 - t0) * jnp.linspace(0.0, 1.0, s.n_out, dtype=dtype)
-    return t0, t1, jnp.minimum(ts, t1).at[-1].set(t1)
-
-
-def _solve(mech: Mechanism, s: Settings, y0: State, assembled_ok, valid=RESULTS.successful):
-    # an invalid member (parameters outside their ranges) or one that cannot be assembled is not
-    # integrated: zero-length run
-    t0, t1, ts = output_grid(s, y0.q.dtype, (valid == RESULTS.successful) & assembled_ok)
-    norm = StateNorm(mech.n_coordinates)
-    controller = StopOnNonFinite(diffrax.PIDController(rtol=s.rtol, atol=s.atol, dtmax=s.dtmax, norm=norm))
-    if s.exact_onsets and mech.clearance_joints:
-        controller = OnsetController(controller)
-    block = s.sampling == "block"
-    solver = ImpactMemorySolver(_inner_solver(s), dense_to_controller=block)
-    if block:  # the output samples are written by the controller, a block per accepted step
-        controller = sampling.SampleWriter(controller, ts, solver.interpolation_cls, sampling.BLOCK)
-        saveat = diffrax.SaveAt(t1=True, controller_state=True)
-    else:  # diffrax's saving loop, one sample per iteration
-        saveat = diffrax.SaveAt(ts=ts)
-    meter = diffrax.TqdmProgressMeter(refresh_steps=200) if s.progress else diffrax.NoProgressMeter()
-    y0_packed = y0.pack()
-    with without_input_callbacks():
-        sol = diffrax.diffeqsolve(
-            diffrax.ODETerm(flat_vector_field),
-            solver,
-            t0,
-            t1,
-            s.dt0,
-            y0_packed,
-            args=(mech, s.baumgarte),
-            saveat=saveat,
-            stepsize_controller=controller,
-            max_steps=s.max_steps,
-            adjoint=sampling.adjoint(s.adjoint, s.checkpoints, block),
-            throw=False,
-            progress_meter=meter,
-        )
-    packed = controller.samples(sol.controller_state, y0_packed, t1 > t0) if block else sol.ys
-    ys: State = jax.vmap(lambda v: State.unpack(v, mech))(packed)
-    qdd, lam, drift, ecc, pen, fn, ft, mode = _postprocess(mech, s, ts, packed, ys)
-    finite = jnp.all(jnp.isfinite(ys.q)) & jnp.all(jnp.isfinite(ys.qdot)) & jnp.all(jnp.isfinite(qdd))
-    result = RESULTS.where(finite, RESULTS.successful, RESULTS.nonfinite_state)
-    result = RESULTS.where(sol.result == diffrax.RESULTS.successful, result, RESULTS.solver_failed)
-    result = RESULTS.where(sol.result == diffrax.RESULTS.dt_min_reached, RESULTS.nonfinite_state, result)
-    result = RESULTS.where(sol.result == diffrax.RESULTS.max_steps_reached, RESULTS.max_steps_reached, result)
-    result = RESULTS.where(assembled_ok, result, RESULTS.assembly_failed)
-    result = RESULTS.where(_too_deep(mech, pen, ys.elements), RESULTS.penetration_too_deep, result)
-    result = RESULTS.where(valid == RESULTS.successful, result, valid)
-    out = Solution(
-        ts=ts,
-        q=ys.q,
-        qdot=ys.qdot,
-        qddot=qdd,
-        reactions=lam,
-        drift=drift,
-        ecc=ecc,
-        penetration=pen,
-        normal_force=fn,
-        friction_force=ft,
-        mode=mode,
-        element_states=ys.elements,
-        num_steps=sol.stats["num_steps"],
-        num_accepted_steps=sol.stats["num_accepted_steps"],
-        num_rejected_steps=sol.stats["num_rejected_steps"],
-        status=jnp.asarray(result._value, jnp.int32),
-    )
-    if s.throw:  # under a user's transformation (concrete calls are checked in simulate)
-        out = result.error_if(out, result != RESULTS.successful)
-    return out
-
-
-def _too_deep(mech: Mechanism, pen, element_states):
-    """Whether any element went deeper than its ``penetration_limit()`` at any accepted step:
-    the running peak of the elements' memories (``peak_penetration``, raised after every
-    accepted step by the impact-memory rule, so a deep penetration between two output samples
-    counts) and the output samples ``pen`` (T, k). Samples after a failed step (diffrax fills
-    them with ``inf``) are left out: that failure has its own status."""
-    if not mech.elements or pen.shape[-1] != len(mech.elements):
-        return jnp.asarray(False)
-    limits = jnp.stack([jnp.asarray(e.penetration_limit(), pen.dtype) for e in mech.elements])
-    peak = stack_memory(element_states, pen).peak_penetration
-    peak = jnp.where(jnp.isfinite(peak), peak, -jnp.inf)
-    return jnp.any(pen > limits) | jnp.any(peak > limits)
+from .solve import POSTPROCESS_BATCH, output_grid  # noqa: F401  (re-exported: tests, kinematics)
+from .state import State
 
 
 def solution_template(mech: Mechanism) -> Solution:
@@ -200,17 +54,25 @@ def solution_structure(mech: Mechanism):
 def _run(mech: Mechanism, s: Settings, y0: State | None):
     """The solution and the assembly at ``s.t_start`` (a member that cannot be assembled is not
     integrated: status ``assembly_failed``, a zero-length run)."""
-    asm = assemble(mech, s.t_start)
-    assembled_ok = jnp.isfinite(asm.residual) & (asm.residual <= NEWTON_TOL)
-    if y0 is None:
-        y0 = initial_state(mech, s, asm)
-    else:
-        assembled_ok = jnp.asarray(True)
-    return _solve(mech, s, y0, assembled_ok, mech.check()), asm
+    begin = solve.start(mech, s, y0)
+    sol, result = solve.run(mech, s, begin)
+    return solve.finish(sol, result, s), begin.assembly
+
+
+@eqx.filter_custom_jvp
+def _with_sensitivities(mech: Mechanism, s: Settings, y0: State | None) -> Solution:
+    """The run whose derivatives (``jax.jvp``, ``jax.jacfwd``, ``jax.grad``, ...) are the
+    error-controlled sensitivities of :func:`~jaxclear.integrate.sensitivity.tangent_run`."""
+    return _run(mech, s, y0)[0]
+
+
+_with_sensitivities.def_jvp(tangent_run)
 
 
 @jit
 def _simulate(mech: Mechanism, s: Settings, y0: State | None) -> Solution:
+    if s.adjoint == "sensitivity":
+        return _with_sensitivities(mech, s, y0)
     return _run(mech, s, y0)[0]
 
 

@@ -24,7 +24,6 @@ import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import optimistix as optx
 
 from .._errors import ParameterError
 from ..elements.memory import ONSET_MARGIN
@@ -137,9 +136,9 @@ class ImpactMemorySolver(_Forwarding):
     ``after_step`` (for a clearance joint, the impact-memory rule of
     :mod:`jaxclear.elements.memory`). When an element's force law changed during a step (a
     contact onset) the next step re-evaluates its first stage, so FSAL solvers stay exact.
-    The state is the packed vector of :meth:`State.pack` and the term
-    :func:`~jaxclear.integrate.dynamics.flat_vector_field`; ``args`` of the solve must be
-    ``(mechanism, baumgarte)``.
+    ``args`` of the solve must be a :class:`~jaxclear.integrate.system.AbstractSystem` (its
+    ``after_step`` is the update: the packed state of :meth:`State.pack`, or that state with its
+    tangents).
 
     With ``dense_to_controller`` the step's error estimate is handed on as the pair ``(error
     estimate, dense output)``, for :class:`~jaxclear.integrate.sampling.SampleWriter`, which
@@ -163,14 +162,7 @@ class ImpactMemorySolver(_Forwarding):
         y1, y_error, dense_info, inner_state, result = self.solver.step(
             terms, t0, t1, y0, args, inner_state, made_jump | memory_changed
         )
-        mech = args[0]
-        a, b = State.unpack(y0, mech), State.unpack(y1, mech)
-        states, changed = [], jnp.zeros((), bool)
-        for element, state in zip(mech.clearance_joints, b.elements):
-            new, crossed = element.after_step(mech, t0, a.q, a.qdot, t1, b.q, b.qdot, state)
-            states.append(new)
-            changed = changed | crossed
-        y1_new = State(b.q, b.qdot, tuple(states)).pack()
+        y1_new, changed = args.after_step(t0, y0, t1, y1)
         # the memory jumps at the onset inside the step (or is the rate at the step's end out of
         # contact): the dense output of the step carries the updated memory throughout, so
         # output samples inside a crossing step read the new onset time and approach speed
@@ -276,8 +268,8 @@ class OnsetController(AbstractWrappedController):
     decision is not differentiated (``stop_gradient``). Branch-free (``where``), so under
     ``vmap`` it costs the elements' kinematics at both ends of each step.
 
-    ``args`` of the solve must be ``(mechanism, baumgarte)``, the state the packed vector of
-    :meth:`State.pack`."""
+    ``args`` of the solve must be a :class:`~jaxclear.integrate.system.AbstractSystem`; the
+    onsets are those of its primal (mechanism) state."""
 
     inner: diffrax.AbstractAdaptiveStepSizeController
 
@@ -286,16 +278,21 @@ class OnsetController(AbstractWrappedController):
         keep, tprev, tnext, jump, state, result = self.inner.adapt_step_size(
             t0, t1, y0, y1_candidate, args, y_error, error_order, inner_state
         )
-        mech = args[0]
-        a, b = State.unpack(y0, mech), State.unpack(y1_candidate, mech)
+        mech = args.mech
+        a, b = State.unpack(args.primal(y0), mech), State.unpack(args.primal(y1_candidate), mech)
         s = jnp.ones((), jnp.result_type(t1))
         split = jnp.zeros((), bool)
+        if args.split_at_kinks:  # the accelerations at the step's start (the slips' rates)
+            qdd0 = State.unpack(args.primal_rate(t0, y0), mech).qdot
         for element, state0 in zip(mech.clearance_joints, a.elements):
-            s_e, split_e = element.onset(mech, t0, a.q, a.qdot, t1, b.q, b.qdot, state0)
-            s = jnp.minimum(s, jnp.where(split_e, s_e, 1.0))
-            split = split | split_e
+            found = [element.onset(mech, t0, a.q, a.qdot, t1, b.q, b.qdot, state0)]
+            if args.split_at_kinks:
+                found.append(element.kinks(mech, t0, a.q, a.qdot, qdd0, t1, b.q, b.qdot, state0))
+            for s_e, split_e in found:
+                s = jnp.minimum(s, jnp.where(split_e, s_e, 1.0))
+                split = split | split_e
         eps = ONSET_MARGIN
-        split = split & jnp.all(jnp.isfinite(y1_candidate))
+        split = split & jnp.all(jnp.isfinite(args.primal(y1_candidate)))
         h = t1 - t0
         dt_inner = tnext - tprev
         dt_split = jax.lax.stop_gradient(jnp.minimum(dt_inner, s * h * (1.0 + eps)))
@@ -308,13 +305,3 @@ class OnsetController(AbstractWrappedController):
         accepted = keep & ~split
         splits = jnp.where(split, splits + 1, jnp.where(accepted, 0, splits))
         return accepted, tprev, tnext, jump & ~split, (state, splits), result
-
-
-class StateNorm(eqx.Module):
-    """Error norm of the packed state on positions and velocities only (the memory is not
-    error-controlled): RMS over the first ``2n`` entries."""
-
-    n: int = eqx.field(static=True)
-
-    def __call__(self, v):
-        return optx.rms_norm(v[: 2 * self.n])

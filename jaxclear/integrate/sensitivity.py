@@ -1,0 +1,198 @@
+r"""Error-controlled forward sensitivities: the derivatives of a simulation with respect to its
+parameters, integrated with the state and held to the same tolerances.
+
+For a state :math:`y(t; \theta)` with :math:`\dot y = f(t, y, \theta)`, the tangent
+:math:`S_j = \partial y/\partial\theta_j` obeys the variational equation
+
+.. math:: \dot S_j = f_y\,S_j + f_{\theta_j}, \qquad S_j(t_0) = \partial y_0/\partial\theta_j
+
+(Hairer, Norsett, Wanner, *Solving Ordinary Differential Equations I*, 2nd ed., Springer 1993,
+sec. I.14). The solver integrates the vector :math:`[y, \bar\theta_1 S_1, \dots,
+\bar\theta_P S_P]` with the same Runge-Kutta method, so a step advances the tangents exactly as
+the derivative of the step itself (forward-mode differentiation of a fixed step sequence); what
+differs from differentiating the solver's loop is the step sequence: the step-size controller's
+error norm is the largest of the values' norm and every tangent's norm, as SUNDIALS CVODES does
+with ``errconS`` (Serban and Hindmarsh, "CVODES: the sensitivity-enabled ODE solver in
+SUNDIALS", ASME IDETC 2005). The tangents are scaled by :math:`\bar\theta_j = |\theta_j|` (1
+where a parameter is 0; CVODES's ``pbar``) so that each is of the order of the state and is
+measured with the state's tolerances: the derivative with respect to :math:`\ln\theta_j`.
+
+At every accepted step the force elements' memory rules run on the values and their
+derivative on the tangents (:class:`TangentSystem`): the stored approach speed at an onset
+:math:`\dot\delta(t_c)` gets :math:`\partial\dot\delta/\partial y\,S + \ddot\delta\,\partial
+t_c/\partial\theta` (the onset time's part: the saltation term of an event whose time moves with
+the parameters; Corner, Sandu and Sandu, "Modeling and sensitivity analysis methodology for hybrid
+dynamical system", Nonlinear Analysis: Hybrid Systems 31 (2019) 19-40; Serban and Recuero,
+"Sensitivity analysis for hybrid systems and systems with memory", J. Comput. Nonlinear Dyn. 14
+(2019) 091006). The contact forces themselves are continuous at an onset and a separation (zero
+at zero penetration), so the positions' and velocities' tangents do not jump; what is not smooth
+there is the derivative of the force (:math:`K\delta^{n}`: unbounded curvature for
+:math:`n < 2`), and the error control shortens the steps there as far as the tangents need.
+
+:func:`tangent_run` is the JVP rule of :func:`~jaxclear.simulate` under
+``Settings(adjoint="sensitivity")`` (the default): the sensitivity solve runs with the values
+(its primal part), for the perturbed inputs only, and the output tangent is the linear
+combination of the computed sensitivities with the input tangents. So ``jax.jvp``,
+``jax.jacfwd``, ``jax.grad``/``jax.vjp`` (the transpose of that combination) and ``jax.vmap``
+of them all get the error-controlled derivatives; reverse mode costs as many tangents as there
+are perturbed scalar inputs.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import optimistix as optx
+
+from .._types import Array, Float
+from ..model.mechanism import Mechanism
+from . import solve
+from .dynamics import Baumgarte, flat_vector_field
+from .system import AbstractSystem, memory_step
+
+
+class Rebuild(eqx.Module):
+    """The inputs ``(mech, settings, y0)`` rebuilt from the values of their perturbed leaves
+    (every other leaf as given)."""
+
+    leaves: list
+    treedef: object = eqx.field(static=True)
+    perturbed: tuple = eqx.field(static=True)
+
+    def __call__(self, point):
+        leaves = list(self.leaves)
+        for i, x in zip(self.perturbed, point):
+            leaves[i] = x
+        return jax.tree_util.tree_unflatten(self.treedef, leaves)
+
+
+class TangentNorm(eqx.Module):
+    """Error norm of a packed state with ``count`` tangents: the largest of the RMS norms of the
+    positions and velocities (first ``2n`` entries) of the values and of each tangent."""
+
+    n: int = eqx.field(static=True)
+    size: int = eqx.field(static=True)
+    count: int = eqx.field(static=True)
+
+    def __call__(self, v):
+        values = optx.rms_norm(v[: 2 * self.n])
+        tangents = v[self.size:].reshape(self.count, self.size)[:, : 2 * self.n]
+        return jnp.maximum(values, jnp.max(jnp.sqrt(jnp.mean(tangents**2, axis=1))))
+
+
+class TangentSystem(AbstractSystem):
+    """The packed state ``y`` (N,) of a mechanism followed by its ``count`` tangents (P, N) along
+    ``directions`` (each perturbed leaf's tangents, leading axis P) at ``point`` (the perturbed
+    leaves' values)."""
+
+    mech: Mechanism
+    baumgarte: Baumgarte
+    rebuild: Rebuild
+    point: tuple
+    directions: tuple
+    size: int = eqx.field(static=True)
+    count: int = eqx.field(static=True)
+    #: the tangents' rates jump where a friction law's derivative does: steps end there
+    split_at_kinks: ClassVar[bool] = True
+
+    def _split(self, v):
+        return v[: self.size], v[self.size:].reshape(self.count, self.size)
+
+    def _pack(self, y, tangents):
+        return jnp.concatenate([y, tangents.reshape(-1)])
+
+    def field(self, t, v):
+        y, tangents = self._split(v)
+
+        def f(yy, point):
+            mech, s, _ = self.rebuild(point)
+            return flat_vector_field(t, yy, (mech, s.baumgarte))
+
+        fy, lin = jax.linearize(f, y, self.point)
+        return self._pack(fy, jax.vmap(lin)(tangents, self.directions))
+
+    def after_step(self, t0, v0, t1, v1):
+        (y0, s0), (y1, s1) = self._split(v0), self._split(v1)
+        _, changed = memory_step(self.mech, t0, y0, t1, y1)
+        y1_new, lin = jax.linearize(lambda a, b, p: memory_step(self.rebuild(p)[0], t0, a, t1, b)[0], y0, y1,
+                                    self.point)
+        return self._pack(y1_new, jax.vmap(lin)(s0, s1, self.directions)), changed
+
+    def primal(self, v):
+        return v[: self.size]
+
+    def norm(self):
+        return TangentNorm(self.mech.n_coordinates, self.size, self.count)
+
+
+def directions(point) -> tuple[tuple, Float[Array, " P"]]:
+    r"""One direction per scalar entry of the perturbed leaves ``point``: ``(tangents, scale)``
+    with ``tangents`` per leaf ``(P, *shape)`` (the scale :math:`\bar\theta` at that entry's row,
+    zero elsewhere) and ``scale`` ``(P,)``: :math:`|\theta|`, or 1 where :math:`\theta = 0`."""
+    flat = [jnp.ravel(jnp.asarray(x)) for x in point]
+    values = jnp.concatenate(flat)
+    scale = jnp.where(values != 0, jnp.abs(values), 1.0)
+    count = values.shape[0]
+    out, start = [], 0
+    for x, f in zip(point, flat):
+        rows = jnp.zeros((count, f.shape[0]), values.dtype).at[start + jnp.arange(f.shape[0]),
+                                                               jnp.arange(f.shape[0])].set(
+            scale[start:start + f.shape[0]])
+        out.append(rows.reshape((count,) + jnp.shape(x)))
+        start += f.shape[0]
+    return tuple(out), scale
+
+
+def _is_float(x) -> bool:
+    return jnp.issubdtype(jnp.result_type(x), jnp.inexact)
+
+
+def tangent_run(primals, tangents):
+    """The JVP rule of :func:`~jaxclear.simulate` (``Settings(adjoint="sensitivity")``):
+    ``primals = (mech, settings, y0)``, ``tangents`` the same with ``None`` for the inputs that
+    are not perturbed. Returns the solution (of the sensitivity solve: its steps are controlled
+    on the values and the tangents) and its tangent."""
+    leaves, treedef = jax.tree_util.tree_flatten(primals)
+    tleaves = treedef.flatten_up_to(tangents)
+    perturbed = tuple(i for i, (x, t) in enumerate(zip(leaves, tleaves))
+                      if t is not None and eqx.is_inexact_array(x))
+    mech, s, y0 = primals
+    begin = solve.start(mech, s, y0)
+    if not perturbed:
+        sol, result = solve.run(mech, s, begin)
+        return solve.finish(sol, result, s), None
+    rebuild = Rebuild(leaves, treedef, perturbed)
+    point = tuple(leaves[i] for i in perturbed)
+    dirs, scale = directions(point)
+    dtype = begin.packed.dtype
+    size = begin.packed.shape[0]
+    count = scale.shape[0]
+
+    v0, start_tangent = jax.linearize(lambda p: solve.start(*rebuild(p)).packed, point)
+    system = TangentSystem(mech, s.baumgarte, rebuild, point, dirs, size, count)
+    t0, t1, ts = solve.grid(s, begin, dtype)
+    run = solve.integrate(system, s, t0, t1, ts, jnp.concatenate([v0, jax.vmap(start_tangent)(dirs).reshape(-1)]))
+    samples = run.samples[:, :size]
+    tangent_samples = jnp.moveaxis(run.samples[:, size:].reshape(-1, count, size), 1, 0)  # (P, T, N)
+
+    def grid_of(p):
+        return solve.grid(rebuild(p)[1], begin, dtype)[2]
+
+    if any(leaves[i] is s.t_end for i in perturbed):
+        # the samples move with t_end: their tangents take the state's rate times the times' shift
+        dts = jax.vmap(jax.linearize(grid_of, point)[1])(dirs)  # (P, T)
+        rates = jax.vmap(lambda t, v: flat_vector_field(t, v, (mech, s.baumgarte)))(ts, samples)
+        tangent_samples = tangent_samples + dts[:, :, None] * rates[None]
+
+    def solution_of(p, packed):
+        m, ss, _ = rebuild(p)
+        return solve.solution(m, ss, grid_of(p), packed, run, begin)
+
+    (sol, result), lin = jax.linearize(solution_of, point, samples)
+    basis = jax.vmap(lambda d, v: lin(d, v)[0])(dirs, tangent_samples)
+    coeff = jnp.concatenate([jnp.ravel(tleaves[i]) for i in perturbed]) / scale
+    tangent = jax.tree_util.tree_map(lambda b: jnp.tensordot(coeff, b, axes=1) if _is_float(b) else None, basis)
+    return solve.finish(sol, result, s), tangent
