@@ -64,9 +64,13 @@ def persson_angle(f):
 
 
 def pereira_kn():
+    """(K [N/m^n], n) of Pereira et al.'s law: fitted as F [N] = K_mm delta_mm^n with lengths in mm
+    and E* in MPa (K_mm [N/mm^n]), so K = K_mm 1000^n in SI units."""
     dr_mm = DR * 1e3  # 0.5 mm: the second branch of Y
     y = 0.0151 * dr_mm + 1.151
-    return (0.965 * dr_mm + 0.0965) * L * ESTAR / dr_mm, y * dr_mm**-0.005
+    n = y * dr_mm**-0.005
+    k_mm = (0.965 * dr_mm + 0.0965) * (L * 1e3) * (ESTAR * 1e-6) / dr_mm
+    return k_mm * 1000.0**n, n
 
 
 def elastic_force(model, delta):
@@ -219,6 +223,28 @@ def test_pereira_empirical_factors():
     assert float(k) == pytest.approx(k_ref, rel=1e-12) and float(n) == pytest.approx(n_ref, rel=1e-12)
     with pytest.raises(jc.ParameterError, match="pereira"):
         jc.ClearanceJoint(jc.GROUND, "a", "b", "c", 0.03, 0.01, law=jc.make_law("pereira"))
+
+
+def test_pereira_units_millimetre_newton_megapascal():
+    """The fitted law works in mm, N, MPa (L. Skrinjar's DyS evaluates it so): at delta = 1 um,
+    dR = 0.5 mm, L = 10 mm, steel, F = 428.4 N (the fit written out in mm here: K_mm delta_mm^n),
+    close to Johnson's 407.3 N (brentq on Johnson's delta(F)); the metre reading's 139.4 N is 1000^(1-n)
+    of it. Over 1e-3 <= delta/dR <= 0.1 the law stays within 0.8-1.1 of Johnson at dR = 0.1 and
+    0.5 mm (the factor 1000^(n-1) ~ 3 of a wrong reading would leave that band)."""
+    law = jc.make_law("pereira", restitution=1.0)
+    dr_mm = 0.5
+    n = (0.0151 * dr_mm + 1.151) * dr_mm**-0.005
+    f_mm = (0.965 * dr_mm + 0.0965) * 10.0 * (ESTAR * 1e-6) / dr_mm * 1e-3**n  # delta = 1e-3 mm
+    assert f_mm == pytest.approx(428.44, abs=0.01)
+    assert float(law.elastic_force(1e-6, RB, RJ, L)) == pytest.approx(f_mm, rel=1e-12)
+    assert elastic_force("johnson", 1e-6) == pytest.approx(407.31, abs=0.01)
+    for rj in (RB - 0.1e-3, RJ):
+        dr = RB - rj
+        for x in (1e-3, 1e-2, 0.05, 0.1):
+            johnson = brentq(lambda f: f / (math.pi * L * ESTAR) * (math.log(4 * math.pi * L * ESTAR * dr / f) - 1)
+                             - x * dr, 1e-9, 4 * math.pi * L * ESTAR * dr * math.exp(-2))  # monotonic branch
+            ratio = float(law.elastic_force(x * dr, RB, rj, L)) / johnson
+            assert 0.8 < ratio < 1.1, (dr, x, ratio)
 
 
 def test_persson_load_angle_limits_and_one_material():

@@ -61,7 +61,8 @@ LAWS = {
         "esdu-78035": ("ESDU-78035 (1978); Pereira et al. (2011)",
                        "delta = F/(L E*) [ln(4 pi L E* dR/F) + 1]" + _NEWTON),
         "pereira": ("Pereira, Ramalho, Ambrosio, Nonlinear Dyn. 63 (2011) 681",
-                    "F = K delta^n, K = (0.965 dR + 0.0965) L E*/dR, n = Y dR^-0.005, dR in mm in the fit"),
+                    "F = K delta^n, K = (0.965 dR + 0.0965) L E*/dR, n = Y dR^-0.005, fitted in mm, N, MPa "
+                    "(SI: K [N/m^n] = the fitted K [N/mm^n] x 1000^n)"),
         "persson": ("Persson, PhD thesis, Chalmers (1964); Ciavarella & Decuzzi, Int. J. Solids Struct. 38 (2001) "
                     "4507; Pereira et al. (2011)",
                     "F = pi L E* dR b^2/(1 - b^2), b = tan(eps/2) of the contact arc, arc from the rigid overlap "
