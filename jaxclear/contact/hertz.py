@@ -91,7 +91,9 @@ def chi_carvalho_martins(c_r):
     """Carvalho & Martins, "Exact restitution and generalizations for the Hunt-Crossley contact
     model", Mech. Mach. Theory 139 (2019) 174-194, their closed-form approximation of the exact
     restitution relation: :math:`\\hat\\chi = 3(1-c_r)(11-c_r)/(2(1+9c_r))` (the effective
-    restitution of a single impact is within about 0.03 of :math:`c_r` over (0, 1])."""
+    restitution of a single impact is within 0.01 of :math:`c_r` from :math:`c_r` = 0.215 up and within
+    1e-3 from 0.41 up; below, it levels off at 0.061 as :math:`c_r \\to 0` (:math:`\\hat\\chi \\to 16.5`):
+    e = 0.129 at :math:`c_r` = 0.1, 0.067 at 0.01)."""
     return 1.5 * (1.0 - c_r) * (11.0 - c_r) / (1.0 + 9.0 * c_r)
 
 
