@@ -36,9 +36,28 @@ Film conditions (``film``):
   covers the half circle where :math:`\bar p > 0`, whose edges
   :math:`\dot\varepsilon\cos\psi = \bar\omega\varepsilon\sin\psi` move with the squeeze rate;
 * ``"full"`` (Sommerfeld, :math:`2\pi` film): the whole circumference;
-* ``"half-fixed"``: edges fixed at :math:`\psi = -\pi, 0` (or :math:`0, \pi` when
-  :math:`\bar\omega < 0`), the form of Pinkus and Sternlicht quoted by Flores et al. (2009);
-  equal to ``"half"`` only when :math:`\dot\varepsilon = 0`.
+* ``"pi"`` (the classical fixed-boundary :math:`\pi` film of Pinkus and Sternlicht, ch. 3, as
+  Flores et al. (2009) use it for clearance joints): the film covers
+  :math:`0 < \theta < \pi` from the line of centres, :math:`\theta` measured from the thickest
+  film in the direction of rotation, i.e. :math:`\psi \in [-\pi, 0]` for rotation in the positive
+  (counterclockwise) sense; ``"pi-clockwise"``: :math:`\psi \in [0, \pi]`, the same film for a
+  journal turning clockwise. The edges never move, so the force is linear in
+  :math:`\dot\varepsilon` and :math:`\bar\omega` (a suction where they reverse) and smooth; it
+  equals the literature's closed forms
+
+  .. math::
+
+      F_n = -\frac{\mu R_J L^3}{c^2}\left[\frac{2\varepsilon^2\bar\omega}{(1-\varepsilon^2)^2}
+            + \frac{\pi(1+2\varepsilon^2)\dot\varepsilon}{2(1-\varepsilon^2)^{5/2}}\right],\quad
+      F_t = \frac{\mu R_J L^3}{c^2}\left[\frac{\pi\varepsilon\bar\omega}{2(1-\varepsilon^2)^{3/2}}
+            + \frac{2\varepsilon\dot\varepsilon}{(1-\varepsilon^2)^2}\right];
+
+* ``"half-fixed"`` (kept for old runs; prefer ``"pi"``): the :math:`\pi` film whose side follows
+  the sign of :math:`\bar\omega` (:math:`\psi \in [-\pi, 0]`, or :math:`[0, \pi]` when
+  :math:`\bar\omega < 0`); equal to ``"half"`` only when :math:`\dot\varepsilon = 0`. Its force
+  jumps where :math:`\bar\omega` changes sign while :math:`\dot\varepsilon \ne 0` (the squeeze
+  term :math:`F_t` changes sign), so a motion that slides along :math:`\bar\omega \approx 0`, as
+  the rod-slider joint of a slider-crank does, stalls an adaptive solver.
 
 Closed forms: with the Sommerfeld substitution :math:`1 - \varepsilon\cos\psi =
 (1-\varepsilon^2)/(1+\varepsilon\cos\beta)`, i.e. :math:`\tan(\beta/2) =
@@ -122,7 +141,10 @@ from .base import ContactOutput
 from .revolute_clearance import AbstractJournalJoint, check_journal_geometry, contact_forces, kinematics
 
 #: Film conditions (module docstring).
-FILMS = ("half", "full", "half-fixed")
+FILMS = ("half", "full", "pi", "pi-clockwise", "half-fixed")
+
+#: The fixed-edge films (circles only: their edges follow the line of centres).
+FIXED_FILMS = ("pi", "pi-clockwise", "half-fixed")
 
 
 def film_integrals(eps, a, b):
@@ -150,6 +172,10 @@ def film_limits(eps_dot, wedge, film: str):
     """Edges ``(a, b)`` of the pressurised film in :math:`\\psi` for the film condition."""
     if film == "full":
         return jnp.asarray(-math.pi), jnp.asarray(math.pi)
+    if film == "pi":
+        return jnp.asarray(-math.pi), jnp.asarray(0.0)
+    if film == "pi-clockwise":
+        return jnp.asarray(0.0), jnp.asarray(math.pi)
     if film == "half-fixed":
         a = jnp.where(wedge >= 0.0, -math.pi, 0.0)
         return a, a + math.pi
@@ -168,7 +194,7 @@ def film_force(eps, eps_dot, wedge, radius, clearance, length, viscosity, film: 
         wedge: :math:`\bar\omega\varepsilon` [1/s].
         radius: journal radius :math:`R_J` [m]; clearance :math:`c` [m]; length: film width L [m].
         viscosity: dynamic viscosity :math:`\mu` [Pa s].
-        film: ``"half"``, ``"full"`` or ``"half-fixed"`` (module docstring).
+        film: one of :data:`FILMS` (module docstring).
     """
     a, b = film_limits(eps_dot, wedge, film)
     i_cc, i_cs, i_ss = film_integrals(eps, a, b)
@@ -313,8 +339,8 @@ class LubricatedJoint(AbstractJournalJoint):
                 raise ParameterError("profiles given twice: to the joint and to its law (give them once; the "
                                      "joint hands its profiles to the law)")
             law = law.with_profiles(journal_profile, bearing_profile)
-        if film == "half-fixed" and any(p is not None for p in law.profiles):
-            raise ParameterError("film = 'half-fixed' has no meaning for profiles (its edges follow the line of "
+        if film in FIXED_FILMS and any(p is not None for p in law.profiles):
+            raise ParameterError(f"film = {film!r} has no meaning for profiles (its edges follow the line of "
                                  "centres of circles); valid with profiles: ['half', 'full']")
         check_range("n_elements", n_elements, low=1.0, unit="")
         check_range("n_gauss", n_gauss, low=1.0, unit="")
