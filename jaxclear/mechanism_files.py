@@ -22,6 +22,7 @@ import inspect
 import os
 import re
 import tomllib
+import warnings
 
 import numpy as np
 import tomli_w
@@ -55,15 +56,16 @@ _JOURNAL = ("name", "bearing_body", "bearing_point", "journal_body", "journal_po
 _TAIL = ("law", "friction", "impact_velocity_floor", "initial_offset", "initial_velocity")
 ELEMENT_TYPES = {
     "revolute-clearance": (ClearanceJoint, (*_JOURNAL, "length", *_TAIL)),
-    "lubricated": (LubricatedJoint, (*_JOURNAL, "width", "viscosity", "film", "blend_start", "blend_end",
+    "lubricated": (LubricatedJoint, (*_JOURNAL, "length", "viscosity", "film", "blend_start", "blend_end",
                                      "n_elements", "n_gauss", *_TAIL)),  # profiles: in the law's table
     "pin-slot": (PinSlotJoint, (*_JOURNAL, "slot_length", "axis", "length", "ideal", *_TAIL)),
     "translational-clearance": (TranslationalClearanceJoint, (
         "name", "guide_body", "guide_point", "slider_body", "slider_point", "slider_length", "slider_height",
         "guide_width", "axis", "angle", "corner_radius", *_TAIL)),
 }
-#: file key -> constructor argument, where they differ (the lubricated joint's film width is its ``length``)
-ELEMENT_RENAMES = {"lubricated": {"width": "length"}}
+#: old file key -> the key that replaced it, per element type (read with a DeprecationWarning; the
+#: lubricated joint's film width is its ``length``, as for every journal joint)
+DEPRECATED_KEYS = {"lubricated": {"width": "length"}}
 #: keys whose value is one of a few strings
 CHOICES = {"film": FILMS, "ideal": IDEALS}
 #: keys whose value is a string (every other value is a number or an array of numbers)
@@ -96,9 +98,8 @@ def _plain(value):
     return _number(value)
 
 
-def _fields(module, keys, renames=None) -> dict:
-    attr = renames or {}
-    return {k: _plain(getattr(module, attr.get(k, k))) for k in keys if getattr(module, attr.get(k, k)) is not None}
+def _fields(module, keys) -> dict:
+    return {k: _plain(getattr(module, k)) for k in keys if getattr(module, k) is not None}
 
 
 def _no_function(item, where: str):
@@ -107,11 +108,11 @@ def _no_function(item, where: str):
                              "file (only constant forces, torques and AngleDriver speeds can)")
 
 
-def _typed(table: dict, item, where: str, skip=(), renames=None) -> dict:
+def _typed(table: dict, item, where: str, skip=()) -> dict:
     for name, (cls, keys) in table.items():
         if type(item) is cls:
             _no_function(item, where)
-            return {"type": name, **_fields(item, [k for k in keys if k not in skip], (renames or {}).get(name))}
+            return {"type": name, **_fields(item, [k for k in keys if k not in skip])}
     raise MechanismError(f"{where}: {type(item).__name__} cannot be written to a mechanism file; "
                          f"allowed types: {[c.__name__ for c, _ in table.values()]}")
 
@@ -160,7 +161,7 @@ def mechanism_dict(mech: Mechanism) -> dict:
             doc[key] = [_typed(table, item, f"{key}[{i}]") for i, item in enumerate(items)]
     elements = []
     for i, el in enumerate(mech.clearance_joints):
-        row = _typed(ELEMENT_TYPES, el, f"clearance_joints[{i}]", skip=("law", "friction"), renames=ELEMENT_RENAMES)
+        row = _typed(ELEMENT_TYPES, el, f"clearance_joints[{i}]", skip=("law", "friction"))
         row["law"], row["friction"] = law_table(el.law), friction_table(el.friction)
         elements.append(row)
     if elements:
@@ -309,10 +310,14 @@ def _friction(r: _Reader, key: str, table) -> object:
 def _element(r: _Reader, key: str, row) -> object:
     row = r.table(key, row)
     kind = row.get("type", "revolute-clearance")
+    for old, new in DEPRECATED_KEYS.get(kind, {}).items() if isinstance(kind, str) else ():
+        if old in row:
+            if new in row:
+                r.fail(f"{key}.{old}", f"give {new!r} only ({old!r} is its old name)", ParameterError)
+            warnings.warn(f"{r.source}: {key}.{old}: the key {old!r} is deprecated; write {new!r}",
+                          DeprecationWarning, stacklevel=2)
+            row = {(new if k == old else k): v for k, v in row.items()}
     cls, kwargs = r.typed(key, row, ELEMENT_TYPES, "revolute-clearance", skip=("law", "friction", "clearance"))
-    for file_key, argument in ELEMENT_RENAMES.get(kind, {}).items():
-        if file_key in kwargs:
-            kwargs[argument] = kwargs.pop(file_key)
     if "law" in row:
         kwargs["law"] = _law(r, f"{key}.law", row["law"])
     if "friction" in row:

@@ -114,12 +114,7 @@ def test_pi_film_slider_crank_finishes_with_the_steps_of_the_half_film():
     tolerances and stalls at rtol 1e-8), and stays inside the bearing."""
     steps = {}
     for film in ("half", "pi"):
-        mech = jc.preset("flores-slider-crank", viscosity=0.4, length=0.04)
-        j = mech.clearance_joints[0]
-        j = jc.LubricatedJoint(j.bearing_body, j.bearing_point, j.journal_body, j.journal_point, j.bearing_radius,
-                               j.journal_radius, j.length, j.viscosity, law=j.law, friction=j.friction, film=film,
-                               name=j.name)
-        mech = eqx.tree_at(lambda m: m.clearance_joints, mech, (j,))
+        mech = jc.preset("flores-slider-crank", viscosity=0.4, length=0.04, film=film)
         sol = jc.simulate(mech, jc.settings(jc.crank_period(mech), n_out=20, rtol=1e-6))
         assert int(sol.status) == 0 and float(sol.ts[-1]) == pytest.approx(float(jc.crank_period(mech)))
         assert float(jnp.linalg.norm(sol.ecc[:, 0], axis=-1).max()) < C
@@ -184,7 +179,7 @@ def test_lubricated_element_gradients_match_central_differences():
 
 @pytest.mark.parametrize("kw,match", [
     ({"viscosity": 0.0}, "viscosity"),
-    ({"length": -1e-3}, "width"),
+    ({"length": -1e-3}, "length"),
     ({"blend_start": 1.2}, "blend_start"),
     ({"blend_end": 0.0}, "blend_end"),
     ({"blend_start": 0.98, "blend_end": 0.95}, "blend_start"),
@@ -195,13 +190,37 @@ def test_lubricated_bad_input_is_named(kw, match):
         jc.LubricatedJoint(jc.GROUND, "hole", "pin", "c", 0.010, 0.0095, **kw)
 
 
-def test_viscosity_and_width_are_named_parameters():
+def test_viscosity_and_length_are_named_parameters_and_width_is_deprecated():
+    """One name for the film width: ``length`` (the joint's axial length) in the constructor,
+    presets, parameter names and mechanism files; ``width``, the old name of the parameter,
+    attribute and file key, still works with a DeprecationWarning."""
     mech = jc.preset("flores-slider-crank", viscosity=0.4)
     assert float(jc.params.get(mech, "viscosity")) == 0.4
-    m2 = jc.params.replace_many(mech, {"viscosity": 1.5, "width": 0.02})
+    m2 = jc.params.replace_many(mech, {"viscosity": 1.5, "length": 0.02})
     assert float(m2.clearance_joints[0].viscosity) == 1.5 and float(m2.clearance_joints[0].length) == 0.02
     with pytest.raises(jc.ParameterError, match="LubricatedJoint"):
         jc.params.get(jc.preset("flores-slider-crank"), "viscosity")
+    assert "width" not in jc.params.parameter_names()
+    with pytest.warns(DeprecationWarning, match="'width' is deprecated; use 'length'"):
+        m3 = jc.params.replace(mech, "width", 0.03)
+    assert float(m3.clearance_joints[0].length) == 0.03
+    with pytest.warns(DeprecationWarning, match="width is deprecated; use length"):
+        assert float(m3.clearance_joints[0].width) == 0.03
+
+
+def test_preset_lubricated_joint_takes_film_options():
+    """The preset's lubricated joint takes the film width (``length``), ``film`` and the blend;
+    the film options without ``viscosity`` (a dry joint) are refused, naming them."""
+    mech = jc.preset("flores-slider-crank", viscosity=0.4, length=0.04, film="pi", blend_start=0.9, blend_end=0.97)
+    j = mech.clearance_joints[0]
+    assert isinstance(j, jc.LubricatedJoint) and j.film == "pi"
+    assert (float(j.length), float(j.blend_start), float(j.blend_end)) == (0.04, 0.9, 0.97)
+    default = jc.preset("flores-slider-crank", viscosity=0.4).clearance_joints[0]
+    assert default.film == "half" and float(default.length) == 0.010
+    with pytest.raises(jc.ParameterError, match=r"\['blend_end', 'film'\].*viscosity"):
+        jc.preset("flores-slider-crank", film="pi", blend_end=0.97)
+    with pytest.raises(jc.ParameterError, match="film"):
+        jc.preset("flores-slider-crank", viscosity=0.4, film="quarter")
 
 
 @pytest.mark.slow

@@ -124,6 +124,7 @@ film and wall (and a wear update of the law's bearing profile) always see one ge
 from __future__ import annotations
 
 import math
+import warnings
 
 import equinox as eqx
 import jax
@@ -261,7 +262,9 @@ class LubricatedJoint(AbstractJournalJoint):
     """A revolute joint with an oil film in its clearance (module docstring for the model).
 
     Attributes (besides those of :class:`~jaxclear.ClearanceJoint`, whose meaning they keep):
-        length: film width L [m] (= the joint's axial length; the parameter ``width``).
+        length: the joint's axial length L [m], which is the film width (one name for both, as
+            for every journal joint; the old name ``width`` of mechanism files, parameter names and
+            this attribute still works, with a DeprecationWarning).
         viscosity: dynamic viscosity :math:`\\mu` of the oil [Pa s] > 0.
         blend_start, blend_end: eccentricity ratios :math:`0 < \\varepsilon_0 < \\varepsilon_1 < 1`
             of the film's C1 saturation (transition to dry contact).
@@ -323,7 +326,7 @@ class LubricatedJoint(AbstractJournalJoint):
         n_gauss: int = 4,
     ):
         check_range("viscosity", viscosity, low=0.0, low_open=True, unit="Pa s")
-        check_range("width (film width, the joint's length)", length, low=0.0, low_open=True, unit="m")
+        check_range("length (the film width)", length, low=0.0, low_open=True, unit="m")
         check_range("blend_start", blend_start, low=0.0, high=1.0, low_open=True, high_open=True)
         check_range("blend_end", blend_end, low=0.0, high=1.0, low_open=True, high_open=True)
         if is_concrete(blend_start) and is_concrete(blend_end) and not float(blend_start) < float(blend_end):
@@ -375,11 +378,13 @@ class LubricatedJoint(AbstractJournalJoint):
 
     @property
     def width(self):
-        """Film width L [m] (the joint's ``length``)."""
+        """Deprecated name of :attr:`length` (the film width L [m])."""
+        warnings.warn("LubricatedJoint.width is deprecated; use length (the film width)", DeprecationWarning,
+                      stacklevel=2)
         return self.length
 
     def check(self) -> RESULTS:
-        """The journal joint's checks (radii, clearance, width = length > 0, floor, laws), then
+        """The journal joint's checks (radii, clearance, length > 0, floor, laws), then
         viscosity > 0 and blend bounds :math:`0 < \\varepsilon_0 < \\varepsilon_1 < 1`
         (``invalid_parameter``)."""
         film = (
