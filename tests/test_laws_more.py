@@ -364,3 +364,22 @@ def test_models_lists_every_new_law():
 def test_new_laws_round_trip_through_mechanism_files(name, options):
     mech = jc.preset("flores-slider-crank", law=name, law_options=options)
     assert eqx.tree_equal(loads_mechanism(dumps_mechanism(mech)), mech)
+
+
+def test_one_source_per_law_in_models_and_references():
+    """``jaxclear models`` (the registry) and docs/theory/references.md name the same Qin-Lu and
+    hybrid-model sources (journal, volume, year, first page)."""
+    from pathlib import Path
+
+    from jaxclear.contact.registry import LAWS
+
+    refs = (Path(__file__).parents[1] / "docs" / "theory" / "references.md").read_text()
+    for law, registry_words, reference_words in [
+        ("qin-lu", ["J. Dyn. Control 4 (2006) 294"], ["Journal of Dynamics and Control* 4(4) (2006) 294-298"]),
+        ("hybrid", ["Ma, Qian, Chen, Li", "Mech. Mach. Theory 94 (2015) 148"],
+         ["J. Ma, L. Qian, G. Chen, M. Li", "Machine Theory* 94 (2015) 148-164"]),
+    ]:
+        for w in registry_words:
+            assert w in LAWS[law][1], (law, w)
+        for w in reference_words:
+            assert w in " ".join(refs.split()), (law, w)

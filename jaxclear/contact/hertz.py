@@ -70,7 +70,9 @@ def chi_gonthier(c_r):
 
 
 def chi_qin_lu(c_r):
-    """Zhiying & Qishao (Qin & Lu), Sci. China Ser. E 49 (2006) 600-613:
+    """Qin Zhiying, Lu Qishao, "Analysis of impact process model based on restitution coefficient",
+    Journal of Dynamics and Control 4(4) (2006) 294-298 (in Chinese; the factor as tabulated by
+    Machado et al., Mech. Mach. Theory 53 (2012) 99-121):
     :math:`\\hat\\chi = 3(1-c_r^2)\\,e^{2(1-c_r)}/4`."""
     return 0.75 * (1.0 - c_r**2) * jnp.exp(2.0 * (1.0 - c_r))
 
