@@ -8,7 +8,10 @@ penetration_m, contact_force_n, friction_force_n``
 
 The crank column appears only for a mechanism with a ``crank`` role, the slider columns only
 with a ``slider`` role (its global x coordinate and derivatives), the contact columns only
-with clearance joints; with several joints they get the suffixes ``_1``, ``_2``...
+with clearance joints, each followed by the element's own outputs (``type(joint).OUTPUTS``,
+named with their unit: ``film_force_n``, ``min_film_thickness_m``, ``eccentricity_ratio``,
+``rear_lower_normal_force_n``, ``feature``...); with several joints they get the suffixes
+``_1``, ``_2``...
 """
 
 from __future__ import annotations
@@ -54,7 +57,19 @@ def timeseries_table(mech: Mechanism, sol: Solution) -> dict[str, np.ndarray]:
         cols["ecc_y_m" + suffix] = ecc[:, j, 1]
         for name, arr in per_joint.items():
             cols[name + suffix] = arr[:, j]
+        own = sol.element_outputs(mech, j)
+        for name, unit in type(mech.clearance_joints[j]).OUTPUTS.items():
+            cols[output_column(name, unit) + suffix] = np.asarray(own[name], dtype=float)
     return cols
+
+
+#: unit of an element output -> the suffix of its column name
+UNIT_SUFFIXES = {"N": "_n", "m": "_m", "-": ""}
+
+
+def output_column(name: str, unit: str) -> str:
+    """Column name of an element's own output ``name`` [``unit``] (e.g. ``film_force_n``)."""
+    return name + UNIT_SUFFIXES[unit]
 
 
 def timeseries_columns(mech: Mechanism) -> list[str]:
@@ -68,6 +83,7 @@ def timeseries_columns(mech: Mechanism) -> list[str]:
     for j in range(k):
         suffix = f"_{j + 1}" if k > 1 else ""
         cols.extend(c + suffix for c in CONTACT_COLUMNS)
+        cols.extend(output_column(n, u) + suffix for n, u in type(mech.clearance_joints[j]).OUTPUTS.items())
     return cols
 
 
@@ -75,6 +91,18 @@ def timeseries_columns(mech: Mechanism) -> list[str]:
 COLUMN_UNITS = {"time_s": "s", "crank_angle_rad": "rad", "slider_pos_m": "m", "slider_vel_m_s": "m/s",
                 "slider_acc_m_s2": "m/s^2", "ecc_x_m": "m", "ecc_y_m": "m", "penetration_m": "m",
                 "contact_force_n": "N", "friction_force_n": "N"}
+
+
+def column_unit(column: str) -> str:
+    """Unit of a time-series column, from its name (a joint suffix ``_1``, ``_2`` allowed): the
+    legacy columns' table, else the unit suffix of an element output (``_n``, ``_m``; none: -)."""
+    base = column if column in COLUMN_UNITS else column.rsplit("_", 1)[0] if column[-1].isdigit() else column
+    if base in COLUMN_UNITS:
+        return COLUMN_UNITS[base]
+    for unit, suffix in UNIT_SUFFIXES.items():
+        if suffix and base.endswith(suffix):
+            return unit
+    return "-" if base else ""
 
 
 def _pandas():
@@ -86,7 +114,7 @@ def _frame(cols: dict, index: str):
     """DataFrame of ``cols`` indexed by column ``index``; ``df.attrs["units"]``: column -> unit."""
     pd = _pandas()
     df = pd.DataFrame({k: v for k, v in cols.items() if k != index}, index=pd.Index(cols[index], name=index))
-    df.attrs["units"] = {c: COLUMN_UNITS.get(c, COLUMN_UNITS.get(c.rsplit("_", 1)[0], "")) for c in cols}
+    df.attrs["units"] = {c: column_unit(c) for c in cols}
     return df
 
 

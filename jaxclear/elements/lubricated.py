@@ -418,6 +418,33 @@ class LubricatedJoint(AbstractJournalJoint):
         wedge = (0.5 * (kin.journal_omega + kin.bearing_omega) * kin.e - (v[0] * kin.tangent[0] + v[1] * kin.tangent[1])) / c
         return film_force(eps, eps_dot, wedge, self.journal_radius, c, self.length, self.viscosity, self.film)
 
+    #: film force on the journal along n (bearing centre to journal centre) and t, along the
+    #: global axes and its magnitude; e/c; the thinnest film (0 once the surfaces touch)
+    OUTPUTS = {"film_force_normal": "N", "film_force_tangential": "N", "film_force_x": "N", "film_force_y": "N",
+               "film_force": "N", "eccentricity_ratio": "-", "min_film_thickness": "m"}
+
+    def outputs(self, mech: Mechanism, t, q, qdot, state, continuous_after):
+        """The film's force (:meth:`film_force`: components along n and t and the global axes, its
+        magnitude) [N], the eccentricity ratio :math:`e/c` [-] and the minimum film thickness [m]:
+        :math:`c - e` for circles, the smallest gap over the Gauss points with profiles, 0 once the
+        surfaces touch (the geometric film, before the blend's saturation)."""
+        kin = self.kinematics(mech, q, qdot)
+        f_n, f_t = self._film(kin)
+        f = f_n * kin.normal + f_t * kin.tangent
+        c = self.clearance
+        if self.journal_profile is None and self.bearing_profile is None:
+            h_min = c - kin.e
+        else:
+            s, _ = gauss_nodes(self.n_elements, self.n_gauss)
+            theta = jnp.asarray(np.pi * (s + 1.0))
+            dev = lambda p, phi: 0.0 if p is None else jax.vmap(p)(theta - phi)  # noqa: E731
+            closure = (dev(self.journal_profile, kin.journal_angle) - dev(self.bearing_profile, kin.bearing_angle)
+                       + kin.ecc[0] * jnp.cos(theta) + kin.ecc[1] * jnp.sin(theta))
+            h_min = c - jnp.max(closure)
+        return {"film_force_normal": f_n, "film_force_tangential": f_t, "film_force_x": f[0], "film_force_y": f[1],
+                "film_force": jnp.sqrt(f_n * f_n + f_t * f_t), "eccentricity_ratio": kin.e / c,
+                "min_film_thickness": jnp.maximum(h_min, 0.0)}
+
     def contact(self, mech: Mechanism, q, qdot, impact_velocity):
         """Dry contact (law and friction, :func:`contact_forces`) plus the film force. The output's
         ``normal_force`` is the total force pushing the journal towards the bearing centre
