@@ -1,5 +1,7 @@
-"""Files in and out: time series CSV, JSON, and measured data (:func:`read_measurements`); the
-same tables as pandas DataFrames (:func:`timeseries_frame`, :meth:`Measurements.to_dataframe`).
+"""Files in and out: time series CSV and NetCDF (:func:`write_timeseries_netcdf`, an xarray
+Dataset with units and the run's settings as attributes), JSON, and measured data
+(:func:`read_measurements`); the same tables as pandas DataFrames (:func:`timeseries_frame`,
+:meth:`Measurements.to_dataframe`).
 
 Output CSV columns (:func:`timeseries_columns`), units in the names:
 
@@ -18,6 +20,7 @@ from __future__ import annotations
 
 import csv
 import importlib
+import json
 import math
 import os
 import warnings
@@ -25,7 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._storage import atomic_write_json
+from ._storage import atomic_write_json, atomic_write_netcdf
 from ._errors import ParameterError
 from .model import Mechanism
 from .integrate import Solution
@@ -130,6 +133,56 @@ def write_timeseries_csv(path, mech: Mechanism, sol: Solution) -> str:
     """Write the sampled solution as CSV (header row, then one row per sample, 12 significant
     digits). Returns the path."""
     return write_table_csv(path, timeseries_table(mech, sol))
+
+
+def _netcdf_name(column: str) -> tuple[str, str, str]:
+    """``(variable name, long name, unit)`` of a time-series column: a legacy or element column
+    keeps its name (unit from :func:`column_unit`); a channel column ``"NAME [UNIT]"`` becomes the
+    variable ``NAME`` with ``:`` and other separators as ``_`` (the channel name as long name)."""
+    if column.endswith("]") and " [" in column:
+        name, unit = column[:-1].rsplit(" [", 1)
+        var = "".join(ch if ch.isalnum() or ch == "_" else "_" for ch in name)
+        return var, name, unit
+    return column, column, column_unit(column)
+
+
+def _attribute(value):
+    """A run setting as a NetCDF 3 attribute (text or number; None as "none", a table as JSON)."""
+    if value is None:
+        return "none"
+    if isinstance(value, bool):
+        return int(value)
+    if isinstance(value, (int, float, str)):
+        return value
+    if isinstance(value, (list, tuple)) and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                                for v in value):
+        return np.asarray(value, dtype=float)
+    return json.dumps(value, default=str)
+
+
+def timeseries_dataset(cols: dict, attrs: dict | None = None):
+    """The time-series columns (name -> (T,) array, ``time_s`` first, as :func:`write_table_csv`
+    takes them) as an :class:`xarray.Dataset` on the coordinate ``time`` [s]: one variable per
+    column with ``units`` and ``long_name``, and ``attrs`` (the run's settings) as global
+    attributes (None as "none", tables as JSON)."""
+    xr = importlib.import_module("xarray")
+    time = np.asarray(cols["time_s"], dtype=float)
+    data, seen = {}, set()
+    for column, values in cols.items():
+        if column == "time_s":
+            continue
+        var, long, unit = _netcdf_name(column)
+        if var in seen:
+            raise ParameterError(f"time-series columns {column!r} and another one share the NetCDF name {var!r}")
+        seen.add(var)
+        data[var] = ("time", np.asarray(values, dtype=float), {"units": unit, "long_name": long})
+    coords = {"time": ("time", time, {"units": "s", "long_name": "time"})}
+    return xr.Dataset(data, coords=coords, attrs={k: _attribute(v) for k, v in (attrs or {}).items()})
+
+
+def write_timeseries_netcdf(path, cols: dict, attrs: dict | None = None) -> str:
+    """Write :func:`timeseries_dataset` as NetCDF (atomically). Returns the path."""
+    return atomic_write_netcdf(path, timeseries_dataset(cols, attrs))
 
 
 def write_table_csv(path, cols: dict) -> str:
@@ -357,6 +410,8 @@ def read_measurements(path) -> Measurements:
 
 __all__ = [
     "write_timeseries_csv",
+    "write_timeseries_netcdf",
+    "timeseries_dataset",
     "timeseries_table",
     "timeseries_columns",
     "write_json",
