@@ -43,6 +43,12 @@ def atomic_write_bytes(path, data: bytes) -> str:
     return path
 
 
+def atomic_write_netcdf(path, ds) -> str:
+    """Write the xarray Dataset ``ds`` as NetCDF 3 (xarray's ``scipy`` engine) atomically: the
+    file is the old or the new one, never a mix. Returns the path."""
+    return atomic_write_bytes(path, ds.to_netcdf(engine="scipy"))
+
+
 def atomic_write_text(path, text: str) -> str:
     """:func:`atomic_write_bytes` of UTF-8 text."""
     return atomic_write_bytes(path, text.encode("utf-8"))

@@ -22,6 +22,7 @@ import inspect
 import os
 import re
 import tomllib
+import warnings
 
 import numpy as np
 import tomli_w
@@ -32,7 +33,9 @@ from ._units import rpm_to_rad_s
 from .contact import FourierProfile, Friction, Material, make_law
 from .contact.friction import FRICTION_MODELS, friction_name
 from .elements import FILMS, IDEALS, ClearanceJoint, LubricatedJoint, PinSlotJoint, TranslationalClearanceJoint
-from .model import AngleDriver, Body, Fixed, Mechanism, PointForce, Revolute, Torque, Translational
+from .model import AngleDriver, Body, Fixed, Mechanism, PointForce, ProfileDriver, Revolute, Torque, Translational
+from .model.profiles import PROFILE_KINDS
+from .profile_tables import profile_table, read_profile
 
 FORMAT_VERSION = 1
 
@@ -45,25 +48,27 @@ JOINT_TYPES = {
     "translational": (Translational, ("body_i", "point_i", "body_j", "point_j", "axis", "angle")),
     "fixed": (Fixed, ("body_i", "point_i", "body_j", "point_j", "angle")),
 }
-DRIVER_TYPES = {"angle": (AngleDriver, ("body", "speed", "angle0", "relative_to"))}
+DRIVER_TYPES = {"angle": (AngleDriver, ("body", "speed", "angle0", "relative_to")),
+                "speed-profile": (ProfileDriver, ("body", "angle0", "relative_to"))}  # + the profile table
 LOAD_TYPES = {
     "point-force": (PointForce, ("body", "point", "force")),
     "torque": (Torque, ("body", "torque")),
-}
+}  # + an optional profile table (a time factor)
 _JOURNAL = ("name", "bearing_body", "bearing_point", "journal_body", "journal_point", "bearing_radius",
             "journal_radius")
 _TAIL = ("law", "friction", "impact_velocity_floor", "initial_offset", "initial_velocity")
 ELEMENT_TYPES = {
     "revolute-clearance": (ClearanceJoint, (*_JOURNAL, "length", *_TAIL)),
-    "lubricated": (LubricatedJoint, (*_JOURNAL, "width", "viscosity", "film", "blend_start", "blend_end",
+    "lubricated": (LubricatedJoint, (*_JOURNAL, "length", "viscosity", "film", "blend_start", "blend_end",
                                      "n_elements", "n_gauss", *_TAIL)),  # profiles: in the law's table
     "pin-slot": (PinSlotJoint, (*_JOURNAL, "slot_length", "axis", "length", "ideal", *_TAIL)),
     "translational-clearance": (TranslationalClearanceJoint, (
         "name", "guide_body", "guide_point", "slider_body", "slider_point", "slider_length", "slider_height",
         "guide_width", "axis", "angle", "corner_radius", *_TAIL)),
 }
-#: file key -> constructor argument, where they differ (the lubricated joint's film width is its ``length``)
-ELEMENT_RENAMES = {"lubricated": {"width": "length"}}
+#: old file key -> the key that replaced it, per element type (read with a DeprecationWarning; the
+#: lubricated joint's film width is its ``length``, as for every journal joint)
+DEPRECATED_KEYS = {"lubricated": {"width": "length"}}
 #: keys whose value is one of a few strings
 CHOICES = {"film": FILMS, "ideal": IDEALS}
 #: keys whose value is a string (every other value is a number or an array of numbers)
@@ -96,22 +101,22 @@ def _plain(value):
     return _number(value)
 
 
-def _fields(module, keys, renames=None) -> dict:
-    attr = renames or {}
-    return {k: _plain(getattr(module, attr.get(k, k))) for k in keys if getattr(module, attr.get(k, k)) is not None}
+def _fields(module, keys) -> dict:
+    return {k: _plain(getattr(module, k)) for k in keys if getattr(module, k) is not None}
 
 
 def _no_function(item, where: str):
     if getattr(item, "function", None) is not None:
         raise MechanismError(f"{where} ({item.label}) has a Python function: it cannot be written to a mechanism "
-                             "file (only constant forces, torques and AngleDriver speeds can)")
+                             "file (only forces and torques with a time profile or none, AngleDriver speeds and "
+                             "ProfileDriver profiles can)")
 
 
-def _typed(table: dict, item, where: str, skip=(), renames=None) -> dict:
+def _typed(table: dict, item, where: str, skip=()) -> dict:
     for name, (cls, keys) in table.items():
         if type(item) is cls:
             _no_function(item, where)
-            return {"type": name, **_fields(item, [k for k in keys if k not in skip], (renames or {}).get(name))}
+            return {"type": name, **_fields(item, [k for k in keys if k not in skip])}
     raise MechanismError(f"{where}: {type(item).__name__} cannot be written to a mechanism file; "
                          f"allowed types: {[c.__name__ for c, _ in table.values()]}")
 
@@ -158,9 +163,12 @@ def mechanism_dict(mech: Mechanism) -> dict:
                               ("loads", mech.loads, LOAD_TYPES)):
         if items:
             doc[key] = [_typed(table, item, f"{key}[{i}]") for i, item in enumerate(items)]
+            for row, item in zip(doc[key], items):
+                if getattr(item, "profile", None) is not None:
+                    row["profile"] = profile_table(item.profile)
     elements = []
     for i, el in enumerate(mech.clearance_joints):
-        row = _typed(ELEMENT_TYPES, el, f"clearance_joints[{i}]", skip=("law", "friction"), renames=ELEMENT_RENAMES)
+        row = _typed(ELEMENT_TYPES, el, f"clearance_joints[{i}]", skip=("law", "friction"))
         row["law"], row["friction"] = law_table(el.law), friction_table(el.friction)
         elements.append(row)
     if elements:
@@ -200,6 +208,8 @@ class _Reader:
 
     def __init__(self, source: str):
         self.source = source
+        # relative file names (a profile's CSV table) start from the mechanism file's folder
+        self.folder = os.path.dirname(os.path.abspath(source)) if os.path.isfile(source) else os.getcwd()
 
     def fail(self, key: str, message: str, cls=MechanismError):
         raise cls(f"{self.source}: {key}: {message}")
@@ -309,10 +319,14 @@ def _friction(r: _Reader, key: str, table) -> object:
 def _element(r: _Reader, key: str, row) -> object:
     row = r.table(key, row)
     kind = row.get("type", "revolute-clearance")
+    for old, new in DEPRECATED_KEYS.get(kind, {}).items() if isinstance(kind, str) else ():
+        if old in row:
+            if new in row:
+                r.fail(f"{key}.{old}", f"give {new!r} only ({old!r} is its old name)", ParameterError)
+            warnings.warn(f"{r.source}: {key}.{old}: the key {old!r} is deprecated; write {new!r}",
+                          DeprecationWarning, stacklevel=2)
+            row = {(new if k == old else k): v for k, v in row.items()}
     cls, kwargs = r.typed(key, row, ELEMENT_TYPES, "revolute-clearance", skip=("law", "friction", "clearance"))
-    for file_key, argument in ELEMENT_RENAMES.get(kind, {}).items():
-        if file_key in kwargs:
-            kwargs[argument] = kwargs.pop(file_key)
     if "law" in row:
         kwargs["law"] = _law(r, f"{key}.law", row["law"])
     if "friction" in row:
@@ -352,6 +366,13 @@ def _guide_from_clearance(r: _Reader, key: str, row: dict, c: float, kwargs: dic
 
 def _driver(r: _Reader, key: str, row) -> object:
     row = r.table(key, row)
+    if row.get("type") == "speed-profile":
+        cls, kwargs = r.typed(key, row, DRIVER_TYPES, skip=("profile",))
+        if "profile" not in row:
+            r.fail(f"{key}.profile", f"missing: the speed profile table (kind: {sorted(PROFILE_KINDS)})",
+                   ParameterError)
+        kwargs["profile"] = read_profile(r, f"{key}.profile", row["profile"], r.folder, speed=True)
+        return r.build(key, cls, kwargs)
     cls, kwargs = r.typed(key, row, DRIVER_TYPES, "angle", skip=("speed_rpm",))
     if "speed_rpm" in row:
         if "speed" in row:
@@ -359,6 +380,13 @@ def _driver(r: _Reader, key: str, row) -> object:
         kwargs["speed"] = rpm_to_rad_s(float(r.number(f"{key}.speed_rpm", row["speed_rpm"])))
     if "speed" not in kwargs:
         r.fail(f"{key}.speed", "missing: the driver speed [rad/s] (or speed_rpm)", ParameterError)
+    return r.build(key, cls, kwargs)
+
+
+def _load(r: _Reader, key: str, row) -> object:
+    cls, kwargs = r.typed(key, row, LOAD_TYPES, skip=("profile",))
+    if "profile" in row:
+        kwargs["profile"] = read_profile(r, f"{key}.profile", row["profile"], r.folder)
     return r.build(key, cls, kwargs)
 
 
@@ -384,8 +412,7 @@ def mechanism_from_dict(doc: dict, source: str = "<mechanism>") -> Mechanism:
     joints = [r.build(f"joints[{i}]", *r.typed(f"joints[{i}]", row, JOINT_TYPES))
               for i, row in enumerate(r.array("joints", doc.get("joints", [])))]
     drivers = [_driver(r, f"drivers[{i}]", row) for i, row in enumerate(r.array("drivers", doc.get("drivers", [])))]
-    loads = [r.build(f"loads[{i}]", *r.typed(f"loads[{i}]", row, LOAD_TYPES))
-             for i, row in enumerate(r.array("loads", doc.get("loads", [])))]
+    loads = [_load(r, f"loads[{i}]", row) for i, row in enumerate(r.array("loads", doc.get("loads", [])))]
     elements = [_element(r, f"clearance_joints[{i}]", row)
                 for i, row in enumerate(r.array("clearance_joints", doc.get("clearance_joints", [])))]
     roles = {k: r.string(f"roles.{k}", v) for k, v in r.table("roles", doc.get("roles", {})).items()}

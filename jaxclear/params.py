@@ -21,14 +21,17 @@ name                    leaf                                                    
 ``v_transition``        ``friction.v_transition`` (Brown-McPhee)                 m/s, (0, inf)
 ``bristle_stiffness``   ``friction.bristle_stiffness`` (sigma_0: Dahl, LuGre)    1/m, (0, inf)
 ``bristle_damping``     ``friction.bristle_damping`` (sigma_1: LuGre)            s/m, [0, inf)
-``length``              joint axial length L                                     m, (0, inf)
+``length``              joint axial length L (a :class:`LubricatedJoint`'s film  m, (0, inf)
+                        width)
 ``viscosity``           oil viscosity of a :class:`LubricatedJoint`              Pa s, (0, inf)
-``width``               film width of a :class:`LubricatedJoint` (its ``length``)  m, (0, inf)
 ``speed``               first ``AngleDriver.speed``                              rad/s
 ``speed_rpm``           the same in rev/min                                      rpm
 ``mass:BODY``           body mass                                                kg, (0, inf)
 ``inertia:BODY``        body centroidal inertia                                  kg m^2, (0, inf)
 ======================  =======================================================  ============
+
+``width`` is an old name of ``length`` for the lubricated joint: still accepted, with a
+:class:`DeprecationWarning`.
 
 ``stiffness`` of a law whose stiffness is derived from materials (``None``) reads the derived
 value and, when set, becomes explicit. The friction names address the joint's friction law
@@ -38,6 +41,7 @@ parameter raises :class:`~jaxclear.ParameterError` naming the laws that have it.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from typing import Callable
 
@@ -87,14 +91,18 @@ INFO = {
                                        "bristle stiffness sigma_0 (per newton of normal force)"),
     "bristle_damping": ParameterInfo("bristle_damping", "s/m", 0.0, None, False, False, "log",
                                      "bristle damping sigma_1 (per newton of normal force)"),
-    "length": ParameterInfo("length", "m", 0.0, None, True, False, "log", "axial length of the joint"),
+    "length": ParameterInfo("length", "m", 0.0, None, True, False, "log",
+                            "axial length of the joint (a lubricated joint's film width)"),
     "viscosity": ParameterInfo("viscosity", "Pa s", 0.0, None, True, False, "log", "oil viscosity (lubricated joint)"),
-    "width": ParameterInfo("width", "m", 0.0, None, True, False, "log", "film width L (lubricated joint)"),
     "speed": ParameterInfo("speed", "rad/s", None, None, False, False, "none", "crank speed"),
     "speed_rpm": ParameterInfo("speed_rpm", "rpm", None, None, False, False, "none", "crank speed"),
     "mass": ParameterInfo("mass", "kg", 0.0, None, True, False, "log", "body mass (mass:BODY)"),
     "inertia": ParameterInfo("inertia", "kg m^2", 0.0, None, True, False, "log", "body inertia (inertia:BODY)"),
 }
+
+
+#: old parameter name -> the name that replaced it (accepted with a DeprecationWarning)
+DEPRECATED = {"width": "length"}
 
 
 #: parameter name -> field of the joint's friction law (the parameters beyond ``friction``)
@@ -126,6 +134,10 @@ def _split(name: str):
             raise ParameterError(f"parameter {name!r}: joint index after '@' must be an integer") from None
     if ":" in base:
         base, body = base.split(":", 1)
+    if base in DEPRECATED:
+        warnings.warn(f"parameter name {base!r} is deprecated; use {DEPRECATED[base]!r}", DeprecationWarning,
+                      stacklevel=3)
+        base = DEPRECATED[base]
     if base not in INFO:
         raise ParameterError(f"unknown parameter {name!r}; valid names: {parameter_names()} "
                              "(mass:BODY, inertia:BODY, and NAME@J for clearance joint J)")
@@ -188,11 +200,11 @@ def _accessor(mech: Mechanism, name: str) -> tuple[Callable, Callable]:
                                  "(its block has slider_length and slider_height)")
         w = lambda m: m.clearance_joints[k].length  # noqa: E731
         return w, w
-    if base in ("viscosity", "width"):
+    if base == "viscosity":
         if not isinstance(joint, LubricatedJoint):
             raise ParameterError(f"parameter {name!r} belongs to a LubricatedJoint; clearance joint {k} is a "
                                  f"{type(joint).__name__}")
-        w = (lambda m: m.clearance_joints[k].viscosity) if base == "viscosity" else (lambda m: m.clearance_joints[k].length)
+        w = lambda m: m.clearance_joints[k].viscosity  # noqa: E731
         return w, w
     field = {"restitution": "restitution", "exponent": "exponent"}.get(base) or joint.law.stiffness_parameter
     if field not in type(joint.law).__dataclass_fields__:

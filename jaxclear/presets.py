@@ -20,8 +20,21 @@ from .mechanism_files import save_mechanism
 from .model import GROUND, AngleDriver, Body, Mechanism, Revolute, Translational
 
 
+#: the lubricated joint's options of a preset, with their defaults (those of :class:`LubricatedJoint`)
+FILM_OPTIONS = {"film": "half", "blend_start": 0.95, "blend_end": 0.99}
+
+
+def _film_options(viscosity, film, blend_start, blend_end) -> dict:
+    """The film options given to a preset, checked: they need ``viscosity`` (a lubricated joint)."""
+    given = {k: v for k, v in (("film", film), ("blend_start", blend_start), ("blend_end", blend_end)) if v is not None}
+    if given and viscosity is None:
+        raise ParameterError(f"{sorted(given)} set the oil film of a lubricated joint: give viscosity [Pa s] "
+                             "too (without it the joint is dry)")
+    return {**FILM_OPTIONS, **given}
+
+
 def _clearance_joint(name, bearing, bearing_point, journal, journal_point, *, bearing_radius, clearance,
-                     law, restitution, stiffness, friction, length, law_options, viscosity=None):
+                     law, restitution, stiffness, friction, length, law_options, viscosity=None, film_options=None):
     check_range("clearance", clearance, low=0.0, low_open=True, unit="m")
     check_range("bearing_radius", bearing_radius, low=0.0, low_open=True, unit="m")
     if clearance >= bearing_radius:
@@ -34,7 +47,7 @@ def _clearance_joint(name, bearing, bearing_point, journal, journal_point, *, be
             bearing, bearing_point, journal, journal_point, bearing_radius=bearing_radius,
             journal_radius=bearing_radius - clearance, length=length, viscosity=viscosity,
             law=make_law(law, restitution=restitution, stiffness=stiffness, **(law_options or {})),
-            friction=Friction(friction), name=name,
+            friction=Friction(friction), name=name, **(film_options or FILM_OPTIONS),
         )
     return ClearanceJoint(
         bearing,
@@ -52,7 +65,7 @@ def _clearance_joint(name, bearing, bearing_point, journal, journal_point, *, be
 
 def _slider_crank(*, name, crank_length, crank_mass, crank_inertia, rod_length, rod_mass, rod_inertia,
                   slider_mass, slider_inertia, speed_rpm, clearance, bearing_radius, length, law,
-                  restitution, stiffness, friction, ideal, gravity, law_options, viscosity=None):
+                  restitution, stiffness, friction, ideal, gravity, law_options, viscosity=None, film_options=None):
     r, l = crank_length, rod_length
     check_range("crank_length", r, low=0.0, low_open=True, unit="m")
     check_range("rod_length", l, low=r, low_open=True, unit="m")
@@ -71,7 +84,8 @@ def _slider_crank(*, name, crank_length, crank_mass, crank_inertia, rod_length, 
         clearance_joints.append(
             _clearance_joint("rod-slider", "slider", "B", "rod", "B", bearing_radius=bearing_radius,
                              clearance=clearance, law=law, restitution=restitution, stiffness=stiffness,
-                             friction=friction, length=length, law_options=law_options, viscosity=viscosity)
+                             friction=friction, length=length, law_options=law_options, viscosity=viscosity,
+                             film_options=film_options)
         )
     return Mechanism(
         bodies=[crank, rod, slider],
@@ -99,6 +113,9 @@ def flores_slider_crank(
     gravity=(0.0, -9.81),
     law_options=None,
     viscosity=None,
+    film=None,
+    blend_start=None,
+    blend_end=None,
 ):
     """The Flores benchmark slider-crank with a clearance in the rod-slider joint.
 
@@ -112,9 +129,13 @@ def flores_slider_crank(
     cylindrical laws). Starts at crank angle 0 with the journal centred.
 
     ``viscosity`` [Pa s] (default None: dry) makes the rod-slider joint a
-    :class:`~jaxclear.LubricatedJoint` (short-bearing film of width ``length``, half film,
-    the dry law taking over at contact), the lubricated benchmark of Flores, Ambrósio, Claro,
-    Lankarani, Koshy, Nonlinear Dyn. 56 (2009) 277-295 (their oil: 400 cP = 0.4 Pa s).
+    :class:`~jaxclear.LubricatedJoint`, the lubricated benchmark of Flores, Ambrósio, Claro,
+    Lankarani, Koshy, Nonlinear Dyn. 56 (2009) 277-295 (their oil: 400 cP = 0.4 Pa s): a
+    short-bearing film whose width is the joint's ``length`` (10 mm unless given: pass
+    ``length`` for another film width), the dry law taking over at contact. ``film`` (default
+    ``"half"``; ``"pi"`` for the classical fixed film of the literature) and ``blend_start``,
+    ``blend_end`` (default 0.95, 0.99) set the film as :class:`~jaxclear.LubricatedJoint` does;
+    they need ``viscosity``.
     """
     return _slider_crank(
         name="flores-slider-crank", crank_length=0.05, crank_mass=0.30, crank_inertia=crank_inertia,
@@ -122,6 +143,7 @@ def flores_slider_crank(
         speed_rpm=speed_rpm, clearance=clearance, bearing_radius=bearing_radius, length=length, law=law,
         restitution=restitution, stiffness=stiffness, friction=friction, ideal=ideal, gravity=gravity,
         law_options=law_options, viscosity=viscosity,
+        film_options=_film_options(viscosity, film, blend_start, blend_end),
     )
 
 

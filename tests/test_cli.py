@@ -36,7 +36,8 @@ def simulated(tmp_path_factory):
 def test_simulate_writes_files(simulated):
     code, out = simulated
     assert code == 0
-    for name in ("timeseries.csv", "summary.json", "slider_acceleration.png", "orbit.png", "contact_force.png"):
+    for name in ("timeseries.csv", "timeseries.nc", "summary.json", "slider_acceleration.png", "orbit.png",
+                 "contact_force.png"):
         assert (out / name).is_file() and (out / name).stat().st_size > 0, name
     for name in ("slider_acceleration.png", "orbit.png", "contact_force.png"):
         assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -55,6 +56,37 @@ def test_timeseries_csv(simulated):
     # crank driven at 5000 rpm from 0
     assert np.allclose(data[:, 1], 5000 * 2 * math.pi / 60 * data[:, 0], atol=1e-9)
     assert np.max(data[:, HEADER.index("contact_force_n")]) > 0
+
+
+def test_timeseries_netcdf_beside_the_csv(simulated):
+    """timeseries.nc holds the CSV's columns (equal to the CSV's 12 digits), on the coordinate
+    time [s], each with its unit, and the run's settings as global attributes."""
+    xr = pytest.importorskip("xarray")
+    _, out = simulated
+    data = np.loadtxt(out / "timeseries.csv", delimiter=",", skiprows=1)
+    with xr.open_dataset(out / "timeseries.nc", engine="scipy") as ds:
+        np.testing.assert_allclose(ds["time"].values, data[:, 0], rtol=1e-11, atol=0)
+        assert ds["time"].attrs["units"] == "s"
+        for i, name in enumerate(HEADER[1:], start=1):
+            np.testing.assert_allclose(ds[name].values, data[:, i], rtol=1e-11, atol=1e-300)
+        units = {n: ds[n].attrs["units"] for n in HEADER[1:]}
+        assert units["slider_acc_m_s2"] == "m/s^2" and units["contact_force_n"] == "N" and units["ecc_x_m"] == "m"
+        a = ds.attrs
+        assert a["mechanism"] == "flores-slider-crank" and a["preset"] == "flores-slider-crank"
+        assert a["solver"] == "tsit5" and a["rtol"] == 1e-6 and a["n_out"] == 501 and a["status"] == 0
+        assert a["source"].startswith("jaxclear") and a["ideal"] == 0
+
+
+def test_timeseries_dataset_of_channel_columns():
+    """A channel column "NAME [UNIT]" becomes the variable NAME with separators as "_", its
+    channel name as long name; None and tables as attributes become text."""
+    t = np.linspace(0.0, 1.0, 3)
+    ds = io.timeseries_dataset({"time_s": t, "body:rocker:phi:acc [rad/s^2]": t**2},
+                               {"mechanism_file": None, "law_options": {"a": 1}, "gravity": (0.0, -9.81)})
+    v = ds["body_rocker_phi_acc"]
+    assert v.attrs == {"units": "rad/s^2", "long_name": "body:rocker:phi:acc"}
+    assert ds.attrs["mechanism_file"] == "none" and ds.attrs["law_options"] == '{"a": 1}'
+    np.testing.assert_array_equal(ds.attrs["gravity"], [0.0, -9.81])
 
 
 def test_summary(simulated):

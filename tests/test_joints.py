@@ -332,8 +332,8 @@ def test_mixed_elements_batch_under_vmap():
 
 
 @pytest.mark.slow
-def test_simulation_gradient_wrt_viscosity_and_width_matches_central_differences():
-    """d(slider velocity at 2 ms)/d(viscosity, width) of the lubricated benchmark (forward mode
+def test_simulation_gradient_wrt_viscosity_and_length_matches_central_differences():
+    """d(slider velocity at 2 ms)/d(viscosity, length = film width) of the lubricated benchmark (forward mode
     through diffrax) against central differences of the simulation (relative steps 1e-5,
     tolerance 1e-4: rtol 1e-10 integration)."""
     mech = jc.preset("flores-slider-crank", viscosity=0.4)
@@ -342,8 +342,8 @@ def test_simulation_gradient_wrt_viscosity_and_width_matches_central_differences
     def loss(sol, m):
         return sol.coordinate(m, "slider", "x", 1)[-1]
 
-    value, grads = jc.parameter_grad(loss, mech, ["viscosity", "width"], s, mode="forward")
-    for name, x0 in (("viscosity", 0.4), ("width", 0.010)):
+    value, grads = jc.parameter_grad(loss, mech, ["viscosity", "length"], s, mode="forward")
+    for name, x0 in (("viscosity", 0.4), ("length", 0.010)):
         h = 1e-5 * x0
         up = loss(jc.simulate(jc.params.replace(mech, name, x0 + h), s), mech)
         down = loss(jc.simulate(jc.params.replace(mech, name, x0 - h), s), mech)

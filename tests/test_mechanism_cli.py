@@ -74,7 +74,7 @@ def _element_file(tmp_path, kind: str) -> Path:
 
 
 @pytest.mark.parametrize("kind, words", [
-    ("lubricated", ["c = 500 um", "viscosity 0.4 Pa s", "width 10 mm"]),
+    ("lubricated", ["c = 500 um", "viscosity 0.4 Pa s", "film width (length) 10 mm"]),
     ("slider-crank-pin-slot", ["c = 500 um", "slot length 1 mm"]),
     ("slider-crank-guide-clearance", ["translational clearance joint guide", "c = 100 um per side",
                                       "guide width 30.2 mm"]),

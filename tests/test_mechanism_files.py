@@ -96,9 +96,9 @@ def _joint_text(preset: str) -> str:
      ["clearance_joints[0]", "viscosity", "(0, inf) Pa s"]),
     ("lubricated", ("viscosity = 0.4", 'viscosity = "thick"'), jc.ParameterError,
      ["clearance_joints[0].viscosity", "must be a number"]),
-    ("lubricated", ("width = 0.01", "width = 0.0"), jc.ParameterError, ["clearance_joints[0]", "width", "(0, inf)"]),
-    ("lubricated", ("width = 0.01", "length = 0.01"), jc.MechanismError,
-     ["clearance_joints[0].length", "unknown key", "'width'"]),
+    ("lubricated", ("length = 0.01", "length = 0.0"), jc.ParameterError, ["clearance_joints[0]", "length", "(0, inf)"]),
+    ("lubricated", ("length = 0.01", "length = 0.01\nwidth = 0.02"), jc.ParameterError,
+     ["clearance_joints[0].width", "give 'length' only"]),
     ("lubricated", ("blend_start = 0.95", "blend_start = 1.5"), jc.ParameterError,
      ["clearance_joints[0]", "blend_start", "(0, 1)"]),
     ("lubricated", ("blend_start = 0.95", "blend_start = 0.995"), jc.ParameterError,
@@ -151,6 +151,18 @@ def test_example_files_load(path):
         pytest.skip("a sweep configuration, not a mechanism")
     mech = jc.load_mechanism(path)
     assert mech.clearance_joints
+
+
+def test_lubricated_width_key_is_read_with_a_deprecation_warning(tmp_path):
+    """``width``, the old key of the film width, reads as ``length`` with a DeprecationWarning
+    naming the file and key."""
+    text = _joint_text("lubricated")
+    assert "length = 0.01" in text and "width" not in text
+    path = tmp_path / "old.toml"
+    path.write_text(text.replace("length = 0.01", "width = 0.02", 1))
+    with pytest.warns(DeprecationWarning, match=r"old.toml: clearance_joints\[0\].width: .*write 'length'"):
+        mech = jc.load_mechanism(path)
+    assert float(mech.clearance_joints[0].length) == 0.02
 
 
 def test_lubricated_example_is_the_preset_with_an_oil_film():

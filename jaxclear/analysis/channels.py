@@ -11,7 +11,12 @@ Names are fields separated by ``:``; options ``key=value`` or flags may follow i
   :math:`a - g`, what an accelerometer reads (specific force);
 * ``reaction:J[:x|y|moment|norm][:on=B][:frame=F]``: force [N] (or moment about the centroid
   [N m]) of ideal joint or driver ``J`` on body ``B`` (default its second body);
-* ``joint:K:ecc_x|ecc_y|ecc|penetration|normal_force|friction_force|mode``: clearance joint ``K``.
+* ``joint:K:ecc_x|ecc_y|ecc|penetration|normal_force|friction_force|mode``: clearance joint ``K``
+  as one contact; ``joint:K:NAME`` for a name of the element's own outputs
+  (``type(joint).OUTPUTS``, :meth:`~jaxclear.integrate.solution.Solution.element_outputs`), e.g.
+  ``joint:0:film_force``, ``joint:0:min_film_thickness`` (lubricated),
+  ``joint:0:rear_lower_normal_force`` (translational, per corner), ``joint:0:feature``
+  (pin-in-slot).
 
 ``J`` is an index into ``mech.constraints`` (joints, then drivers) or a label such as
 ``Revolute(ground-crank)``; ``K`` an index into ``mech.clearance_joints`` or a joint's name.
@@ -192,8 +197,8 @@ def _reaction_channel(mech, sol, spec):
 
 def _joint_channel(mech, sol, spec):
     _option_keys(spec, ())
-    if len(spec.fields) != 2 or spec.fields[1] not in JOINT_SIGNALS:
-        _fail(spec.name, f"expected joint:K:{'|'.join(JOINT_SIGNALS)}")
+    if len(spec.fields) != 2:
+        _fail(spec.name, f"expected joint:K:{'|'.join(JOINT_SIGNALS)} or joint:K:NAME of the element's outputs")
     key, what = spec.fields
     names = [j.name for j in mech.clearance_joints]
     if key.isdigit() and int(key) < len(names):
@@ -202,6 +207,12 @@ def _joint_channel(mech, sol, spec):
         k = names.index(key)
     else:
         _fail(spec.name, f"{key!r} is no clearance joint; give an index in [0, {len(names) - 1}] or a name of {names}")
+    own = type(mech.clearance_joints[k]).OUTPUTS
+    if what in own:
+        return sol.element_outputs(mech, k)[what], own[what]
+    if what not in JOINT_SIGNALS:
+        _fail(spec.name, f"{what!r} is not a signal of clearance joint {k} ({mech.clearance_joints[k].label}); "
+                         f"allowed: {[*JOINT_SIGNALS, *own]}")
     series = {"ecc_x": lambda: sol.ecc[:, k, 0], "ecc_y": lambda: sol.ecc[:, k, 1],
               "ecc": lambda: jnp.sqrt(sol.ecc[:, k, 0] ** 2 + sol.ecc[:, k, 1] ** 2),
               "penetration": lambda: sol.penetration[:, k], "normal_force": lambda: sol.normal_force[:, k],
@@ -262,7 +273,9 @@ class _FakeSolution:
         z = jnp.zeros
         return Solution(ts=z(t), q=z((t, n)), qdot=z((t, n)), qddot=z((t, n)), reactions=z((t, m)), drift=z(t),
                         ecc=z((t, k, 2)), penetration=z((t, k)), normal_force=z((t, k)), friction_force=z((t, k)),
-                        mode=z((t, k), int), element_states=(), num_steps=z(()), num_accepted_steps=z(()),
+                        mode=z((t, k), int), element_states=tuple(
+                            jax.tree_util.tree_map(lambda x: jnp.zeros((t, *jnp.shape(x))), j.state_init())
+                            for j in mech.clearance_joints), num_steps=z(()), num_accepted_steps=z(()),
                         num_rejected_steps=z(()), status=z((), int))
 
 

@@ -76,7 +76,7 @@ def _joint_text(j) -> str:
         text = (f"{j.label}: bearing {j.bearing_body}.{j.bearing_point}, journal {j.journal_body}.{j.journal_point}, "
                 f"R_B = {float(j.bearing_radius) * 1e3:.4g} mm, c = {float(j.clearance) * 1e6:.4g} um, {laws}")
         if isinstance(j, LubricatedJoint):
-            text += f", oil film: viscosity {float(j.viscosity):.4g} Pa s, width {float(j.width) * 1e3:.4g} mm"
+            text += f", oil film: viscosity {float(j.viscosity):.4g} Pa s, film width (length) {float(j.length) * 1e3:.4g} mm"
         if isinstance(j, PinSlotJoint):
             text += f", slot length {float(j.slot_length) * 1e3:.4g} mm"
     elif isinstance(j, TranslationalClearanceJoint):

@@ -9,6 +9,7 @@ from .. import io
 from .._errors import ParameterError
 from ..analysis.structure import check_mechanism
 from ..drawing import plot_mechanism
+from ..profile_figures import plot_profiles
 from .common import add_mechanism_file_option, mechanism_file, number_in
 from ..mechanism_files import load_mechanism
 from ..presets import preset, preset_names
@@ -21,7 +22,10 @@ joint included; mobility: of the ideal-joint mechanism without drivers; driven m
 drivers, 0 when kinematically driven). Writes to the output folder:
   mechanism.png   the assembled configuration: bodies as lines between their points, joints,
                   clearance joints magnified (the factor is printed on the figure)
-  check.json      the same report"""
+  check.json      the same report
+  profiles.png    the time profiles, if any: each speed-profile driver's angle, speed and
+                  acceleration, each load's time factor (the profiles are checked when the
+                  file is read: a bad value names its key and the allowed range)"""
 
 
 def configure(p: argparse.ArgumentParser):
@@ -46,6 +50,8 @@ def run(args) -> int:
     png = os.path.join(args.out, "mechanism.png")
     plot_mechanism(png, mech, report["q"], magnify=args.magnify)
     js = io.write_json(os.path.join(args.out, "check.json"), report)
+    profiles = os.path.join(args.out, "profiles.png")
+    wrote = [png, js] + ([profiles] if plot_profiles(profiles, mech) is not None else [])
     lines = [
         f"{mech.name}: {len(report['bodies'])} bodies, {report['coordinates']} coordinates, "
         f"{report['constraint_equations']} constraint equations (joints and drivers)",
@@ -61,7 +67,7 @@ def run(args) -> int:
         "  clearance joints: " + ("none" if not report["clearance_joints"] else ""),
         *[f"    {text}" for text in report["clearance_joints"]],
         "  loads: " + (", ".join(report["loads"]) or "none") + f"; gravity {report['gravity_m_s2']} m/s^2",
-        f"wrote {png}, {js}",
+        f"wrote {', '.join(wrote)}",
     ]
     print("\n".join(lines))
     return 0

@@ -18,11 +18,13 @@ from . import cache
 from .common import (add_mechanism_file_option, add_mechanism_options, fmt, load_mechanism_file, mechanism_file,
                      mechanism_overrides, number_in, preset_from_args)
 
-HELP = "simulate a preset or a mechanism file (CSV, JSON, PNG)"
+HELP = "simulate a preset or a mechanism file (CSV, NetCDF, JSON, PNG)"
 DESCRIPTION = """\
 Simulate a preset mechanism or a mechanism file (jaxclear simulate FILE.toml) and write to the
 output folder:
   timeseries.csv          sampled time series (SI units in the column names)
+  timeseries.nc           the same as NetCDF (xarray): units per variable, the run's settings
+                          as attributes
   summary.json            peak contact force, impacts, penetration, solver statistics, wall time
   slider_acceleration.png slider acceleration vs crank angle, ideal joint overlaid (slider only)
   orbit.png               journal-centre orbit inside the clearance circle (clearance joint only)
@@ -96,7 +98,7 @@ def settings_from(args, mech):
 
 
 def run(args) -> int:
-    """Simulate, write timeseries.csv, the plots and summary.json, print the summary."""
+    """Simulate, write timeseries.csv and .nc, the plots and summary.json, print the summary."""
     mech, path, overrides = load(args)
     s = settings_from(args, mech)
     t_end, n_out = float(s.t_end), int(s.n_out)
@@ -132,13 +134,26 @@ def run(args) -> int:
         summary["ideal_peak_slider_acc_m_s2"] = metrics.peak_slider_acceleration(r.ideal_mech, r.ideal_sol)
     table = channels.channel_table(mech, r.sol, names, r.ideal_mech, r.ideal_sol)
     base = {"time_s": r.sol.ts} if chosen else io.timeseries_table(mech, r.sol)
-    files = [io.write_table_csv(os.path.join(args.out, "timeseries.csv"), {**base, **table})]
+    files = [io.write_table_csv(os.path.join(args.out, "timeseries.csv"), {**base, **table}),
+             io.write_timeseries_netcdf(os.path.join(args.out, "timeseries.nc"), {**base, **table},
+                                        netcdf_attributes(mech, summary))]
     if not args.no_plots:
         files += plot.plot_simulation(args.out, mech, r.sol, r.ideal_sol, r.ideal_mech)
         files += _plot_channels(args.out, mech, r, chosen or names[-1:])
     files.append(io.write_json(os.path.join(args.out, "summary.json"), summary))
     _print_summary(summary, files)
     return 0
+
+
+def netcdf_attributes(mech, summary: dict) -> dict:
+    """Global attributes of timeseries.nc: what wrote it, the mechanism, the run's settings (the
+    summary's ``inputs``: preset or mechanism file, overrides, t_end, samples, solver,
+    tolerances) and its status."""
+    from .. import __version__
+
+    return {"title": f"jaxclear simulate: {mech.name}", "source": f"jaxclear {__version__}",
+            "mechanism": mech.name, **summary["inputs"], "status": summary["status"],
+            "status_message": summary["status_message"]}
 
 
 def _plot_channels(folder: str, mech, r, names: list[str]) -> list[str]:

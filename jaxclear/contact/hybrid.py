@@ -1,5 +1,6 @@
-r"""The hybrid contact model of "Dynamic analysis of mechanical systems with planar revolute
-joints with clearance" (the hybrid Gauss-point model): Lankarani-Nikravesh framework,
+r"""The hybrid contact model of J. Ma, L. Qian, G. Chen, M. Li, "Dynamic analysis of mechanical
+systems with planar revolute joints with clearance", Mech. Mach. Theory 94 (2015) 148-164 (the
+hybrid Gauss-point model): Lankarani-Nikravesh framework,
 elastic-foundation (Winkler) stiffness, Qin-Lu damping, the pin surface cut into elements with
 Gauss-Legendre points, a penetration computed at every point and the force integrated over the
 contact area.

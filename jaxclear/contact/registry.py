@@ -29,7 +29,8 @@ LAWS = {
     "lankarani-nikravesh": (ContactLaw, "Lankarani & Nikravesh, J. Mech. Des. 112 (1990) 369",
                             _HERTZ + "; chi = 3(1 - c_r^2)/4"),
     "gonthier": (ContactLaw, "Gonthier et al., Multibody Syst. Dyn. 11 (2004) 209", _HERTZ + "; chi = (1 - c_r^2)/c_r"),
-    "qin-lu": (ContactLaw, "Zhiying & Qishao, Sci. China Ser. E 49 (2006) 600",
+    "qin-lu": (ContactLaw, "Qin & Lu (Zhiying & Qishao), J. Dyn. Control 4 (2006) 294; as in Machado et al., "
+                         "Mech. Mach. Theory 53 (2012) 99",
                _HERTZ + "; chi = 3(1 - c_r^2) exp(2(1 - c_r))/4"),
     "flores": (ContactLaw, "Flores et al., Multibody Syst. Dyn. 25 (2011) 357", _HERTZ + "; chi = 8(1 - c_r)/(5 c_r)"),
     "hu-guo": (ContactLaw, "Hu & Guo, Multibody Syst. Dyn. 35 (2015) 131", _HERTZ + "; chi = 3(1 - c_r)/(4 c_r)"),
@@ -45,8 +46,8 @@ LAWS = {
     "bai-zhao": (CylindricalLaw, "Bai & Zhao, Int. J. Mech. Sci. 54 (2012) 190",
                  "F_N = K_n(delta) delta^1.5 (1 + chi_QinLu deltadot/deltadot0), "
                  "K_n = (pi E*/8) sqrt(2 delta (3c + 2 delta)^2/(c + delta)^3)"),
-    "hybrid": (HybridLaw, "Dynamic analysis of mechanical systems with planar revolute joints with clearance "
-               "(hybrid LN / elastic-foundation Gauss-point model)",
+    "hybrid": (HybridLaw, "Ma, Qian, Chen, Li, Dynamic analysis of mechanical systems with planar revolute joints "
+               "with clearance, Mech. Mach. Theory 94 (2015) 148 (hybrid LN / elastic-foundation Gauss-point model)",
                "F_N = |sum_k w_k (K_f delta_k/h) R_J L u_k| (1 + chi_QinLu deltadot/deltadot0) over Gauss points "
                "on the pin surface, K_f = E(1 - nu)/((1 + nu)(1 - 2 nu)) [Pa]"),
     **{name: (ConformalLaw, ref, formula + _CONFORMAL) for name, (ref, formula) in {
@@ -61,7 +62,8 @@ LAWS = {
         "esdu-78035": ("ESDU-78035 (1978); Pereira et al. (2011)",
                        "delta = F/(L E*) [ln(4 pi L E* dR/F) + 1]" + _NEWTON),
         "pereira": ("Pereira, Ramalho, Ambrosio, Nonlinear Dyn. 63 (2011) 681",
-                    "F = K delta^n, K = (0.965 dR + 0.0965) L E*/dR, n = Y dR^-0.005, dR in mm in the fit"),
+                    "F = K delta^n, K = (0.965 dR + 0.0965) L E*/dR, n = Y dR^-0.005, fitted in mm, N, MPa "
+                    "(SI: K [N/m^n] = the fitted K [N/mm^n] x 1000^n)"),
         "persson": ("Persson, PhD thesis, Chalmers (1964); Ciavarella & Decuzzi, Int. J. Solids Struct. 38 (2001) "
                     "4507; Pereira et al. (2011)",
                     "F = pi L E* dR b^2/(1 - b^2), b = tan(eps/2) of the contact arc, arc from the rigid overlap "

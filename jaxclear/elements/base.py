@@ -122,6 +122,19 @@ class AbstractForceElement(eqx.Module):
         jump in rate there. Default: none."""
         return jnp.ones((), jnp.result_type(t1)), jnp.zeros((), bool)
 
+    # ---- named outputs (Solution.element_outputs, channels joint:K:NAME, timeseries.csv) ----
+    #: the element's own output channels: name -> unit (``"-"``: dimensionless or a code), in the
+    #: order :meth:`outputs` returns them
+    OUTPUTS: ClassVar[dict[str, str]] = {}
+
+    def outputs(self, mech: Mechanism, t: Scalar, q, qdot, state, continuous_after: float) -> dict[str, Scalar]:
+        """The element's named outputs at one instant (:data:`OUTPUTS`: film force, corners,
+        active feature, ...), each a scalar, from the state at that instant (``state``: the
+        element's memories). ``continuous_after`` [s]: a contact longer than this counts as
+        continuous (mode 2) rather than an impact (mode 1), as for ``Solution.mode``. Default:
+        none."""
+        return {}
+
     @abc.abstractmethod
     def relative_state(self, mech: Mechanism, q, qdot) -> Float[Array, "4"]:
         """``[x, y, v_x, v_y]`` of the element's moving part relative to its seat (the journal
@@ -171,6 +184,13 @@ class AbstractForceElement(eqx.Module):
     @abc.abstractmethod
     def assembly_velocity(self) -> Float[Array, " e"]:
         """Prescribed rate of :meth:`equations` at the start (e.g. zero: moves with its partner)."""
+
+
+def contact_mode(t, penetration, contact_start, continuous_after):
+    """Contact mode as ``Solution.mode`` counts it: 0 free flight, 1 impact, 2 continuous contact
+    (in contact for longer than ``continuous_after`` [s] since the memory's onset)."""
+    long = (t - contact_start) > continuous_after
+    return jnp.where(penetration > 0.0, jnp.where(long, 2, 1), 0).astype(jnp.int32)
 
 
 def stack_outputs(outputs: list[ContactOutput]) -> ContactOutput | None:

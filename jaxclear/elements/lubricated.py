@@ -36,9 +36,28 @@ Film conditions (``film``):
   covers the half circle where :math:`\bar p > 0`, whose edges
   :math:`\dot\varepsilon\cos\psi = \bar\omega\varepsilon\sin\psi` move with the squeeze rate;
 * ``"full"`` (Sommerfeld, :math:`2\pi` film): the whole circumference;
-* ``"half-fixed"``: edges fixed at :math:`\psi = -\pi, 0` (or :math:`0, \pi` when
-  :math:`\bar\omega < 0`), the form of Pinkus and Sternlicht quoted by Flores et al. (2009);
-  equal to ``"half"`` only when :math:`\dot\varepsilon = 0`.
+* ``"pi"`` (the classical fixed-boundary :math:`\pi` film of Pinkus and Sternlicht, ch. 3, as
+  Flores et al. (2009) use it for clearance joints): the film covers
+  :math:`0 < \theta < \pi` from the line of centres, :math:`\theta` measured from the thickest
+  film in the direction of rotation, i.e. :math:`\psi \in [-\pi, 0]` for rotation in the positive
+  (counterclockwise) sense; ``"pi-clockwise"``: :math:`\psi \in [0, \pi]`, the same film for a
+  journal turning clockwise. The edges never move, so the force is linear in
+  :math:`\dot\varepsilon` and :math:`\bar\omega` (a suction where they reverse) and smooth; it
+  equals the literature's closed forms
+
+  .. math::
+
+      F_n = -\frac{\mu R_J L^3}{c^2}\left[\frac{2\varepsilon^2\bar\omega}{(1-\varepsilon^2)^2}
+            + \frac{\pi(1+2\varepsilon^2)\dot\varepsilon}{2(1-\varepsilon^2)^{5/2}}\right],\quad
+      F_t = \frac{\mu R_J L^3}{c^2}\left[\frac{\pi\varepsilon\bar\omega}{2(1-\varepsilon^2)^{3/2}}
+            + \frac{2\varepsilon\dot\varepsilon}{(1-\varepsilon^2)^2}\right];
+
+* ``"half-fixed"`` (kept for old runs; prefer ``"pi"``): the :math:`\pi` film whose side follows
+  the sign of :math:`\bar\omega` (:math:`\psi \in [-\pi, 0]`, or :math:`[0, \pi]` when
+  :math:`\bar\omega < 0`); equal to ``"half"`` only when :math:`\dot\varepsilon = 0`. Its force
+  jumps where :math:`\bar\omega` changes sign while :math:`\dot\varepsilon \ne 0` (the squeeze
+  term :math:`F_t` changes sign), so a motion that slides along :math:`\bar\omega \approx 0`, as
+  the rod-slider joint of a slider-crank does, stalls an adaptive solver.
 
 Closed forms: with the Sommerfeld substitution :math:`1 - \varepsilon\cos\psi =
 (1-\varepsilon^2)/(1+\varepsilon\cos\beta)`, i.e. :math:`\tan(\beta/2) =
@@ -105,6 +124,7 @@ film and wall (and a wear update of the law's bearing profile) always see one ge
 from __future__ import annotations
 
 import math
+import warnings
 
 import equinox as eqx
 import jax
@@ -122,7 +142,10 @@ from .base import ContactOutput
 from .revolute_clearance import AbstractJournalJoint, check_journal_geometry, contact_forces, kinematics
 
 #: Film conditions (module docstring).
-FILMS = ("half", "full", "half-fixed")
+FILMS = ("half", "full", "pi", "pi-clockwise", "half-fixed")
+
+#: The fixed-edge films (circles only: their edges follow the line of centres).
+FIXED_FILMS = ("pi", "pi-clockwise", "half-fixed")
 
 
 def film_integrals(eps, a, b):
@@ -150,6 +173,10 @@ def film_limits(eps_dot, wedge, film: str):
     """Edges ``(a, b)`` of the pressurised film in :math:`\\psi` for the film condition."""
     if film == "full":
         return jnp.asarray(-math.pi), jnp.asarray(math.pi)
+    if film == "pi":
+        return jnp.asarray(-math.pi), jnp.asarray(0.0)
+    if film == "pi-clockwise":
+        return jnp.asarray(0.0), jnp.asarray(math.pi)
     if film == "half-fixed":
         a = jnp.where(wedge >= 0.0, -math.pi, 0.0)
         return a, a + math.pi
@@ -168,7 +195,7 @@ def film_force(eps, eps_dot, wedge, radius, clearance, length, viscosity, film: 
         wedge: :math:`\bar\omega\varepsilon` [1/s].
         radius: journal radius :math:`R_J` [m]; clearance :math:`c` [m]; length: film width L [m].
         viscosity: dynamic viscosity :math:`\mu` [Pa s].
-        film: ``"half"``, ``"full"`` or ``"half-fixed"`` (module docstring).
+        film: one of :data:`FILMS` (module docstring).
     """
     a, b = film_limits(eps_dot, wedge, film)
     i_cc, i_cs, i_ss = film_integrals(eps, a, b)
@@ -235,7 +262,9 @@ class LubricatedJoint(AbstractJournalJoint):
     """A revolute joint with an oil film in its clearance (module docstring for the model).
 
     Attributes (besides those of :class:`~jaxclear.ClearanceJoint`, whose meaning they keep):
-        length: film width L [m] (= the joint's axial length; the parameter ``width``).
+        length: the joint's axial length L [m], which is the film width (one name for both, as
+            for every journal joint; the old name ``width`` of mechanism files, parameter names and
+            this attribute still works, with a DeprecationWarning).
         viscosity: dynamic viscosity :math:`\\mu` of the oil [Pa s] > 0.
         blend_start, blend_end: eccentricity ratios :math:`0 < \\varepsilon_0 < \\varepsilon_1 < 1`
             of the film's C1 saturation (transition to dry contact).
@@ -297,7 +326,7 @@ class LubricatedJoint(AbstractJournalJoint):
         n_gauss: int = 4,
     ):
         check_range("viscosity", viscosity, low=0.0, low_open=True, unit="Pa s")
-        check_range("width (film width, the joint's length)", length, low=0.0, low_open=True, unit="m")
+        check_range("length (the film width)", length, low=0.0, low_open=True, unit="m")
         check_range("blend_start", blend_start, low=0.0, high=1.0, low_open=True, high_open=True)
         check_range("blend_end", blend_end, low=0.0, high=1.0, low_open=True, high_open=True)
         if is_concrete(blend_start) and is_concrete(blend_end) and not float(blend_start) < float(blend_end):
@@ -313,8 +342,8 @@ class LubricatedJoint(AbstractJournalJoint):
                 raise ParameterError("profiles given twice: to the joint and to its law (give them once; the "
                                      "joint hands its profiles to the law)")
             law = law.with_profiles(journal_profile, bearing_profile)
-        if film == "half-fixed" and any(p is not None for p in law.profiles):
-            raise ParameterError("film = 'half-fixed' has no meaning for profiles (its edges follow the line of "
+        if film in FIXED_FILMS and any(p is not None for p in law.profiles):
+            raise ParameterError(f"film = {film!r} has no meaning for profiles (its edges follow the line of "
                                  "centres of circles); valid with profiles: ['half', 'full']")
         check_range("n_elements", n_elements, low=1.0, unit="")
         check_range("n_gauss", n_gauss, low=1.0, unit="")
@@ -349,11 +378,13 @@ class LubricatedJoint(AbstractJournalJoint):
 
     @property
     def width(self):
-        """Film width L [m] (the joint's ``length``)."""
+        """Deprecated name of :attr:`length` (the film width L [m])."""
+        warnings.warn("LubricatedJoint.width is deprecated; use length (the film width)", DeprecationWarning,
+                      stacklevel=2)
         return self.length
 
     def check(self) -> RESULTS:
-        """The journal joint's checks (radii, clearance, width = length > 0, floor, laws), then
+        """The journal joint's checks (radii, clearance, length > 0, floor, laws), then
         viscosity > 0 and blend bounds :math:`0 < \\varepsilon_0 < \\varepsilon_1 < 1`
         (``invalid_parameter``)."""
         film = (
@@ -386,6 +417,33 @@ class LubricatedJoint(AbstractJournalJoint):
         eps_dot = (v[0] * kin.normal[0] + v[1] * kin.normal[1]) / c
         wedge = (0.5 * (kin.journal_omega + kin.bearing_omega) * kin.e - (v[0] * kin.tangent[0] + v[1] * kin.tangent[1])) / c
         return film_force(eps, eps_dot, wedge, self.journal_radius, c, self.length, self.viscosity, self.film)
+
+    #: film force on the journal along n (bearing centre to journal centre) and t, along the
+    #: global axes and its magnitude; e/c; the thinnest film (0 once the surfaces touch)
+    OUTPUTS = {"film_force_normal": "N", "film_force_tangential": "N", "film_force_x": "N", "film_force_y": "N",
+               "film_force": "N", "eccentricity_ratio": "-", "min_film_thickness": "m"}
+
+    def outputs(self, mech: Mechanism, t, q, qdot, state, continuous_after):
+        """The film's force (:meth:`film_force`: components along n and t and the global axes, its
+        magnitude) [N], the eccentricity ratio :math:`e/c` [-] and the minimum film thickness [m]:
+        :math:`c - e` for circles, the smallest gap over the Gauss points with profiles, 0 once the
+        surfaces touch (the geometric film, before the blend's saturation)."""
+        kin = self.kinematics(mech, q, qdot)
+        f_n, f_t = self._film(kin)
+        f = f_n * kin.normal + f_t * kin.tangent
+        c = self.clearance
+        if self.journal_profile is None and self.bearing_profile is None:
+            h_min = c - kin.e
+        else:
+            s, _ = gauss_nodes(self.n_elements, self.n_gauss)
+            theta = jnp.asarray(np.pi * (s + 1.0))
+            dev = lambda p, phi: 0.0 if p is None else jax.vmap(p)(theta - phi)  # noqa: E731
+            closure = (dev(self.journal_profile, kin.journal_angle) - dev(self.bearing_profile, kin.bearing_angle)
+                       + kin.ecc[0] * jnp.cos(theta) + kin.ecc[1] * jnp.sin(theta))
+            h_min = c - jnp.max(closure)
+        return {"film_force_normal": f_n, "film_force_tangential": f_t, "film_force_x": f[0], "film_force_y": f[1],
+                "film_force": jnp.sqrt(f_n * f_n + f_t * f_t), "eccentricity_ratio": kin.e / c,
+                "min_film_thickness": jnp.maximum(h_min, 0.0)}
 
     def contact(self, mech: Mechanism, q, qdot, impact_velocity):
         """Dry contact (law and friction, :func:`contact_forces`) plus the film force. The output's

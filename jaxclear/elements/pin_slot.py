@@ -197,6 +197,26 @@ class PinSlotJoint(AbstractJournalJoint):
             radius_bearing=self.bearing_radius, radius_journal=self.journal_radius, length=self.length,
         )
 
+    #: the stadium's feature nearest to the pin (0 a flank, the straight part; 1 an end, a
+    #: semicircle), the pin's penetration into it (negative: the gap) and the pin centre's
+    #: coordinate along the slot from the slot centre
+    OUTPUTS = {"feature": "-", "feature_penetration": "m", "slot_coordinate": "m"}
+
+    def outputs(self, mech: Mechanism, t, q, qdot, state, continuous_after):
+        r"""The active feature (0 flank, 1 end: the pin centre beyond the straight part's end,
+        :math:`|s| > \ell/2`), its penetration [m] (:math:`e - c` to the nearest point, what
+        the law sees; ``Solution.ecc`` is the pin centre from the slot centre, so
+        :math:`|ecc| - c` is not a penetration here) and the slot coordinate :math:`s` [m]."""
+        kin = self.kinematics(mech, q, qdot)
+        centre = point_position(mech, q, self.bearing_body, self.bearing_point)
+        _, phi_i = mech.pose(q, self.bearing_body)
+        u = rotate(phi_i, self.axis)
+        r = kin.journal_centre - centre
+        along = r[0] * u[0] + r[1] * u[1]
+        end = jnp.abs(along) > 0.5 * self.slot_length
+        return {"feature": end.astype(jnp.int32), "feature_penetration": self.law.penetration(kin),
+                "slot_coordinate": along}
+
     def contact(self, mech: Mechanism, q, qdot, impact_velocity):
         r"""Dry contact with the stadium (:func:`~jaxclear.elements.revolute_clearance.contact_forces`);
         the output's ``ecc`` is the pin centre relative to the slot centre (``kin.ecc`` plus the

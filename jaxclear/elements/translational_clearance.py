@@ -57,11 +57,13 @@ from ..model.bodies import vec2
 from ..model.geometry import perp, rotate
 from ..model.joints import Translational
 from ..model.mechanism import Mechanism, point_load, point_position, point_velocity
-from .base import AbstractForceElement, ContactOutput
+from .base import AbstractForceElement, ContactOutput, contact_mode
 from .memory import N_FIELDS, ContactMemory, kink_fraction, onset_fraction, onset_update, with_peak_force
 
 #: Corner signs (sigma along the slider, tau across it): rear-lower, front-lower, rear-upper, front-upper.
 SIGMA = np.array([-1.0, 1.0, -1.0, 1.0])
+#: the corners' names, in that order (output channels)
+CORNERS = ("rear_lower", "front_lower", "rear_upper", "front_upper")
 TAU = np.array([-1.0, -1.0, 1.0, 1.0])
 FLAT_RADIUS = 1e3  # m, the radius a law sees for the guide surface
 
@@ -405,6 +407,25 @@ class TranslationalClearanceJoint(AbstractForceElement):
             power=jnp.sum(powers),
         )
         return jnp.sum(gens, axis=0), powers, out, f_n, rate
+
+    #: per corner (:data:`CORNERS`, the order of :data:`SIGMA`/:data:`TAU`): normal and friction
+    #: force, penetration (negative: the gap) and contact mode (0 free, 1 impact, 2 continuous)
+    OUTPUTS = {f"{c}_{what}": unit for c in CORNERS for what, unit in (("normal_force", "N"), ("friction_force", "N"), ("penetration", "m"),
+                                  ("mode", "-"))}
+
+    def outputs(self, mech: Mechanism, t, q, qdot, state: CornerMemory, continuous_after):
+        """Each corner's normal and friction force [N], penetration [m] and contact mode (from
+        its own memory; ``Solution`` sees the joint as one contact: summed forces, the deepest
+        corner, the offset and tilt as ``ecc``)."""
+        bristles = self.corner_bristles(state, q.dtype)
+        f_n, f_t, _, kin = self._corner_contacts(mech, q, qdot, state.corners.impact_velocity, bristles)
+        pen = jax.vmap(self.law.penetration)(kin)
+        mode = contact_mode(t, pen, state.corners.contact_start, continuous_after)
+        out = {}
+        for k, c in enumerate(CORNERS):
+            out |= {f"{c}_normal_force": f_n[k], f"{c}_friction_force": f_t[k], f"{c}_penetration": pen[k],
+                    f"{c}_mode": mode[k]}
+        return out
 
     def forces(self, mech: Mechanism, t, q, qdot, state: CornerMemory):
         """Generalized force (n,), state rate (each corner's work rate is its power; the bristle

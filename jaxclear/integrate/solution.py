@@ -4,12 +4,14 @@ statistics and the run status."""
 from __future__ import annotations
 
 import equinox as eqx
+import jax
 
 from .._errors import ParameterError
 from .._types import Array, Float
 from ..elements.memory import ContactMemory
 from ..model.drivers import COORDINATES
 from ..model.mechanism import Mechanism
+from .element_outputs import element_outputs
 from .state import stack_memory
 
 
@@ -26,6 +28,7 @@ class Solution(eqx.Module):
         normal_force, friction_force: contact forces (T, k) [N].
         mode: contact mode (T, k): 0 free flight, 1 impact, 2 continuous contact.
         element_states: each force element's state at the samples (a tuple; leading axis T).
+            Each element's own named outputs: :meth:`element_outputs`.
         memory: (property) the clearance joints' memories stacked ``(T, k)`` (impact speeds,
             onsets, impacts, work, running peaks).
         num_steps, num_accepted_steps, num_rejected_steps: solver statistics.
@@ -72,6 +75,17 @@ class Solution(eqx.Module):
     def peak_penetration(self):
         """Largest penetration per joint [m] over all accepted steps."""
         return self.memory.peak_penetration[..., -1, :]
+
+    def element_outputs(self, mech: Mechanism, k: int = 0, continuous_after: float | None = None) -> dict:
+        """Clearance joint ``k``'s own named outputs on the samples: name -> (..., T) array, the
+        names and units of ``type(mech.clearance_joints[k]).OUTPUTS`` (a lubricated joint's film
+        force, eccentricity ratio and minimum film thickness; a translational joint's forces,
+        penetration and contact mode per corner; a pin-in-slot joint's active feature and its
+        penetration), recomputed from the samples and the element's sampled memories
+        (:func:`~jaxclear.integrate.element_outputs.element_outputs`)."""
+        if self.ts.ndim > 1:  # a batch of runs (vmap over simulate): one call per run
+            return jax.vmap(lambda sol: sol.element_outputs(mech, k, continuous_after))(self)
+        return element_outputs(mech, self, k, continuous_after)
 
     def coordinate(self, mech: Mechanism, body: str, which: str, derivative: int = 0):
         """Time series of one coordinate (``x``, ``y`` or ``phi``) of a body; ``derivative`` 0, 1

@@ -21,6 +21,7 @@ import jax.numpy as jnp
 
 from .._errors import RESULTS
 from .._xla_flags import loop_kernels_active
+from ..elements.base import contact_mode
 from ..model.mechanism import Mechanism
 from . import sampling
 from .assembly import NEWTON_TOL, assemble, initial_state
@@ -82,9 +83,7 @@ def _postprocess(mech: Mechanism, s: Settings, ts, packed, ys: State):
     if contact is None:
         z = jnp.zeros((ts.shape[0], 0), ts.dtype)
         return qdd, lam, drift, jnp.zeros((ts.shape[0], 0, 2)), z, z, z, z.astype(jnp.int32)
-    in_contact = contact.penetration > 0.0
-    long = (ts[:, None] - ys.memory.contact_start) > s.continuous_contact_after
-    mode = jnp.where(in_contact, jnp.where(long, 2, 1), 0).astype(jnp.int32)
+    mode = contact_mode(ts[:, None], contact.penetration, ys.memory.contact_start, s.continuous_contact_after)
     return qdd, lam, drift, contact.ecc, contact.penetration, contact.normal_force, contact.friction_force, mode
 
 

@@ -166,9 +166,14 @@ class ImpactMemorySolver(_Forwarding):
         # the memory jumps at the onset inside the step (or is the rate at the step's end out of
         # contact): the dense output of the step carries the updated memory throughout, so
         # output samples inside a crossing step read the new onset time and approach speed
-        # (interpolations reproduce a common shift of their end values)
-        jump = y1_new - y1
-        dense_info = {k: (v + jump if k in ("y0", "y1") else v) for k, v in dense_info.items()}
+        # (interpolations reproduce a common shift of their end values). Where a component
+        # jumped, its end values are the new one minus the step's own change, not the old one
+        # plus the jump: the jump away from the sentinel contact_start (-1e9 s) would keep only
+        # ~1e-7 s of the onset (a sample before the onset read it up to 43 ns off); a memory
+        # field is constant over a step, so its dense output is then exactly the new value.
+        moved = y1_new != y1
+        dense_info = {k: (jnp.where(moved, y1_new - (y1 - v) if k == "y0" else y1_new, v) if k in ("y0", "y1") else v)
+                      for k, v in dense_info.items()}
         if self.dense_to_controller:
             y_error = (y_error, dense_info)
         return y1_new, y_error, dense_info, (inner_state, changed), result

@@ -2,8 +2,10 @@
 the constraint equations and point kinematics (data and formulas; no integration)."""
 
 from .bodies import GROUND, Body
-from .drivers import AbstractDriver, AngleDriver, FunctionDriver, crank_driver, crank_period
+from .drivers import AbstractDriver, AngleDriver, FunctionDriver, ProfileDriver, crank_driver, crank_period
 from .geometry import cross2, dot2, perp, rotate, safe_normal
 from .joints import AbstractConstraint, AbstractJoint, Fixed, PointOnLine, Revolute, Translational
 from .loads import AbstractLoad, PointForce, Torque, gravity_force
+from .profiles import (PROFILE_KINDS, AbstractProfile, ConstantProfile, HarmonicProfile, RampProfile,
+                       TableProfile)
 from .mechanism import Mechanism, point_acceleration, point_load, point_position, point_velocity

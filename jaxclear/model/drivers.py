@@ -17,6 +17,7 @@ from .._errors import MechanismError, ParameterError, check_finite
 from .._types import Scalar
 from .bodies import GROUND
 from .joints import AbstractConstraint
+from .profiles import AbstractProfile
 
 
 COORDINATES = {"x": 0, "y": 1, "phi": 2}
@@ -56,6 +57,51 @@ class AngleDriver(AbstractDriver):
     def equations(self, mech, q, t):
         rel = mech.angle(q, self.body) - mech.angle(q, self.relative_to)
         return (rel - self.angle0 - self.speed * t)[None]
+
+
+class ProfileDriver(AbstractDriver):
+    r"""Rotation at a speed that varies in time (1 eq.):
+    :math:`\phi_{body} - \phi_{ref} - (\phi_0 + \int_0^t\omega\,dt') = 0` with the angular
+    speed :math:`\omega(t)` [rad/s] of a time profile (:mod:`jaxclear.model.profiles`: constant,
+    smooth ramp-up, harmonic fluctuation, PCHIP table), integrated in closed form.
+
+    Attributes:
+        body: driven body; ``relative_to``: reference body (default ground).
+        profile: the speed profile :math:`\omega(t)` [rad/s]; ``angle0``: :math:`\phi_0` [rad].
+    """
+
+    body: str = eqx.field(static=True)
+    profile: AbstractProfile
+    angle0: Scalar
+    relative_to: str = eqx.field(static=True)
+
+    n_equations: ClassVar[int] = 1
+
+    def __init__(self, body, profile, angle0=0.0, relative_to=GROUND):
+        if not isinstance(profile, AbstractProfile):
+            raise ParameterError(f"ProfileDriver needs a time profile (jaxclear.model.profiles), got "
+                                 f"{type(profile).__name__}")
+        check_finite("angle0", angle0)
+        self.body, self.profile, self.relative_to = body, profile, relative_to
+        self.angle0 = jnp.asarray(angle0, dtype=float)
+
+    def bodies(self):
+        return (self.body, self.relative_to)
+
+    def angle(self, t):
+        """Prescribed angle [rad] at ``t``; ``speed(t)`` [rad/s] and ``acceleration(t)`` [rad/s^2]
+        below are its exact derivatives."""
+        return self.angle0 + self.profile.integral(t)
+
+    def speed(self, t):
+        return self.profile.value(t)
+
+    def acceleration(self, t):
+        return self.profile.derivative(t)
+
+    def equations(self, mech, q, t):
+        rel = mech.angle(q, self.body) - mech.angle(q, self.relative_to)
+        return (rel - self.angle(t))[None]
 
 
 class FunctionDriver(AbstractDriver):

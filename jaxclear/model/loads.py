@@ -11,9 +11,10 @@ from typing import Callable
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._errors import check_finite
+from .._errors import ParameterError, check_finite
 from .._types import Array, Float, Scalar, Vec2
 from .bodies import vec2
+from .profiles import AbstractProfile
 
 
 
@@ -37,41 +38,60 @@ class AbstractLoad(eqx.Module):
         return f"{type(self).__name__}({self.body})"
 
 
+def _factor(profile, t):
+    """The load's time factor: 1, or the time profile's value at ``t``."""
+    return 1.0 if profile is None else profile.value(t)
+
+
+def _check_profile(profile):
+    if profile is not None and not isinstance(profile, AbstractProfile):
+        raise ParameterError(f"a load's profile must be a time profile (jaxclear.model.profiles), got "
+                             f"{type(profile).__name__}")
+
+
 class PointForce(AbstractLoad):
-    """A force [N] in global axes at a body point: constant ``force`` plus an optional
-    ``function(t, q, qdot) -> (2,)`` (static, JAX-traceable)."""
+    """A force [N] in global axes at a body point: ``force`` times the time factor ``profile(t)``
+    (a :mod:`~jaxclear.model.profiles` profile; none: 1), plus an optional
+    ``function(t, q, qdot) -> (2,)`` (static, JAX-traceable; Python only)."""
 
     body: str = eqx.field(static=True)
     point: str = eqx.field(static=True)
     force: Vec2
     function: Callable | None = eqx.field(static=True, default=None)
+    profile: AbstractProfile | None = None
 
-    def __init__(self, body, point, force=(0.0, 0.0), function=None):
-        self.body, self.point, self.function = body, point, function
+    def __init__(self, body, point, force=(0.0, 0.0), function=None, profile=None):
+        _check_profile(profile)
+        self.body, self.point, self.function, self.profile = body, point, function, profile
         self.force = vec2("point force", force)
 
     def points(self):
         return ((self.body, self.point),)
 
     def generalized_force(self, mech, t, q, qdot):
-        f = self.force if self.function is None else self.force + self.function(t, q, qdot)
+        f = self.force * _factor(self.profile, t)
+        f = f if self.function is None else f + self.function(t, q, qdot)
         return mech.point_load(q, self.body, mech.point_position(q, self.body, self.point), f)
 
 
 class Torque(AbstractLoad):
-    """A torque [N m] on a body: constant ``torque`` plus optional ``function(t, q, qdot)``."""
+    """A torque [N m] on a body: ``torque`` times the time factor ``profile(t)`` (none: 1), plus
+    an optional ``function(t, q, qdot)`` (Python only)."""
 
     body: str = eqx.field(static=True)
     torque: Scalar
     function: Callable | None = eqx.field(static=True, default=None)
+    profile: AbstractProfile | None = None
 
-    def __init__(self, body, torque=0.0, function=None):
+    def __init__(self, body, torque=0.0, function=None, profile=None):
         check_finite("torque", torque)
-        self.body, self.function = body, function
+        _check_profile(profile)
+        self.body, self.function, self.profile = body, function, profile
         self.torque = jnp.asarray(torque, dtype=float)
 
     def generalized_force(self, mech, t, q, qdot):
-        tau = self.torque if self.function is None else self.torque + self.function(t, q, qdot)
+        tau = self.torque * _factor(self.profile, t)
+        tau = tau if self.function is None else tau + self.function(t, q, qdot)
         i = mech.body_index(self.body)
         return jnp.zeros(mech.n_coordinates, q.dtype).at[3 * i + 2].add(tau)
 

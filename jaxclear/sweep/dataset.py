@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 import xarray as xr
 
-from .._storage import atomic_write_bytes
+from .._storage import atomic_write_netcdf
 from .labels import column_unit, long_name
 from .store import NETCDF_NAME, POINCARE_COORDS
 
@@ -109,7 +109,7 @@ def write_netcdf(ds: xr.Dataset, path) -> str:
     """Write ``ds`` as NetCDF 3 (xarray's ``scipy`` engine) atomically (through
     :func:`jaxclear._storage.atomic_write_bytes`: the file is the old or the new one, never a
     mix). Returns the path."""
-    return atomic_write_bytes(path, ds.to_netcdf(engine="scipy"))
+    return atomic_write_netcdf(path, ds)
 
 
 def open_dataset(path) -> xr.Dataset:
