@@ -145,7 +145,9 @@ def _write(out: str, key: str, records: list[dict], options: WearOptions, cleara
     u = len(records) - 1
     rec = records[-1]
     angles = node_angles(options.n_nodes)
-    lines = ["angle_rad,depth_m\n"] + [f"{a!r},{d!r}\n" for a, d in zip(angles, rec["depth_m"])]
+    # repr of a Python float: the shortest text that reads back bit for bit (a NumPy 2 scalar's
+    # repr is "np.float64(...)", which a CSV reader takes for text)
+    lines = ["angle_rad,depth_m\n"] + [f"{float(a)!r},{float(d)!r}\n" for a, d in zip(angles, rec["depth_m"])]
     atomic_write_text(os.path.join(out, f"profile_{u:04d}.csv"), "".join(lines))
     updates = os.path.join(out, UPDATES_FILE)
     if u == 0 or not os.path.exists(updates):
