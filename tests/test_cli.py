@@ -111,6 +111,20 @@ def test_usage_errors_exit_2(capsys):
     assert main([]) == 2
 
 
+@pytest.mark.parametrize("value", ["-0.5e-3", "-5E+2", "-1e3", "-.5", "-2", "-inf"])
+def test_negative_numbers_are_values_in_any_notation(value, capsys):
+    """A negative number after a flag is its value (argparse alone reads ``-0.5e-3`` as a flag and
+    says "expected one argument"): the flag's range check names it, in every command's parser."""
+    for command in (["simulate"], ["fit", "rec.csv"], ["wear"], ["animate"]):
+        assert main([*command, "--clearance", value]) == 2
+        err = capsys.readouterr().err
+        assert f"argument --clearance: {value} is outside the allowed range (0, inf)" in err, err
+    args = build_parser().parse_args(["fit", "rec.csv", "--sensor-bias", "-0.5e-3", "--speed-rpm", "-3E3"])
+    assert args.sensor_bias == -0.5e-3 and args.speed_rpm == -3000.0
+    assert main(["simulate", "-x"]) == 2  # a dash and a letter is still an (unknown) option
+    assert "unrecognized arguments: -x" in capsys.readouterr().err
+
+
 def test_help(capsys):
     assert main(["--help"]) == 0
     text = capsys.readouterr().out

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 
 from ..contact.registry import law_names
 from .._errors import ParameterError
@@ -15,9 +16,22 @@ from ..model import Mechanism
 from ..presets import preset, preset_names
 
 
+#: What reads as a number after a flag, not as a flag: ``-5``, ``-.5``, ``-0.5e-3``, ``-1E+9``,
+#: ``-inf``, ``-nan``. argparse's own pattern (``^-\d+$|^-\d*\.\d+$``, Python 3.11) misses the
+#: exponent, so ``--clearance -0.5e-3`` was "expected one argument" instead of a range error.
+NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|infinity|nan)$", re.IGNORECASE)
+
+
 class Parser(argparse.ArgumentParser):
     """The parser of every command: a usage error is one line, ``error: argument --flag: ...``
-    and where to find the options (exit code 2), like the library's errors."""
+    and where to find the options (exit code 2), like the library's errors. A negative number
+    in any notation (:data:`NEGATIVE_NUMBER`) is a value, so that its flag's range check names
+    it (argparse's pattern is a private attribute, set on every parser and sub-parser: the
+    sub-parsers are made by this class too)."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = NEGATIVE_NUMBER
 
     def error(self, message):
         self.exit(2, f"error: {message} (options: {self.prog} --help)\n")
