@@ -137,6 +137,43 @@ def test_help(capsys):
         assert option in text and unit in text, option
 
 
+def _stated_defaults():
+    """(command, option, argparse default, the default its help states) of every option of
+    every command whose help ends with "(default: ...)"."""
+    import argparse
+    import re
+
+    from jaxclear.cli.common import Formatter
+
+    parser = build_parser()
+    commands = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices
+    for name, sub in commands.items():
+        for action in sub._actions:
+            m = re.search(r"\(default: ([^)]*)\)\s*$", Formatter(sub.prog)._expand_help(action) if action.help else "")
+            if m:
+                yield name, action.option_strings, action.default, m.group(1)
+
+
+def test_help_states_the_defaults_the_parser_uses():
+    """Every option's help says the default the parser applies (``jaxclear wear --help`` said
+    lankarani-nikravesh and arc while wear runs the hybrid law at fixed points)."""
+    wrong = []
+    for command, option, default, stated in _stated_defaults():
+        if default is None or isinstance(default, bool) or default == []:
+            continue  # no value: the help says what the command does then
+        same = stated == str(default) or stated.split(" ")[0] == str(default)
+        try:
+            same = same or float(stated.split(" ")[0]) == float(default)
+        except ValueError:
+            pass
+        if not same:
+            wrong.append(f"{command} {option}: default {default!r}, help says {stated!r}")
+    assert not wrong, wrong
+    stated = {(c, o[0]): s for c, o, _, s in _stated_defaults() if o}
+    assert stated["wear", "--model"] == "hybrid" and stated["wear", "--placement"] == "fixed"
+    assert stated["simulate", "--model"] == "lankarani-nikravesh" and stated["simulate", "--placement"] == "arc"
+
+
 def test_hybrid_options_name_their_flags(tmp_path, capsys):
     """Hybrid-model options without --model hybrid: the message names the flags given."""
     out = tmp_path / "out"

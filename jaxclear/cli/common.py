@@ -37,11 +37,25 @@ class Parser(argparse.ArgumentParser):
         self.exit(2, f"error: {message} (options: {self.prog} --help)\n")
 
 
+#: What an option whose argparse default is None means, by its ``dest``: the help's
+#: ``%(default)s`` of these options shows it (see :class:`Formatter`).
+UNSET_MEANS = {"placement": "arc", "damping": "joint", "geometry": "exact"}
+
+
 class Formatter(argparse.RawDescriptionHelpFormatter):
-    """Help layout of every command: descriptions kept as written, 100 columns."""
+    """Help layout of every command: descriptions kept as written, 100 columns. A help text's
+    ``%(default)s`` is the option's argparse default, so a command that changes a shared
+    option's default (``parser.set_defaults(model="hybrid")``) has a help that says so; a None
+    default shows what it means (:data:`UNSET_MEANS`)."""
 
     def __init__(self, prog):
         super().__init__(prog, max_help_position=30, width=100)
+
+    def _expand_help(self, action):
+        if action.default is None and action.dest in UNSET_MEANS:
+            action = argparse.Action(action.option_strings, action.dest, default=UNSET_MEANS[action.dest],
+                                     help=action.help, choices=action.choices, metavar=action.metavar)
+        return super()._expand_help(action)
 
 
 def number_in(kind=float, low=None, high=None, low_open=False, high_open=False):
@@ -106,7 +120,7 @@ def add_mechanism_options(p: argparse.ArgumentParser, title: str = "mechanism", 
                       "200 for flores-2011-rig, 500 for four-bar)")
     mech.add_argument("--model", default="lankarani-nikravesh", metavar="LAW",
                       help=f"normal contact force law [-], one of {', '.join(law_names())} "
-                      "(default: lankarani-nikravesh)")
+                      "(default: %(default)s)")
     mech.add_argument("--stiffness", type=number_in(float, 0.0, low_open=True), metavar="K",
                       help="contact stiffness, > 0: K [N/m^n] of the Hertz-family laws (n = 1.5), the "
                       "stiffness parameter of the others (default: from steel, E = 207 GPa, nu = 0.3, and "
@@ -128,7 +142,7 @@ def _add_hybrid_options(p: argparse.ArgumentParser):
     h.add_argument("--placement", choices=("arc", "fixed"), default=None,
                    help="where the Gauss points sit: 'arc' (on the current contact arc, exact with few "
                    "points) or 'fixed' (body-fixed over the whole pin circumference, the model's original "
-                   "formulation) (default: arc)")
+                   "formulation) (default: %(default)s)")
     h.add_argument("--elements", type=number_in(int, 1), metavar="N_E",
                    help="number of elements N_e [-], >= 1 (default: 2 for arc, 180 for fixed)")
     h.add_argument("--gauss-points", type=number_in(int, 1), metavar="N_G",
@@ -136,10 +150,10 @@ def _add_hybrid_options(p: argparse.ArgumentParser):
     h.add_argument("--layer-thickness", type=number_in(float, 0.0, low_open=True), metavar="H",
                    help="compliant layer thickness h [m], > 0 (default: the clearance c)")
     h.add_argument("--damping", choices=("joint", "point"), default=None,
-                   help="Qin-Lu damping applied to the joint resultant or to every point (default: joint)")
+                   help="Qin-Lu damping applied to the joint resultant or to every point (default: %(default)s)")
     h.add_argument("--geometry", choices=("exact", "small-gap"), default=None,
                    help="point penetration from the exact circles or the small-gap profile e cos(theta) - c "
-                   "(default: exact)")
+                   "(default: %(default)s)")
 
 
 def _hybrid_options(args) -> dict:
