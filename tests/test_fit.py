@@ -12,7 +12,9 @@ import jaxclear  # noqa: F401  (float64 first)
 
 import json
 import math
+import os
 import re
+import signal
 import warnings
 
 import jax
@@ -300,10 +302,68 @@ def check_cli_fit_writes_json_and_plot(small_record, capsys):
     assert "(resumed from the checkpoint)" in capsys.readouterr().out  # the summary says it resumed
 
 
+def check_ctrl_c_stops_the_fit_after_a_checkpointed_iteration(small_record):
+    """A real SIGINT during iteration 2 (sent by the callback): the fit finishes that iteration,
+    checkpoints it and raises KeyboardInterrupt; the Ctrl-C handler is restored; the same call
+    resumes at iteration 3."""
+    mech, path, folder = small_record
+    out = folder / "ctrl-c"
+    start = {"stiffness": 1.3e11, "restitution": 0.75}
+    seen = []
+
+    def interrupt_at_2(record):
+        seen.append(record["iteration"])
+        if record["iteration"] == 2:
+            os.kill(os.getpid(), signal.SIGINT)
+
+    with pytest.raises(KeyboardInterrupt):
+        jc.fit(path, mech, start=start, sensor=SENSOR, window=1e-3, out=out, progress=False, callback=interrupt_at_2)
+    assert seen == [1, 2] and signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    assert json.loads((out / fitting.CHECKPOINT_NAME).read_text())["state"]["total"] == 2
+    resumed = []
+    jc.fit(path, mech, start=start, sensor=SENSOR, window=1e-3, out=out, progress=False,
+           callback=lambda r: resumed.append(r["iteration"]))
+    assert resumed[:1] == [3]
+
+
 def test_small_fit_api_and_cli(small_record, capsys):
-    """Both checks above in one test, so that a parallel run (pytest -n) compiles the model once."""
+    """The checks above in one test, so that a parallel run (pytest -n) compiles the model once."""
     check_small_fit_resumes_after_an_interruption(small_record)
     check_cli_fit_writes_json_and_plot(small_record, capsys)
+    check_ctrl_c_stops_the_fit_after_a_checkpointed_iteration(small_record)
+
+
+@pytest.mark.slow  # a fresh process compiles the fit's model (about a minute on 2 shared cores)
+def test_ctrl_c_stops_jaxclear_fit_with_exit_130(small_record, tmp_path):
+    """``jaxclear fit`` in a subprocess gets SIGINT once its first iteration is checkpointed:
+    it stops after the iteration under way, keeps the checkpoint, prints one line and exits with
+    130 (before the flag, 1 of 4 tries ran to the end with exit code 0)."""
+    import subprocess
+    import sys
+    import time
+
+    _, path, _ = small_record
+    out = tmp_path / "fit"
+    ckpt = out / fitting.CHECKPOINT_NAME
+    proc = subprocess.Popen([sys.executable, "-m", "jaxclear", "--no-cache", "fit", path, "--window", "1e-3",
+                             "--sensor-cutoff-hz", "20000", "--start", "stiffness=1.3e11", "--max-iter", "200",
+                             "--out", str(out), "--no-progress"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    try:
+        deadline = time.time() + 600
+        while not (ckpt.exists() and json.loads(ckpt.read_text())["state"]["total"] >= 1):
+            assert proc.poll() is None and time.time() < deadline, proc.communicate()
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGINT)
+        stdout, stderr = proc.communicate(timeout=120)
+    finally:
+        proc.kill()
+    lines = stderr.strip().splitlines()
+    assert proc.returncode == 130, (stdout, stderr)
+    assert len(lines) == 1 and "interrupted" in lines[0] and "checkpointed" in lines[0], stderr
+    assert "Traceback" not in stderr and not (out / "fit.json").exists()
+    state = json.loads(ckpt.read_text())["state"]
+    assert 1 <= state["total"] and state["stop_reason"] == ""
 
 
 # --------------------------------------------------------------------------------------

@@ -13,6 +13,7 @@ import numpy as np
 import optax
 from tqdm.auto import tqdm
 
+from .._interrupt import stop_at_safe_points
 from .._storage import locked_folder
 from ..model import Mechanism
 from ..analysis.sensor import Accelerometer
@@ -99,6 +100,9 @@ def fit(
             there) or exactly zero (nothing to fit); the message names the record.
         OutputLockedError: another process holds ``out``.
         CheckpointError: the checkpoint in ``out`` cannot be read.
+        KeyboardInterrupt: Ctrl-C (SIGINT) during the fit, raised after the iteration under way
+            has finished and been checkpointed (a second Ctrl-C raises at once); the same call
+            resumes from the checkpoint.
     """
     t_wall = time.perf_counter()
     opt = make_optimizer(optimizer, ftol, xtol)
@@ -133,9 +137,11 @@ def _fit_locked(problem: FitProblem, opt, out, resume: bool, progress: bool, cal
             bars[0].set_postfix({"loss": f"{record['loss']:.4g}", **{n: f"{v:.4g}" for n, v in record["values"].items()}})
         if callback is not None:
             callback(record)
+        interrupt.check()  # a Ctrl-C stops here, the iteration checkpointed
 
     try:
-        st = run_plan(problem, opt, st, ckpt, report)
+        with stop_at_safe_points("the current iteration") as interrupt:
+            st = run_plan(problem, opt, st, ckpt, report)
     finally:
         for bar in bars:
             bar.total = bar.n

@@ -29,6 +29,7 @@ import numpy as np
 from tqdm import tqdm
 
 from .._errors import CheckpointError, ParameterError, check_range
+from .._interrupt import stop_at_safe_points
 from .._storage import atomic_write_json, atomic_write_text, fingerprint, fsync_append, locked_folder
 from ..integrate.settings import Settings
 from ..integrate.simulate import simulate
@@ -217,18 +218,22 @@ def wear(mech: Mechanism, settings: Settings, options: WearOptions, out: str | N
                 raise ParameterError(
                     f"after update {u} the wear depth {depth.max():.3g} m exceeds the clearance {clearance:.3g} m: "
                     "the extrapolation factor (cycles_per_update) is too large for a profile update this coarse")
+            if interrupt.requested:  # a Ctrl-C stops here, the update written
+                bar.close()
+                interrupt.check()
         if bar is not None:
             bar.close()
         return records
 
-    if out is None:
-        records = run([])
-        resumed = 0
-    else:
-        with locked_folder(out, "wear output folder"):
-            records = _load_state(out, key, restart)
-            resumed = len(records)
-            records = run(records[: options.updates])
+    with stop_at_safe_points("the current update") as interrupt:
+        if out is None:
+            records = run([])
+            resumed = 0
+        else:
+            with locked_folder(out, "wear output folder"):
+                records = _load_state(out, key, restart)
+                resumed = len(records)
+                records = run(records[: options.updates])
     depth = np.asarray([r["depth_m"] for r in records], float)
     return WearHistory(
         mechanism=worn(base, index, depth[-1]),
