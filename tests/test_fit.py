@@ -294,6 +294,10 @@ def check_cli_fit_writes_json_and_plot(small_record, capsys):
     assert set(d["estimates"]) == {"stiffness", "restitution"} == set(d["std"])
     assert isinstance(d["loss"], float) and d["iterations"] >= 1 and d["wall_time_s"] > 0
     assert abs(d["estimates"]["restitution"] - 0.9) < 0.02
+    # values from the user as typed, not through their arithmetic (R_B - R_J = 0.0005000000000000004,
+    # a logit and back); the record's metadata too
+    assert d["start"] == {"stiffness": 1.3e11, "restitution": 0.75} and d["fixed"]["clearance"] == 0.0005
+    assert "# true_clearance: 0.0005\n" in open(path, encoding="utf-8").read()
     assert (out / "fit.png").read_bytes()[:8] == PNG
     capsys.readouterr()
     assert main(args) == 0

@@ -93,6 +93,27 @@ def name_value(text: str) -> tuple[str, float]:
         raise argparse.ArgumentTypeError(f"{name.strip()}: value {value!r} is not a number") from None
 
 
+#: A reST role with its target: ``:func:`~jaxclear.presets.flores_slider_crank```.
+_ROLE = re.compile(r":(?:py:)?[a-z]+:`~?([^`<]*?)(?:\s*<([^>]*)>)?`")
+
+
+def plain_text(rst: str, names: dict | None = None) -> str:
+    """A docstring's reST as plain text for a terminal: a role (``:func:`~a.b.f```,
+    ``:class:`X```, ``:math:`x```) becomes its target's last part (``f``; ``names`` maps a
+    target to another word, e.g. a preset function to its preset name), ````code```` and
+    ``*emphasis*`` lose their marks, and white space runs become one space."""
+
+    def role(m):
+        target = (m.group(2) or m.group(1)).strip()
+        short = target if m.group(0).startswith(":math:") else target.rsplit(".", 1)[-1]
+        return (names or {}).get(short, short)
+
+    text = _ROLE.sub(role, rst)
+    text = re.sub(r"``(.+?)``", r"\1", text)
+    text = re.sub(r"(?<![\w*])\*{1,2}([^*\s][^*]*?)\*{1,2}(?![\w*])", r"\1", text)
+    return " ".join(text.split())
+
+
 def fmt(value, unit: str = "", spec: str = ".4g") -> str:
     """``value`` with its unit for printing, ``n/a`` for None."""
     return "n/a" if value is None else f"{value:{spec}}{(' ' + unit) if unit else ''}"

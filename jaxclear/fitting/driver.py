@@ -14,6 +14,7 @@ import optax
 from tqdm.auto import tqdm
 
 from .._interrupt import stop_at_safe_points
+from .._numbers import as_typed
 from .._storage import locked_folder
 from ..model import Mechanism
 from ..analysis.sensor import Accelerometer
@@ -216,13 +217,14 @@ def _result(problem: FitProblem, st: FitState, wall: float, resumed: bool) -> Fi
     return FitResult(
         estimates=unc.estimates, std=unc.std, loss=float(np.mean(r[mask > 0] ** 2)), iterations=int(st.total),
         evaluations=int(st.evaluations), wall_time_s=wall,
-        start=dict(zip(problem.free, values_of(problem.free, problem.z0, problem.win.scale))),
+        start={name: as_typed(v) for name, v in zip(problem.free, values_of(problem.free, problem.z0, problem.win.scale))},
         correlation=unc.correlation, noise_sigma_m_s2=unc.sigma, residual_rms_m_s2=unc.rms,
         residual_autocorrelation=unc.autocorrelation, n_samples=unc.n_samples, n_unknowns=unc.n_unknowns,
         converged=converged, stop_reason=st.stop_reason, history=list(st.history),
         **_plot_series(problem, evals, initial), window_starts=[float(t) for t in problem.win.starts],
-        window_length_s=problem.win.length, free=problem.free, fixed=problem.fixed,
-        settings={"window_s": problem.win.length, "windows": problem.windows, "horizons": list(problem.horizons),
+        window_length_s=as_typed(problem.win.length), free=problem.free,
+        fixed={name: as_typed(v) for name, v in problem.fixed.items()},
+        settings={"window_s": as_typed(problem.win.length), "windows": problem.windows, "horizons": list(problem.horizons),
                   "coarse": s["coarse"], "starts": s["starts"], "max_iter": s["max_iter"], "ftol": s["ftol"],
                   "xtol": s["xtol"], "rtol": s["rtol"], "atol": s["atol"], "align": s["align"],
                   "sensor": problem.sensor.describe(), "oversample": problem.sensor.oversample,

@@ -30,6 +30,7 @@ from tqdm import tqdm
 
 from .._errors import CheckpointError, ParameterError, check_range
 from .._interrupt import stop_at_safe_points
+from .._numbers import as_typed
 from .._storage import atomic_write_json, atomic_write_text, fingerprint, fsync_append, locked_folder
 from ..integrate.settings import Settings
 from ..integrate.simulate import simulate
@@ -202,7 +203,7 @@ def wear(mech: Mechanism, settings: Settings, options: WearOptions, out: str | N
             depth = depth + step
             cycles = (u + 1) * options.cycles_per_update
             records.append({
-                "service_time_s": cycles * window_time, "cycles": cycles,
+                "service_time_s": as_typed(cycles * window_time), "cycles": cycles,
                 "worn_volume_m3": options.cycles_per_update * float(w.volume), "max_depth_m": float(depth.max()),
                 "mean_depth_m": float(depth.mean()), "peak_force_n": float(peak), "max_penetration_m": float(pen),
                 "depth_m": depth.tolist(),
