@@ -63,7 +63,9 @@ def configure(p: argparse.ArgumentParser):
                    help="number of starts of the first stage, >= 1 (default: 1, and the whole fit again from "
                    f"{AUTO_STARTS} starts where one start stops on --max-iter or leaves a residual that is not white)")
     f.add_argument("--optimizer", default="levenberg-marquardt", metavar="NAME",
-                   help="levenberg-marquardt (optax transformation, default) or adam[:LR]")
+                   help="levenberg-marquardt (optimistix's LevenbergMarquardt on the residual vector) or "
+                   "adam[:LR] (optax's adam on the loss's gradient, learning rate LR in the transformed "
+                   "parameters, 0.02 if omitted) (default: levenberg-marquardt)")
     f.add_argument("--max-iter", type=number_in(int, 1), default=30, metavar="N",
                    help="iterations of the last stage, >= 1; earlier stages get half (default: 30)")
     f.add_argument("--align", choices=("time", "crank"), default="time",
