@@ -110,6 +110,38 @@ def test_site_builds_strict(tmp_path):
     assert "arithmatex" in api and ":math:" not in api  # docstring math reaches MathJax
     hybrid = (site / "theory/hybrid/index.html").read_text(encoding="utf-8")
     assert "Dynamic analysis of mechanical systems with planar revolute joints with clearance" in hybrid
+    check_site_is_offline(site)
+
+
+#: What a page may load from elsewhere: nothing. Script sources, module imports, style sheets.
+_EXTERNAL = re.compile(r"""<script[^>]*\ssrc=["']?(?:https?:)?//|import\(\s*["'](?:https?:)?//|"""
+                       r"""<link[^>]*rel=["']?stylesheet[^>]*href=["']?(?:https?:)?//|"""
+                       r"""<link[^>]*href=["']?(?:https?:)?//[^>]*rel=["']?stylesheet""", re.I)
+
+
+def check_site_is_offline(site: Path):
+    """The built site references no external script or style sheet (formulas rendered by the
+    MathJax it ships, docs/hooks.py), and every script it loads is one of its files."""
+    pages = list(site.rglob("*.html"))
+    external = [f"{p.relative_to(site)}: {m.group(0)[:80]}" for p in pages
+                for m in _EXTERNAL.finditer(p.read_text(encoding="utf-8"))]
+    assert not external, external
+    for page in pages:
+        for src in re.findall(r"<script[^>]*\ssrc=\"([^\"]*)\"", page.read_text(encoding="utf-8")):
+            target = site / src.lstrip("/") if src.startswith("/") else page.parent / src
+            assert src and target.is_file(), f"{page.relative_to(site)} loads {src!r}, not a file of the site"
+    assert (site / "javascripts/mathjax/es5/tex-mml-chtml.js").stat().st_size > 500_000
+    assert (site / "javascripts/mathjax/LICENSE").is_file()
+    assert list((site / "javascripts/mathjax/es5/output/chtml/fonts").rglob("*.woff")), "MathJax's fonts"
+
+
+def test_offline_check_catches_external_scripts(tmp_path):
+    """The check above is not vacuous: a CDN script, a module import from a CDN and a Google
+    Fonts style sheet are each caught."""
+    for bad in ('<script src="https://cdn.jsdelivr.net/npm/mathjax@3/es5/tex-mml-chtml.js"></script>',
+                '<script type="module">await import("https://cdnjs.cloudflare.com/x.mjs")</script>',
+                '<link rel="stylesheet" href="https://fonts.googleapis.com/css?family=Roboto">'):
+        assert _EXTERNAL.search(bad), bad
 
 
 def test_griffe_extension_converts_rst_math_and_roles():
@@ -214,3 +246,19 @@ def test_fit_docs_and_help_say_what_the_fit_does():
     assert isinstance(make_optimizer("levenberg-marquardt").solver, optx.LevenbergMarquardt)
     assert isinstance(make_optimizer("adam").solver, optx.OptaxMinimiser)
     assert "levenberg-marquardt (optimistix's LevenbergMarquardt" in fit.help and "optax's adam" in fit.help
+
+
+def test_license_and_citation_agree_with_pyproject():
+    """LICENSE is the MIT licence that pyproject.toml declares; CITATION.cff (Citation File Format
+    1.2.0, validated once with cffconvert) names the package's version and licence."""
+    import tomllib
+
+    import yaml
+
+    project = tomllib.loads(_read("pyproject.toml"))["project"]
+    assert project["license"] == {"text": "MIT"}
+    assert _read("LICENSE").startswith("MIT License\n") and "Permission is hereby granted, free of charge" in _read("LICENSE")
+    cff = yaml.safe_load(_read("CITATION.cff"))
+    assert cff["cff-version"] == "1.2.0" and cff["type"] == "software" and cff["authors"]
+    assert cff["version"] == project["version"] and cff["license"] == "MIT"
+    assert cff["title"].startswith("jaxclear")
