@@ -262,3 +262,25 @@ def test_license_and_citation_agree_with_pyproject():
     assert cff["cff-version"] == "1.2.0" and cff["type"] == "software" and cff["authors"]
     assert cff["version"] == project["version"] and cff["license"] == "MIT"
     assert cff["title"].startswith("jaxclear")
+
+
+def test_readme_quick_start_is_what_ci_runs():
+    """The README's quick start is two commands: one installs and runs the main job on a built-in
+    default (``jaxclear simulate`` without arguments), one installs the test extras and runs the
+    tests; .ci/run runs that test command verbatim. The README stays a front page."""
+    readme = _read("README.md")
+    block = readme.split("## Quick start", 1)[1].split("```bash\n", 1)[1].split("```", 1)[0]
+    run, test = block.strip().splitlines()
+    assert run == "python3 -m pip install -e . && jaxclear simulate"
+    assert test.startswith("python3 -m pip install -e \".[test]\" && python3 -m pytest")
+    assert test in _read(".ci/run").splitlines()
+    assert len(readme.splitlines()) <= 200
+    assert "Derivatives/sensitivities" in readme  # the lead's placeholder
+
+
+def test_reference_mechanisms_page_lists_every_preset():
+    """docs/theory/presets.md has a row per preset (it had 3 of 5)."""
+    import jaxclear as jc
+
+    page = _read("docs/theory/presets.md")
+    assert sorted(re.findall(r"^\| `([a-z0-9-]+)` \|", page, flags=re.M)) == sorted(jc.preset_names())
