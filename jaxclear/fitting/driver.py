@@ -142,11 +142,11 @@ def fit(
 
 
 #: Starts of the refit of a fit with ``starts=None`` (the default) whose single start stops on
-#: ``max_iter`` or leaves a residual that is not white. On a slider-crank of one's own (c_r from
-#: 0.85, truth 0.6, 10 % noise) a single start stopped at max_iter with c_r 0.6945 +- 0.0025 (38
-#: std off); 4 starts recovered the truth. Always starting 4 times would cost 1.7x the iterations
-#: of every fit (24 against 11, measured on 3 records that one start fits), so it is done only
-#: where one start fails.
+#: ``max_iter`` or leaves a residual that is not white. An outside check fitted a slider-crank of
+#: its own (c_r from 0.85, truth 0.6, 10 % noise): one start stopped at max_iter with c_r 0.6945
+#: +- 0.0025 (38 std off), 4 starts recovered the truth (here one start fitted all 15 records of 6
+#: such variants). Always starting 4 times would cost 1.7x the iterations of every fit (24
+#: against 11 on 3 of those records), so it is done only where one start fails.
 AUTO_STARTS = 4
 
 
