@@ -31,7 +31,8 @@ from .window import evaluate_window_jit
 
 
 #: What a fit says when its programs are not compiled yet (:func:`~jaxclear.integrate.compile.on_trace`).
-COMPILING = "compiling the model (tens of seconds, once per structure of mechanism and record)"
+COMPILING = ("compiling the model (tens of seconds, once per structure of mechanism and record in a process; "
+             "less where the persistent compilation cache holds it)")
 
 
 def fit(
