@@ -5,6 +5,7 @@ import jaxclear  # noqa: F401  (switches on float64 first)
 import csv
 import json
 import math
+import re
 import warnings
 
 import numpy as np
@@ -143,6 +144,20 @@ def test_usage_errors_exit_2(capsys):
     assert main([]) == 2
 
 
+@pytest.mark.parametrize("value", ["-0.5e-3", "-5E+2", "-1e3", "-.5", "-2", "-inf"])
+def test_negative_numbers_are_values_in_any_notation(value, capsys):
+    """A negative number after a flag is its value (argparse alone reads ``-0.5e-3`` as a flag and
+    says "expected one argument"): the flag's range check names it, in every command's parser."""
+    for command in (["simulate"], ["fit", "rec.csv"], ["wear"], ["animate"]):
+        assert main([*command, "--clearance", value]) == 2
+        err = capsys.readouterr().err
+        assert f"argument --clearance: {value} is outside the allowed range (0, inf)" in err, err
+    args = build_parser().parse_args(["fit", "rec.csv", "--sensor-bias", "-0.5e-3", "--speed-rpm", "-3E3"])
+    assert args.sensor_bias == -0.5e-3 and args.speed_rpm == -3000.0
+    assert main(["simulate", "-x"]) == 2  # a dash and a letter is still an (unknown) option
+    assert "unrecognized arguments: -x" in capsys.readouterr().err
+
+
 def test_help(capsys):
     assert main(["--help"]) == 0
     text = capsys.readouterr().out
@@ -153,6 +168,43 @@ def test_help(capsys):
                          ("--rtol", "1e-6"), ("--atol", "1e-9"), ("--revolutions", "default: 3"),
                          ("--out", "./jaxclear-out"), ("--model", "lankarani-nikravesh")]:
         assert option in text and unit in text, option
+
+
+def _stated_defaults():
+    """(command, option, argparse default, the default its help states) of every option of
+    every command whose help ends with "(default: ...)"."""
+    import argparse
+    import re
+
+    from jaxclear.cli.common import Formatter
+
+    parser = build_parser()
+    commands = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices
+    for name, sub in commands.items():
+        for action in sub._actions:
+            m = re.search(r"\(default: ([^)]*)\)\s*$", Formatter(sub.prog)._expand_help(action) if action.help else "")
+            if m:
+                yield name, action.option_strings, action.default, m.group(1)
+
+
+def test_help_states_the_defaults_the_parser_uses():
+    """Every option's help says the default the parser applies (``jaxclear wear --help`` said
+    lankarani-nikravesh and arc while wear runs the hybrid law at fixed points)."""
+    wrong = []
+    for command, option, default, stated in _stated_defaults():
+        if default is None or isinstance(default, bool) or default == []:
+            continue  # no value: the help says what the command does then
+        same = stated == str(default) or stated.split(" ")[0] == str(default)
+        try:
+            same = same or float(stated.split(" ")[0]) == float(default)
+        except ValueError:
+            pass
+        if not same:
+            wrong.append(f"{command} {option}: default {default!r}, help says {stated!r}")
+    assert not wrong, wrong
+    stated = {(c, o[0]): s for c, o, _, s in _stated_defaults() if o}
+    assert stated["wear", "--model"] == "hybrid" and stated["wear", "--placement"] == "fixed"
+    assert stated["simulate", "--model"] == "lankarani-nikravesh" and stated["simulate", "--placement"] == "arc"
 
 
 def test_hybrid_options_name_their_flags(tmp_path, capsys):
@@ -167,6 +219,37 @@ def test_hybrid_options_name_their_flags(tmp_path, capsys):
     assert mechanism_overrides(args)["law_options"] == {"n_elements": 1, "n_gauss": 1}
     assert main(["simulate", "--model", "hybrid", "--elements", "0"]) == 2
     assert "--elements" in capsys.readouterr().err
+
+
+def test_values_from_the_user_are_written_without_float_noise():
+    """3 revolutions at 5000 rpm: t_end = 0.036000000000000004 s and back 3.0000000000000004
+    revolutions; summary.json's inputs say 0.036 and 3 (as_typed: 15 significant digits, the
+    float64's decimal precision); a swept linear range holds the typed decimals, and runs.csv
+    writes t_end_s the same way."""
+    from jaxclear._numbers import as_typed
+    from jaxclear.cli.simulate import inputs
+    from jaxclear.sweep.store import _fmt
+    from jaxclear.sweep.values import _range
+
+    mech = jc.preset("flores-slider-crank")
+    t_end = float(runs.revolution_settings(mech, 3.0).t_end)
+    revolutions = runs.revolutions_of(mech, t_end)
+    assert (t_end, revolutions) == (0.036000000000000004, 3.0000000000000004)  # the noise itself
+    args = build_parser().parse_args(["simulate", "--revolutions", "3"])
+    got = inputs(args, None, {}, t_end, revolutions, 6001)
+    assert got["t_end_s"] == 0.036 and got["revolutions"] == 3.0 and json.dumps(got).count("000000") == 0
+    assert _range("r", {"start": 0.1, "stop": 0.9, "num": 9}).tolist() == [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9]
+    assert _range("k", {"start": 1e6, "stop": 1e9, "num": 4, "spacing": "log"}).tolist() == [1e6, 1e7, 1e8, 1e9]
+    assert _fmt("t_end_s", t_end) == "0.036" and _fmt("peak_contact_force_n", 0.1 + 0.2) == repr(0.1 + 0.2)
+    # the helper: 15 digits exactly, computed digits beyond them dropped (< 5e-16 relative), others untouched
+    rng = np.random.default_rng(0)
+    for x in rng.uniform(-1e3, 1e3, 200) * 10.0 ** rng.integers(-12, 12, 200):
+        typed = float(f"{x:.15g}")
+        assert as_typed(typed) == typed and as_typed(typed * (1 + 2.2e-16)) == typed
+        assert abs(as_typed(x) / x - 1) < 5e-15
+    assert as_typed(None) is None and as_typed(7) == 7 and math.isnan(as_typed(float("nan")))
+    assert as_typed(np.int64(5)) == 5 and isinstance(as_typed(np.int64(5)), int)
+    assert as_typed([0.1 + 0.2, None]) == [0.3, None] and as_typed(np.array([[0.1 + 0.2]])).tolist() == [[0.3]]
 
 
 def test_revolution_settings():
@@ -191,10 +274,24 @@ def test_revolution_settings():
 
 
 def test_presets_command(capsys):
+    """Every preset with its whole summary as plain text: no reST role, literal or emphasis
+    marks (the docstrings' ``:func:`flores_slider_crank``` is the preset's name)."""
     assert main(["presets"]) == 0
     text = capsys.readouterr().out
     for name in jc.preset_names():
         assert name in text
+    assert not re.search(r":[a-z]+:`|``|`", text), text
+    assert "of 'flores-slider-crank' whose" in " ".join(text.split()) and "..." not in text
+
+
+def test_plain_text_of_rest():
+    from jaxclear.cli.common import plain_text
+
+    rst = ("See :func:`~jaxclear.presets.flores_slider_crank` and :class:`jaxclear.PinSlotJoint`, "
+           ":math:`F = K\\delta^n`, ``law=\"hybrid\"``,\n   *emphasis* and **strong**; 2 * 3 * 4 stays.")
+    assert plain_text(rst, {"flores_slider_crank": "'flores-slider-crank'"}) == (
+        "See 'flores-slider-crank' and PinSlotJoint, F = K\\delta^n, law=\"hybrid\", emphasis and strong; "
+        "2 * 3 * 4 stays.")
 
 
 # --------------------------------------------------------------------------------------

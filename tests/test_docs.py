@@ -110,6 +110,38 @@ def test_site_builds_strict(tmp_path):
     assert "arithmatex" in api and ":math:" not in api  # docstring math reaches MathJax
     hybrid = (site / "theory/hybrid/index.html").read_text(encoding="utf-8")
     assert "Dynamic analysis of mechanical systems with planar revolute joints with clearance" in hybrid
+    check_site_is_offline(site)
+
+
+#: What a page may load from elsewhere: nothing. Script sources, module imports, style sheets.
+_EXTERNAL = re.compile(r"""<script[^>]*\ssrc=["']?(?:https?:)?//|import\(\s*["'](?:https?:)?//|"""
+                       r"""<link[^>]*rel=["']?stylesheet[^>]*href=["']?(?:https?:)?//|"""
+                       r"""<link[^>]*href=["']?(?:https?:)?//[^>]*rel=["']?stylesheet""", re.I)
+
+
+def check_site_is_offline(site: Path):
+    """The built site references no external script or style sheet (formulas rendered by the
+    MathJax it ships, docs/hooks.py), and every script it loads is one of its files."""
+    pages = list(site.rglob("*.html"))
+    external = [f"{p.relative_to(site)}: {m.group(0)[:80]}" for p in pages
+                for m in _EXTERNAL.finditer(p.read_text(encoding="utf-8"))]
+    assert not external, external
+    for page in pages:
+        for src in re.findall(r"<script[^>]*\ssrc=\"([^\"]*)\"", page.read_text(encoding="utf-8")):
+            target = site / src.lstrip("/") if src.startswith("/") else page.parent / src
+            assert src and target.is_file(), f"{page.relative_to(site)} loads {src!r}, not a file of the site"
+    assert (site / "javascripts/mathjax/es5/tex-mml-chtml.js").stat().st_size > 500_000
+    assert (site / "javascripts/mathjax/LICENSE").is_file()
+    assert list((site / "javascripts/mathjax/es5/output/chtml/fonts").rglob("*.woff")), "MathJax's fonts"
+
+
+def test_offline_check_catches_external_scripts(tmp_path):
+    """The check above is not vacuous: a CDN script, a module import from a CDN and a Google
+    Fonts style sheet are each caught."""
+    for bad in ('<script src="https://cdn.jsdelivr.net/npm/mathjax@3/es5/tex-mml-chtml.js"></script>',
+                '<script type="module">await import("https://cdnjs.cloudflare.com/x.mjs")</script>',
+                '<link rel="stylesheet" href="https://fonts.googleapis.com/css?family=Roboto">'):
+        assert _EXTERNAL.search(bad), bad
 
 
 def test_griffe_extension_converts_rst_math_and_roles():
@@ -122,3 +154,133 @@ def test_griffe_extension_converts_rst_math_and_roles():
     out = rst_to_markdown(text)
     assert "$F = K\\delta$" in out and "`jaxclear.contact.hertz.chi_flores`" in out and "`x`" in out
     assert "$$\na = b\n+ c\n$$" in out and out.rstrip().endswith("After.")
+
+
+# ---- statements that go stale: each list in the docs is checked against the code ---------------
+
+def _read(rel: str) -> str:
+    return (ROOT / rel).read_text(encoding="utf-8")
+
+
+def _nav_pages(node) -> list[str]:
+    """Every page path in mkdocs.yml's nav."""
+    if isinstance(node, str):
+        return [node]
+    if isinstance(node, dict):
+        return [p for v in node.values() for p in _nav_pages(v)]
+    return [p for v in node for p in _nav_pages(v)]
+
+
+def test_docs_index_links_every_notebook_and_page():
+    """docs/index.md's map of the site names every notebook (it listed 3 of 6) and every page of
+    the navigation except the API pages, which the API index lists; the nav holds every notebook."""
+    import yaml
+
+    nav = _nav_pages(yaml.safe_load(_read("mkdocs.yml").replace("!!python", "#"))["nav"])
+    index = _read("docs/index.md")
+    notebooks = [f"notebooks/{p.name}" for p in NOTEBOOKS]
+    assert sorted(p for p in nav if p.startswith("notebooks/")) == sorted(notebooks)
+    missing = [p for p in nav if p != "index.md" and not p.startswith("api/") and f"({p}" not in index]
+    assert not missing, f"docs/index.md does not link {missing}"
+
+
+def test_api_index_names_every_public_name():
+    """docs/api/index.md names every class, function and constant that jaxclear exports (it
+    omitted the three joints, wear and synthetic_record)."""
+    import types
+
+    import jaxclear as jc
+
+    index = _read("docs/api/index.md")
+    names = [n for n in dir(jc) if not n.startswith("_") and not isinstance(getattr(jc, n), types.ModuleType)]
+    missing = [n for n in names if not re.search(rf"`(jaxclear\.)?{n}[`(.]", index)]
+    assert not missing, f"docs/api/index.md does not name {missing}"
+
+
+def test_mechanism_file_friction_table_lists_every_friction_law():
+    """The friction table of docs/mechanism-files.md has a row per law a mechanism file accepts
+    (it listed 4 of 10), and names each law's own keys."""
+    from jaxclear.contact.friction import FRICTION_MODELS
+
+    text = _read("docs/mechanism-files.md")
+    table = text[text.index("### `friction`"):].split("\n## ")[0]
+    rows = {m.group(1): m.group(2) for m in re.finditer(r"^\| `([a-z-]+)` \| (.*) \|$", table, flags=re.M)}
+    rows.pop("model")  # the header
+    assert sorted(rows) == sorted(FRICTION_MODELS)
+    for name, (_, keys) in FRICTION_MODELS.items():
+        assert all(f"`{k}`" in rows[name] for k in keys), (name, keys, rows[name])
+
+
+def test_docs_name_every_force_element():
+    """The clearance-joint page's "force elements" paragraph and the other-joints page name every
+    force element jaxclear exports (the first called the revolute joint the only one)."""
+    import inspect
+
+    import jaxclear as jc
+
+    elements = [n for n in dir(jc) if inspect.isclass(getattr(jc, n)) and issubclass(getattr(jc, n),
+                jc.AbstractForceElement) and not inspect.isabstract(getattr(jc, n)) and not n.startswith("Abstract")]
+    assert len(elements) == 4, elements
+    general = _read("docs/theory/clearance-joint.md").split("## Force elements in general")[1].split("\n## ")[0]
+    others = _read("docs/theory/other-joints.md")
+    assert all(f"`{n}`" in general for n in elements), (elements, general)
+    assert all(f"`{n}`" in others for n in elements if n != "ClearanceJoint"), elements
+    assert "today" not in general
+
+
+def test_fit_docs_and_help_say_what_the_fit_does():
+    """The fit's theory page says whether its model runs with exact onsets as the code does (it
+    said without), and `fit --help` names the library each optimizer comes from (it called the
+    Levenberg-Marquardt an optax transformation)."""
+    import optimistix as optx
+
+    from jaxclear.cli import build_parser
+    from jaxclear.fitting.problem import FIT_EXACT_ONSETS
+    from jaxclear.fitting.solver import make_optimizer
+
+    page = " ".join(_read("docs/theory/fit.md").split())
+    assert ("integrates with exact contact onsets" in page) == FIT_EXACT_ONSETS
+    assert ("without exact contact onsets" in page) != FIT_EXACT_ONSETS
+    fit = next(a for a in build_parser()._subparsers._group_actions[0].choices["fit"]._actions
+               if "--optimizer" in a.option_strings)
+    assert isinstance(make_optimizer("levenberg-marquardt").solver, optx.LevenbergMarquardt)
+    assert isinstance(make_optimizer("adam").solver, optx.OptaxMinimiser)
+    assert "levenberg-marquardt (optimistix's LevenbergMarquardt" in fit.help and "optax's adam" in fit.help
+
+
+def test_license_and_citation_agree_with_pyproject():
+    """LICENSE is the MIT licence that pyproject.toml declares; CITATION.cff (Citation File Format
+    1.2.0, validated once with cffconvert) names the package's version and licence."""
+    import tomllib
+
+    import yaml
+
+    project = tomllib.loads(_read("pyproject.toml"))["project"]
+    assert project["license"] == {"text": "MIT"}
+    assert _read("LICENSE").startswith("MIT License\n") and "Permission is hereby granted, free of charge" in _read("LICENSE")
+    cff = yaml.safe_load(_read("CITATION.cff"))
+    assert cff["cff-version"] == "1.2.0" and cff["type"] == "software" and cff["authors"]
+    assert cff["version"] == project["version"] and cff["license"] == "MIT"
+    assert cff["title"].startswith("jaxclear")
+
+
+def test_readme_quick_start_is_what_ci_runs():
+    """The README's quick start is two commands: one installs and runs the main job on a built-in
+    default (``jaxclear simulate`` without arguments), one installs the test extras and runs the
+    tests; .ci/run runs that test command verbatim. The README stays a front page."""
+    readme = _read("README.md")
+    block = readme.split("## Quick start", 1)[1].split("```bash\n", 1)[1].split("```", 1)[0]
+    run, test = block.strip().splitlines()
+    assert run == "python3 -m pip install -e . && jaxclear simulate"
+    assert test.startswith("python3 -m pip install -e \".[test]\" && python3 -m pytest")
+    assert test in _read(".ci/run").splitlines()
+    assert len(readme.splitlines()) <= 200
+    assert "Derivatives/sensitivities" in readme  # the lead's placeholder
+
+
+def test_reference_mechanisms_page_lists_every_preset():
+    """docs/theory/presets.md has a row per preset (it had 3 of 5)."""
+    import jaxclear as jc
+
+    page = _read("docs/theory/presets.md")
+    assert sorted(re.findall(r"^\| `([a-z0-9-]+)` \|", page, flags=re.M)) == sorted(jc.preset_names())

@@ -128,3 +128,24 @@ def test_prepare_traces_once_and_the_overlay_runs_through_the_store(store, monke
     r = simulate_with_ideal(mech, s)
     _assert_same(r.sol, sol)
     assert int(r.ideal_sol.status) == 0 and len(_files(store)) == 2  # the kinematic overlay's program
+
+
+def test_on_trace_reports_cache_misses_only():
+    """``on_trace`` listeners hear of a top-level trace (a program JAX compiles next) and of
+    nothing else: not a call that hits the cache, not a call inside a user's jit, not after the
+    block (the fit says "compiling ..." through it, only when it compiles)."""
+    from jaxclear.integrate.compile import jit, on_trace
+
+    @jit
+    def double(x):
+        return 2.0 * x
+
+    heard = []
+    with on_trace(heard.append):
+        double(np.ones(3))
+        double(np.zeros(3))  # the same shapes: cached
+        assert heard == ["double"]
+        double(np.ones(4))  # a new shape: traced
+        jax.jit(lambda x: double(x) + 1)(np.ones(5))  # inside a user's jit: inlined, not a program of its own
+    double(np.ones(6))
+    assert heard == ["double", "double"]

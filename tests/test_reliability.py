@@ -316,6 +316,45 @@ def test_ctrl_c_prints_one_line_and_exits_130(monkeypatch, capsys, tmp_path):
     assert len(err) == 1 and "interrupted" in err[0] and "resume" in err[0] and str(tmp_path) in err[0]
 
 
+def test_ctrl_c_inside_a_gc_callback_is_not_lost():
+    """The fit's defect: a Ctrl-C whose KeyboardInterrupt is raised inside a garbage-collection
+    callback (JAX's ``_xla_gc_callback``) is printed and dropped by Python. Under
+    :func:`stop_at_safe_points` the signal only sets a flag, read at the next safe point; the
+    previous handler is back afterwards, and a second Ctrl-C raises at once."""
+    import gc
+    import signal
+
+    from jaxclear._interrupt import stop_at_safe_points
+
+    armed = []
+
+    def callback(phase, info):
+        if phase == "start" and armed:
+            armed.clear()
+            os.kill(os.getpid(), signal.SIGINT)
+            sum(range(100))  # the Python handler runs at the next bytecode: inside this callback
+
+    gc.callbacks.append(callback)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            with stop_at_safe_points() as interrupt:
+                armed.append(True)
+                gc.collect()
+                assert interrupt.requested
+                interrupt.check()
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+        with pytest.raises(KeyboardInterrupt):
+            with stop_at_safe_points() as interrupt:
+                os.kill(os.getpid(), signal.SIGINT)
+                sum(range(100))
+                assert interrupt.requested  # the first: a flag
+                os.kill(os.getpid(), signal.SIGINT)  # the second: at once
+                sum(range(100))
+                pytest.fail("a second Ctrl-C must raise at once")
+    finally:
+        gc.callbacks.remove(callback)
+
+
 def _with_run(parser, run):
     for action in parser._subparsers._group_actions:
         for sub in action.choices.values():

@@ -596,7 +596,7 @@ DISTRIBUTED_SCRIPT = textwrap.dedent("""
 
 @pytest.mark.slow
 def test_two_processes_with_jax_distributed(tmp_path):
-    """The README's multi-host recipe on one machine: two processes joined by
+    """The multi-host recipe of docs/theory/sweep.md on one machine: two processes joined by
     jax.distributed (one CPU device each, gloo collectives), chunks of 4 split over both; the
     CSV equals a one-process sweep whose chunks are the per-device batches (exact)."""
     import socket

@@ -13,6 +13,7 @@ import json
 import math
 
 import numpy as np
+import pandas as pd
 import pytest
 
 import jaxclear as jc
@@ -125,6 +126,13 @@ def test_worn_profile_changes_the_next_window(tmp_path):
     assert e1 - e0 == pytest.approx(local, rel=0.1)
     # files written as it goes
     assert [p.name for p in out.glob("profile_*.csv")] == ["profile_0000.csv"]
+    # the CSV files hold numbers that read back bit for bit (not "np.float64(...)" text)
+    profile = pd.read_csv(out / "profile_0000.csv")
+    assert list(profile.columns) == ["angle_rad", "depth_m"] and all(profile.dtypes == np.float64)
+    np.testing.assert_array_equal(profile["angle_rad"], wearing.node_angles(180))
+    np.testing.assert_array_equal(profile["depth_m"], h.depth[-1])
+    updates = pd.read_csv(out / "updates.csv")
+    assert all(dtype.kind in "if" for dtype in updates.dtypes), updates.dtypes
     assert (out / "profile.png").stat().st_size > 10_000
     # resume: asking for 2 updates runs only the second
     h2 = jc.wear(mech, SETTINGS, jc.WearOptions(**{**options.__dict__, "updates": 2}), out, progress=False)

@@ -17,6 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._errors import STATUS
+from .._numbers import as_typed
 from ..integrate import Solution
 from ..integrate.compile import jit
 from ..model import Mechanism, crank_driver
@@ -255,7 +256,7 @@ def summary(mech: Mechanism, sol: Solution, wall_time_s: float | None = None) ->
     ts = np.asarray(sol.ts, dtype=float)
     out: dict = {
         "mechanism": mech.name,
-        "t_end_s": float(ts[-1]),
+        "t_end_s": as_typed(float(ts[-1])),  # the end the user asked for (3 revolutions: 0.036, not ...04)
         "n_samples": int(ts.shape[0]),
         "clearance_joints": [c.name for c in mech.clearance_joints],
         "peak_contact_force_per_joint_n": [float(v) for v in per_joint.get("peak_contact_force_n", [])],

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 
 from ..contact.registry import law_names
 from .._errors import ParameterError
@@ -15,19 +16,46 @@ from ..model import Mechanism
 from ..presets import preset, preset_names
 
 
+#: What reads as a number after a flag, not as a flag: ``-5``, ``-.5``, ``-0.5e-3``, ``-1E+9``,
+#: ``-inf``, ``-nan``. argparse's own pattern (``^-\d+$|^-\d*\.\d+$``, Python 3.11) misses the
+#: exponent, so ``--clearance -0.5e-3`` was "expected one argument" instead of a range error.
+NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|infinity|nan)$", re.IGNORECASE)
+
+
 class Parser(argparse.ArgumentParser):
     """The parser of every command: a usage error is one line, ``error: argument --flag: ...``
-    and where to find the options (exit code 2), like the library's errors."""
+    and where to find the options (exit code 2), like the library's errors. A negative number
+    in any notation (:data:`NEGATIVE_NUMBER`) is a value, so that its flag's range check names
+    it (argparse's pattern is a private attribute, set on every parser and sub-parser: the
+    sub-parsers are made by this class too)."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = NEGATIVE_NUMBER
 
     def error(self, message):
         self.exit(2, f"error: {message} (options: {self.prog} --help)\n")
 
 
+#: What an option whose argparse default is None means, by its ``dest``: the help's
+#: ``%(default)s`` of these options shows it (see :class:`Formatter`).
+UNSET_MEANS = {"placement": "arc", "damping": "joint", "geometry": "exact"}
+
+
 class Formatter(argparse.RawDescriptionHelpFormatter):
-    """Help layout of every command: descriptions kept as written, 100 columns."""
+    """Help layout of every command: descriptions kept as written, 100 columns. A help text's
+    ``%(default)s`` is the option's argparse default, so a command that changes a shared
+    option's default (``parser.set_defaults(model="hybrid")``) has a help that says so; a None
+    default shows what it means (:data:`UNSET_MEANS`)."""
 
     def __init__(self, prog):
         super().__init__(prog, max_help_position=30, width=100)
+
+    def _expand_help(self, action):
+        if action.default is None and action.dest in UNSET_MEANS:
+            action = argparse.Action(action.option_strings, action.dest, default=UNSET_MEANS[action.dest],
+                                     help=action.help, choices=action.choices, metavar=action.metavar)
+        return super()._expand_help(action)
 
 
 def number_in(kind=float, low=None, high=None, low_open=False, high_open=False):
@@ -65,6 +93,27 @@ def name_value(text: str) -> tuple[str, float]:
         raise argparse.ArgumentTypeError(f"{name.strip()}: value {value!r} is not a number") from None
 
 
+#: A reST role with its target: ``:func:`~jaxclear.presets.flores_slider_crank```.
+_ROLE = re.compile(r":(?:py:)?[a-z]+:`~?([^`<]*?)(?:\s*<([^>]*)>)?`")
+
+
+def plain_text(rst: str, names: dict | None = None) -> str:
+    """A docstring's reST as plain text for a terminal: a role (``:func:`~a.b.f```,
+    ``:class:`X```, ``:math:`x```) becomes its target's last part (``f``; ``names`` maps a
+    target to another word, e.g. a preset function to its preset name), ````code```` and
+    ``*emphasis*`` lose their marks, and white space runs become one space."""
+
+    def role(m):
+        target = (m.group(2) or m.group(1)).strip()
+        short = target if m.group(0).startswith(":math:") else target.rsplit(".", 1)[-1]
+        return (names or {}).get(short, short)
+
+    text = _ROLE.sub(role, rst)
+    text = re.sub(r"``(.+?)``", r"\1", text)
+    text = re.sub(r"(?<![\w*])\*{1,2}([^*\s][^*]*?)\*{1,2}(?![\w*])", r"\1", text)
+    return " ".join(text.split())
+
+
 def fmt(value, unit: str = "", spec: str = ".4g") -> str:
     """``value`` with its unit for printing, ``n/a`` for None."""
     return "n/a" if value is None else f"{value:{spec}}{(' ' + unit) if unit else ''}"
@@ -92,7 +141,7 @@ def add_mechanism_options(p: argparse.ArgumentParser, title: str = "mechanism", 
                       "200 for flores-2011-rig, 500 for four-bar)")
     mech.add_argument("--model", default="lankarani-nikravesh", metavar="LAW",
                       help=f"normal contact force law [-], one of {', '.join(law_names())} "
-                      "(default: lankarani-nikravesh)")
+                      "(default: %(default)s)")
     mech.add_argument("--stiffness", type=number_in(float, 0.0, low_open=True), metavar="K",
                       help="contact stiffness, > 0: K [N/m^n] of the Hertz-family laws (n = 1.5), the "
                       "stiffness parameter of the others (default: from steel, E = 207 GPa, nu = 0.3, and "
@@ -114,7 +163,7 @@ def _add_hybrid_options(p: argparse.ArgumentParser):
     h.add_argument("--placement", choices=("arc", "fixed"), default=None,
                    help="where the Gauss points sit: 'arc' (on the current contact arc, exact with few "
                    "points) or 'fixed' (body-fixed over the whole pin circumference, the model's original "
-                   "formulation) (default: arc)")
+                   "formulation) (default: %(default)s)")
     h.add_argument("--elements", type=number_in(int, 1), metavar="N_E",
                    help="number of elements N_e [-], >= 1 (default: 2 for arc, 180 for fixed)")
     h.add_argument("--gauss-points", type=number_in(int, 1), metavar="N_G",
@@ -122,10 +171,10 @@ def _add_hybrid_options(p: argparse.ArgumentParser):
     h.add_argument("--layer-thickness", type=number_in(float, 0.0, low_open=True), metavar="H",
                    help="compliant layer thickness h [m], > 0 (default: the clearance c)")
     h.add_argument("--damping", choices=("joint", "point"), default=None,
-                   help="Qin-Lu damping applied to the joint resultant or to every point (default: joint)")
+                   help="Qin-Lu damping applied to the joint resultant or to every point (default: %(default)s)")
     h.add_argument("--geometry", choices=("exact", "small-gap"), default=None,
                    help="point penetration from the exact circles or the small-gap profile e cos(theta) - c "
-                   "(default: exact)")
+                   "(default: %(default)s)")
 
 
 def _hybrid_options(args) -> dict:

@@ -8,7 +8,9 @@ import warnings
 
 from .._errors import ParameterError
 from ..fitting import fit, read_channels_toml
+from ..fitting.driver import AUTO_STARTS, COMPILING
 from ..analysis.sensor import Accelerometer
+from ..integrate.compile import on_trace
 from .common import add_mechanism_options, load_mechanism_file, name_value, number_in, preset_from_args
 
 HELP = "fit contact parameters to a measured record (JSON, PNG)"
@@ -57,9 +59,13 @@ def configure(p: argparse.ArgumentParser):
     f.add_argument("--windows", type=number_in(int, 1), default=1, metavar="N",
                    help="back-to-back windows, >= 1; windows after the first estimate their journal state "
                    "(default: 1)")
-    f.add_argument("--starts", type=number_in(int, 1), default=1, metavar="N", help="number of starts, >= 1 (default: 1)")
+    f.add_argument("--starts", type=number_in(int, 1), default=None, metavar="N",
+                   help="number of starts of the first stage, >= 1 (default: 1, and the whole fit again from "
+                   f"{AUTO_STARTS} starts where one start stops on --max-iter or leaves a residual that is not white)")
     f.add_argument("--optimizer", default="levenberg-marquardt", metavar="NAME",
-                   help="levenberg-marquardt (optax transformation, default) or adam[:LR]")
+                   help="levenberg-marquardt (optimistix's LevenbergMarquardt on the residual vector) or "
+                   "adam[:LR] (optax's adam on the loss's gradient, learning rate LR in the transformed "
+                   "parameters, 0.02 if omitted) (default: levenberg-marquardt)")
     f.add_argument("--max-iter", type=number_in(int, 1), default=30, metavar="N",
                    help="iterations of the last stage, >= 1; earlier stages get half (default: 30)")
     f.add_argument("--align", choices=("time", "crank"), default="time",
@@ -97,9 +103,14 @@ def run(args) -> int:
     laws = "the file's contact laws" if args.mechanism else args.model
     print(f"jaxclear fit: {args.data}, {mech.name} with {laws}, free {', '.join(free)}; sensor: "
           f"{sensor.describe()}", flush=True)
-    if args.no_progress:  # with the bar, fit() says it is compiling and that it resumed
-        print("compiling the forward-mode model (about 20 to 40 s), then fitting...", flush=True)
-    with warnings.catch_warnings():  # the fit's warnings are printed below, once
+    told = []
+
+    def compiling(name: str):  # with the bar, fit() itself says so
+        if args.no_progress and not told:
+            told.append(name)
+            print(f"{COMPILING}...", flush=True)
+
+    with warnings.catch_warnings(), on_trace(compiling):  # the fit's warnings are printed below, once
         warnings.simplefilter("ignore", UserWarning)
         res = fit(args.data, mech, free, dict(args.start), channels=channels, sensor=sensor, window=args.window, windows=args.windows,
                   starts=args.starts, optimizer=args.optimizer, max_iter=args.max_iter, rtol=args.rtol,
@@ -146,6 +157,8 @@ def _print_result(res, files: list[str]):
         print(f"  {name:<{width}}  {res.start[name]:>12.6g}  {value:>12.6g}  {res.std[name]:>10.3g}")
     for note in res.settings.get("skipped_stages", []):
         print(f"note: stage {note}")
+    if res.settings.get("auto_starts"):
+        print(f"note: fitted from {res.settings['auto_starts']}")
     for w in res.warnings:
         print(f"warning: {w}")
     print("wrote " + ", ".join(files))

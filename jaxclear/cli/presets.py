@@ -4,19 +4,20 @@ from __future__ import annotations
 
 import argparse
 import inspect
+import textwrap
 
 from ..presets import PRESETS
+from .common import plain_text
 
 HELP = "list the preset mechanisms"
 DESCRIPTION = "List the preset mechanisms that --preset accepts."
 
 
-def _first_line(doc: str | None, width: int = 100) -> str:
-    """The docstring's first paragraph on one line, shortened to ``width`` characters."""
-    paragraph = " ".join((doc or "").strip().split("\n\n")[0].split())
-    if len(paragraph) <= width:
-        return paragraph
-    return paragraph[: width - 3].rsplit(" ", 1)[0] + "..."
+def _summary(doc: str | None) -> str:
+    """The docstring's first paragraph as plain text (:func:`~jaxclear.cli.common.plain_text`;
+    a preset function it names is called by its preset name)."""
+    names = {fn.__name__: f"'{name}'" for name, fn in PRESETS.items()}
+    return plain_text((doc or "").strip().split("\n\n")[0], names)
 
 
 def _preset_defaults(fn) -> str:
@@ -41,11 +42,13 @@ def configure(p: argparse.ArgumentParser):
 
 
 def run(args) -> int:
-    """Print every preset's name, docstring summary and default parameters."""
+    """Print every preset's name, docstring summary (wrapped to 100 columns) and default parameters."""
     width = max(len(n) for n in PRESETS)
+    indent = " " * (width + 2)
     for name in sorted(PRESETS):
-        print(f"{name:<{width}}  {_first_line(PRESETS[name].__doc__)}")
+        print(textwrap.fill(_summary(PRESETS[name].__doc__), 100, initial_indent=f"{name:<{width}}  ",
+                            subsequent_indent=indent, break_on_hyphens=False))
         defaults = _preset_defaults(PRESETS[name])
         if defaults:
-            print(f"{'':<{width}}  defaults: {defaults}")
+            print(f"{indent}defaults: {defaults}")
     return 0

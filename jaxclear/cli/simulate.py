@@ -11,6 +11,7 @@ from .. import io, plot
 from ..analysis import channels, metrics
 from ..integrate import runs
 from .._errors import ParameterError, check_range
+from .._numbers import as_typed
 from ..model import crank_driver
 from ..integrate import SOLVERS
 from ..integrate.settings import MAX_OUT_SAMPLES
@@ -124,11 +125,7 @@ def run(args) -> int:
     r = r._replace(sol=jax.device_get(r.sol), ideal_sol=jax.device_get(r.ideal_sol))
 
     summary = metrics.summary(mech, r.sol, wall_time_s=r.wall_time_s)
-    summary["inputs"] = {
-        "preset": args.preset if path is None else None, "ideal": bool(args.ideal), **overrides, "t_end_s": t_end,
-        "revolutions": revolutions, "n_out": n_out, "solver": args.solver, "rtol": args.rtol,
-        "atol": args.atol, "max_steps": args.max_steps,
-    }
+    summary["inputs"] = inputs(args, path, overrides, t_end, revolutions, n_out)
     if r.ideal_sol is not None:
         summary["ideal_wall_time_s"] = r.ideal_wall_time_s
         summary["ideal_peak_slider_acc_m_s2"] = metrics.peak_slider_acceleration(r.ideal_mech, r.ideal_sol)
@@ -154,6 +151,15 @@ def netcdf_attributes(mech, summary: dict) -> dict:
     return {"title": f"jaxclear simulate: {mech.name}", "source": f"jaxclear {__version__}",
             "mechanism": mech.name, **summary["inputs"], "status": summary["status"],
             "status_message": summary["status_message"]}
+
+
+def inputs(args, path, overrides: dict, t_end: float, revolutions: float | None, n_out: int) -> dict:
+    """``summary.json``'s ``inputs``: what the user gave, and what follows from it (``t_end_s``
+    from the revolutions, the revolutions from ``--t-end``) without the noise of the arithmetic
+    between (:func:`~jaxclear._numbers.as_typed`: 3, not 3.0000000000000004)."""
+    return {"preset": args.preset if path is None else None, "ideal": bool(args.ideal), **overrides,
+            "t_end_s": as_typed(t_end), "revolutions": as_typed(revolutions), "n_out": n_out, "solver": args.solver,
+            "rtol": args.rtol, "atol": args.atol, "max_steps": args.max_steps}
 
 
 def _plot_channels(folder: str, mech, r, names: list[str]) -> list[str]:

@@ -96,7 +96,12 @@ one evaluation of the model and its Jacobian, accepted or rejected.
 
 Several starts: ``starts=N`` fits the first (shortest) horizon of window 0 from ``N`` starts
 (the given one and ``N - 1`` others spread deterministically by +-log 3 in the log
-parameters and +-1 in logit restitution around it) and continues from the best.
+parameters and +-1 in logit restitution around it) and continues from the best. By default
+(``starts=None``) a fit starts once and, where that start stops on ``max_iter`` or leaves a
+residual that is not white (lag-1 autocorrelation above 0.3), fits again from
+:data:`~jaxclear.fitting.driver.AUTO_STARTS` starts (4), whose result it returns
+(``FitResult.settings["auto_starts"]`` says why); a fit that still ends so warns and names
+``starts`` and ``start``. A fit interrupted during the refit resumes the refit.
 
 Uncertainty
 -----------

@@ -4,6 +4,7 @@ window model, the start values and the plan, built once before any compilation."
 from __future__ import annotations
 
 import json
+import dataclasses
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -17,7 +18,7 @@ from ..analysis.channels import unit as named_unit
 from ..analysis.sensor import Accelerometer, record_times, uniform_spacing
 from ..integrate import settings as make_settings
 from .parameters import check_free, fixed_values, start_values, z_vector
-from .plan import Stage, check_plan, plan_stages, spread_starts
+from .plan import check_plan, plan_stages, spread_starts
 from .records import read_record
 from .state import checkpoint_key
 from .targets import DEFAULT_COLUMN, resolve_targets
@@ -63,6 +64,12 @@ class FitProblem:
     @property
     def windows(self) -> int:
         return len(self.win.starts)
+
+    def with_starts(self, starts: int) -> "FitProblem":
+        """This problem fitted from ``starts`` starts: its plan, its start points, its settings."""
+        return dataclasses.replace(self, stages=plan_stages(self.windows, self.horizons, starts, self.settings["coarse"]),
+                                   z_starts=spread_starts(self.z0, self.free, starts),
+                                   settings={**self.settings, "starts": starts})
 
     def window_input(self, k: int, horizon: float, integrate: bool, guesses) -> WindowInput:
         """Window ``k``'s input; its crank starts at ``angle0 + omega t_k`` [rad]."""
@@ -191,8 +198,7 @@ def build_problem(data, mech: Mechanism, free: Sequence[str], start: dict | None
     state0 = state_to_z(np.concatenate([np.concatenate([np.asarray(j.initial_offset), np.asarray(j.initial_velocity)])
                                         for j in mech.clearance_joints]), start_scales, velocity_scale)
     guess0 = tuple(np.asarray(a) for a in mech.guess())
-    stages: list[Stage] = plan_stages(windows, horizons, starts, coarse)
-    settings = dict(settings, starts=starts, coarse=coarse, dt=dt)
+    settings = dict(settings, coarse=coarse, dt=dt)
     return FitProblem(meas, t_rec, y_rec, mech, sensor, targets, free, values0, fixed_values(mech, sensor, free), z0,
-                      spread_starts(z0, free, starts), model, win, stages, horizons, state0, guess0, start_scales,
-                      velocity_scale, angle0, speed, json.loads(json.dumps(settings, default=str)))
+                      [], model, win, [], horizons, state0, guess0, start_scales, velocity_scale, angle0, speed,
+                      json.loads(json.dumps(settings, default=str))).with_starts(starts)

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import io
+from .._numbers import as_typed
 from .._storage import atomic_write_text
 from .._errors import ParameterError
 from ..model import Mechanism
@@ -75,7 +76,7 @@ def synthetic_record(mech: Mechanism, t_end: float, sample_rate_hz: float, senso
     if mech.clearance_joints:
         for name in TRUE_VALUES:
             try:
-                meta[f"true_{name}"] = current_value(mech, Accelerometer(), name)
+                meta[f"true_{name}"] = as_typed(current_value(mech, Accelerometer(), name))  # R_B - R_J: no noise
             except (ParameterError, AttributeError):
                 pass
     meta.update(metadata or {})

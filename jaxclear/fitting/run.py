@@ -147,7 +147,7 @@ def _no_influence(problem: FitProblem, stage: Stage, theta) -> str:
 
 
 def run_stage(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoint,
-              report: Callable[[dict], None]) -> FitState:
+              report: Callable[[dict, FitState], None]) -> FitState:
     """Solve the current stage to its stop reason; returns the state at the next stage.
 
     A fresh least-squares stage whose Jacobian at its start is zero (no unknown influences its
@@ -185,7 +185,7 @@ def run_stage(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoin
             st = st.replace(iteration=st.iteration + 1, total=st.total + 1, history=st.history + (record,))
         ckpt.save(st)
         if rep.counted:
-            report(record)
+            report(record, st)
     return _end_stage(st, stage, loss, reason, ckpt)
 
 
@@ -201,7 +201,7 @@ def _end_stage(st: FitState, stage: Stage, loss: float, reason: str, ckpt: Check
 
 
 def run_plan(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoint,
-             report: Callable[[dict], None]) -> FitState:
+             report: Callable[[dict, FitState], None]) -> FitState:
     """All remaining stages; then, if the last stage is a start (one horizon, one window, no
     coarse stage), the best start is the result."""
     while st.stage < len(problem.stages):

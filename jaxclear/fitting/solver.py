@@ -11,7 +11,7 @@ predicted decrease; a rejection multiplies it by ``nu = 2, 4, 8, ...``), and up 
 :data:`MAX_STEP` (:class:`jaxclear.fitting.lm.ExtendedDampedNewtonDescent`). optimistix's own
 classical trust region leaves ``lambda`` unchanged unless ``rho > 0.99`` (measured on the
 acceptance records before the fit's model ran without exact onsets: 18, 12, 19, 23 iterations
-against Nielsen's 15, 12, 21, 21; README, "Acceptance").
+against Nielsen's 15, 12, 21, 21; benchmarks/README.md, "Fitting: acceptance").
 
 The Jacobian ``J = dr/dx`` is computed in forward mode (``jax.jacfwd``: a handful of columns,
 hundreds of rows) and handed to optimistix materialised: the residual function returns
@@ -57,7 +57,7 @@ from .window import WindowInput, WindowModel, evaluate_window
 
 #: Extension trials after an accepted Gauss-Newton step, and the step cap in the unknowns ``x``
 #: (:func:`jaxclear.fitting.lm.levenberg_marquardt`). On the four acceptance records they take
-#: 15, 11, 19 and 16 iterations against 15, 13, 21 and 19 without (``0``, ``inf``; README,
+#: 15, 11, 19 and 16 iterations against 15, 13, 21 and 19 without (``0``, ``inf``; benchmarks/README.md,
 #: "Acceptance").
 EXTEND = 3
 MAX_STEP = 1.5

@@ -36,11 +36,29 @@ def compiler_options() -> dict:
     return dict(PREFERRED_COMPILER_OPTIONS)
 
 
+#: Called with the function's name whenever a :class:`jit` program is traced at top level (a
+#: cache miss: JAX compiles it, or loads it from the persistent cache, next); see :func:`on_trace`.
+_TRACE_LISTENERS: list = []
+
+
+@contextlib.contextmanager
+def on_trace(listener):
+    """Within the block, ``listener(name)`` is called each time one of jaxclear's compiled
+    programs (:class:`jit`, called on concrete arrays) is traced, i.e. is not in JAX's in-memory
+    cache and is about to be compiled: the moment to say "compiling ...", and only then."""
+    _TRACE_LISTENERS.append(listener)
+    try:
+        yield
+    finally:
+        _TRACE_LISTENERS.remove(listener)
+
+
 class jit:  # noqa: N801 (used like a decorator, as eqx.filter_jit)
     """``eqx.filter_jit`` with :func:`compiler_options` at top level, created on the first call
     (so that importing jaxclear compiles nothing). Inside another transformation (``jax.jit``,
     ``vmap``, ``grad`` of a user's function) JAX accepts compiler options only on the outermost
-    jit, so there it is a plain ``eqx.filter_jit``, inlined like any nested jit."""
+    jit, so there it is a plain ``eqx.filter_jit``, inlined like any nested jit. A trace of the
+    top-level program calls the :func:`on_trace` listeners."""
 
     def __init__(self, fun):
         functools.update_wrapper(self, fun)
@@ -51,7 +69,15 @@ class jit:  # noqa: N801 (used like a decorator, as eqx.filter_jit)
     def _get(self):
         if self._top is None:
             options = compiler_options()
-            self._top = eqx.filter_jit(self._fun, compiler_options=options) if options else self._plain
+            fun, name = self._fun, getattr(self._fun, "__name__", "program")
+
+            @functools.wraps(fun)
+            def traced(*args, **kwargs):  # runs only while JAX traces the top-level program
+                for listener in tuple(_TRACE_LISTENERS):
+                    listener(name)
+                return fun(*args, **kwargs)
+
+            self._top = eqx.filter_jit(traced, compiler_options=options)
         return self._top
 
     def __call__(self, *args, **kwargs):

@@ -64,7 +64,7 @@ LAPACK calls, so the deadlock cannot come back unnoticed.
 Several hosts: call ``jax.distributed.initialize()`` in every process before
 :func:`run_sweep`; the mesh then spans every device of every process, each process feeds its
 own shards (``jax.make_array_from_callback``), the metrics are gathered
-(``multihost_utils.process_allgather``) and process 0 alone writes the files (see README).
+(``multihost_utils.process_allgather``) and process 0 alone writes the files (see docs/theory/sweep.md).
 """
 
 from __future__ import annotations

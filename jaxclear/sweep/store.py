@@ -19,6 +19,7 @@ import warnings
 
 import numpy as np
 
+from .._numbers import as_typed
 from .._storage import atomic_write_json, atomic_write_npz, fsync_append
 from .._errors import ParameterError
 from ..analysis.metrics import RUN_METRIC_KEYS
@@ -71,6 +72,8 @@ def _fmt(col: str, value) -> str:
     v = float(value)
     if col in _INT_COLUMNS and math.isfinite(v):
         return str(int(round(v)))
+    if col == "t_end_s":  # the revolutions and the speed the user gave, without their arithmetic's noise
+        v = as_typed(v)
     return repr(v)
 
 

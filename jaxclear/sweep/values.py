@@ -9,6 +9,7 @@ import numpy as np
 
 from .. import params
 from .._errors import ParameterError
+from .._numbers import as_typed
 
 #: Keys of a range ``{start, stop, num, spacing}``.
 RANGE_KEYS = ("start", "stop", "num", "spacing")
@@ -25,7 +26,9 @@ def _number(where: str, value) -> float:
 
 
 def _range(where: str, spec: dict) -> np.ndarray:
-    """``{start, stop, num, spacing: "linear" | "log"}`` -> (num,) values (both ends included)."""
+    """``{start, stop, num, spacing: "linear" | "log"}`` -> (num,) values (both ends included),
+    without the rounding noise of the spacing (:func:`~jaxclear._numbers.as_typed`: 0.7, not
+    ``numpy.linspace``'s 0.7000000000000001)."""
     unknown = sorted(set(spec) - set(RANGE_KEYS))
     if unknown:
         raise ParameterError(f"{where}: unknown key(s) {unknown} in a range; allowed: {list(RANGE_KEYS)}")
@@ -38,11 +41,11 @@ def _range(where: str, spec: dict) -> np.ndarray:
         raise ParameterError(f"{where}.num = {num!r}: expected an integer >= 1")
     spacing = spec.get("spacing", "linear")
     if spacing == "linear":
-        return np.linspace(start, stop, int(num))
+        return as_typed(np.linspace(start, stop, int(num)))
     if spacing == "log":
         if start <= 0 or stop <= 0:
             raise ParameterError(f"{where}: a log range needs start, stop > 0 (got {start:g}, {stop:g})")
-        return np.geomspace(start, stop, int(num))
+        return as_typed(np.geomspace(start, stop, int(num)))
     raise ParameterError(f"{where}.spacing = {spacing!r}: expected 'linear' or 'log'")
 
 

@@ -29,6 +29,8 @@ import numpy as np
 from tqdm import tqdm
 
 from .._errors import CheckpointError, ParameterError, check_range
+from .._interrupt import stop_at_safe_points
+from .._numbers import as_typed
 from .._storage import atomic_write_json, atomic_write_text, fingerprint, fsync_append, locked_folder
 from ..integrate.settings import Settings
 from ..integrate.simulate import simulate
@@ -145,7 +147,9 @@ def _write(out: str, key: str, records: list[dict], options: WearOptions, cleara
     u = len(records) - 1
     rec = records[-1]
     angles = node_angles(options.n_nodes)
-    lines = ["angle_rad,depth_m\n"] + [f"{a!r},{d!r}\n" for a, d in zip(angles, rec["depth_m"])]
+    # repr of a Python float: the shortest text that reads back bit for bit (a NumPy 2 scalar's
+    # repr is "np.float64(...)", which a CSV reader takes for text)
+    lines = ["angle_rad,depth_m\n"] + [f"{float(a)!r},{float(d)!r}\n" for a, d in zip(angles, rec["depth_m"])]
     atomic_write_text(os.path.join(out, f"profile_{u:04d}.csv"), "".join(lines))
     updates = os.path.join(out, UPDATES_FILE)
     if u == 0 or not os.path.exists(updates):
@@ -199,7 +203,7 @@ def wear(mech: Mechanism, settings: Settings, options: WearOptions, out: str | N
             depth = depth + step
             cycles = (u + 1) * options.cycles_per_update
             records.append({
-                "service_time_s": cycles * window_time, "cycles": cycles,
+                "service_time_s": as_typed(cycles * window_time), "cycles": cycles,
                 "worn_volume_m3": options.cycles_per_update * float(w.volume), "max_depth_m": float(depth.max()),
                 "mean_depth_m": float(depth.mean()), "peak_force_n": float(peak), "max_penetration_m": float(pen),
                 "depth_m": depth.tolist(),
@@ -215,18 +219,22 @@ def wear(mech: Mechanism, settings: Settings, options: WearOptions, out: str | N
                 raise ParameterError(
                     f"after update {u} the wear depth {depth.max():.3g} m exceeds the clearance {clearance:.3g} m: "
                     "the extrapolation factor (cycles_per_update) is too large for a profile update this coarse")
+            if interrupt.requested:  # a Ctrl-C stops here, the update written
+                bar.close()
+                interrupt.check()
         if bar is not None:
             bar.close()
         return records
 
-    if out is None:
-        records = run([])
-        resumed = 0
-    else:
-        with locked_folder(out, "wear output folder"):
-            records = _load_state(out, key, restart)
-            resumed = len(records)
-            records = run(records[: options.updates])
+    with stop_at_safe_points("the current update") as interrupt:
+        if out is None:
+            records = run([])
+            resumed = 0
+        else:
+            with locked_folder(out, "wear output folder"):
+                records = _load_state(out, key, restart)
+                resumed = len(records)
+                records = run(records[: options.updates])
     depth = np.asarray([r["depth_m"] for r in records], float)
     return WearHistory(
         mechanism=worn(base, index, depth[-1]),
