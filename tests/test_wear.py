@@ -100,7 +100,7 @@ def test_worn_profile_changes_the_next_window(tmp_path):
     extrapolation factor, the next run's pin sits lower by the wear depth where it presses the
     worn arc (to 10 %: the profile's 24 Fourier terms smooth the worn arc, and the pin's elastic
     settling differs slightly on the curved worn arc). Then the run resumes for a second update,
-    and a corrupt state is a named error."""
+    and a corrupt or damaged state is a named error."""
     mech = rig(OMEGA / 2)
     options = jc.WearOptions(coefficient=KW, updates=1, cycles_per_update=2e4, settle=SETTLE, n_nodes=180,
                              harmonics=24)
@@ -126,13 +126,27 @@ def test_worn_profile_changes_the_next_window(tmp_path):
     # files written as it goes
     assert [p.name for p in out.glob("profile_*.csv")] == ["profile_0000.csv"]
     assert (out / "profile.png").stat().st_size > 10_000
+    two = jc.WearOptions(**{**options.__dict__, "updates": 2})
     # resume: asking for 2 updates runs only the second
-    h2 = jc.wear(mech, SETTINGS, jc.WearOptions(**{**options.__dict__, "updates": 2}), out, progress=False)
+    h2 = jc.wear(mech, SETTINGS, two, out, progress=False)
     assert h2.resumed_from == 1 and h2.depth.shape == (2, 180) and h2.volume[1] > 0
     np.testing.assert_array_equal(h2.depth[:1], h.depth)
     assert np.all(h2.depth[1] >= h2.depth[0]) and np.all(np.diff(h2.service_time) > 0)
-    assert len(json.loads((out / "wear.json").read_text())["updates"]) == 2
-    assert len((out / "updates.csv").read_text().splitlines()) == 3
+    state = json.loads((out / "wear.json").read_text())
+    assert len(state["updates"]) == 2
+    assert [r.split(",")[0] for r in (out / "updates.csv").read_text().splitlines()[1:]] == ["0", "1"]
+    # a damaged state (a record without a key, a NaN depth, no 'updates') is an error naming the
+    # file, the record and the way out, before anything is computed
+    for damage, words in (
+        (lambda st: st["updates"][1].pop("peak_force_n"), r"update 1 misses the key\(s\) \['peak_force_n'\]"),
+        (lambda st: st["updates"][1]["depth_m"].__setitem__(3, float("nan")), r"update 1: depth_m holds a value"),
+        (lambda st: st.pop("updates"), r"unreadable \(key 'updates' missing\)"),
+    ):
+        broken = json.loads(json.dumps(state))
+        damage(broken)
+        (out / "wear.json").write_text(json.dumps(broken))
+        with pytest.raises(jc.CheckpointError, match=r"wear\.json.*" + words + r".*--restart"):
+            jc.wear(mech, SETTINGS, two, out, progress=False)
     # a corrupt state is an error naming the file and the way out
     (out / "wear.json").write_text("{not json")
     with pytest.raises(jc.CheckpointError, match=r"wear\.json.*restart"):

@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 import math
 
+from ..contact.hybrid import MAX_GAUSS_PER_ELEMENT, MAX_GAUSS_POINTS
 from ..contact.registry import law_names
 from .._errors import ParameterError
 from .. import params
@@ -115,10 +116,11 @@ def _add_hybrid_options(p: argparse.ArgumentParser):
                    help="where the Gauss points sit: 'arc' (on the current contact arc, exact with few "
                    "points) or 'fixed' (body-fixed over the whole pin circumference, the model's original "
                    "formulation) (default: arc)")
-    h.add_argument("--elements", type=number_in(int, 1), metavar="N_E",
-                   help="number of elements N_e [-], >= 1 (default: 2 for arc, 180 for fixed)")
-    h.add_argument("--gauss-points", type=number_in(int, 1), metavar="N_G",
-                   help="Gauss-Legendre points per element N_g [-], >= 1 (default: 4)")
+    h.add_argument("--elements", type=number_in(int, 1, MAX_GAUSS_POINTS), metavar="N_E",
+                   help=f"number of elements N_e [-], in [1, {MAX_GAUSS_POINTS}] and N_e x N_g <= {MAX_GAUSS_POINTS} "
+                   "(default: 2 for arc, 180 for fixed)")
+    h.add_argument("--gauss-points", type=number_in(int, 1, MAX_GAUSS_PER_ELEMENT), metavar="N_G",
+                   help=f"Gauss-Legendre points per element N_g [-], in [1, {MAX_GAUSS_PER_ELEMENT}] (default: 4)")
     h.add_argument("--layer-thickness", type=number_in(float, 0.0, low_open=True), metavar="H",
                    help="compliant layer thickness h [m], > 0 (default: the clearance c)")
     h.add_argument("--damping", choices=("joint", "point"), default=None,
