@@ -95,12 +95,13 @@ def test_archard_volume_and_uniform_wear_of_a_turning_bearing(turning):
     assert abs(depth.mean() * 2 * math.pi * RB * L / float(w.volume) - 1) < 1e-12  # the depth holds the volume
 
 
-def test_worn_profile_changes_the_next_window(tmp_path):
+def test_worn_profile_changes_the_next_window(tmp_path, monkeypatch):
     """Half speed: one window wears half the circumference. After one update with an
     extrapolation factor, the next run's pin sits lower by the wear depth where it presses the
     worn arc (to 10 %: the profile's 24 Fourier terms smooth the worn arc, and the pin's elastic
     settling differs slightly on the curved worn arc). Then the run resumes for a second update,
-    and a corrupt or damaged state is a named error."""
+    killed once between appending its row and replacing the state (the update is listed once
+    after the resume), and a corrupt or damaged state is a named error."""
     mech = rig(OMEGA / 2)
     options = jc.WearOptions(coefficient=KW, updates=1, cycles_per_update=2e4, settle=SETTLE, n_nodes=180,
                              harmonics=24)
@@ -126,8 +127,20 @@ def test_worn_profile_changes_the_next_window(tmp_path):
     # files written as it goes
     assert [p.name for p in out.glob("profile_*.csv")] == ["profile_0000.csv"]
     assert (out / "profile.png").stat().st_size > 10_000
+    # resume for 2 updates, killed after the second's row reached updates.csv but before wear.json
     two = jc.WearOptions(**{**options.__dict__, "updates": 2})
-    # resume: asking for 2 updates runs only the second
+    replace_state = wearing.service.atomic_write_json
+
+    def killed(path, *args, **kwargs):
+        raise KeyboardInterrupt  # where a SIGKILL between the two writes stops the run
+
+    monkeypatch.setattr(wearing.service, "atomic_write_json", killed)
+    with pytest.raises(KeyboardInterrupt):
+        jc.wear(mech, SETTINGS, two, out, progress=False)
+    assert [r.split(",")[0] for r in (out / "updates.csv").read_text().splitlines()[1:]] == ["0", "1"]
+    assert len(json.loads((out / "wear.json").read_text())["updates"]) == 1
+    monkeypatch.setattr(wearing.service, "atomic_write_json", replace_state)
+    # the same command again runs only the second update, and lists it once
     h2 = jc.wear(mech, SETTINGS, two, out, progress=False)
     assert h2.resumed_from == 1 and h2.depth.shape == (2, 180) and h2.volume[1] > 0
     np.testing.assert_array_equal(h2.depth[:1], h.depth)

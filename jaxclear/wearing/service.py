@@ -13,7 +13,9 @@ cycle) and updates the bearing (:func:`~jaxclear.wear.profile.worn`).
 With an output folder the work is written as it goes and resumes after a kill: after every
 update ``profile_NNNN.csv`` (node angle, cumulative depth), a row of ``updates.csv``, the
 state ``wear.json`` (atomically) and the polar figure ``profile.png``; the folder is locked
-while it runs.
+while it runs. ``wear.json`` is what a resume trusts: it rewrites ``updates.csv`` from the
+state's records, so a row appended by a run killed before it replaced the state is never
+listed twice.
 """
 
 from __future__ import annotations
@@ -265,6 +267,9 @@ def wear(mech: Mechanism, settings: Settings, options: WearOptions, out: str | N
         with locked_folder(out, "wear output folder"):
             records = _load_state(out, key, restart, options.n_nodes)
             resumed = len(records)
+            if records:  # the rows of exactly the updates in the state: a row appended by a run killed
+                # before it replaced the state is dropped (that update is computed again)
+                atomic_write_text(os.path.join(out, UPDATES_FILE), _updates_text(records[: options.updates]))
             records = run(records[: options.updates])
     depth = np.asarray([r["depth_m"] for r in records], float)
     return WearHistory(
