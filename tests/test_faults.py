@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import time
 from pathlib import Path
 
@@ -261,3 +262,131 @@ def test_cache_folder_that_cannot_hold_programs_is_left_off(tmp_path, capsys):
     assert "running without the compilation cache" in err and len(err.strip().splitlines()) == 1
     assert programs.folder() is None
     assert main(["--cache-dir", str(tmp_path / "c"), "presets"]) == 0  # the command runs on
+
+
+# ---- wrong answers about a mechanism's structure --------------------------------------------
+
+
+def _four_bar_text(drop_joint_b: bool = False) -> str:
+    text = FOUR_BAR.read_text()
+    if drop_joint_b:  # the coupler-rocker pin removed: the rocker hangs on its clearance pivot alone
+        line = '    { type = "revolute", body_i = "coupler", point_i = "B", body_j = "rocker", point_j = "B" },\n'
+        assert line in text
+        text = text.replace(line, "")
+    return text
+
+
+def test_clearance_joint_names_are_unique(tmp_path, capsys):
+    """Two clearance joints of one name: refused where the mechanism is built (outputs and
+    parameters address a joint by name; before, an output request failed with a list of twins)."""
+    text = _four_bar_text(drop_joint_b=True)
+    block = text[text.index("[[clearance_joints]]"):]
+    second = (block.replace('bearing_body = "ground"', 'bearing_body = "rocker"')
+              .replace('bearing_point = "O4"', 'bearing_point = "B"').replace('journal_body = "rocker"', 'journal_body = "coupler"')
+              .replace('journal_point = "O"', 'journal_point = "B"'))
+    path = tmp_path / "twins.toml"
+    path.write_text(text + "\n" + second)
+    with pytest.raises(jc.MechanismError, match=r"clearance joint names must be unique .* got 'rocker-pivot' twice"):
+        jc.load_mechanism(path)
+    assert main(["check", str(path), "--out", str(tmp_path)]) == 2
+    _one_line_error(capsys, "twins.toml", "'rocker-pivot' twice")
+    path.write_text(text + "\n" + second.replace('name = "rocker-pivot"', 'name = "coupler-rocker"'))
+    mech = jc.load_mechanism(path)
+    assert [c.name for c in mech.clearance_joints] == ["rocker-pivot", "coupler-rocker"]
+
+
+def test_second_driver_on_a_one_dof_four_bar_is_named_redundant(tmp_path, capsys):
+    """A driver on the rocker of the crank-driven four-bar: 8 equations of joints and drivers and
+    2 of the clearance joint held centred for 9 coordinates. Before, the count left out the
+    clearance joint's 2 and the run reported a Newton failure (improve the position guesses)."""
+    path = tmp_path / "two-drivers.toml"
+    path.write_text(_four_bar_text() + '\n[[drivers]]\ntype = "angle"\nbody = "rocker"\nspeed = 10.0\n'
+                    "angle0 = 1.312988228135458\n")
+    assert main(["check", str(path), "--out", str(tmp_path)]) == 2
+    line = _one_line_error(capsys, "redundant or conflicting constraints: 10 equations for 9 coordinates",
+                           "2 of the clearance joints ['rocker-pivot']", "AngleDriver(rocker-ground)")
+    assert "Newton" not in line
+
+
+def test_under_driven_mechanism_names_the_command_line_option_and_check_agrees(tmp_path, capsys):
+    """The same file fails in check as it would in simulate (one function, check_assembly),
+    and the remedy names the option a command-line user can give."""
+    path = tmp_path / "under.toml"
+    path.write_text(_four_bar_text(drop_joint_b=True))
+    mech = jc.load_mechanism(path)
+    with pytest.raises(jc.MechanismError, match=r"too few constraints .* --allow-free-dof on the command line"):
+        jc.check_mechanism(mech)
+    assert main(["check", str(path), "--out", str(tmp_path)]) == 2
+    _one_line_error(capsys, "too few constraints for the drivers: 9 coordinates but only 7",
+                    "Settings(allow_free_dof=True)", "--allow-free-dof")
+    assert main(["check", str(path), "--allow-free-dof", "--out", str(tmp_path)]) == 0
+    assert "degrees of freedom         4" in capsys.readouterr().out
+    for command in ("simulate", "animate", "wear"):
+        args = jc.cli.build_parser().parse_args([command, str(path), "--allow-free-dof"])
+        assert args.allow_free_dof is True
+
+
+def test_lugre_bristle_stiffness_gets_its_own_status_message():
+    """A NaN bristle stiffness (a traced value: no eager check) gets a status whose message
+    names it, not the friction coefficient's alone."""
+    import equinox as eqx
+    import jax.numpy as jnp
+
+    from jaxclear._errors import STATUS
+
+    mech = jc.preset("flores-slider-crank")
+    mech = eqx.tree_at(lambda m: m.clearance_joints[0].friction, mech, jc.Friction(0.1, model="lugre"))
+    bad = eqx.tree_at(lambda m: m.clearance_joints[0].friction.bristle_stiffness, mech, jnp.asarray(np.nan))
+    message = STATUS[int(bad.check()._value)]
+    assert "bristle_stiffness sigma_0 > 0" in message and "coefficient" in message
+    with pytest.raises(jc.ParameterError, match="bristle_stiffness"):
+        jc.Friction(0.1, model="lugre", bristle_stiffness=np.nan)
+
+
+def _record(path, rate_hz: float, span_s: float):
+    t = np.arange(int(round(span_s * rate_hz)) + 1) / rate_hz
+    path.write_text("time_s,slider_acc_m_s2\n" + "".join(f"{a!r},{1.0 + math.sin(2e3 * a)!r}\n" for a in t.tolist()))
+    return path
+
+
+def _problem(path, window, windows=1):
+    from jaxclear.fitting.problem import build_problem
+
+    settings = dict(max_iter=3, ftol=1e-8, xtol=1e-8, rtol=1e-6, atol=1e-9, max_steps=1000, align="time",
+                    time_offset=0.0, optimizer="lm")
+    return build_problem(str(path), jc.preset("flores-slider-crank"), ["stiffness"], None, None, window, windows,
+                         (1.0,), None, 1, settings)
+
+
+def test_fit_window_against_short_records(tmp_path, capsys):
+    """A 13-sample record (2 kHz over 6 ms) is long enough for a 1 ms window, which holds 3
+    samples: the error says so (before: 'record shorter than the fit windows'). A record shorter
+    than the default window (a quarter revolution, 3 ms at 5000 rpm) gets a window that fits it."""
+    short = _record(tmp_path / "13.csv", 2000.0, 0.006)
+    with pytest.raises(jc.ParameterError) as err:
+        _problem(short, 0.001)
+    assert "a window of 0.001 s holds 3 sample(s) of the record (one every 0.0005 s); at least 4" in str(err.value)
+    assert "shorter than" not in str(err.value)
+    assert main(["fit", str(short), "--window", "0.001", "--no-progress", "--no-plots",
+                 "--out", str(tmp_path / "fit")]) == 2
+    assert "holds 3 sample(s)" in capsys.readouterr().err
+    assert _problem(short, None).win.length == pytest.approx(0.003, rel=1e-9)  # the default fits
+    brief = _record(tmp_path / "2ms.csv", 20000.0, 0.002)  # shorter than the default window
+    assert _problem(brief, None).win.length == pytest.approx(0.002, rel=1e-9)
+    two = _problem(brief, None, windows=2).win
+    assert two.length == pytest.approx(0.001, rel=1e-9) and two.starts[1] == pytest.approx(0.001, rel=1e-9)
+    with pytest.raises(jc.ParameterError, match=r"record shorter than the fit windows"):
+        _problem(brief, 0.003)  # a window given is not shortened
+    with pytest.raises(jc.ParameterError, match=r"3 samples over 0.001 s .* holding 3 sample\(s\) each; at least 4"):
+        _problem(_record(tmp_path / "tiny.csv", 2000.0, 0.001), None)
+
+
+def test_wear_reads_a_hybrid_file_without_its_own_defaults_as_options(tmp_path, capsys):
+    """jaxclear wear sets --model hybrid --placement fixed as its defaults; a mechanism file's
+    law is its own, and those defaults are not options the user gave."""
+    path = tmp_path / "hybrid.toml"
+    jc.save_mechanism(jc.preset("flores-slider-crank", law="hybrid", law_options={"placement": "fixed"}), path)
+    assert main(["wear", str(path), "--settle", "10", "--out", str(tmp_path / "w")]) == 2
+    _one_line_error(capsys, "--settle = 10 s is outside the allowed range")  # the file was read
+    assert main(["wear", str(path), "--placement", "arc", "--out", str(tmp_path / "w")]) == 2
+    _one_line_error(capsys, "--placement applies to presets only", "set in the file")

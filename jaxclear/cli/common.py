@@ -198,15 +198,26 @@ def mechanism_file(args) -> str | None:
     return given[0] if given else None
 
 
+def preset_options_given(args) -> list[str]:
+    """The preset-only options (``--model``, the hybrid options) the user gave, as flags: those
+    whose value differs from the command's default (``lankarani-nikravesh`` and none, unless the
+    command names others in ``args.mechanism_defaults``, as ``jaxclear wear`` does)."""
+    defaults = {"model": "lankarani-nikravesh", **getattr(args, "mechanism_defaults", {})}
+    return ["--" + attr.replace("_", "-") for attr in ("model", *HYBRID_OPTIONS)
+            if hasattr(args, attr) and getattr(args, attr) != defaults.get(attr)]
+
+
 def load_mechanism_file(args, path: str, ideal: bool = False) -> Mechanism:
     """A mechanism file with the physical options given on the command line applied to every
     clearance joint (``--clearance``, ``--restitution``, ``--friction``, ``--stiffness``) and to
     the crank (``--speed-rpm``); ``ideal``: its ideal-joint counterpart. The contact law is the
     file's (``--model`` and the hybrid options are for presets)."""
     mech = load_mechanism(path)
-    if getattr(args, "model", "lankarani-nikravesh") != "lankarani-nikravesh" or _hybrid_options(args):
-        raise ParameterError(f"--model and the hybrid options apply to presets; the contact law of {path!r} is set "
-                             "in the file ([clearance_joints.law] name = ...)")
+    given = preset_options_given(args)
+    if given:
+        raise ParameterError(f"{', '.join(given)} {'applies' if len(given) == 1 else 'apply'} to presets only (like "
+                             f"--model and every hybrid option); the contact law of {path!r} is set in the file "
+                             "([clearance_joints.law] name = ...)")
     values = {}
     for attr, name in FILE_OVERRIDES.items():
         if getattr(args, attr, None) is not None:

@@ -31,7 +31,9 @@ def configure(p: argparse.ArgumentParser):
     """Add the options of ``jaxclear wear``; returns its ``run(args) -> exit code``."""
     add_mechanism_file_option(p)
     add_mechanism_options(p, ideal=False)
-    p.set_defaults(model="hybrid", placement="fixed", ideal=False)
+    # the command's own defaults, which a mechanism file (whose law is its own) must not read as given options
+    defaults = {"model": "hybrid", "placement": "fixed"}
+    p.set_defaults(**defaults, ideal=False, mechanism_defaults=defaults)
     add_integration_options(p)
     w = p.add_argument_group("wear")
     w.add_argument("--wear-coefficient", type=number_in(float, 0.0, low_open=True), default=1e-15, metavar="K_W",

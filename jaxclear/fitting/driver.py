@@ -71,7 +71,8 @@ def fit(
             (``SLIDER``: the ``slider`` role) through ``sensor``.
         sensor: the sensor model of every channel without one of its own (default: no filter,
             gain 1, bias 0, oversample 4; the oversampling is common to all channels).
-        window: window length [s] (default a quarter crank revolution, at most the record).
+        window: window length [s], holding at least 4 samples (default a quarter crank revolution,
+            shortened to the record's span over ``windows`` when the record is shorter).
         windows: number of back-to-back windows; windows after the first have the journal
             state at their start as extra unknowns.
         horizons: fractions of the window fitted in turn (continuation), ending at 1.

@@ -12,6 +12,7 @@ differentiated, vmapped or swept.
 
 from __future__ import annotations
 
+from collections import Counter
 from typing import Sequence
 
 import equinox as eqx
@@ -140,6 +141,11 @@ class Mechanism(eqx.Module):
             raise MechanismError(f"body names must be unique, got {list(names)}")
         if not names:
             raise MechanismError("a mechanism needs at least one body")
+        elements = [c.name for c in self.clearance_joints]
+        twice = sorted(n for n, k in Counter(elements).items() if k > 1)
+        if twice:
+            raise MechanismError(f"clearance joint names must be unique (outputs and parameters address a joint by "
+                                 f"its name), got {twice[0]!r} twice in {elements}")
         for item in (*self.joints, *self.drivers, *self.clearance_joints, *self.loads):
             bodies = item.bodies()
             for b in bodies:
