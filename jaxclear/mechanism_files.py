@@ -34,6 +34,7 @@ from .contact.friction import FRICTION_MODELS, friction_name
 from .contact.registry import LAWS, law_names
 from .elements import FILMS, IDEALS, ClearanceJoint, LubricatedJoint, PinSlotJoint, TranslationalClearanceJoint
 from .model import AngleDriver, Body, Fixed, Mechanism, PointForce, Revolute, Torque, Translational
+from .model.mechanism import check_sizes
 
 FORMAT_VERSION = 1
 
@@ -427,6 +428,10 @@ def mechanism_from_dict(doc: dict, source: str = "<mechanism>") -> Mechanism:
     r.keys("(top level)", doc, TOP_KEYS, ("bodies",))
     if doc.get("format", FORMAT_VERSION) != FORMAT_VERSION:
         r.fail("format", f"unsupported format {doc['format']!r}; this version reads format {FORMAT_VERSION}")
+    # sizes first: nothing of a size beyond the bounds is built
+    check_sizes({key.replace("_", " "): len(doc[key]) for key in ("bodies", "joints", "drivers", "clearance_joints",
+                                                                "loads") if isinstance(doc.get(key), list)},
+                where=f"{source}: ")
     bodies = [_body(r, f"bodies[{i}]", row) for i, row in enumerate(r.array("bodies", doc["bodies"]))]
     joints = [r.build(f"joints[{i}]", *r.typed(f"joints[{i}]", row, JOINT_TYPES))
               for i, row in enumerate(r.array("joints", doc.get("joints", [])))]
