@@ -138,8 +138,8 @@ def locked_folder(folder, what: str = "output folder"):
     except filelock.Timeout:
         try:
             with open(owner, encoding="utf-8") as f:
-                holder = f.read().strip() or "unknown"
-        except OSError:
+                holder = f.read(200).strip() or "unknown"
+        except (OSError, ValueError):  # unreadable, or not text
             holder = "unknown"
         raise OutputLockedError(
             f"the {what} {folder!r} is in use by another process ({holder}); wait for it to finish, "

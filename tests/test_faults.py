@@ -14,6 +14,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import re
 import time
 from pathlib import Path
 
@@ -437,3 +438,33 @@ def test_too_large_mechanisms_are_named(chain_parts, tmp_path, capsys):
     assert main(["check", str(path), "--out", str(tmp_path)]) == 2  # before any body is built
     assert time.perf_counter() - start < 5.0
     _one_line_error(capsys, "chain.toml: bodies: 1001 items, outside the allowed range [0, 1000]", "MAX_BODIES")
+
+
+def test_damaged_fit_checkpoint_is_named(tmp_path):
+    """A checkpoint whose key matches but whose numbers are damaged (NaN, another shape, a
+    negative counter) is named before the fit continues from it, as the wear state is."""
+    from jaxclear.fitting.driver import _check_resumed
+    from jaxclear.fitting.run import fresh_state
+
+    problem = _problem(_record(tmp_path / "r.csv", 20000.0, 0.004), None)
+    good = fresh_state(problem)
+    _check_resumed(problem, good, "ck.json")
+    theta = list(good.theta)
+    for change, words in ((dict(theta=[math.nan] * len(theta)), "theta holds a value that is not finite"),
+                          (dict(theta=theta + [1.0]), "theta has shape (2,), this fit's is (1,)"),
+                          (dict(states=[[0.0]]), "states has shape"),
+                          (dict(iteration=-1), "iteration = -1 is not an integer >= 0"),
+                          (dict(stage=99), "stage = 99 is beyond"),
+                          (dict(x=("a",)), "x is not an array of numbers")):
+        with pytest.raises(jc.CheckpointError, match=r"fit checkpoint 'ck\.json' is damaged \(" + re.escape(words)):
+            _check_resumed(problem, good.replace(**change), "ck.json")
+
+
+def test_lock_owner_file_that_is_not_text(tmp_path):
+    from jaxclear._storage import LOCK_NAME, locked_folder
+
+    with locked_folder(tmp_path):
+        (tmp_path / (LOCK_NAME + ".owner")).write_bytes(BINARY)
+        with pytest.raises(jc.OutputLockedError, match=r"in use by another process \(unknown\)"):
+            with locked_folder(tmp_path):
+                pass

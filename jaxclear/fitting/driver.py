@@ -13,6 +13,7 @@ import numpy as np
 import optax
 from tqdm.auto import tqdm
 
+from .._errors import CheckpointError
 from .._storage import locked_folder
 from ..model import Mechanism
 from ..analysis.sensor import Accelerometer
@@ -116,6 +117,8 @@ def _fit_locked(problem: FitProblem, opt, out, resume: bool, progress: bool, cal
     ckpt = Checkpoint(out, problem.checkpoint_key(), problem.checkpoint_config(),
                       clock=lambda: wall_before + time.perf_counter() - t_wall)
     saved = ckpt.load() if resume else None
+    if saved is not None:
+        _check_resumed(problem, saved, ckpt.path)
     if saved is not None and progress:
         tqdm.write(f"jaxclear fit: resuming from {ckpt.path} after {saved.total} iteration(s)")
     st = saved if saved is not None else fresh_state(problem)
@@ -143,6 +146,38 @@ def _fit_locked(problem: FitProblem, opt, out, resume: bool, progress: bool, cal
             bar.refresh()
             bar.close()
     return _result(problem, st, wall_before + time.perf_counter() - t_wall, saved is not None)
+
+
+def _check_resumed(problem: FitProblem, st: FitState, path: str) -> None:
+    """A :class:`~jaxclear.CheckpointError` naming the checkpoint and the field when a state read
+    back is not one this fit can continue from: counters that are not integers >= 0, a stage
+    beyond the plan, or parameters, window states, guesses or unknowns of another shape or not
+    finite (a damaged file: its key matched)."""
+
+    def damaged(detail: str):
+        raise CheckpointError(f"the fit checkpoint {path!r} is damaged ({detail}); delete it, or start over with "
+                              "--restart (API: resume=False)")
+
+    for name in ("stage", "iteration", "total", "evaluations"):
+        v = getattr(st, name)
+        if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+            damaged(f"{name} = {v!r} is not an integer >= 0")
+    if st.stage > len(problem.stages):
+        damaged(f"stage = {st.stage} is beyond this fit's {len(problem.stages)} stages")
+    fresh = fresh_state(problem)
+    for name in ("theta", "states", "guesses", "x"):
+        value = getattr(st, name)
+        if value is None and name == "x":
+            continue
+        try:
+            got = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            damaged(f"{name} is not an array of numbers")
+        want = np.asarray(getattr(fresh, name), dtype=float).shape if name != "x" else (got.size,)
+        if got.shape != want:
+            damaged(f"{name} has shape {got.shape}, this fit's is {want}")
+        if not np.all(np.isfinite(got)):
+            damaged(f"{name} holds a value that is not finite")
 
 
 def _progress_bar(problem: FitProblem, done: int):
