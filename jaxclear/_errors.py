@@ -66,7 +66,10 @@ class RESULTS(eqx.Enumeration):
         "(clearance c = R_B - R_J in (0, R_B)); a slider block must fit its guide (slider_length, "
         "slider_height > 0, slider_height < guide_width)"
     )
-    invalid_friction = "invalid parameter: friction coefficient must be finite and >= 0"
+    invalid_friction = (
+        "invalid parameter: a friction law's number outside its range (coefficient mu_k >= 0, static mu_s >= "
+        "mu_k, viscous >= 0, bristle_stiffness sigma_0 > 0, bristle_damping sigma_1 >= 0, all finite)"
+    )
     invalid_mass = "invalid parameter: every body's mass and inertia must be finite and > 0"
     invalid_parameter = (
         "invalid parameter: another law or element number outside its range (exponent > 0, "

@@ -1,5 +1,6 @@
 """Crash-safe files and content fingerprints: the one place for atomic writes, fsync-ed
-appends and hashing.
+appends, hashing, and reading the text files a user gives (:func:`read_text`: a binary or
+oversized file is a named error, not a decoding traceback).
 
 Long work (sweeps, fits, wear) writes as it goes and resumes after a kill: a file is either
 its old content or its new content, never a mix (write to a temporary file beside it, fsync,
@@ -18,7 +19,37 @@ import time
 import filelock
 import numpy as np
 
-from ._errors import OutputLockedError
+from ._errors import OutputLockedError, ParameterError
+
+#: Largest text input read whole [bytes]: mechanism files, sweep configurations, channel files
+#: (a 1000-body mechanism file, the largest :class:`~jaxclear.Mechanism` allowed, is about 250 kB).
+MAX_TEXT_BYTES = 8 * 2**20
+#: Largest measured record read [bytes] (two million samples of a few columns are about 200 MB).
+MAX_RECORD_BYTES = 2**30
+
+
+def read_text(path, what: str, error=ParameterError, max_bytes: int = MAX_TEXT_BYTES,
+              encoding: str = "utf-8") -> str:
+    """The text of the file ``path`` that a user gave as ``what`` (e.g. ``"mechanism file"``).
+
+    Every way it can be unusable is one :class:`~jaxclear.JaxclearError` (class ``error``)
+    naming the file: missing or unreadable, larger than ``max_bytes``, or not text in
+    ``encoding`` (a binary file: the offset of the first bad byte is named)."""
+    path = os.fspath(path)
+    try:
+        size = os.path.getsize(path)
+        if size > max_bytes:
+            raise error(f"{what} {path!r} has {size} bytes, outside the allowed range [0, {max_bytes}] bytes; "
+                        "is it the right file?")
+        with open(path, "rb") as f:
+            data = f.read(max_bytes + 1)
+    except OSError as err:
+        raise error(f"cannot read {what} {path!r}: {err.strerror or err}") from None
+    try:
+        return data.decode(encoding)
+    except UnicodeDecodeError as err:
+        raise error(f"{what} {path!r} is not UTF-8 text (byte 0x{data[err.start]:02x} at offset {err.start}: a binary "
+                    f"file?); allowed: a UTF-8 text file") from None
 
 
 def fsync_append(path, text: str, mode: str = "a") -> str:
@@ -113,8 +144,8 @@ def locked_folder(folder, what: str = "output folder"):
     except filelock.Timeout:
         try:
             with open(owner, encoding="utf-8") as f:
-                holder = f.read().strip() or "unknown"
-        except OSError:
+                holder = f.read(200).strip() or "unknown"
+        except (OSError, ValueError):  # unreadable, or not text
             holder = "unknown"
         raise OutputLockedError(
             f"the {what} {folder!r} is in use by another process ({holder}); wait for it to finish, "

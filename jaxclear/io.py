@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._storage import atomic_write_json, atomic_write_netcdf
+from ._storage import MAX_RECORD_BYTES, atomic_write_json, atomic_write_netcdf, read_text
 from ._errors import ParameterError
 from .model import Mechanism
 from .integrate import Solution
@@ -346,11 +346,7 @@ def _record_values(path: str, n_fields: int, header_line: int, rows, used: dict[
 
 def _read_record_lines(path) -> tuple[str, list[str]]:
     path = os.fspath(path)
-    try:
-        with open(path, encoding="utf-8-sig", newline="") as f:
-            return path, f.read().splitlines()
-    except OSError as err:
-        raise ParameterError(f"cannot read measurements file {path!r}: {err.strerror or err}") from None
+    return path, read_text(path, "measurements file", max_bytes=MAX_RECORD_BYTES, encoding="utf-8-sig").splitlines()
 
 
 def _check_rows_and_time(path: str, rows, t):

@@ -28,14 +28,16 @@ import numpy as np
 import tomli_w
 
 from ._errors import JaxclearError, MechanismError, ParameterError
-from ._storage import atomic_write_text
+from ._storage import atomic_write_text, read_text
 from ._units import rpm_to_rad_s
 from .contact import FourierProfile, Friction, Material, make_law
 from .contact.friction import FRICTION_MODELS, friction_name
+from .contact.registry import LAWS, law_names
 from .elements import FILMS, IDEALS, ClearanceJoint, LubricatedJoint, PinSlotJoint, TranslationalClearanceJoint
 from .model import AngleDriver, Body, Fixed, Mechanism, PointForce, ProfileDriver, Revolute, Torque, Translational
 from .model.profiles import PROFILE_KINDS
 from .profile_tables import profile_table, read_profile
+from .model.mechanism import check_sizes
 
 FORMAT_VERSION = 1
 
@@ -77,6 +79,8 @@ STRING_KEYS = {"name", "body", "point", "body_i", "point_i", "body_j", "point_j"
                "relative_to", *CHOICES}
 #: law parameters that are tables, by the suffix of their key
 TABLE_PARAMETERS = {"_material": (Material, ("young", "poisson")), "_profile": (FourierProfile, ("cos", "sin"))}
+#: keys whose value is an integer (counts; a law's integer fields are found from its annotations)
+INTEGER_KEYS = {"n_elements", "n_gauss"}
 REQUIRED = {"body", "body_i", "point_i", "body_j", "point_j", "point", "bearing_body",
             "bearing_point", "journal_body", "journal_point", "bearing_radius", "guide_body", "guide_point",
             "slider_body", "slider_point"}
@@ -240,8 +244,20 @@ class _Reader:
         return [float(v) for v in value]
 
     def number(self, key: str, value):
-        if isinstance(value, bool) or not isinstance(value, (int, float, list)):
-            self.fail(key, f"must be a number, got {value!r}", ParameterError)
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            self.fail(key, f"must be a number, got {_shown(value)}", ParameterError)
+        return value
+
+    def integer(self, key: str, value):
+        if isinstance(value, bool) or not isinstance(value, int):
+            self.fail(key, f"must be an integer, got {_shown(value)}", ParameterError)
+        return value
+
+    def numbers(self, key: str, value):
+        """A number or an array of numbers (a profile's Fourier coefficients)."""
+        items = value if isinstance(value, list) else [value]
+        if not items or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in items):
+            self.fail(key, f"must be a number or an array of numbers, got {_shown(value)}", ParameterError)
         return value
 
     def string(self, key: str, value):
@@ -283,14 +299,44 @@ class _Reader:
             return self.string(key, value)
         if name in ("axis", "force", "initial_offset", "initial_velocity"):
             return self.vector(key, value, 2)
+        if name in INTEGER_KEYS:
+            return self.integer(key, value)
         return self.number(key, value)
+
+
+def _shown(value) -> str:
+    """A value for a message: a table or array by its kind and size, anything else by ``repr``."""
+    if isinstance(value, dict):
+        return f"a table of {len(value)} key(s)"
+    if isinstance(value, list) and len(value) > 4:
+        return f"an array of {len(value)} items"
+    return repr(value)
+
+
+def _field_type(cls, name: str) -> str | None:
+    """The annotation of field ``name`` of the module ``cls`` (``"str"``, ``"int"``, ...), or None."""
+    return next((str(f.type) for f in dataclasses.fields(cls) if f.name == name), None)
+
+
+def _law_value(r: _Reader, key: str, cls, name: str, value):
+    """A law parameter: a string or an integer where the law's field is one (the hybrid model's
+    ``placement``, ``n_gauss``; the hysteresis factor's name), else a number (an unknown name is
+    left to the law, whose error lists its parameters)."""
+    kind = _field_type(cls, name)
+    if kind == "str":
+        return r.string(key, value)
+    if kind == "int":
+        return r.integer(key, value)
+    return r.number(key, value)
 
 
 def _law(r: _Reader, key: str, table) -> object:
     table = dict(r.table(key, table))
     if "name" not in table:
         r.fail(f"{key}.name", "missing: the contact law's name", ParameterError)
-    name = table.pop("name")
+    name = r.string(f"{key}.name", table.pop("name"))
+    if name not in LAWS:
+        r.fail(f"{key}.name", f"unknown contact law {name!r}; allowed: {law_names()}", ParameterError)
     kwargs = {}
     for k, v in table.items():
         suffix = next((s for s in TABLE_PARAMETERS if k.endswith(s)), None)
@@ -298,11 +344,12 @@ def _law(r: _Reader, key: str, table) -> object:
             cls, allowed = TABLE_PARAMETERS[suffix]
             sub = r.table(f"{key}.{k}", v)
             r.keys(f"{key}.{k}", sub, allowed)
-            kwargs[k] = r.build(f"{key}.{k}", cls, dict(sub))
+            check = r.numbers if cls is FourierProfile else r.number
+            kwargs[k] = r.build(f"{key}.{k}", cls, {a: check(f"{key}.{k}.{a}", b) for a, b in sub.items()})
         elif isinstance(v, dict):
             r.fail(f"{key}.{k}", f"a table is allowed only for keys ending in {list(TABLE_PARAMETERS)}")
         else:
-            kwargs[k] = v
+            kwargs[k] = _law_value(r, f"{key}.{k}", LAWS[name][0], k, v)
     try:
         return make_law(name, **kwargs)
     except JaxclearError as err:
@@ -313,7 +360,8 @@ def _friction(r: _Reader, key: str, table) -> object:
     table = r.table(key, table)
     allowed = set(inspect.signature(Friction).parameters)
     r.keys(key, table, allowed)
-    return r.build(key, Friction, dict(table))
+    kwargs = {k: (r.string if k == "model" else r.number)(f"{key}.{k}", v) for k, v in table.items()}
+    return r.build(key, Friction, kwargs)
 
 
 def _element(r: _Reader, key: str, row) -> object:
@@ -408,6 +456,10 @@ def mechanism_from_dict(doc: dict, source: str = "<mechanism>") -> Mechanism:
     r.keys("(top level)", doc, TOP_KEYS, ("bodies",))
     if doc.get("format", FORMAT_VERSION) != FORMAT_VERSION:
         r.fail("format", f"unsupported format {doc['format']!r}; this version reads format {FORMAT_VERSION}")
+    # sizes first: nothing of a size beyond the bounds is built
+    check_sizes({key.replace("_", " "): len(doc[key]) for key in ("bodies", "joints", "drivers", "clearance_joints",
+                                                                "loads") if isinstance(doc.get(key), list)},
+                where=f"{source}: ")
     bodies = [_body(r, f"bodies[{i}]", row) for i, row in enumerate(r.array("bodies", doc["bodies"]))]
     joints = [r.build(f"joints[{i}]", *r.typed(f"joints[{i}]", row, JOINT_TYPES))
               for i, row in enumerate(r.array("joints", doc.get("joints", [])))]
@@ -438,8 +490,7 @@ def load_mechanism(path) -> Mechanism:
     path = os.fspath(path)
     if not os.path.isfile(path):
         raise MechanismError(f"mechanism file {path!r} does not exist")
-    with open(path, encoding="utf-8") as fh:
-        return loads_mechanism(fh.read(), path)
+    return loads_mechanism(read_text(path, "mechanism file", MechanismError), path)
 
 
 def is_mechanism_file(name) -> bool:

@@ -258,8 +258,8 @@ def test_unknown_law_lists_valid_ones():
 
 
 @pytest.mark.parametrize("kwargs,match", [
-    (dict(n_elements=0), r"n_elements = 0 is outside the allowed range \[1, inf\)"),
-    (dict(n_gauss=0), r"n_gauss = 0 is outside the allowed range \[1, inf\)"),
+    (dict(n_elements=0), r"n_elements = 0 is outside the allowed range: an integer in \[1, 100000\]"),
+    (dict(n_gauss=0), r"n_gauss = 0 is outside the allowed range: an integer in \[1, 64\]"),
     (dict(thickness=0.0), r"thickness \(h\) = 0 m is outside the allowed range \(0, inf\)"),
     (dict(thickness=-1e-3), r"thickness \(h\) = -0.001 m is outside"),
     (dict(placement="spiral"), r"placement must be 'fixed' or 'arc'"),

@@ -411,7 +411,7 @@ def _check_resume_guards(e2e, tmp_path):
     assert sweep._repair_csv(str(path), ["run", "a"]) == {0, 1}
     assert path.read_text() == "run,a\n0,1.0\n1,2.0\n"
     path.write_text("run,a\n0,1.0\n0,1.0\n")
-    with pytest.raises(ParameterError, match=r"run 0 appears twice"):
+    with pytest.raises(jc.CheckpointError, match=r"line 3: run 0 appears twice.*--restart"):
         sweep._repair_csv(str(path), ["run", "a"])
     path.write_text("run,b\n")
     with pytest.raises(ParameterError, match=r"is not this sweep's"):

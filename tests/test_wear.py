@@ -96,12 +96,13 @@ def test_archard_volume_and_uniform_wear_of_a_turning_bearing(turning):
     assert abs(depth.mean() * 2 * math.pi * RB * L / float(w.volume) - 1) < 1e-12  # the depth holds the volume
 
 
-def test_worn_profile_changes_the_next_window(tmp_path):
+def test_worn_profile_changes_the_next_window(tmp_path, monkeypatch):
     """Half speed: one window wears half the circumference. After one update with an
     extrapolation factor, the next run's pin sits lower by the wear depth where it presses the
     worn arc (to 10 %: the profile's 24 Fourier terms smooth the worn arc, and the pin's elastic
     settling differs slightly on the curved worn arc). Then the run resumes for a second update,
-    and a corrupt state is a named error."""
+    killed once between appending its row and replacing the state (the update is listed once
+    after the resume), and a corrupt or damaged state is a named error."""
     mech = rig(OMEGA / 2)
     options = jc.WearOptions(coefficient=KW, updates=1, cycles_per_update=2e4, settle=SETTLE, n_nodes=180,
                              harmonics=24)
@@ -134,13 +135,39 @@ def test_worn_profile_changes_the_next_window(tmp_path):
     updates = pd.read_csv(out / "updates.csv")
     assert all(dtype.kind in "if" for dtype in updates.dtypes), updates.dtypes
     assert (out / "profile.png").stat().st_size > 10_000
-    # resume: asking for 2 updates runs only the second
-    h2 = jc.wear(mech, SETTINGS, jc.WearOptions(**{**options.__dict__, "updates": 2}), out, progress=False)
+    # resume for 2 updates, killed after the second's row reached updates.csv but before wear.json
+    two = jc.WearOptions(**{**options.__dict__, "updates": 2})
+    replace_state = wearing.service.atomic_write_json
+
+    def killed(path, *args, **kwargs):
+        raise KeyboardInterrupt  # where a SIGKILL between the two writes stops the run
+
+    monkeypatch.setattr(wearing.service, "atomic_write_json", killed)
+    with pytest.raises(KeyboardInterrupt):
+        jc.wear(mech, SETTINGS, two, out, progress=False)
+    assert [r.split(",")[0] for r in (out / "updates.csv").read_text().splitlines()[1:]] == ["0", "1"]
+    assert len(json.loads((out / "wear.json").read_text())["updates"]) == 1
+    monkeypatch.setattr(wearing.service, "atomic_write_json", replace_state)
+    # the same command again runs only the second update, and lists it once
+    h2 = jc.wear(mech, SETTINGS, two, out, progress=False)
     assert h2.resumed_from == 1 and h2.depth.shape == (2, 180) and h2.volume[1] > 0
     np.testing.assert_array_equal(h2.depth[:1], h.depth)
     assert np.all(h2.depth[1] >= h2.depth[0]) and np.all(np.diff(h2.service_time) > 0)
-    assert len(json.loads((out / "wear.json").read_text())["updates"]) == 2
-    assert len((out / "updates.csv").read_text().splitlines()) == 3
+    state = json.loads((out / "wear.json").read_text())
+    assert len(state["updates"]) == 2
+    assert [r.split(",")[0] for r in (out / "updates.csv").read_text().splitlines()[1:]] == ["0", "1"]
+    # a damaged state (a record without a key, a NaN depth, no 'updates') is an error naming the
+    # file, the record and the way out, before anything is computed
+    for damage, words in (
+        (lambda st: st["updates"][1].pop("peak_force_n"), r"update 1 misses the key\(s\) \['peak_force_n'\]"),
+        (lambda st: st["updates"][1]["depth_m"].__setitem__(3, float("nan")), r"update 1: depth_m holds a value"),
+        (lambda st: st.pop("updates"), r"unreadable \(key 'updates' missing\)"),
+    ):
+        broken = json.loads(json.dumps(state))
+        damage(broken)
+        (out / "wear.json").write_text(json.dumps(broken))
+        with pytest.raises(jc.CheckpointError, match=r"wear\.json.*" + words + r".*--restart"):
+            jc.wear(mech, SETTINGS, two, out, progress=False)
     # a corrupt state is an error naming the file and the way out
     (out / "wear.json").write_text("{not json")
     with pytest.raises(jc.CheckpointError, match=r"wear\.json.*restart"):

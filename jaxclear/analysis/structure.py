@@ -34,11 +34,13 @@ def _rank(mech: Mechanism, q, constraints) -> int:
     return int(np.linalg.matrix_rank(d, tol=RANK_TOL * max(np.abs(d).max(), 1.0)))
 
 
-def check_mechanism(mech: Mechanism) -> dict:
-    """Assemble ``mech`` at t = 0 (raising the assembly's errors: Newton failure, redundant
-    constraints) and describe it: counts, degrees of freedom, drivers, clearance joints, the
-    assembled ``q`` [m, rad] and the Newton residual."""
-    asm = check_assembly(mech, settings(1.0, allow_free_dof=True))
+def check_mechanism(mech: Mechanism, allow_free_dof: bool = False) -> dict:
+    """Assemble ``mech`` at t = 0 (raising the assembly's errors, the same as
+    :func:`~jaxclear.simulate`'s: Newton failure, redundant constraints, and, unless
+    ``allow_free_dof``, a driven mechanism with motion that no joint or driver determines) and
+    describe it: counts, degrees of freedom, drivers, clearance joints, the assembled ``q``
+    [m, rad] and the Newton residual."""
+    asm = check_assembly(mech, settings(1.0, allow_free_dof=allow_free_dof))
     q = asm.q
     n = mech.n_coordinates
     ideal = mech.ideal()

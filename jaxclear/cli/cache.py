@@ -19,6 +19,8 @@ jaxclear``) configures no cache; :func:`enable` is what the command line calls.
 from __future__ import annotations
 
 import os
+import sys
+import tempfile
 from pathlib import Path
 
 import jax
@@ -46,20 +48,37 @@ def default_dir() -> Path | None:
 
 def enable(folder: Path | str | None) -> Path | None:
     """Point JAX's persistent compilation cache at ``folder`` (created, mode 0700), or leave it
-    off when ``folder`` is None. Returns the folder in use. A folder that cannot be created
-    leaves the cache off (the command still runs, compiling as usual)."""
+    off when ``folder`` is None. Returns the folder in use. A folder (or its ``programs``
+    subfolder) that cannot be created or written leaves the cache off with a one-line warning on
+    stderr (the command still runs, compiling as usual)."""
     if folder is None:
         return None
     folder = Path(folder).expanduser()
-    try:
-        folder.mkdir(parents=True, exist_ok=True, mode=0o700)
-    except OSError:
+    problem = _unwritable(folder) or _unwritable(folder / PROGRAMS)
+    if problem is not None:
+        print(f"warning: {problem}; running without the compilation cache (--cache-dir DIR or {ENV} chooses "
+              "another folder, --no-cache switches it off)", file=sys.stderr)
         return None
     jax.config.update("jax_compilation_cache_dir", str(folder))
     jax.config.update("jax_persistent_cache_min_compile_time_secs", MIN_COMPILE_TIME_S)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
     programs.enable(folder / PROGRAMS)
     return folder
+
+
+def _unwritable(folder: Path) -> str | None:
+    """Why ``folder`` cannot hold cache files (created if missing, mode 0700; a file is written
+    and removed to find out), or None when it can."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True, mode=0o700)
+        fd, probe = tempfile.mkstemp(dir=folder, prefix=".probe-")
+        os.close(fd)
+        os.unlink(probe)
+    except FileExistsError:
+        return f"the compilation cache folder {str(folder)!r} is a file, not a folder"
+    except OSError as err:
+        return f"the compilation cache folder {str(folder)!r} is not writable ({err.strerror or err})"
+    return None
 
 
 def active() -> bool:

@@ -13,6 +13,7 @@ from ..profile_figures import plot_profiles
 from .common import add_mechanism_file_option, mechanism_file, number_in
 from ..mechanism_files import load_mechanism
 from ..presets import preset, preset_names
+from .simulate import add_free_dof_option
 
 HELP = "assemble a mechanism file, report its degrees of freedom, draw it (PNG)"
 DESCRIPTION = """\
@@ -37,6 +38,7 @@ def configure(p: argparse.ArgumentParser):
     p.add_argument("--magnify", type=number_in(float, 0.0, low_open=True), metavar="X",
                    help="drawing factor of the clearances [-], > 0 (default: the largest clearance drawn as "
                    "30 %% of the bearing circle)")
+    add_free_dof_option(p)
     return run
 
 
@@ -45,7 +47,7 @@ def run(args) -> int:
     if path is None and args.preset is None:
         raise ParameterError("give a mechanism file (jaxclear check FILE.toml) or --preset NAME")
     mech = load_mechanism(path) if path is not None else preset(args.preset)
-    report = check_mechanism(mech)
+    report = check_mechanism(mech, allow_free_dof=args.allow_free_dof)
     os.makedirs(args.out, exist_ok=True)
     png = os.path.join(args.out, "mechanism.png")
     plot_mechanism(png, mech, report["q"], magnify=args.magnify)

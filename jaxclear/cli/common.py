@@ -8,6 +8,7 @@ import argparse
 import math
 import re
 
+from ..contact.hybrid import MAX_GAUSS_PER_ELEMENT, MAX_GAUSS_POINTS
 from ..contact.registry import law_names
 from .._errors import ParameterError
 from .. import params
@@ -164,10 +165,11 @@ def _add_hybrid_options(p: argparse.ArgumentParser):
                    help="where the Gauss points sit: 'arc' (on the current contact arc, exact with few "
                    "points) or 'fixed' (body-fixed over the whole pin circumference, the model's original "
                    "formulation) (default: %(default)s)")
-    h.add_argument("--elements", type=number_in(int, 1), metavar="N_E",
-                   help="number of elements N_e [-], >= 1 (default: 2 for arc, 180 for fixed)")
-    h.add_argument("--gauss-points", type=number_in(int, 1), metavar="N_G",
-                   help="Gauss-Legendre points per element N_g [-], >= 1 (default: 4)")
+    h.add_argument("--elements", type=number_in(int, 1, MAX_GAUSS_POINTS), metavar="N_E",
+                   help=f"number of elements N_e [-], in [1, {MAX_GAUSS_POINTS}] and N_e x N_g <= {MAX_GAUSS_POINTS} "
+                   "(default: 2 for arc, 180 for fixed)")
+    h.add_argument("--gauss-points", type=number_in(int, 1, MAX_GAUSS_PER_ELEMENT), metavar="N_G",
+                   help=f"Gauss-Legendre points per element N_g [-], in [1, {MAX_GAUSS_PER_ELEMENT}] (default: 4)")
     h.add_argument("--layer-thickness", type=number_in(float, 0.0, low_open=True), metavar="H",
                    help="compliant layer thickness h [m], > 0 (default: the clearance c)")
     h.add_argument("--damping", choices=("joint", "point"), default=None,
@@ -245,15 +247,26 @@ def mechanism_file(args) -> str | None:
     return given[0] if given else None
 
 
+def preset_options_given(args) -> list[str]:
+    """The preset-only options (``--model``, the hybrid options) the user gave, as flags: those
+    whose value differs from the command's default (``lankarani-nikravesh`` and none, unless the
+    command names others in ``args.mechanism_defaults``, as ``jaxclear wear`` does)."""
+    defaults = {"model": "lankarani-nikravesh", **getattr(args, "mechanism_defaults", {})}
+    return ["--" + attr.replace("_", "-") for attr in ("model", *HYBRID_OPTIONS)
+            if hasattr(args, attr) and getattr(args, attr) != defaults.get(attr)]
+
+
 def load_mechanism_file(args, path: str, ideal: bool = False) -> Mechanism:
     """A mechanism file with the physical options given on the command line applied to every
     clearance joint (``--clearance``, ``--restitution``, ``--friction``, ``--stiffness``) and to
     the crank (``--speed-rpm``); ``ideal``: its ideal-joint counterpart. The contact law is the
     file's (``--model`` and the hybrid options are for presets)."""
     mech = load_mechanism(path)
-    if getattr(args, "model", "lankarani-nikravesh") != "lankarani-nikravesh" or _hybrid_options(args):
-        raise ParameterError(f"--model and the hybrid options apply to presets; the contact law of {path!r} is set "
-                             "in the file ([clearance_joints.law] name = ...)")
+    given = preset_options_given(args)
+    if given:
+        raise ParameterError(f"{', '.join(given)} {'applies' if len(given) == 1 else 'apply'} to presets only (like "
+                             f"--model and every hybrid option); the contact law of {path!r} is set in the file "
+                             "([clearance_joints.law] name = ...)")
     values = {}
     for attr, name in FILE_OVERRIDES.items():
         if getattr(args, attr, None) is not None:

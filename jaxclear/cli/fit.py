@@ -55,7 +55,8 @@ def configure(p: argparse.ArgumentParser):
                    help="a [channels] table: COLUMN = \"CHANNEL\" or COLUMN = {channel, weight, cutoff_hz, gain, "
                    "bias} (a sensor of its own); combined with --channel/--weight")
     f.add_argument("--window", type=number_in(float, 0.0, low_open=True), metavar="S",
-                   help="length of a fit window [s], > 0 (default: a quarter crank revolution)")
+                   help="length of a fit window [s], > 0, holding at least 4 samples (default: a quarter crank "
+                   "revolution, shortened to the record's span over --windows when the record is shorter)")
     f.add_argument("--windows", type=number_in(int, 1), default=1, metavar="N",
                    help="back-to-back windows, >= 1; windows after the first estimate their journal state "
                    "(default: 1)")

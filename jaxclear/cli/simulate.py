@@ -73,6 +73,16 @@ def add_integration_options(p: argparse.ArgumentParser):
                       help="absolute tolerance of the adaptive step [m, rad, m/s, rad/s], > 0 (default: 1e-9)")
     run_.add_argument("--max-steps", type=number_in(int, 1), default=400_000, metavar="N",
                       help="maximum number of solver steps [-], >= 1 (default: 400000)")
+    add_free_dof_option(run_)
+
+
+def add_free_dof_option(group):
+    """``--allow-free-dof`` (:attr:`Settings.allow_free_dof <jaxclear.Settings>`), of the commands
+    that assemble a driven mechanism (check, simulate, animate, wear)."""
+    group.add_argument("--allow-free-dof", action="store_true",
+                       help="allow a driven mechanism motion that no joint or driver determines, e.g. a pendulum "
+                       "hanging from a driven crank (default: off, such a mechanism is an error naming the "
+                       "missing constraints)")
 
 
 def load(args):
@@ -95,7 +105,8 @@ def settings_from(args, mech):
             raise ParameterError(f"{mech.name!r} has no crank (AngleDriver): give --t-end [s] instead of --revolutions")
     return runs.revolution_settings(mech, args.revolutions, t_end=args.t_end, n_out=args.n_out,
                                     solver=args.solver, rtol=args.rtol, atol=args.atol,
-                                    max_steps=args.max_steps, progress=cache.progress_allowed(args))
+                                    max_steps=args.max_steps, progress=cache.progress_allowed(args),
+                                    allow_free_dof=args.allow_free_dof)
 
 
 def run(args) -> int:

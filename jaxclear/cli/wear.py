@@ -8,6 +8,7 @@ import argparse
 from .._errors import ParameterError, check_range
 from ..integrate import runs
 from ..wearing import WearOptions, wear
+from ..wearing.service import MAX_NODES
 from .common import add_mechanism_file_option, add_mechanism_options, fmt, number_in
 from .simulate import add_integration_options, load, settings_from
 
@@ -30,7 +31,9 @@ def configure(p: argparse.ArgumentParser):
     """Add the options of ``jaxclear wear``; returns its ``run(args) -> exit code``."""
     add_mechanism_file_option(p)
     add_mechanism_options(p, ideal=False)
-    p.set_defaults(model="hybrid", placement="fixed", ideal=False)
+    # the command's own defaults, which a mechanism file (whose law is its own) must not read as given options
+    defaults = {"model": "hybrid", "placement": "fixed"}
+    p.set_defaults(**defaults, ideal=False, mechanism_defaults=defaults)
     add_integration_options(p)
     w = p.add_argument_group("wear")
     w.add_argument("--wear-coefficient", type=number_in(float, 0.0, low_open=True), default=1e-15, metavar="K_W",
@@ -43,8 +46,8 @@ def configure(p: argparse.ArgumentParser):
                    help="start of each window discarded [s], >= 0 and below the window (default: 0)")
     w.add_argument("--joint", default=None, metavar="NAME",
                    help="the clearance joint to wear, by name or index (default: the only one)")
-    w.add_argument("--nodes", type=number_in(int, 8), default=180, metavar="N",
-                   help="bearing nodes [-], >= 8 (default: 180)")
+    w.add_argument("--nodes", type=number_in(int, 8, MAX_NODES), default=180, metavar="N",
+                   help=f"bearing nodes [-], in [8, {MAX_NODES}] (default: 180)")
     w.add_argument("--harmonics", type=number_in(int, 1), default=24, metavar="M",
                    help="Fourier terms of the worn profile [-], >= 1 and below --nodes / 2 (default: 24)")
     o = p.add_argument_group("output")

@@ -68,6 +68,29 @@ def small_gap_force(e, clearance, modulus, thickness, radius_journal, length):
     return jnp.where(inside, modulus * radius_journal * length / thickness * (e * theta_c - clearance * jnp.sin(theta_c)), 0.0)
 
 
+#: Most Gauss points per element (Gauss-Legendre nodes come from an eigenvalue problem of this
+#: size; 4 are exact for cubics, and a finer rule comes from more elements).
+MAX_GAUSS_PER_ELEMENT = 64
+#: Most Gauss points of one rule, elements x points per element (the default fixed placement has
+#: 180 x 4 = 720; every point is evaluated at every step).
+MAX_GAUSS_POINTS = 100_000
+
+
+def check_gauss_points(n_elements, n_gauss, where: str = ""):
+    """Raise :class:`ParameterError` unless ``n_elements`` and ``n_gauss`` are integers >= 1,
+    ``n_gauss`` at most :data:`MAX_GAUSS_PER_ELEMENT` and their product at most
+    :data:`MAX_GAUSS_POINTS` (checked before any array of that size is made); ``where``
+    prefixes the message."""
+    for name, value, high in (("n_elements", n_elements, MAX_GAUSS_POINTS), ("n_gauss", n_gauss, MAX_GAUSS_PER_ELEMENT)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer, float, np.floating)) or \
+                int(value) != value or not 1 <= value <= high:
+            raise ParameterError(f"{where}{name} = {value!r} is outside the allowed range: an integer in [1, {high}]")
+    if n_elements * n_gauss > MAX_GAUSS_POINTS:
+        raise ParameterError(f"{where}n_elements x n_gauss = {n_elements} x {n_gauss} = {n_elements * n_gauss} Gauss "
+                             f"points, outside the allowed range [1, {MAX_GAUSS_POINTS}] "
+                             "(jaxclear.contact.hybrid.MAX_GAUSS_POINTS)")
+
+
 def gauss_nodes(n_elements: int, n_gauss: int):
     """Composite Gauss-Legendre rule on [-1, 1]: ``n_elements`` equal elements of ``n_gauss``
     points each; node positions and weights (NumPy, each (n_elements * n_gauss,)). Exact for
@@ -175,10 +198,7 @@ class HybridLaw(AbstractNormalLaw):
             raise ParameterError(f"layers must be 1 or 2, got {layers!r}")
         if n_elements is None:
             n_elements = 2 if placement == "arc" else 180
-        if int(n_elements) < 1:
-            raise ParameterError(f"n_elements = {n_elements} is outside the allowed range [1, inf)")
-        if int(n_gauss) < 1:
-            raise ParameterError(f"n_gauss = {n_gauss} is outside the allowed range [1, inf)")
+        check_gauss_points(n_elements, n_gauss)
         if placement == "arc" and (journal_profile is not None or bearing_profile is not None):
             raise ParameterError(ARC_PROFILES)
         check_range("restitution", restitution, low=0.0, high=1.0, low_open=True)

@@ -136,7 +136,7 @@ from .._types import ArrayLike, Scalar, Vec2
 from ..contact.base import AbstractFriction, AbstractNormalLaw, element_friction
 from ..contact.friction import Friction
 from ..contact.hertz import ContactLaw
-from ..contact.hybrid import FourierProfile, gauss_nodes
+from ..contact.hybrid import FourierProfile, check_gauss_points, gauss_nodes
 from ..model.mechanism import Mechanism, point_load
 from .base import ContactOutput
 from .revolute_clearance import AbstractJournalJoint, check_journal_geometry, contact_forces, kinematics
@@ -345,8 +345,7 @@ class LubricatedJoint(AbstractJournalJoint):
         if film in FIXED_FILMS and any(p is not None for p in law.profiles):
             raise ParameterError(f"film = {film!r} has no meaning for profiles (its edges follow the line of "
                                  "centres of circles); valid with profiles: ['half', 'full']")
-        check_range("n_elements", n_elements, low=1.0, unit="")
-        check_range("n_gauss", n_gauss, low=1.0, unit="")
+        check_gauss_points(n_elements, n_gauss)
         # the law refuses profiles that close the clearance (HybridLaw.check_geometry)
         rb, rj, offset = check_journal_geometry(bearing_radius, journal_radius, length, impact_velocity_floor, law,
                                                 initial_offset)

@@ -15,6 +15,7 @@ from tqdm.auto import tqdm
 
 from .._interrupt import stop_at_safe_points
 from .._numbers import as_typed
+from .._errors import CheckpointError
 from .._storage import locked_folder
 from ..integrate.compile import on_trace
 from ..model import Mechanism
@@ -79,7 +80,8 @@ def fit(
             (``SLIDER``: the ``slider`` role) through ``sensor``.
         sensor: the sensor model of every channel without one of its own (default: no filter,
             gain 1, bias 0, oversample 4; the oversampling is common to all channels).
-        window: window length [s] (default a quarter crank revolution, at most the record).
+        window: window length [s], holding at least 4 samples (default a quarter crank revolution,
+            shortened to the record's span over ``windows`` when the record is shorter).
         windows: number of back-to-back windows; windows after the first have the journal
             state at their start as extra unknowns.
         horizons: fractions of the window fitted in turn (continuation), ending at 1.
@@ -169,6 +171,8 @@ def _fit_locked(problem: FitProblem, opt, out, resume: bool, progress: bool, cal
     """:func:`fit` inside the output folder's lock."""
     ckpt = _checkpoint(problem, out, clock=lambda: wall_before + time.perf_counter() - t_wall)
     saved = ckpt.load() if resume else None
+    if saved is not None:
+        _check_resumed(problem, saved, ckpt.path)
     if saved is not None and progress:
         tqdm.write(f"jaxclear fit: resuming from {ckpt.path} after {saved.total} iteration(s)")
     st = saved if saved is not None else fresh_state(problem)
@@ -212,6 +216,45 @@ def iterations_left(problem: FitProblem, st: FitState) -> int:
     limit = problem.settings["max_iter"]
     stages = problem.stages[st.stage:]
     return max(sum(stage.max_iter(limit) for stage in stages) - st.iteration, 0)
+
+
+def _check_resumed(problem: FitProblem, st: FitState, path: str) -> None:
+    """A :class:`~jaxclear.CheckpointError` naming the checkpoint and the field when a state read
+    back is not one this fit can continue from: counters that are not integers >= 0, a stage
+    beyond the plan, or parameters, window states, guesses or unknowns of another shape or not
+    finite (a damaged file: its key matched)."""
+
+    def damaged(detail: str):
+        raise CheckpointError(f"the fit checkpoint {path!r} is damaged ({detail}); delete it, or start over with "
+                              "--restart (API: resume=False)")
+
+    for name in ("stage", "iteration", "total", "evaluations"):
+        v = getattr(st, name)
+        if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+            damaged(f"{name} = {v!r} is not an integer >= 0")
+    if st.stage > len(problem.stages):
+        damaged(f"stage = {st.stage} is beyond this fit's {len(problem.stages)} stages")
+    fresh = fresh_state(problem)
+    for name in ("theta", "states", "guesses", "x"):
+        value = getattr(st, name)
+        if value is None and name == "x":
+            continue
+        try:
+            got = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            damaged(f"{name} is not an array of numbers")
+        want = np.asarray(getattr(fresh, name), dtype=float).shape if name != "x" else (got.size,)
+        if got.shape != want:
+            damaged(f"{name} has shape {got.shape}, this fit's is {want}")
+        if not np.all(np.isfinite(got)):
+            damaged(f"{name} holds a value that is not finite")
+
+
+def _progress_bar(problem: FitProblem, done: int):
+    """The iteration bar, started after the first iteration of this call (so its rate and ETA
+    leave the compilation out): the ``done`` iterations so far count as its start."""
+    total = sum(stage.max_iter(problem.settings["max_iter"]) for stage in problem.stages)
+    return tqdm(total=total, initial=min(done, total), desc="fit", unit="it", leave=True)
 
 
 def _evaluate_all(problem: FitProblem, theta, states, guesses):

@@ -118,20 +118,43 @@ def _check_mechanism(mech: Mechanism, windows: int):
             )
 
 
+#: Fewest record samples a fit window holds (at t = 0 and up to the window's end).
+MIN_WINDOW_SAMPLES = 4
+
+
 def _window_length(mech, window, windows: int, span: float, dt: float, h: float, n_samples: int, t_rec, where):
-    """The window length [s], a whole number of fine steps ``h``; checks the record covers it."""
-    if window is None:
+    """The window length [s], a whole number of fine steps ``h``. A window given is checked: the
+    record must cover ``windows`` of it and one must hold :data:`MIN_WINDOW_SAMPLES` samples. By
+    default (``window`` None) a quarter crank revolution (without a crank: the record's span
+    shared by the windows), shortened to what the record covers when it is shorter."""
+    given = window is not None
+    if not given:
         window = 0.25 * crank_period(mech) if crank_driver(mech) is not None else span / windows
     if not window > 0:
         raise ParameterError(f"window = {window!r} s must be > 0")
-    window = int(round(window / h)) * h
+    steps = int(round(window / h))
+    if not given:  # a window that fits the record: whole fine steps, windows of them within its span
+        steps = min(steps, int(np.floor(max(span, 0.0) / windows / h + 1e-9)))
+    window = steps * h
     needed = windows * window
-    if span + 0.5 * dt < needed or np.count_nonzero((t_rec >= 0) & (t_rec <= window)) < 4:
+    if given and span + 0.5 * dt < needed:
         raise ParameterError(
             f"{where}: the record covers {max(span, 0.0):.6g} s of simulation time ({n_samples} samples) but "
             f"{windows} window(s) of {window:.6g} s need {needed:.6g} s (record shorter than the fit windows); give a "
             "shorter window (window=..., --window S) or fewer windows"
         )
+    held = int(np.count_nonzero((t_rec >= 0) & (t_rec <= window + 0.5 * h)))
+    if held < MIN_WINDOW_SAMPLES:
+        shortest = (MIN_WINDOW_SAMPLES - 1) * dt
+        if given:
+            raise ParameterError(
+                f"{where}: a window of {window:.6g} s holds {held} sample(s) of the record (one every {dt:.6g} s); "
+                f"at least {MIN_WINDOW_SAMPLES} are needed: give a window of at least {shortest:.6g} s (window=..., "
+                "--window S)")
+        raise ParameterError(
+            f"{where}: the record's {n_samples} samples over {max(span, 0.0):.6g} s of simulation time give "
+            f"{windows} window(s) of {window:.6g} s holding {held} sample(s) each; at least {MIN_WINDOW_SAMPLES} are "
+            f"needed: give a longer record (at least {windows * shortest:.6g} s) or fewer windows")
     return window
 
 

@@ -36,6 +36,7 @@ from dataclasses import dataclass
 from typing import Mapping
 
 from .._errors import ParameterError, check_range
+from .._storage import read_text
 from ..analysis import channels as named
 from ..analysis.sensor import Accelerometer
 from ..model import Mechanism
@@ -111,11 +112,9 @@ def resolve_targets(mech: Mechanism, channels, sensor: Accelerometer) -> tuple[t
 def read_channels_toml(path) -> dict:
     """The ``[channels]`` table of a TOML file (module docstring): column -> spec."""
     path = os.fspath(path)
+    text = read_text(path, "channels file")
     try:
-        with open(path, "rb") as f:
-            data = tomllib.load(f)
-    except OSError as err:
-        raise ParameterError(f"cannot read the channels file {path!r}: {err.strerror or err}") from None
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         raise ParameterError(f"{path}: not valid TOML ({err})") from None
     table = data.get("channels")

@@ -18,6 +18,9 @@ from .dynamics import spd_solve
 from .settings import Settings
 from .state import State
 
+#: How a user allows a driven mechanism's free motion, in each place a run is set up.
+FREE_DOF_OPTION = ("Settings(allow_free_dof=True) in Python, --allow-free-dof on the command line (jaxclear check, "
+                   "simulate, animate)")
 NEWTON_ITERATIONS = 30
 NEWTON_TOL = 1e-10  # [m or rad], residual norm of Phi
 RANK_TOL = 1e-9  # relative singular value below which constraints count as dependent
@@ -110,15 +113,27 @@ def check_assembly(mech: Mechanism, s: Settings, asm: Assembly | None = None) ->
     if asm is None:
         asm = _assemble_jit.stored("assemble", lambda: jax.tree_util.tree_structure(ASSEMBLY_TEMPLATE), mech,
                                    s.t_start)
+    extra = mech.clearance_joints
+    d = np.asarray(asm.jacobian)
+    m, n = d.shape
+    if m > n:  # never assembled: named before Newton's failure, which it causes
+        held = sum(c.n_equations for c in extra)
+        labels = constraints.constraint_labels(mech, extra=extra)
+        # the clearance joints' rows first: the joints and drivers that conflict with them are named
+        order = list(range(m - held, m)) + list(range(m - held))
+        names = ", ".join(labels[order[k]] for k in _dependent_rows(d[order], RANK_TOL))
+        raise MechanismError(
+            f"redundant or conflicting constraints: {m} equations for {n} coordinates at assembly "
+            f"({m - held} of joints and drivers, {held} of the clearance joints "
+            f"{[c.name for c in extra]} held at their initial offsets); rows {names} depend on the others; remove "
+            "joints or drivers (allowed: at most one independent equation per coordinate)"
+        )
     if not np.isfinite(float(asm.residual)) or float(asm.residual) > NEWTON_TOL:
         raise InitialConditionError(
             f"the Newton solve of Phi(q, {s.t_start:g}) = 0 did not converge: residual "
             f"{float(asm.residual):.3g} > {NEWTON_TOL:g} after {NEWTON_ITERATIONS} iterations from the "
             "bodies' position guesses; improve Body.position (or check that the links can be assembled)"
         )
-    extra = mech.clearance_joints
-    d = np.asarray(asm.jacobian)
-    m, n = d.shape
     dependent = _dependent_rows(d, RANK_TOL) if m else []
     if dependent:
         labels = constraints.constraint_labels(mech, extra=extra)
@@ -132,7 +147,7 @@ def check_assembly(mech: Mechanism, s: Settings, asm: Assembly | None = None) ->
         raise MechanismError(
             f"too few constraints for the drivers: {n} coordinates but only {m} independent equations "
             f"(joints, drivers, clearance joints held centred), so {n - m} degree(s) of freedom are neither "
-            "driven nor constrained; add joints/drivers or pass Settings(allow_free_dof=True)"
+            f"driven nor constrained; add joints or drivers, or allow the free motion: {FREE_DOF_OPTION}"
         )
     return asm
 

@@ -22,6 +22,10 @@ value.
 returns flat lists of arrays; the caller gives the output's structure (``out_structure``), which
 it knows without tracing.
 
+A file holds the serialized program behind its SHA-256: a file whose bytes changed (a bad disk,
+a partial copy) is a miss, traced again and replaced, even where the damaged bytes would still
+deserialize. A folder that cannot be written switches the store off with a warning.
+
 Off unless :func:`enable` is called (the command line does, in its cache folder); the library
 alone never reads or writes such files. Needs the ``flatbuffers`` package (jax's serializer).
 """
@@ -34,6 +38,7 @@ import importlib.metadata
 import os
 import tempfile
 import threading
+import warnings
 from pathlib import Path
 from typing import Callable
 
@@ -42,6 +47,9 @@ import jax
 
 #: Suffix of the stored programs' file names.
 SUFFIX = ".jaxexport"
+#: First bytes of a stored program's file; the SHA-256 of the serialized program follows, then
+#: the program itself.
+MAGIC = b"jaxclear-program-1\n"
 #: Libraries whose versions enter the key.
 KEYED_PACKAGES = ("jax", "jaxlib", "diffrax", "equinox", "optimistix", "lineax")
 
@@ -131,17 +139,35 @@ def _export(fun: Callable, args) -> jax.export.Exported:
 
 
 def _write(path: Path, blob: bytes) -> None:
-    """Write atomically (a partial file is never read as a program)."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=SUFFIX)
+    """Write atomically (a partial file is never read as a program), the blob behind
+    :data:`MAGIC` and its SHA-256 (:func:`_unpack` checks it). A folder that cannot be written
+    switches the store off with a warning: the run goes on, tracing as usual."""
+    tmp = None
     try:
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=SUFFIX)
         with os.fdopen(fd, "wb") as f:
-            f.write(blob)
+            f.write(MAGIC + hashlib.sha256(blob).digest() + blob)
         os.replace(tmp, path)
-    except OSError:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
+    except OSError as err:
+        if tmp is not None:
+            try:
+                os.unlink(tmp)
+            except OSError:
+                pass
+        _FOLDER[0] = None
+        warnings.warn(f"cannot write to the program cache {str(path.parent)!r} ({err.strerror or err}); "
+                      "going on without it (programs are traced as usual)", stacklevel=2)
+
+
+def _unpack(data: bytes) -> bytes | None:
+    """The serialized program of a file written by :func:`_write`, or None when the file is not
+    one or its bytes changed since (a flipped byte can still deserialize, and then fails only
+    when XLA parses the program: it is a miss instead)."""
+    head = len(MAGIC) + hashlib.sha256().digest_size
+    if len(data) <= head or not data.startswith(MAGIC):
+        return None
+    digest, blob = data[len(MAGIC):head], data[head:]
+    return blob if hashlib.sha256(blob).digest() == digest else None
 
 
 def _load(key: str, fun: Callable, args) -> jax.export.Exported:
@@ -151,9 +177,9 @@ def _load(key: str, fun: Callable, args) -> jax.export.Exported:
     blob = None
     if path.is_file():
         try:
-            blob = path.read_bytes()
-            exp = jax.export.deserialize(bytearray(blob))
-        except Exception:  # an unreadable or truncated file: trace again and replace it
+            blob = _unpack(path.read_bytes())
+            exp = None if blob is None else jax.export.deserialize(bytearray(blob))
+        except Exception:  # an unreadable, truncated or damaged file: trace again and replace it
             exp = None
     if exp is None:
         blob = _export(fun, args).serialize()

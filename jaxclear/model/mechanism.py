@@ -12,6 +12,7 @@ differentiated, vmapped or swept.
 
 from __future__ import annotations
 
+from collections import Counter
 from typing import Sequence
 
 import equinox as eqx
@@ -135,28 +136,8 @@ class Mechanism(eqx.Module):
         return table[point]
 
     def _validate_structure(self):
-        names = self.body_names
-        if len(set(names)) != len(names):
-            raise MechanismError(f"body names must be unique, got {list(names)}")
-        if not names:
-            raise MechanismError("a mechanism needs at least one body")
-        for item in (*self.joints, *self.drivers, *self.clearance_joints, *self.loads):
-            bodies = item.bodies()
-            for b in bodies:
-                self.body_index(b)
-            for b, p in item.points():
-                self.point(b, p)
-            if len(bodies) == 2 and bodies[0] == bodies[1]:
-                raise MechanismError(f"{item.label} connects body {bodies[0]!r} to itself")
-        for _, body in self.roles:
-            self.body_index(body)
-        if self.n_constraints > self.n_coordinates:
-            raise MechanismError(
-                f"{self.n_constraints} constraint equations (joints + drivers) for only "
-                f"{self.n_coordinates} coordinates: the mechanism is over-constrained; remove "
-                "redundant joints or drivers (allowed: at most one equation per coordinate, "
-                "independent)"
-            )
+        _validate_structure(self.bodies, self.joints, self.drivers, self.clearance_joints, self.loads,
+                            self.ground_points, self.roles)
 
     # ---- coordinates ----------------------------------------------------------------
     def pose(self, q, name: str):
@@ -210,6 +191,73 @@ class Mechanism(eqx.Module):
 
     def point_load(self, q, body: str, at, force):
         return point_load(self, q, body, at, force)
+
+
+#: Most bodies of a mechanism (3000 coordinates: far beyond a planar linkage; the dynamics solve a
+#: dense system of that size at every step).
+MAX_BODIES = 1000
+#: Most joints, drivers, clearance joints or loads of a mechanism (each list): every joint and
+#: driver adds at least one equation, and there are at most 3 per body.
+MAX_PARTS = 3 * MAX_BODIES
+
+
+def check_sizes(counts: dict[str, int], where: str = "") -> None:
+    """Raise :class:`MechanismError` if a part list is longer than allowed (``counts``: part ->
+    count, e.g. ``{"bodies": 20000}``; ``where`` prefixes the message). Checked before anything
+    of that size is built or validated."""
+    for part, count in counts.items():
+        high = MAX_BODIES if part == "bodies" else MAX_PARTS
+        if count > high:
+            constant = "MAX_BODIES" if part == "bodies" else "MAX_PARTS"
+            raise MechanismError(f"{where}{part}: {count} items, outside the allowed range [0, {high}] "
+                                 f"(jaxclear.model.mechanism.{constant}); a planar mechanism this large is beyond "
+                                 "what jaxclear integrates")
+
+
+def _validate_structure(bodies, joints, drivers, elements, loads, ground_points, roles):
+    """Names, references and counts of a mechanism's parts (the constructor's checks), in time
+    linear in their number: the bodies' names and points are looked up in dicts built once."""
+    check_sizes({"bodies": len(bodies), "joints": len(joints), "drivers": len(drivers),
+                 "clearance joints": len(elements), "loads": len(loads)})
+    if not bodies:
+        raise MechanismError("a mechanism needs at least one body")
+    names = [b.name for b in bodies]
+    twice = sorted(n for n, k in Counter(names).items() if k > 1)
+    if twice:
+        raise MechanismError(f"body names must be unique, got {twice[0]!r} twice in "
+                             f"{names if len(names) <= 20 else str(names[:20])[:-1] + ', ...]'}")
+    twice = sorted(n for n, k in Counter(c.name for c in elements).items() if k > 1)
+    if twice:
+        raise MechanismError(f"clearance joint names must be unique (outputs and parameters address a joint by "
+                             f"its name), got {twice[0]!r} twice in {[c.name for c in elements]}")
+    points = {b.name: b.points for b in bodies}
+    points[GROUND] = ground_points
+
+    def known_body(name: str):
+        if name not in points:
+            shown = names if len(names) <= 20 else names[:20] + ["..."]
+            raise MechanismError(f"unknown body {name!r}; bodies are {shown} and {GROUND!r}")
+
+    for item in (*joints, *drivers, *elements, *loads):
+        item_bodies = item.bodies()
+        for b in item_bodies:
+            known_body(b)
+        for b, p in item.points():
+            known_body(b)
+            if p not in points[b]:
+                raise MechanismError(f"unknown point {p!r} on body {b!r}; its points are {sorted(points[b])}")
+        if len(item_bodies) == 2 and item_bodies[0] == item_bodies[1]:
+            raise MechanismError(f"{item.label} connects body {item_bodies[0]!r} to itself")
+    for _, body in roles:
+        known_body(body)
+    n_constraints = sum(c.n_equations for c in (*joints, *drivers))
+    if n_constraints > 3 * len(bodies):
+        raise MechanismError(
+            f"{n_constraints} constraint equations (joints + drivers) for only "
+            f"{3 * len(bodies)} coordinates: the mechanism is over-constrained; remove "
+            "redundant joints or drivers (allowed: at most one equation per coordinate, "
+            "independent)"
+        )
 
 
 # --------------------------------------------------------------------------------------

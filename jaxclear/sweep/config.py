@@ -21,14 +21,14 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import params
-from .._storage import fingerprint
+from .._storage import fingerprint, read_text
 from .._errors import JaxclearError, ParameterError
 from ..model import Mechanism
 from ..mechanism_files import load_mechanism
 from ..presets import PRESETS, preset
 from ..integrate import SOLVERS, Settings
 from ..integrate.settings import MAX_OUT_SAMPLES
-from .values import _canonical, _number, _values
+from .values import MAX_RUNS, _canonical, _number, _values
 
 #: Allowed keys of a sweep configuration file, per table (see :func:`load_config`).
 CONFIG_KEYS = {
@@ -43,9 +43,6 @@ RUN_KEYS = ("revolutions", "transient_revolutions", "samples_per_revolution", "s
             "max_steps", "ideal_reference")
 OUTPUT_KEYS = ("dir", "chunk_size", "trajectories", "progress", "devices")
 
-#: Largest number of runs of one sweep (the (runs, parameters) table is built before anything
-#: is compiled; a grid's size is the product of its axes' lengths).
-MAX_RUNS = 10_000_000
 #: Largest runs x output samples of a sweep that stores its time series (``trajectories``):
 #: about 100 bytes per sample of a one-joint mechanism on disk and in ``SweepResult``, ~5 GB.
 MAX_TRAJECTORY_SAMPLES = 50_000_000
@@ -160,8 +157,8 @@ class SweepConfig:
         self._check_names(names)
         axes = {}
         for name in names:
-            vals = _values(name, table[name])
             try:
+                vals = _values(name, table[name])
                 params.validate(self._mech, name, vals)
             except JaxclearError as err:
                 raise ParameterError(f"{src}: {err}") from None
@@ -359,11 +356,9 @@ def load_config(path, **overrides) -> SweepConfig:
     (the command-line options). Relative ``output.dir`` is relative to the current folder.
     """
     path = os.fspath(path)
+    text = read_text(path, "sweep configuration")
     try:
-        with open(path, "rb") as f:
-            doc = tomllib.load(f)
-    except OSError as err:
-        raise ParameterError(f"cannot read sweep configuration {path!r}: {err.strerror or err}") from None
+        doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         raise ParameterError(f"{path}: not valid TOML: {err}") from None
     return config_from_dict(doc, source=path, **overrides)

@@ -5,20 +5,16 @@ series)."""
 
 from __future__ import annotations
 
-import csv
 import importlib
-import io as _io
-import json
 import os
+import zipfile
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._errors import ParameterError
-from .store import CHUNK_DIR, CSV_NAME, MANIFEST_NAME
+from .._errors import CheckpointError, ParameterError
+from .store import _INT_READ, CHUNK_DIR, CSV_NAME, damaged, parse_rows, read_manifest
 
-#: CSV columns read back as integers (``impacts`` stays a float: NaN for a failed run).
-_INT_READ = ("run", "num_steps", "num_accepted_steps", "num_rejected_steps", "status", "ideal_status")
 
 
 @dataclass
@@ -83,13 +79,17 @@ class SweepResult:
 
 
 def _read_table(out: str) -> dict:
-    """``runs.csv`` as column -> array, rows sorted by run index (a partial last line ignored)."""
-    with open(os.path.join(out, CSV_NAME), encoding="utf-8", newline="") as f:
-        text = f.read()
-    if text and not text.endswith("\n"):
-        text = text[: text.rfind("\n") + 1]
-    rows = list(csv.reader(_io.StringIO(text)))
-    header, body = rows[0], rows[1:]
+    """``runs.csv`` as column -> array, rows sorted by run index (a partial last line ignored;
+    a damaged file is an error naming it and the line, :func:`~jaxclear.sweep.store.parse_rows`)."""
+    path = os.path.join(out, CSV_NAME)
+    try:
+        with open(path, "rb") as f:
+            data = f.read()
+    except OSError as err:
+        raise CheckpointError(f"cannot read {path}: {err.strerror or err}") from None
+    if data and not data.endswith(b"\n"):
+        data = data[: data.rfind(b"\n") + 1]
+    header, body = parse_rows(path, data)
     body.sort(key=lambda r: int(r[0]))
     table: dict = {}
     for j, col in enumerate(header):
@@ -104,19 +104,27 @@ def _read_table(out: str) -> dict:
 
 
 def read_results(out) -> SweepResult:
-    """Read a sweep folder (complete or not): rows sorted by run index, Poincare points."""
+    """Read a sweep folder (complete or not): rows sorted by run index, Poincare points. A
+    damaged file (``runs.csv``, ``manifest.json``, a chunk) is a :class:`~jaxclear.CheckpointError`
+    naming it."""
     out = os.fspath(out)
-    with open(os.path.join(out, MANIFEST_NAME), encoding="utf-8") as f:
-        manifest = json.load(f)
+    manifest = read_manifest(out)
     table = _read_table(out)
+    n_runs = manifest.get("n_runs")
+    if isinstance(n_runs, int) and len(table["run"]) and int(table["run"].max()) >= n_runs:
+        raise damaged(os.path.join(out, CSV_NAME), f"run index {int(table['run'].max())} is outside this sweep's "
+                      f"[0, {n_runs})")
     chunks = read_chunks(out, prefix="poincare")
     poincare = chunks.get("poincare", np.zeros((0,)))
     if "run" in chunks and len(table.get("run", [])):
         pos = {int(r): k for k, r in enumerate(chunks["run"])}
+        missing = [int(r) for r in table["run"] if int(r) not in pos]
+        if missing:
+            raise damaged(os.path.join(out, CHUNK_DIR), f"runs {missing[:5]} of {CSV_NAME} have no chunk file")
         poincare = poincare[[pos[int(r)] for r in table["run"]]]
     cfg = manifest["config"]
     axes = {n: np.asarray(v, dtype=float) for n, v in cfg["parameters"].items()}
-    return SweepResult(out, table, tuple(manifest["names"]), poincare, axes, cfg["mode"],
+    return SweepResult(out, table, tuple(manifest["names"]), poincare, axes, cfg.get("mode", "grid"),
                        base_clearance=tuple(manifest.get("base_clearance_m", ())), manifest=manifest)
 
 
@@ -133,10 +141,13 @@ def read_chunks(out, prefix: str = "") -> dict:
     names = sorted(n for n in os.listdir(folder) if n.startswith("chunk_") and n.endswith(".npz"))
     parts: dict[str, list] = {}
     for name in names:
-        with np.load(os.path.join(folder, name)) as z:
-            for key in z.files:
-                if key == "run" or key.startswith(prefix):
-                    parts.setdefault(key, []).append(z[key])
+        try:
+            with np.load(os.path.join(folder, name)) as z:
+                for key in z.files:
+                    if key == "run" or key.startswith(prefix):
+                        parts.setdefault(key, []).append(z[key])
+        except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile) as err:
+            raise damaged(os.path.join(folder, name), f"not a readable NPZ file: {err}") from None
     if not parts:
         return {}
     merged = {k: np.concatenate(v, axis=0) for k, v in parts.items()}

@@ -5,7 +5,8 @@ chunk by chunk), ``OUT/manifest.json`` (the sweep's definition and its hash) and
 
 Resuming: run indices already in the CSV are skipped, a partial last line left by a kill is cut
 off, and a folder that holds a *different* sweep (another :meth:`SweepConfig.sweep_hash`) is an
-error.
+error; so is a damaged file (a bad byte, a garbled row, a cut manifest): the error names the file
+and the line, and offers ``--restart``.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ import numpy as np
 
 from .._numbers import as_typed
 from .._storage import atomic_write_json, atomic_write_npz, fsync_append
-from .._errors import ParameterError
+from .._errors import CheckpointError, ParameterError
 from ..analysis.metrics import RUN_METRIC_KEYS
 from .._errors import STATUS
 from .config import SweepConfig
@@ -39,6 +40,8 @@ POINCARE_COORDS = ("e_x", "e_y", "v_x", "v_y")
 _CONTACT_KEYS = ("peak_contact_force_n", "rms_contact_force_n", "max_penetration_m", "impacts",
                  "fraction_free_flight", "fraction_impact", "fraction_continuous_contact",
                  "energy_dissipated_j", "energy_dissipated_per_rev_j")
+#: CSV columns read back as integers (``impacts`` stays a float: NaN for a failed run).
+_INT_READ = ("run", "num_steps", "num_accepted_steps", "num_rejected_steps", "status", "ideal_status")
 _INT_COLUMNS = ("run", "impacts", "num_steps", "num_accepted_steps", "num_rejected_steps", "status", "ideal_status")
 
 
@@ -83,10 +86,63 @@ def _csv_quote(text: str) -> str:
     return text
 
 
-def _repair_csv(path: str, columns: list[str]) -> set[int]:
-    """Cut a partial last line (left by a kill), check the header and every row, return the run
-    indices present. Raises :class:`ParameterError` for a header of another sweep, a malformed
-    row that is not the last, or a repeated run index."""
+def damaged(path: str, detail: str) -> CheckpointError:
+    """The error of a damaged file of a sweep folder: names the file and what is wrong with it,
+    and offers ``--restart``."""
+    return CheckpointError(f"{path} is damaged ({detail}); run the sweep again with --restart (restart=True) to "
+                           "discard the folder's results and start over, or use another output folder")
+
+
+def parse_rows(path: str, data: bytes, columns: list[str] | None = None) -> tuple[list[str], list[list[str]]]:
+    """``(header, rows)`` of ``runs.csv``'s complete lines ``data``: every row checked (UTF-8,
+    its number of fields, an integer run index >= 0 that appears once, a number in every
+    numeric column); ``columns``: the header it must have (else an error naming both). Raises
+    :func:`damaged` errors naming the line."""
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as err:
+        line = data[: err.start].count(b"\n") + 1
+        raise damaged(path, f"line {line}: byte 0x{data[err.start]:02x} is not UTF-8 text") from None
+    try:
+        rows = list(csv.reader(_io.StringIO(text)))
+    except csv.Error as err:
+        raise damaged(path, f"not a CSV table: {err}") from None
+    if not rows or not rows[0]:
+        raise damaged(path, "line 1: no header")
+    header = rows[0]
+    if columns is not None and header != columns:
+        raise ParameterError(f"{path}: its header {header} is not this sweep's {columns}; "
+                             "use another output folder or restart=True (--restart)")
+    if header[0] != "run":
+        raise damaged(path, f"line 1: the first column is {header[0]!r}, not 'run'")
+    numeric = [j for j, col in enumerate(header) if col != "status_message"]
+    done: set[int] = set()
+    for lineno, row in enumerate(rows[1:], start=2):
+        if len(row) != len(header):
+            raise damaged(path, f"line {lineno}: {len(row)} fields, expected {len(header)}")
+        try:
+            i = int(row[0])
+        except ValueError:
+            raise damaged(path, f"line {lineno}: run index {row[0]!r} is not an integer") from None
+        if i < 0:
+            raise damaged(path, f"line {lineno}: run index {i} is negative")
+        if i in done:
+            raise damaged(path, f"line {lineno}: run {i} appears twice")
+        done.add(i)
+        for j in numeric:
+            try:
+                int(row[j]) if header[j] in _INT_READ else float(row[j])
+            except ValueError:
+                what = "an integer" if header[j] in _INT_READ else "a number"
+                raise damaged(path, f"line {lineno}, column {header[j]!r}: {row[j]!r} is not {what}") from None
+    return header, rows[1:]
+
+
+def _repair_csv(path: str, columns: list[str], n_runs: int | None = None) -> set[int]:
+    """Cut a partial last line (left by a kill), check the header and every row
+    (:func:`parse_rows`), return the run indices present. Raises :class:`ParameterError` for a
+    header of another sweep, :class:`~jaxclear.CheckpointError` for a damaged row that is not the
+    last, a repeated run index or one outside ``[0, n_runs)``."""
     with open(path, "rb") as f:
         data = f.read()
     if data and not data.endswith(b"\n"):
@@ -99,19 +155,33 @@ def _repair_csv(path: str, columns: list[str]) -> set[int]:
     if not data:
         fsync_append(path, ",".join(columns) + "\n", mode="w")
         return set()
-    rows = list(csv.reader(_io.StringIO(data.decode("utf-8"))))
-    if rows[0] != columns:
-        raise ParameterError(f"{path}: its header {rows[0]} is not this sweep's {columns}; "
-                             "use another output folder or restart=True (--restart)")
-    done: set[int] = set()
-    for lineno, row in enumerate(rows[1:], start=2):
-        if len(row) != len(columns):
-            raise ParameterError(f"{path}, line {lineno}: {len(row)} fields, expected {len(columns)} (corrupt file)")
-        i = int(row[0])
-        if i in done:
-            raise ParameterError(f"{path}, line {lineno}: run {i} appears twice (corrupt file)")
-        done.add(i)
+    _, rows = parse_rows(path, data, columns)
+    done = {int(row[0]) for row in rows}
+    if n_runs is not None and done and max(done) >= n_runs:
+        raise damaged(path, f"run index {max(done)} is outside this sweep's [0, {n_runs})")
     return done
+
+
+def read_manifest(out: str) -> dict:
+    """``OUT/manifest.json``, checked to be a sweep's manifest (a :func:`damaged` error naming
+    the file otherwise)."""
+    path = os.path.join(out, MANIFEST_NAME)
+    try:
+        with open(path, "rb") as f:
+            data = f.read()
+    except OSError as err:
+        raise CheckpointError(f"cannot read {path}: {err.strerror or err}") from None
+    try:
+        doc = json.loads(data.decode("utf-8"))
+    except UnicodeDecodeError as err:
+        raise damaged(path, f"byte 0x{data[err.start]:02x} at offset {err.start} is not UTF-8 text") from None
+    except ValueError as err:
+        raise damaged(path, f"not valid JSON: {err}") from None
+    config = doc.get("config") if isinstance(doc, dict) else None
+    if not isinstance(config, dict) or not isinstance(doc.get("names"), list) or \
+            not isinstance(config.get("parameters"), dict) or "sweep_hash" not in doc:
+        raise damaged(path, "not a jaxclear sweep manifest: 'sweep_hash', 'names' or 'config' missing")
+    return doc
 
 
 def _discard(out: str):
@@ -132,16 +202,16 @@ def _check_previous(out: str, digest: str, layout: dict):
             raise ParameterError(f"{os.path.join(out, CSV_NAME)} exists without {MANIFEST_NAME}: not a jaxclear "
                                  "sweep folder; use another output folder or restart=True (--restart)")
         return
-    with open(manifest_path, encoding="utf-8") as f:
-        old = json.load(f)
+    old = read_manifest(out)
     if old.get("sweep_hash") != digest:
         raise ParameterError(
             f"{out} holds a different sweep (manifest hash {str(old.get('sweep_hash'))[:12]}..., this one "
             f"{digest[:12]}...); use another output folder or restart=True (--restart) to discard it")
+    started = old.get("layout") if isinstance(old.get("layout"), dict) else {}
     for key in ("chunk_size", "devices"):
-        if old.get("layout", {}).get(key) != layout[key]:
+        if started.get(key) != layout[key]:
             warnings.warn(
-                f"resuming {out} with {key} = {layout[key]} (the sweep started with {old['layout'].get(key)}): "
+                f"resuming {out} with {key} = {layout[key]} (the sweep started with {started.get(key)}): "
                 "the runs still to do are batched differently, which changes their results in the last bits "
                 "(and the chaotic dynamics amplify that)", stacklevel=4)
 
@@ -175,7 +245,7 @@ def prepare_output(cfg: SweepConfig, out: str, restart: bool, layout: dict) -> s
     if not os.path.exists(csv_path):
         fsync_append(csv_path, ",".join(csv_columns(cfg)) + "\n", mode="w")
         return set()
-    return _repair_csv(csv_path, csv_columns(cfg))
+    return _repair_csv(csv_path, csv_columns(cfg), cfg.n_runs)
 
 
 def write_chunk(cfg: SweepConfig, out: str, c: int, lo: int, res: dict, done: set[int]) -> int:

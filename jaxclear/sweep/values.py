@@ -11,6 +11,10 @@ from .. import params
 from .._errors import ParameterError
 from .._numbers import as_typed
 
+#: Largest number of runs of one sweep (the (runs, parameters) table is built before anything
+#: is compiled; a grid's size is the product of its axes' lengths), and so of one axis's values:
+#: a range's ``num`` is checked against it before its values are made.
+MAX_RUNS = 10_000_000
 #: Keys of a range ``{start, stop, num, spacing}``.
 RANGE_KEYS = ("start", "stop", "num", "spacing")
 
@@ -37,8 +41,9 @@ def _range(where: str, spec: dict) -> np.ndarray:
         raise ParameterError(f"{where}: a range needs start, stop and num (missing {missing})")
     start, stop = _number(f"{where}.start", spec["start"]), _number(f"{where}.stop", spec["stop"])
     num = spec["num"]
-    if isinstance(num, bool) or not isinstance(num, (int, np.integer)) or num < 1:
-        raise ParameterError(f"{where}.num = {num!r}: expected an integer >= 1")
+    if isinstance(num, bool) or not isinstance(num, (int, np.integer)) or not 1 <= num <= MAX_RUNS:
+        raise ParameterError(f"{where}.num = {num!r}: expected an integer in the allowed range [1, {MAX_RUNS}] "
+                             "(jaxclear.sweep.config.MAX_RUNS, the most runs of a sweep)")
     spacing = spec.get("spacing", "linear")
     if spacing == "linear":
         return as_typed(np.linspace(start, stop, int(num)))
@@ -55,6 +60,9 @@ def _values(name: str, spec) -> np.ndarray:
     if isinstance(spec, dict):
         return _range(where, spec)
     if isinstance(spec, (list, tuple, np.ndarray)):
+        if len(spec) > MAX_RUNS:
+            raise ParameterError(f"{where}: {len(spec)} values, outside the allowed range [1, {MAX_RUNS}] "
+                                 "(jaxclear.sweep.config.MAX_RUNS, the most runs of a sweep)")
         arr = np.asarray(spec, dtype=object).ravel()
         if arr.size == 0:
             raise ParameterError(f"{where}: empty list of values (give at least one)")

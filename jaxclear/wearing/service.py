@@ -13,7 +13,9 @@ cycle) and updates the bearing (:func:`~jaxclear.wear.profile.worn`).
 With an output folder the work is written as it goes and resumes after a kill: after every
 update ``profile_NNNN.csv`` (node angle, cumulative depth), a row of ``updates.csv``, the
 state ``wear.json`` (atomically) and the polar figure ``profile.png``; the folder is locked
-while it runs.
+while it runs. ``wear.json`` is what a resume trusts: it rewrites ``updates.csv`` from the
+state's records, so a row appended by a run killed before it replaced the state is never
+listed twice.
 """
 
 from __future__ import annotations
@@ -41,8 +43,13 @@ from .profile import node_angles, prepare, worn
 
 #: A single update wearing more than this fraction of the clearance gets a warning.
 STEP_WARNING = 0.05
+#: Most bearing nodes (checked before the node arrays are made).
+MAX_NODES = 100_000
 STATE_FILE = "wear.json"
 UPDATES_FILE = "updates.csv"
+#: The numbers of an update's record in the state file (besides ``depth_m``, the depth at the nodes).
+RECORD_KEYS = ("service_time_s", "cycles", "worn_volume_m3", "max_depth_m", "mean_depth_m", "peak_force_n",
+               "max_penetration_m")
 UPDATES_HEADER = "update,service_time_s,cycles,worn_volume_m3,max_depth_m,mean_depth_m,peak_force_n,max_penetration_m\n"
 
 
@@ -56,8 +63,8 @@ class WearOptions:
         cycles_per_update: extrapolation factor [-], >= 1: the window's wear is multiplied by it.
         settle: start of each window discarded [s], >= 0 and below the settings' span.
         joint: the clearance joint worn (index or name; ``None``: the only one).
-        n_nodes: bearing nodes [-], >= 8; at most half the hybrid law's points (else a warning:
-            points that turn little against the bearing wear their own tracks, seen as stripes).
+        n_nodes: bearing nodes [-], in [8, :data:`MAX_NODES`]; at most half the hybrid law's points (else a
+            warning: points that turn little against the bearing wear their own tracks, seen as stripes).
         harmonics: Fourier terms of the worn profile [-], in [1, n_nodes / 2).
     """
 
@@ -74,8 +81,8 @@ class WearOptions:
         check_range("extrapolation factor (cycles_per_update)", self.cycles_per_update, low=1.0)
         if int(self.updates) != self.updates or self.updates < 1:
             raise ParameterError(f"updates = {self.updates} is outside the allowed range: an integer >= 1")
-        if int(self.n_nodes) != self.n_nodes or self.n_nodes < 8:
-            raise ParameterError(f"n_nodes = {self.n_nodes} is outside the allowed range: an integer >= 8")
+        if int(self.n_nodes) != self.n_nodes or not 8 <= self.n_nodes <= MAX_NODES:
+            raise ParameterError(f"n_nodes = {self.n_nodes} is outside the allowed range: an integer in [8, {MAX_NODES}]")
         if int(self.harmonics) != self.harmonics or not 1 <= self.harmonics < self.n_nodes / 2:
             raise ParameterError(f"harmonics = {self.harmonics} is outside the allowed range: an integer in "
                                  f"[1, n_nodes / 2 = {self.n_nodes / 2:g})")
@@ -118,29 +125,63 @@ def _window(mech, settings, index, coefficient, n_nodes, t_from):
 
 
 def _row(u: int, record: dict) -> str:
-    keys = ("service_time_s", "cycles", "worn_volume_m3", "max_depth_m", "mean_depth_m", "peak_force_n",
-            "max_penetration_m")
-    return f"{u}," + ",".join(repr(float(record[k])) for k in keys) + "\n"
+    return f"{u}," + ",".join(repr(float(record[k])) for k in RECORD_KEYS) + "\n"
 
 
-def _load_state(out: str, key: str, restart: bool) -> list[dict]:
+def _check_records(records, n_nodes: int) -> str | None:
+    """What is wrong with the update records of a state file, or None: each a table of the
+    finite numbers :data:`RECORD_KEYS` and ``depth_m``, ``n_nodes`` finite depths >= 0."""
+    if not isinstance(records, list):
+        return f"'updates' is {type(records).__name__}, not a list"
+    for u, r in enumerate(records):
+        if not isinstance(r, dict):
+            return f"update {u} is {type(r).__name__}, not a table"
+        missing = [k for k in (*RECORD_KEYS, "depth_m") if k not in r]
+        if missing:
+            return f"update {u} misses the key(s) {missing}"
+        for k in RECORD_KEYS:
+            v = r[k]
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
+                return f"update {u}: {k} = {v!r} is not a finite number"
+        depth = r["depth_m"]
+        ok = isinstance(depth, list) and len(depth) == n_nodes and all(
+            isinstance(d, (int, float)) and not isinstance(d, bool) for d in depth)
+        if not ok:
+            return f"update {u}: depth_m is not a list of {n_nodes} numbers"
+        d = np.asarray(depth, float)
+        if not np.all(np.isfinite(d)) or np.any(d < 0.0):
+            return f"update {u}: depth_m holds a value that is not finite and >= 0"
+    return None
+
+
+def _load_state(out: str, key: str, restart: bool, n_nodes: int) -> list[dict]:
+    """The update records of the state file (none on a fresh start or with ``restart``); a
+    file that cannot be read, is not a wear state, or holds a damaged record is a
+    :class:`~jaxclear.CheckpointError` naming it and the record."""
     path = os.path.join(out, STATE_FILE)
     if restart or not os.path.exists(path):
         return []
+    again = "run again with --restart (restart=True) to start over"
     try:
         with open(path, encoding="utf-8") as f:
             state = json.load(f)
         records = state["updates"]
         stored_key = state["fingerprint"]
-        for r in records:
-            np.asarray(r["depth_m"], float)
     except (OSError, ValueError, KeyError, TypeError) as exc:
-        raise CheckpointError(f"the wear state {path!r} is unreadable ({exc}); run again with --restart "
-                              "(restart=True) to start over") from None
+        detail = f"key {exc} missing" if isinstance(exc, KeyError) else str(exc)
+        raise CheckpointError(f"the wear state {path!r} is unreadable ({detail}); {again}") from None
     if stored_key != key:
         raise CheckpointError(f"the wear state in {out!r} belongs to another mechanism or other wear options; "
                               "choose another folder or run with --restart (restart=True) to start over")
+    problem = _check_records(records, n_nodes)
+    if problem is not None:
+        raise CheckpointError(f"the wear state {path!r} is damaged ({problem}); {again}")
     return records
+
+
+def _updates_text(records: list[dict]) -> str:
+    """``updates.csv`` of the records: the header and one row per update."""
+    return UPDATES_HEADER + "".join(_row(i, r) for i, r in enumerate(records))
 
 
 def _write(out: str, key: str, records: list[dict], options: WearOptions, clearance: float):
@@ -153,7 +194,7 @@ def _write(out: str, key: str, records: list[dict], options: WearOptions, cleara
     atomic_write_text(os.path.join(out, f"profile_{u:04d}.csv"), "".join(lines))
     updates = os.path.join(out, UPDATES_FILE)
     if u == 0 or not os.path.exists(updates):
-        atomic_write_text(updates, UPDATES_HEADER + "".join(_row(i, r) for i, r in enumerate(records)))
+        atomic_write_text(updates, _updates_text(records))
     else:
         fsync_append(updates, _row(u, rec))
     atomic_write_json(os.path.join(out, STATE_FILE), {"fingerprint": key, "updates": records}, indent=1)
@@ -232,8 +273,11 @@ def wear(mech: Mechanism, settings: Settings, options: WearOptions, out: str | N
             resumed = 0
         else:
             with locked_folder(out, "wear output folder"):
-                records = _load_state(out, key, restart)
+                records = _load_state(out, key, restart, options.n_nodes)
                 resumed = len(records)
+                if records:  # the rows of exactly the updates in the state: a row appended by a run killed
+                    # before it replaced the state is dropped (that update is computed again)
+                    atomic_write_text(os.path.join(out, UPDATES_FILE), _updates_text(records[: options.updates]))
                 records = run(records[: options.updates])
     depth = np.asarray([r["depth_m"] for r in records], float)
     return WearHistory(
