@@ -116,6 +116,13 @@ from .model import (  # noqa: E402
     crank_period,
 )
 from .presets import preset, preset_file, preset_names  # noqa: E402
+from .derivatives import (  # noqa: E402
+    DerivativeHorizonWarning,
+    amplification,
+    derivative_horizon,
+    differentiable_names,
+    sensitivities,
+)
 from .mechanism_files import load_mechanism, save_mechanism  # noqa: E402
 from .drawing import animate, plot_mechanism  # noqa: E402
 from .analysis.channels import channel  # noqa: E402

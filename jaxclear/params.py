@@ -28,7 +28,22 @@ name                    leaf                                                    
 ``speed_rpm``           the same in rev/min                                      rpm
 ``mass:BODY``           body mass                                                kg, (0, inf)
 ``inertia:BODY``        body centroidal inertia                                  kg m^2, (0, inf)
+``point_x:BODY.POINT``  x of a body-fixed point (``ground.POINT``: of the frame)  m
+``point_y:BODY.POINT``  y of the same point (geometry: link lengths, offsets)    m
+``angle0``              first ``AngleDriver.angle0`` (crank angle at t = 0)      rad
+``offset_x``            ``initial_offset[0]`` of the clearance joint (a journal:  m (rad)
+                        eccentricity x; translational: lateral offset)
+``offset_y``            ``initial_offset[1]`` (journal: eccentricity y;          m (rad)
+                        translational: tilt [rad])
+``velocity_x``          ``initial_velocity[0]`` (the rate of ``offset_x``)       m/s (rad/s)
+``velocity_y``          ``initial_velocity[1]`` (the rate of ``offset_y``)       m/s (rad/s)
 ======================  =======================================================  ============
+
+The initial-state names (``offset_*``, ``velocity_*``) set where a clearance joint starts
+within its clearance (the assembly holds it there); ``angle0`` and the points move the
+mechanism's configuration. Each name is a differentiable input of
+:func:`~jaxclear.simulate` (``jaxclear.sensitivities``); the structure (names, which law,
+Gauss-point counts, the film variant) is static and has no name here.
 
 ``width`` is an old name of ``length`` for the lubricated joint: still accepted, with a
 :class:`DeprecationWarning`.
@@ -53,7 +68,7 @@ from ._errors import ParameterError, check_range
 from ._units import rad_s_to_rpm, rpm_to_rad_s
 from .contact.friction import FRICTION_MODELS
 from .elements import LubricatedJoint, TranslationalClearanceJoint
-from .model import Mechanism, crank_driver
+from .model import GROUND, Mechanism, crank_driver
 
 
 @dataclass(frozen=True)
@@ -98,7 +113,24 @@ INFO = {
     "speed_rpm": ParameterInfo("speed_rpm", "rpm", None, None, False, False, "none", "crank speed"),
     "mass": ParameterInfo("mass", "kg", 0.0, None, True, False, "log", "body mass (mass:BODY)"),
     "inertia": ParameterInfo("inertia", "kg m^2", 0.0, None, True, False, "log", "body inertia (inertia:BODY)"),
+    "point_x": ParameterInfo("point_x", "m", None, None, False, False, "none",
+                             "x of a body-fixed point (point_x:BODY.POINT)"),
+    "point_y": ParameterInfo("point_y", "m", None, None, False, False, "none",
+                             "y of a body-fixed point (point_y:BODY.POINT)"),
+    "angle0": ParameterInfo("angle0", "rad", None, None, False, False, "none", "crank angle at t = 0"),
+    "offset_x": ParameterInfo("offset_x", "m", None, None, False, False, "none",
+                              "initial offset of the clearance joint, first component"),
+    "offset_y": ParameterInfo("offset_y", "m", None, None, False, False, "none",
+                              "initial offset of the clearance joint, second component"),
+    "velocity_x": ParameterInfo("velocity_x", "m/s", None, None, False, False, "none",
+                                "initial relative velocity of the clearance joint, first component"),
+    "velocity_y": ParameterInfo("velocity_y", "m/s", None, None, False, False, "none",
+                                "initial relative velocity of the clearance joint, second component"),
 }
+
+#: names of one component of a 2-vector leaf: name -> (leaf kind, component)
+COMPONENTS = {"point_x": ("point", 0), "point_y": ("point", 1), "offset_x": ("offset", 0), "offset_y": ("offset", 1),
+              "velocity_x": ("velocity", 0), "velocity_y": ("velocity", 1)}
 
 
 #: old parameter name -> the name that replaced it (accepted with a DeprecationWarning)
@@ -143,6 +175,9 @@ def _split(name: str):
                              "(mass:BODY, inertia:BODY, and NAME@J for clearance joint J)")
     if base in ("mass", "inertia") and body is None:
         raise ParameterError(f"parameter {name!r} needs a body: {base}:BODY")
+    if base in ("point_x", "point_y") and (body is None or "." not in body):
+        raise ParameterError(f"parameter {name!r} needs a body and a point: {base}:BODY.POINT (ground.POINT for a "
+                             "point of the frame)")
     return base, joint, body
 
 
@@ -175,9 +210,32 @@ def _accessor(mech: Mechanism, name: str) -> tuple[Callable, Callable]:
             raise ParameterError(f"parameter {name!r}: the ground has no {base}")
         where = (lambda m: m.bodies[i].mass) if base == "mass" else (lambda m: m.bodies[i].inertia)
         return where, where
-    if base in ("speed", "speed_rpm"):
+    if base in ("speed", "speed_rpm", "angle0"):
         i = _driver_index(mech, name)
-        return (lambda m: m.drivers[i].speed), (lambda m: m.drivers[i].speed)
+        field = "angle0" if base == "angle0" else "speed"
+        w = lambda m: getattr(m.drivers[i], field)  # noqa: E731
+        return w, w
+    if base in ("point_x", "point_y"):
+        owner, point = body.split(".", 1)
+        if owner == GROUND:
+            table = mech.ground_points
+            where = lambda m: m.ground_points[point]  # noqa: E731
+        else:
+            i = mech.body_index(owner)
+            if i < 0:
+                raise ParameterError(f"parameter {name!r}: no body {owner!r}; bodies: {[b.name for b in mech.bodies]}")
+            table = mech.bodies[i].points
+            where = lambda m: m.bodies[i].points[point]  # noqa: E731
+        if point not in table:
+            raise ParameterError(f"parameter {name!r}: {owner!r} has no point {point!r}; its points: {sorted(table)}")
+        k = COMPONENTS[base][1]
+        return (lambda m: where(m)[k]), where
+    if base in ("offset_x", "offset_y", "velocity_x", "velocity_y"):
+        joint = _joint(mech, name, k)
+        field = "initial_offset" if base.startswith("offset") else "initial_velocity"
+        j = COMPONENTS[base][1]
+        where = lambda m: getattr(m.clearance_joints[k], field)  # noqa: E731
+        return (lambda m: where(m)[j]), where
     joint = _joint(mech, name, k)
     if base == "clearance":
         if isinstance(joint, TranslationalClearanceJoint):  # (W - b)/2: sets the guide width, block kept
@@ -239,6 +297,8 @@ def replace(mech: Mechanism, name: str, value) -> Mechanism:
         value = mech.clearance_joints[k].bearing_radius - value
     elif base == "speed_rpm":
         value = rpm_to_rad_s(value)
+    elif base in COMPONENTS:  # one component of a 2-vector leaf
+        value = jnp.asarray(where(mech), dtype=float).at[COMPONENTS[base][1]].set(value)
     return eqx.tree_at(where, mech, value, is_leaf=lambda x: x is None)
 
 

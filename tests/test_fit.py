@@ -170,7 +170,7 @@ GOOD_ROWS = "".join(f"{i * 1e-5:.6g},{100.0 * math.sin(i / 10):.6g}\n" for i in 
         ("time_s,slider_acc_m_s2\n0,1\nnan,2\n", r"line 3, column 'time_s': non-finite value 'nan'"),
         ("time_s,slider_acc_m_s2\n0,1\n1e-5,inf\n", r"line 3, column 'slider_acc_m_s2': non-finite"),
         ("time_s,slider_acc_m_s2\n0,1\n1e-5,abc\n", r"line 3, column 'slider_acc_m_s2': non-numeric value 'abc'"),
-        ("time_s,slider_acc_m_s2\n" + GOOD_ROWS, r"record shorter than the fit windows"),
+        ("time_s,slider_acc_m_s2\n0,1\n1e-5,2\n2e-5,3\n", r"holding 3 sample\(s\) each; at least 4 are needed"),
     ],
     ids=["missing-column", "misnamed-column", "time-not-increasing", "time-nan", "acc-inf", "acc-text", "too-short"],
 )

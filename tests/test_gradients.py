@@ -1,4 +1,8 @@
-"""Gradients through the simulation (issue: reverse and forward mode, any numeric parameter).
+"""Gradients through the simulation's loop (``Settings(adjoint="recursive")`` and ``"forward"``:
+diffrax's reverse and forward mode through its integration loop), and the default adjoint
+(``"sensitivity"``) where a test names no adjoint (grad of vmap, the parameter_grad helper, the
+slider-crank's reverse mode). The error-controlled sensitivities themselves, against closed
+forms through several impacts, are tested in ``test_sensitivities.py``.
 
 Checks against central finite differences in float64 on windows that contain an impact. The
 tolerances follow from the integration tolerance: at rtol = 1e-10 a loss computed by the
@@ -58,7 +62,9 @@ def _f(mech, x, t_end, settings):
     return _loss(jc.simulate(params.replace_many(mech, values), dataclasses.replace(settings, t_end=t_end)))
 
 
-WINDOW = jc.settings(1.0e-3, n_out=3, rtol=1e-10, atol=1e-14, checkpoints=16)
+# differentiation through diffrax's loop (the error-controlled sensitivities, the default adjoint,
+# are tested in test_sensitivities.py)
+WINDOW = jc.settings(1.0e-3, n_out=3, rtol=1e-10, atol=1e-14, checkpoints=16, adjoint="recursive")
 FORWARD = dataclasses.replace(WINDOW, adjoint="forward")
 
 

@@ -1,0 +1,318 @@
+"""Accuracy and cost of jaxclear's derivatives through impacts, against the true derivative.
+
+For each case (a mechanism, its friction coefficient and force exponent, named parameters, a
+horizon and named outputs of one simulation):
+
+* **truth**: central differences of tight runs (rtol 1e-10 / atol 1e-13), relative steps 1e-3,
+  1e-4, 1e-5, 1e-6 of each parameter (of 0.1 for a parameter at 0), confirmed at rtol 1e-11 /
+  atol 1e-14 with steps 1e-4 and 1e-5; the truth is the rtol 1e-11 difference at step 1e-4 and
+  its own uncertainty the largest relative spread of the four plateau values (1e-4 and 1e-5 at
+  both tolerances). The step sweep is written to the JSON, so the plateau can be read there.
+* **sensitivities**: ``jax.jacfwd`` of the simulation at the default settings
+  (``Settings(adjoint="sensitivity")``: error-controlled forward sensitivities);
+* **loop**: ``jax.jacfwd`` through diffrax's loop (``adjoint="forward"``, the derivative of the
+  discretization whose steps are sized for the values only), at the default tolerances and
+  tightened (rtol 1e-8, 1e-10), to find the cheapest tolerance at which it is as accurate as the
+  sensitivities (or 1e-3, whichever is larger);
+* **scatter**: the sensitivities at parameter values 1e-7 apart (relative), which should agree
+  to 1e-4;
+* **cost**: steady-state wall time (best of ``--repeats``) of the value alone, of each Jacobian,
+  and compile times, all in the same process.
+
+Error of a derivative: for each output and parameter, the largest absolute error over the
+output's samples divided by the largest absolute true derivative there (the parameter's own
+scale); the tables show the worst over the parameters. The value's own error is measured the
+same way against the tight run.
+
+Outputs: the Flores benchmark slider-crank (slider acceleration and velocity over its first
+impact, misfits of the slider acceleration over 0-2 and 2-4 ms of one run), the four-bar
+(rocker angular velocity and acceleration over 0-3 ms, misfit of the rocker acceleration over
+0-6 ms), the lubricated slider-crank (0.05 Pa s: film and dry contact; slider acceleration over
+0-2 ms, misfit over 0-4 ms) and the slider-crank with a translational clearance joint (slider
+acceleration over 0-4 ms, misfit over 0-8 ms); each with friction 0 and 0.1 and force
+exponents 1, 1.5 and 2 (the stiffness scaled to keep the force at 10 um). A misfit is the mean square difference from a record made by the same
+mechanism with 1.2 times the stiffness and restitution 0.85 (rtol 1e-10), over the record's
+mean square.
+
+Usage: python benchmarks/bench_gradients.py [--cases slider-crank,four-bar,...] [--frictions 0,0.1]
+[--exponents 1,1.5,2] [--repeats 3] [--json benchmarks/results/gradients.json] [--restart]
+Results are written after each case; a second run skips the cases already in the JSON.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import os
+import platform
+import time
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import jaxclear as jc
+from jaxclear import params
+
+TIGHT = dict(rtol=1e-10, atol=1e-13, max_steps=4_000_000)
+TIGHTER = dict(rtol=1e-11, atol=1e-14, max_steps=4_000_000)
+STEPS = (1e-3, 1e-4, 1e-5, 1e-6)
+SCATTER = 1e-7
+LOOP_RTOLS = (1e-8, 1e-10)
+
+
+@dataclasses.dataclass(frozen=True)
+class Case:
+    """A mechanism family and its outputs (name -> function of (solution, mechanism, record))."""
+
+    name: str
+    build: object  # (friction, exponent) -> Mechanism
+    names: tuple
+    t_end: float
+    n_out: int
+    channel: object  # (solution, mechanism) -> (T,) the misfit's channel
+    outputs: object  # (solution, mechanism, ts, misfit) -> dict name -> array
+
+
+def _misfit(y, record, mask):
+    return jnp.sum(jnp.where(mask, (y - record) ** 2, 0.0)) / jnp.sum(jnp.where(mask, record**2, 0.0))
+
+
+def _window(ts, a, b):
+    return (ts >= a) & (ts <= b)
+
+
+def _slider(sol, m, k=2):
+    return sol.coordinate(m, "slider", "x", derivative=k)
+
+
+def _rocker(sol, m, k=2):
+    return sol.coordinate(m, "rocker", "phi", derivative=k)
+
+
+#: penetration [m] at which a law of another exponent n keeps the force of the preset's law
+#: (K_n = K_1.5 DELTA_REF^(1.5 - n)), so that the contacts stay comparable
+DELTA_REF = 1e-5
+
+
+def _with(mech, exponent):
+    if exponent == 1.5:
+        return mech
+    k = float(params.get(mech, "stiffness")) * DELTA_REF ** (1.5 - exponent)
+    return params.replace_many(mech, {"exponent": exponent, "stiffness": k})
+
+
+CASES = {
+    "slider-crank": Case(
+        "slider-crank", lambda mu, n: _with(jc.preset("flores-slider-crank", friction=mu), n),
+        ("stiffness", "restitution", "clearance", "friction"), 4e-3, 801, _slider,
+        lambda sol, m, ts, mis: {
+            "impact: slider acc.": jnp.where(_window(ts, 0.2e-3, 0.36e-3), _slider(sol, m), 0.0),
+            "impact: slider vel.": jnp.where(_window(ts, 0.2e-3, 0.36e-3), _slider(sol, m, 1), 0.0),
+            "misfit 0-2 ms": mis(_window(ts, 0.0, 2e-3)),
+            "misfit 2-4 ms": mis(_window(ts, 2e-3, 4e-3)),
+        }),
+    "four-bar": Case(
+        "four-bar", lambda mu, n: _with(jc.preset("four-bar", friction=mu), n),
+        ("stiffness", "restitution", "clearance", "friction"), 6e-3, 601, _rocker,
+        lambda sol, m, ts, mis: {
+            "rocker vel. 0-3 ms": jnp.where(_window(ts, 0.0, 3e-3), _rocker(sol, m, 1), 0.0),
+            "rocker acc. 0-3 ms": jnp.where(_window(ts, 0.0, 3e-3), _rocker(sol, m), 0.0),
+            "misfit 0-6 ms": mis(_window(ts, 0.0, 6e-3)),
+        }),
+    "lubricated": Case(
+        "lubricated", lambda mu, n: _with(jc.preset("flores-slider-crank", friction=mu, viscosity=0.05), n),
+        ("viscosity", "stiffness", "restitution", "clearance", "friction"), 4e-3, 801, _slider,
+        lambda sol, m, ts, mis: {
+            "slider acc. 0-2 ms": jnp.where(_window(ts, 0.0, 2e-3), _slider(sol, m), 0.0),
+            "misfit 0-4 ms": mis(_window(ts, 0.0, 4e-3)),
+        }),
+    "translational": Case(
+        "translational", lambda mu, n: _with(jc.preset("slider-crank-guide-clearance", friction=mu), n),
+        ("stiffness", "restitution", "clearance", "friction"), 8e-3, 801,
+        lambda sol, m, k=2: sol.coordinate(m, "slider", "y", derivative=k),
+        lambda sol, m, ts, mis: {
+            "slider lateral acc. 0-4 ms": jnp.where(_window(ts, 0.0, 4e-3),
+                                                    sol.coordinate(m, "slider", "y", derivative=2), 0.0),
+            "misfit 0-8 ms": mis(_window(ts, 0.0, 8e-3)),
+        }),
+}
+
+
+def _record(case: Case, mech, x0):
+    """The misfit's record: the same mechanism with 1.2 times the stiffness and restitution 0.85."""
+    true = params.replace_many(mech, {"stiffness": 1.2 * x0[case.names.index("stiffness")], "restitution": 0.85})
+    sol = jc.simulate(true, jc.settings(case.t_end, n_out=case.n_out, **TIGHT))
+    return np.asarray(case.channel(sol, true))
+
+
+def _function(case: Case, mech, record, settings):
+    """``f(x)``: the outputs flattened ``(L,)`` and the block slices, for parameter values ``x``."""
+    names = case.names
+    ts = jnp.linspace(0.0, case.t_end, case.n_out)
+    rec = jnp.asarray(record)
+
+    def outputs(x):
+        m = params.replace_many(mech, {n: x[i] for i, n in enumerate(names)})
+        sol = jc.simulate(m, settings)
+        mis = lambda mask: _misfit(case.channel(sol, m), rec, mask)  # noqa: E731
+        return {k: jnp.atleast_1d(v) for k, v in case.outputs(sol, m, ts, mis).items()}
+
+    return outputs
+
+
+def _flat(outputs):
+    def f(x):
+        out = outputs(x)
+        return jnp.concatenate([out[k] for k in out])
+    return f
+
+
+def _timed(fn, x, repeats):
+    t0 = time.perf_counter()
+    out = jax.block_until_ready(fn(x))
+    first = time.perf_counter() - t0
+    best = np.inf
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        jax.block_until_ready(fn(x))
+        best = min(best, time.perf_counter() - t0)
+    return np.asarray(out), first - best, best
+
+
+def _errors(J, T, blocks, scale):
+    """Per output block: the worst over parameters of max|J - T| / max|T| (J, T (L, P))."""
+    out = {}
+    for k, sl in blocks.items():
+        t, j = T[sl] * scale, J[sl] * scale
+        den = np.max(np.abs(t), axis=0)
+        err = np.max(np.abs(j - t), axis=0) / np.where(den > 0, den, 1.0)
+        out[k] = float(np.max(err))
+    return out
+
+
+def run_case(case: Case, mu: float, n: float, repeats: int) -> dict:
+    mech = case.build(mu, n)
+    x0 = np.array([float(params.get(mech, p)) for p in case.names])
+    scale = np.where(x0 != 0, np.abs(x0), 0.1)  # the parameters' scales (derivatives reported per unit log)
+    record = _record(case, mech, x0)
+    default = jc.settings(case.t_end, n_out=case.n_out)
+    outputs = _function(case, mech, record, default)
+    shapes = {k: v.shape[0] for k, v in jax.eval_shape(outputs, jnp.asarray(x0)).items()}
+    blocks, start = {}, 0
+    for k, size in shapes.items():
+        blocks[k] = slice(start, start + size)
+        start += size
+    row = dict(case=case.name, friction=mu, exponent=n, parameters=list(case.names))
+
+    # truth: central differences of tight runs, with the step sweep
+    fd = {}
+    for label, tol, steps in (("1e-10", TIGHT, STEPS), ("1e-11", TIGHTER, STEPS[1:3])):
+        f = jax.jit(_flat(_function(case, mech, record, jc.settings(case.t_end, n_out=case.n_out, **tol))))
+        if label == "1e-10":
+            value_true = np.asarray(f(jnp.asarray(x0)))
+        cols = {}
+        for h in steps:
+            J = []
+            for i in range(len(x0)):
+                e = np.zeros_like(x0)
+                e[i] = h * scale[i]
+                J.append((np.asarray(f(jnp.asarray(x0 + e))) - np.asarray(f(jnp.asarray(x0 - e)))) / (2 * e[i]))
+            cols[h] = np.stack(J, axis=1)
+        fd[label] = cols
+    truth = fd["1e-11"][1e-4]
+    plateau = [fd["1e-10"][1e-4], fd["1e-10"][1e-5], fd["1e-11"][1e-4], fd["1e-11"][1e-5]]
+    row["truth_spread"] = {k: max(_errors(p, truth, {k: sl}, scale)[k] for p in plateau) for k, sl in blocks.items()}
+    row["step_sweep"] = {lab: {f"{h:g}": {k: (cols[h][sl] * scale).tolist() if cols[h][sl].shape[0] == 1 else
+                                         float(np.max(np.abs(cols[h][sl] * scale)))
+                                         for k, sl in blocks.items()} for h in cols} for lab, cols in fd.items()}
+
+    # the value and the derivatives at the default settings
+    value_fn = jax.jit(_flat(outputs))
+    value, value_compile, value_time = _timed(value_fn, jnp.asarray(x0), repeats)
+    row["value_error"] = {k: float(np.max(np.abs(value[sl] - value_true[sl])) /
+                                   max(np.max(np.abs(value_true[sl])), 1e-300)) for k, sl in blocks.items()}
+    row["value_s"], row["value_compile_s"] = value_time, value_compile
+
+    sens_fn = jax.jit(jax.jacfwd(_flat(outputs)))
+    J, c, t = _timed(sens_fn, jnp.asarray(x0), repeats)
+    row["sensitivity_error"], row["sensitivity_s"], row["sensitivity_compile_s"] = _errors(J, truth, blocks, scale), t, c
+    J2 = np.asarray(sens_fn(jnp.asarray(x0 * (1 + SCATTER))))
+    row["scatter"] = _errors(J2, J, blocks, scale)
+
+    for rtol in (None,) + LOOP_RTOLS:
+        tol = {} if rtol is None else dict(rtol=rtol, atol=rtol * 1e-3, max_steps=4_000_000)
+        s = jc.settings(case.t_end, n_out=case.n_out, adjoint="forward", **tol)
+        fn = jax.jit(jax.jacfwd(_flat(_function(case, mech, record, s))))
+        J, c, t = _timed(fn, jnp.asarray(x0), repeats)
+        key = "loop" if rtol is None else f"loop_rtol_{rtol:g}"
+        row[f"{key}_error"], row[f"{key}_s"], row[f"{key}_compile_s"] = _errors(J, truth, blocks, scale), t, c
+    # equal accuracy: the cheapest loop tolerance at least as accurate as the sensitivities
+    target = max(max(row["sensitivity_error"].values()), 1e-3)
+    for key in ["loop"] + [f"loop_rtol_{r:g}" for r in LOOP_RTOLS]:
+        if max(row[f"{key}_error"].values()) <= target:
+            row["equal_accuracy_loop"] = key
+            row["equal_accuracy_ratio"] = row[f"{key}_s"] / row["sensitivity_s"]
+            break
+    else:
+        row["equal_accuracy_loop"] = None
+        row["equal_accuracy_ratio"] = None
+    return row
+
+
+def _key(case, mu, n):
+    return f"{case}|{mu:g}|{n:g}"
+
+
+def _print(row):
+    print(f"\n{row['case']}  friction {row['friction']:g}  exponent {row['exponent']:g}  "
+          f"(value {row['value_s'] * 1e3:.1f} ms; sensitivities {row['sensitivity_s'] / row['value_s']:.1f}x, "
+          f"loop {row['loop_s'] / row['value_s']:.1f}x the value)")
+    print(f"  {'output':28s} {'value err':>9s} {'truth':>8s} {'sens.':>8s} {'scatter':>8s} {'loop':>8s} "
+          + " ".join(f"{'loop ' + format(r, 'g'):>10s}" for r in LOOP_RTOLS))
+    for k in row["sensitivity_error"]:
+        print(f"  {k:28s} {row['value_error'][k]:9.1e} {row['truth_spread'][k]:8.1e} {row['sensitivity_error'][k]:8.1e} "
+              f"{row['scatter'][k]:8.1e} {row['loop_error'][k]:8.1e} "
+              + " ".join(f"{row[f'loop_rtol_{r:g}_error'][k]:10.1e}" for r in LOOP_RTOLS))
+    ratio = row["equal_accuracy_ratio"]
+    print(f"  equal accuracy: {row['equal_accuracy_loop'] or 'no loop tolerance tried reaches it'}"
+          + (f", {ratio:.1f}x the sensitivities' time" if ratio else ""))
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--cases", default=",".join(CASES))
+    ap.add_argument("--frictions", default="0,0.1")
+    ap.add_argument("--exponents", default="1,1.5,2")
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--json", default=str(Path(__file__).parent / "results" / "gradients.json"))
+    ap.add_argument("--restart", action="store_true", help="ignore the cases already in the JSON")
+    args = ap.parse_args(argv)
+    path = Path(args.json)
+    done = {}
+    if path.exists() and not args.restart:
+        done = {_key(r["case"], r["friction"], r["exponent"]): r for r in json.loads(path.read_text())["rows"]}
+    meta = dict(machine=platform.processor() or platform.machine(), cores=os.cpu_count(), jax=jax.__version__,
+                date=time.strftime("%Y-%m-%d"), tight=TIGHT, tighter=TIGHTER, steps=STEPS, scatter=SCATTER)
+    for name in args.cases.split(","):
+        for mu in (float(v) for v in args.frictions.split(",")):
+            for n in (float(v) for v in args.exponents.split(",")):
+                key = _key(name, mu, n)
+                if key in done:
+                    _print(done[key])
+                    continue
+                t0 = time.perf_counter()
+                row = run_case(CASES[name], mu, n, args.repeats)
+                row["case_wall_s"] = time.perf_counter() - t0
+                done[key] = row
+                _print(row)
+                path.parent.mkdir(parents=True, exist_ok=True)
+                tmp = path.with_suffix(".tmp.json")
+                tmp.write_text(json.dumps(dict(meta=meta, rows=list(done.values())), indent=1))
+                os.replace(tmp, path)
+
+
+if __name__ == "__main__":
+    main()

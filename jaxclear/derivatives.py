@@ -1,0 +1,170 @@
+r"""Derivatives of a simulation with respect to named parameters: :func:`sensitivities`.
+
+``jax.jvp``, ``jax.jacfwd``, ``jax.grad`` and ``jax.vjp`` of :func:`~jaxclear.simulate` already
+give the error-controlled sensitivities (``Settings(adjoint="sensitivity")``, the default;
+:mod:`jaxclear.integrate.sensitivity`); this module names what to differentiate by the names of
+:mod:`jaxclear.params` and reports how far the derivatives can be trusted:
+
+* :func:`differentiable_names` lists the names of a mechanism (every ``name@J`` of each clearance
+  joint, ``mass:BODY`` of each body, ``point_x:BODY.POINT`` of each point, ...);
+* :func:`sensitivities` returns the solution (or any output of it) and its derivative with
+  respect to each name;
+* :func:`amplification` measures how much the state's relative change exceeds the parameter's:
+  in a chaotic motion it grows like :math:`e^{\lambda t}` (:math:`\lambda` the largest Lyapunov
+  exponent), and once a change of the parameter of the size of the solver's relative tolerance
+  moves the state by more than a tenth of its own size, the run is past its horizon of
+  predictability: the computed trajectory is no longer reproducible to its tolerance, and
+  neither its derivative (:class:`DerivativeHorizonWarning`).
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import Callable, Sequence
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from . import params
+from ._errors import JaxclearError, ParameterError
+from .integrate import Settings, Solution, simulate
+from .model import Mechanism, crank_driver
+
+
+class DerivativeHorizonWarning(UserWarning):
+    """A derivative was requested past the run's horizon of predictability (:func:`amplification`)."""
+
+
+def differentiable_names(mech: Mechanism) -> list[str]:
+    """Every name of :mod:`jaxclear.params` that addresses a number of ``mech`` (suffixed for each
+    body, point and clearance joint): the inputs :func:`sensitivities` differentiates."""
+    out = []
+    for k, joint in enumerate(mech.clearance_joints):
+        suffix = "" if k == 0 else f"@{k}"
+        for base in params.parameter_names():
+            if base in ("mass", "inertia", "point_x", "point_y", "speed", "speed_rpm", "angle0"):
+                continue
+            try:
+                params._accessor(mech, base + suffix)
+            except JaxclearError:
+                continue
+            out.append(base + suffix)
+    if crank_driver(mech) is not None:
+        out += ["speed", "speed_rpm", "angle0"]
+    for body in mech.bodies:
+        out += [f"mass:{body.name}", f"inertia:{body.name}"]
+        out += [f"point_{c}:{body.name}.{p}" for p in body.points for c in "xy"]
+    out += [f"point_{c}:ground.{p}" for p in mech.ground_points for c in "xy"]
+    return out
+
+
+def check_names(mech: Mechanism, names: Sequence[str]) -> tuple:
+    """``names`` as a tuple; a :class:`~jaxclear.ParameterError` for an empty list, a repeated name,
+    or a name that is not a number of ``mech`` (an unknown name, or a structural field such as a
+    law's model or a body's name), listing the differentiable names."""
+    names = tuple(names)
+    if not names:
+        raise ParameterError("no parameter to differentiate with respect to: give at least one name")
+    if len(set(names)) != len(names):
+        raise ParameterError(f"parameters listed twice: {list(names)}")
+    for name in names:
+        try:
+            params._accessor(mech, name)
+        except JaxclearError as err:
+            raise ParameterError(
+                f"cannot differentiate with respect to {name!r} ({err}); the differentiable names of mechanism "
+                f"{mech.name!r} are: {', '.join(differentiable_names(mech))}") from None
+    return names
+
+
+@eqx.filter_jit
+def _linearized(mech, s, names, x, output):
+    def f(v):
+        m = params.replace_many(mech, dict(zip(names, v)))
+        sol = simulate(m, s)
+        return sol if output is None else output(sol, m)
+
+    value, lin = jax.linearize(f, x)
+    return value, jax.vmap(lin)(jnp.eye(x.shape[0], dtype=x.dtype))
+
+
+def _is_float(x) -> bool:
+    return hasattr(x, "dtype") and jnp.issubdtype(x.dtype, jnp.inexact)
+
+
+def sensitivities(mech: Mechanism, s: Settings, names: Sequence[str], output: Callable | None = None,
+                  warn: bool = True):
+    r"""The run and its derivatives with respect to the named parameters.
+
+    Args:
+        mech: the mechanism.
+        s: the settings; with ``adjoint="sensitivity"`` (the default) the derivatives are the
+            error-controlled forward sensitivities (their steps are sized for the derivatives
+            too); the other adjoints differentiate through the solver's loop.
+        names: names of :mod:`jaxclear.params` (:func:`differentiable_names`).
+        output: ``output(solution, mechanism) -> array`` to differentiate; ``None``: the whole
+            :class:`~jaxclear.Solution`.
+        warn: issue :class:`DerivativeHorizonWarning` when a derivative is past the run's horizon
+            of predictability (:func:`amplification`; with ``output=None``, for the parameters
+            whose value is not zero).
+
+    Returns:
+        ``(value, derivatives)``: ``value`` the solution (or the output), ``derivatives`` a dict
+        name -> its derivative with respect to that parameter [unit of the value per SI unit of the
+        parameter; ``speed_rpm`` per rpm], of the same structure as ``value`` (a
+        :class:`~jaxclear.Solution` whose float fields are derivatives and whose integer fields,
+        status and counts, are the run's).
+    """
+    names = check_names(mech, names)
+    x = jnp.asarray([params.get(mech, n) for n in names], dtype=float)
+    value, tangents = _linearized(mech, s, names, x, output)
+    derivatives = {}
+    for i, name in enumerate(names):
+        derivatives[name] = jax.tree_util.tree_map(lambda t, v: t[i] if _is_float(v) else v, tangents, value)
+    if warn and output is None and isinstance(value, Solution):
+        for name in names:
+            size = abs(float(params.get(mech, name)))
+            if size == 0.0:  # a parameter at zero has no relative change to amplify
+                continue
+            a = float(amplification(value, derivatives[name], size))
+            if a * s.rtol > 0.1:
+                warnings.warn(
+                    f"the derivative with respect to {name!r} is past the run's horizon of predictability: a relative "
+                    f"change of {name!r} as small as the solver's tolerance (rtol = {s.rtol:g}) moves the state by "
+                    f"{a * s.rtol:.2g} of its own size (amplification {a:.3g}); the motion is this sensitive (a "
+                    "chaotic or grazing regime) and the derivative describes only parameter changes far below the "
+                    "tolerance. Use a shorter horizon, or average over windows or start states "
+                    "(docs: theory/sensitivities.md)", DerivativeHorizonWarning, stacklevel=2)
+    return value, derivatives
+
+
+def amplification(sol: Solution, tangent: Solution, scale: float = 1.0):
+    r"""How much a relative change of a parameter is amplified in the state:
+    :math:`A = \max_t \|\bar\theta\,\partial y(t)/\partial\theta\| / \max_t \|y(t)\|`, with
+    :math:`y = (q, \dot q)` in RMS over the coordinates (per kind: positions and velocities each
+    relative to their own largest RMS), ``tangent`` the derivative of ``sol`` and ``scale``
+    :math:`\bar\theta` the parameter's size (its value). Dimensionless: the relative change of
+    the state per relative change of the parameter. Once :math:`A\,\mathrm{rtol} > 0.1`, a
+    change as small as the solver's own relative error moves the state by a tenth of its size."""
+    def ratio(y, dy):
+        size = jnp.max(jnp.sqrt(jnp.mean(y**2, axis=-1)))
+        return jnp.max(jnp.sqrt(jnp.mean((scale * dy) ** 2, axis=-1))) / jnp.where(size > 0, size, 1.0)
+
+    return jnp.maximum(ratio(sol.q, tangent.q), ratio(sol.qdot, tangent.qdot))
+
+
+def derivative_horizon(sol: Solution, tangent: Solution, rtol: float, scale: float = 1.0) -> float:
+    """The first output time [s] at which the amplification (:func:`amplification`, up to that
+    time) times ``rtol`` exceeds 0.1; ``inf`` if it never does within the run."""
+    q = np.asarray(sol.q)
+    qd = np.asarray(sol.qdot)
+    sq = np.sqrt(np.mean(q**2, axis=-1))
+    sqd = np.sqrt(np.mean(qd**2, axis=-1))
+    dq = scale * np.sqrt(np.mean(np.asarray(tangent.q) ** 2, axis=-1))
+    dqd = scale * np.sqrt(np.mean(np.asarray(tangent.qdot) ** 2, axis=-1))
+    a = np.maximum(np.maximum.accumulate(dq) / np.maximum(np.maximum.accumulate(sq), 1e-300),
+                   np.maximum.accumulate(dqd) / np.maximum(np.maximum.accumulate(sqd), 1e-300))
+    past = np.flatnonzero(a * rtol > 0.1)
+    return float(np.asarray(sol.ts)[past[0]]) if past.size else float("inf")

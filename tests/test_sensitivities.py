@@ -1,0 +1,163 @@
+"""Error-controlled sensitivities (``Settings(adjoint="sensitivity")``, the default adjoint):
+derivatives of simulations through several impacts against closed forms, forward against
+reverse mode, derivatives with respect to the end time, the step control at friction kinks, and
+the named-parameter API (``jc.sensitivities``) with its errors and horizon warning.
+
+Truths not from our code:
+
+* **Elastic Hertz bounces** (a free journal of mass m at speed v0 crossing its clearance c and
+  striking the bearing, m delta'' = -K delta^(3/2), no friction): each contact lasts
+  tau = 2 (delta_max / v0) int_0^1 du / sqrt(1 - u^(5/2)) with delta_max = (5 m v0^2 / (4 K))^(2/5)
+  (Johnson, "Contact Mechanics", CUP 1985, sec. 11.3; the integral by SciPy's quad), the journal
+  leaves at -v0, and between contacts it moves freely over 2c. So after n contacts its position
+  at time T is a triangular wave of the unfolded free path u = x0 + v0 (T - n tau), and its
+  derivatives with respect to K, v0, c and the start offset x0 follow by differentiating that
+  closed form.
+* **Restitution through impacts** (Lankarani-Nikravesh, c_r = 0.8): each impact returns e v_in,
+  e solving -d e - ln(1 - d e) = d - ln(1 + d) with d = 3(1 - c_r^2)/4 independently of K, m and
+  v_in (the energy balance of the dissipative Hertz law), so after k impacts v = (-e)^k v0 and
+  dv/dc_r = k e^(k-1) (-1)^k v0 de/dc_r, with de/dd from the implicit function theorem (SciPy's
+  brentq for e).
+
+Tolerances: the derivatives are integrated to the solver's tolerance (rtol 1e-6 by default);
+over the few hundred steps of these runs, with their errors amplified at each impact, we measured
+7e-6 (Hertz, three contacts) and 4e-5 (restitution, three impacts); the checks allow 1e-4 and
+3e-4.
+"""
+
+import jaxclear  # noqa: F401  (float64 first)
+
+import warnings
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from conftest import free_journal
+from scipy.integrate import quad
+from scipy.optimize import brentq
+
+import jaxclear as jc
+from jaxclear.elements.memory import kink_fraction
+
+M, V0, C, K = 1.0, 1.0, 0.5e-3, 1e9
+HERTZ_I = quad(lambda u: 1.0 / np.sqrt(1.0 - u**2.5), 0.0, 1.0)[0]
+
+
+def _hertz_position(k, v0, c, x0, t, n):
+    """The journal's x at time ``t`` after ``n`` elastic Hertz contacts (module docstring)."""
+    dmax = (5.0 * M * v0**2 / (4.0 * k)) ** 0.4
+    tau = 2.0 * dmax / v0 * HERTZ_I
+    u = x0 + v0 * (t - n * tau)
+    p = jnp.mod(u / c + 1.0, 4.0)
+    return c * (1.0 - jnp.abs(p - 2.0))
+
+
+def test_elastic_hertz_bounces_match_the_closed_form():
+    """Three contacts, then 30 % of the next free flight: the position and its derivatives with
+    respect to stiffness, start speed, clearance and start offset at the default settings."""
+    x0 = 0.1e-3
+    mech = free_journal(restitution=1.0, law="hertz", stiffness=K, clearance=C, speed=V0, offset=(x0, 0.0))
+    tau = 2.0 * (5.0 * M * V0**2 / (4.0 * K)) ** 0.4 / V0 * HERTZ_I
+    t_end = (C - x0) / V0 + 3 * tau + 2 * 2 * C / V0 + 0.3 * 2 * C / V0
+    names = ["stiffness", "velocity_x", "clearance", "offset_x"]
+    value, d = jc.sensitivities(mech, jc.settings(t_end, n_out=2), names, output=lambda sol, m: sol.q[-1, 0])
+    truth = jax.grad(_hertz_position, argnums=(0, 1, 2, 3))(K, V0, C, x0, t_end, 3)
+    assert float(value) == pytest.approx(float(_hertz_position(K, V0, C, x0, t_end, 3)), abs=1e-9)
+    for name, exact in zip(names, truth):
+        assert float(d[name]) == pytest.approx(float(exact), rel=1e-4), (name, float(d[name]), float(exact))
+
+
+def _effective_restitution(d):
+    f = lambda e: -d * e - np.log(1.0 - d * e) - d + np.log(1.0 + d)  # noqa: E731
+    return brentq(f, 1e-9, min(1.0, 1.0 / d - 1e-12), xtol=1e-15)
+
+
+def test_restitution_derivative_through_three_impacts_matches_the_closed_form():
+    c_r = 0.8
+    d = 3.0 * (1.0 - c_r**2) / 4.0
+    e = _effective_restitution(d)
+    de_dd = -(d * e * e / (1.0 - d * e) - d / (1.0 + d)) / (d * d * e / (1.0 - d * e))
+    de_dcr = de_dd * (-1.5 * c_r)
+    mech = free_journal(restitution=c_r, law="lankarani-nikravesh", clearance=C, speed=V0)
+    t_end = C / V0 + 2 * C / (e * V0) + 2 * C / (e**2 * V0) + C / (e**3 * V0)  # mid-flight after 3 impacts
+    sol, grads = jc.sensitivities(mech, jc.settings(t_end, n_out=2), ["restitution"])
+    k = int(sol.impacts[0])
+    assert k == 3
+    assert float(sol.qdot[-1, 0]) == pytest.approx((-e) ** k * V0, rel=1e-5)
+    exact = k * e ** (k - 1) * (-1) ** k * V0 * de_dcr
+    assert float(grads["restitution"].qdot[-1, 0]) == pytest.approx(exact, rel=3e-4)
+
+
+def test_forward_and_reverse_mode_are_the_same_sensitivities():
+    """jax.jacfwd and jax.grad of a scalar: the same error-controlled sensitivities (reverse mode
+    is the transpose of their linear combination), equal to rounding (1e-12 relative)."""
+    mech = free_journal(restitution=0.8, friction=jc.Friction(0.1), offset=(-0.2e-3, 0.25e-3))
+    s = jc.settings(1e-3, n_out=3)
+    names = ("stiffness", "restitution", "friction", "clearance")
+    x0 = jnp.asarray([float(jc.params.get(mech, n)) for n in names])
+
+    def f(x):
+        m = jc.params.replace_many(mech, dict(zip(names, x)))
+        sol = jc.simulate(m, s)
+        return sol.qdot[-1, 0] + 0.7 * sol.qdot[-1, 1] + 1e3 * (sol.q[-1, 0] + sol.q[-1, 1])
+
+    fwd = np.asarray(jax.jit(jax.jacfwd(f))(x0))
+    rev = np.asarray(jax.jit(jax.grad(f))(x0))
+    assert np.all(np.isfinite(fwd)) and np.all(fwd != 0)
+    np.testing.assert_allclose(rev, fwd, rtol=1e-12, atol=1e-12 * np.max(np.abs(fwd * x0)))
+
+
+def test_derivative_with_respect_to_the_end_time_is_the_rate():
+    """The samples move with t_end (sample k at t0 + k (t_end - t0)/(n - 1)): d q(t_end)/d t_end
+    is the velocity and d qdot(t_end)/d t_end the acceleration at the end, exactly."""
+    mech = free_journal(restitution=0.8, friction=jc.Friction(0.1), offset=(-0.2e-3, 0.25e-3))
+    base = jc.settings(0.7e-3, n_out=5)
+    sol, dsol = jax.jvp(lambda t: jc.simulate(mech, jc.settings(t, n_out=5)), (base.t_end,), (jnp.ones(()),))
+    np.testing.assert_allclose(np.asarray(dsol.q[-1]), np.asarray(sol.qdot[-1]), rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(np.asarray(dsol.qdot[-1]), np.asarray(sol.qddot[-1]), rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(np.asarray(dsol.ts), np.linspace(0.0, 1.0, 5), rtol=1e-12)
+
+
+def test_kink_fraction_steps_from_the_smooth_side():
+    """A kink approached at rate 1 (g = t - 0.3 over a step of length 1) whose rate is 5 past it
+    (the step's end value 3.5 instead of 0.7): Newton from the start puts it at 0.3; the secant
+    through the far end (0.3 / 3.8 = 0.079) would not. A kink not crossed, or crossed only in an
+    inactive contact, gives no split."""
+    s, split = kink_fraction(jnp.asarray([-0.3]), jnp.asarray([3.5]), jnp.asarray([1.0]), 1.0, jnp.asarray(True))
+    assert bool(split) and float(s) == pytest.approx(0.3, rel=1e-12)
+    _, split = kink_fraction(jnp.asarray([-0.3]), jnp.asarray([-0.1]), jnp.asarray([1.0]), 1.0, jnp.asarray(True))
+    assert not bool(split)
+    _, split = kink_fraction(jnp.asarray([-0.3]), jnp.asarray([3.5]), jnp.asarray([1.0]), 1.0, jnp.asarray(False))
+    assert not bool(split)
+
+
+def test_named_parameters_api_errors():
+    mech = jc.preset("flores-slider-crank")
+    s = jc.settings(1e-4, n_out=3)
+    names = jc.differentiable_names(mech)
+    for expected in ("stiffness", "clearance", "offset_x", "velocity_y", "mass:slider", "point_x:rod.B", "angle0",
+                     "speed_rpm", "point_y:ground.rail"):
+        assert expected in names
+    for bad, match in ((["model"], "cannot differentiate with respect to 'model'.*offset_x"),
+                       (["point_x:rod.Q"], "has no point 'Q'"),
+                       (["viscosity"], "belongs to a LubricatedJoint"),
+                       (["stiffness", "stiffness"], "listed twice"), ([], "at least one name")):
+        with pytest.raises(jc.ParameterError, match=match):
+            jc.sensitivities(mech, s, bad)
+
+
+def test_horizon_warning():
+    """With a tolerance as loose as 0.3, a change of the stiffness as small as the tolerance moves
+    the bouncing journal's state by more than a tenth of its size: the derivative is past the
+    run's horizon of predictability and says so; at the default tolerance it does not."""
+    mech = free_journal(restitution=0.8)
+    t_end = 3e-3
+    with pytest.warns(jc.DerivativeHorizonWarning, match="'stiffness' is past the run's horizon"):
+        jc.sensitivities(mech, jc.settings(t_end, n_out=101, rtol=0.3), ["stiffness"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", jc.DerivativeHorizonWarning)
+        sol, d = jc.sensitivities(mech, jc.settings(t_end, n_out=101), ["stiffness"])
+    k = float(jc.params.get(mech, "stiffness"))
+    assert jc.derivative_horizon(sol, d["stiffness"], rtol=1e-6, scale=k) == float("inf")
+    assert jc.derivative_horizon(sol, d["stiffness"], rtol=0.3, scale=k) < t_end
