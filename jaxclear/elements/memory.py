@@ -122,14 +122,16 @@ def _hermite_rate(s, p0, p1, r0, r1, h):
     :math:`D` is bounded by :math:`|r_1 - r_0|` (for a smooth penetration
     :math:`D = \int_0^1 e(s)\,ds` with :math:`e` the rate's deviation from its linear blend,
     :math:`|e| \le s(1 - s) h^2 \max|\dddot\delta|/2`, far below :math:`|r_1 - r_0| \approx
-    h|\ddot\delta|` on a short step): the error-controlled sensitivities
+    h|\ddot\delta|` on a short step), and not differentiated: the error-controlled sensitivities
     (:mod:`jaxclear.integrate.sensitivity`) approach an onset in steps down to 1e-18 s, where the
     unbounded term turned an approach speed of 4.39 m/s into 79 m/s."""
     sbar = jax.lax.stop_gradient(s)
     curvature = (p1 - p0) / h - 0.5 * (r0 + r1)
     bound = jnp.abs(r1 - r0)
     resolved = jnp.abs(curvature * h) > SWITCH_RESOLUTION
-    curvature = jnp.where(resolved, curvature, jnp.clip(curvature, -bound, bound))
+    # unresolved, neither the term nor its derivative is used: the derivative of p1 - p0 is the
+    # difference of two tangents whose rounding, divided by h, is as large as the value's
+    curvature = jnp.where(resolved, curvature, jax.lax.stop_gradient(jnp.clip(curvature, -bound, bound)))
     return r0 + s * (r1 - r0) + 6.0 * sbar * (1.0 - sbar) * curvature
 
 

@@ -72,9 +72,10 @@ The fit minimises ``0.5 |r(z)|^2`` over unconstrained coordinates ``z`` (the tra
 :mod:`jaxclear.params`: ``log`` stiffness, clearance, friction, masses; ``logit``
 restitution; plus ``sensor_gain`` (log) and ``sensor_bias`` (scaled by the data RMS);
 :mod:`.parameters`). The residual Jacobian ``dr/dz`` is computed in **forward mode**
-(``jax.jacfwd`` through diffrax with ``adjoint="forward"``): there are a handful of columns and
-hundreds of rows, so forward mode costs about one simulation per column while reverse mode would
-cost one backward pass per row.
+(``jax.jacfwd`` of the window model, whose simulations give the error-controlled sensitivities of
+:mod:`jaxclear.integrate.sensitivity`: the tangents of the free parameters and window start
+states integrated with the state and in its step-size control): there are a handful of columns
+and hundreds of rows.
 
 Every stage is solved by :class:`optimistix.LevenbergMarquardt` (Gauss-Newton with damping
 ``(J^T J + lambda I) dx = -J^T r``, ``lambda`` updated by Nielsen's rule, accepted steps

@@ -19,22 +19,24 @@ from .parameters import check_name
 
 def parameter_grad(loss: Callable, mech: Mechanism, names: Sequence[str], s: Settings, mode: str = "reverse"):
     """Value and gradient of ``loss(solution, mechanism)`` (a scalar) with respect to the named
-    parameters (:mod:`jaxclear.params`), through diffrax.
+    parameters (:mod:`jaxclear.params`).
 
-    ``mode="reverse"``: ``jax.value_and_grad`` with ``s.adjoint`` (default ``"recursive"``:
-    RecursiveCheckpointAdjoint, memory bounded by ``s.checkpoints``); ``mode="forward"``:
-    ``jax.jacfwd`` with ``adjoint="forward"`` (cheaper for few parameters). Returns
-    ``(value, {name: d loss / d name})``. Compiles on every call: for repeated use, build your
-    own ``eqx.filter_jit`` of the same function.
+    With ``s.adjoint = "sensitivity"`` (the default) both modes give the error-controlled
+    sensitivities (:mod:`jaxclear.integrate.sensitivity`): ``mode="forward"`` by ``jax.jacfwd``,
+    ``mode="reverse"`` by ``jax.grad`` (their transpose), the same numbers. With an adjoint through
+    diffrax's loop, ``mode="reverse"`` uses ``s.adjoint`` (``"forward"`` is replaced by
+    ``"recursive"``) and ``mode="forward"`` uses ``adjoint="forward"``. Returns ``(value, {name: d
+    loss / d name})``. Compiles on every call: for repeated use, build your own
+    ``eqx.filter_jit`` of the same function.
     """
     names = tuple(names)
     for n in names:
         check_name(mech, n)
     if mode not in ("reverse", "forward"):
         raise ParameterError(f"mode = {mode!r}; valid: 'reverse', 'forward'")
-    if mode == "forward":
+    if mode == "forward" and s.adjoint != "sensitivity":
         s = dataclasses.replace(s, adjoint="forward")
-    elif s.adjoint == "forward":
+    elif mode == "reverse" and s.adjoint == "forward":
         s = dataclasses.replace(s, adjoint="recursive")
     x0 = jnp.asarray([params.get(mech, n) for n in names], dtype=float)
 
@@ -60,8 +62,9 @@ def slider_power_loss(mech: Mechanism, names: Sequence[str], units, s: Settings,
 
     over the ``T = s.n_out`` output times. A scalar that depends smoothly on every parameter
     through the impacts; used to compare reverse mode, forward mode and finite differences
-    (tests) and to time them (benchmarks). Differentiate it with ``jax.grad`` (any adjoint) or
-    ``jax.jacfwd`` (``adjoint="forward"``)."""
+    (tests) and to time them (benchmarks). Differentiate it with ``jax.grad`` or ``jax.jacfwd``
+    (the default adjoint, or through the loop: ``jax.grad`` with ``"recursive"``, ``jax.jacfwd``
+    with ``"forward"``)."""
     names = tuple(names)
     units = np.asarray(units, dtype=float)
 

@@ -210,7 +210,7 @@ def build_problem(data, mech: Mechanism, free: Sequence[str], start: dict | None
     z0 = z_vector(free, values0, win.scale)
     velocity_scale = abs(speed) if speed else 1.0 / window
     n_fine = int(round(window / h))
-    s = make_settings(n_fine * h, n_out=n_fine + 1, rtol=settings["rtol"], atol=settings["atol"], adjoint="forward",
+    s = make_settings(n_fine * h, n_out=n_fine + 1, rtol=settings["rtol"], atol=settings["atol"],
                       throw=False, max_steps=settings["max_steps"], exact_onsets=FIT_EXACT_ONSETS, sampling=FIT_SAMPLING)
     model = WindowModel(mech=mech, sensors=tuple(fc.sensor for _, fc in targets),
                         weights=jnp.asarray([fc.weight for _, fc in targets], dtype=float), settings=s,

@@ -136,7 +136,8 @@ def integrate(system: AbstractSystem, s: Settings, t0, t1, ts, v0) -> Integratio
     :class:`~jaxclear.integrate.solvers.StopOnNonFinite` and, with exact onsets,
     :class:`~jaxclear.integrate.solvers.OnsetController`; the solver wrapped by
     :class:`~jaxclear.integrate.solvers.ImpactMemorySolver`."""
-    controller = StopOnNonFinite(diffrax.PIDController(rtol=s.rtol, atol=s.atol, dtmax=s.dtmax, norm=system.norm()))
+    controller = StopOnNonFinite(diffrax.PIDController(rtol=s.rtol, atol=s.atol, dtmax=s.dtmax, norm=system.norm(),
+                                                       dtmin=system.dtmin()))
     if s.exact_onsets and system.mech.clearance_joints:
         controller = OnsetController(controller)
     block = s.sampling == "block"

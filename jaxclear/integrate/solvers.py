@@ -302,6 +302,9 @@ class OnsetController(AbstractWrappedController):
         dt_inner = tnext - tprev
         dt_split = jax.lax.stop_gradient(jnp.minimum(dt_inner, s * h * (1.0 + eps)))
         split = split & (t0 + dt_split > t0)  # never a step below the resolution of t
+        floor = args.dtmin()
+        if floor is not None:  # nor below the system's shortest step: the switch is taken at the start
+            split = split & (dt_split >= floor)
         # a switch that moves with the step (a penetration with kinks, e.g. the deepest of a
         # profile's Gauss points) is located at most MAX_SPLITS times in a row, then accepted
         split = split & (splits < MAX_SPLITS)

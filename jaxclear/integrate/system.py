@@ -73,6 +73,12 @@ class AbstractSystem(eqx.Module):
         """The rate of the mechanism's packed state inside ``v`` (its vector field)."""
         return flat_vector_field(t, self.primal(v), (self.mech, self.baumgarte))
 
+    def dtmin(self):
+        """The shortest step the step-size controller proposes (it accepts a step of this length
+        whatever its error estimate, and a contact switch closer than this to a step's start is
+        not split at), or ``None``: no floor."""
+        return None
+
     @abc.abstractmethod
     def norm(self):
         """The step-size controller's error norm (a callable on the scaled error vector)."""
