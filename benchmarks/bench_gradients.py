@@ -168,7 +168,8 @@ def _function(case: Case, mech, record, settings):
 def _flat(outputs):
     def f(x):
         out = outputs(x)
-        return jnp.concatenate([out[k] for k in out])
+        # in the keys' sorted order: the order of jax.eval_shape's dict, from which the blocks are cut
+        return jnp.concatenate([out[k] for k in sorted(out)])
     return f
 
 
@@ -242,7 +243,7 @@ def run_case(case: Case, mu: float, n: float, repeats: int) -> dict:
     outputs = _function(case, mech, record, default)
     shapes = {k: v.shape[0] for k, v in jax.eval_shape(outputs, jnp.asarray(x0)).items()}
     blocks, start = {}, 0
-    for k, size in shapes.items():
+    for k, size in sorted(shapes.items()):
         blocks[k] = slice(start, start + size)
         start += size
     row = dict(case=case.name, friction=mu, exponent=n, parameters=list(case.names))

@@ -50,8 +50,9 @@ class Settings(eqx.Module):
             step-size control and carry the memory rules' derivatives; reverse mode costs one
             tangent per perturbed scalar input. Differentiating through diffrax's loop instead
             (the derivative of the discretization whose steps were sized for the values only;
-            off by 0.5-10 % after a contact ends at the default tolerances, see the
-            sensitivities theory page): ``"recursive"`` (reverse mode with checkpoints),
+            after a contact ends it is off by 0.1 % to several times the derivative at the
+            default tolerances and does not converge with them over several impacts, see the
+            sensitivities theory page and ``benchmarks/bench_gradients.py``): ``"recursive"`` (reverse mode with checkpoints),
             ``"forward"`` (forward mode), ``"direct"``.
         checkpoints: number of checkpoints of reverse mode (``None``: diffrax's default,
             logarithmic in ``max_steps``); fewer checkpoints = less memory, more recomputation.
