@@ -313,6 +313,62 @@ def run_case(case: Case, mu: float, n: float, repeats: int) -> dict:
     return row
 
 
+def per_parameter(raw, names, blocks) -> list:
+    """Per output and parameter: the sensitivities' error against the truth, and the truth's
+    plateau width: the largest distance from the chosen difference to the differences of both
+    neighbouring steps (at either tolerance), a stricter measure of the truth's uncertainty than
+    ``truth_spread`` (the distance to the closest neighbour, which two noisy differences can meet by
+    chance). A derivative whose plateau is wider than 1e-3 cannot be checked to 1e-3 by central
+    differences at these tolerances: its row says ``truth undetermined``."""
+    fd = {lab: {float(k.split("_")[2]): raw[k] for k in raw if k.startswith(f"fd_{lab}_")} for lab in ("1e-10", "1e-11")}
+    truth, scale, sens = raw["truth"], raw["scale"], raw["sensitivity"]
+    rows = []
+    for k, sl in blocks.items():
+        for i, name in enumerate(names):
+            t = truth[sl, i] * scale[i]
+            den = max(float(np.max(np.abs(t))), 1e-300)
+            err = float(np.max(np.abs(sens[sl, i] * scale[i] - t)) / den)
+            ordered = sorted(((h, lab) for lab, cs in fd.items() for h in cs), reverse=True)
+            flat = [fd[lab][h][sl, i] * scale[i] for h, lab in ordered]
+            chosen = min(range(len(flat)), key=lambda j: float(np.max(np.abs(flat[j] - t))))
+            h0 = ordered[chosen][0]
+            near = [j for j, (h, _) in enumerate(ordered) if h != h0 and
+                    (h == min((g for g, _ in ordered if g > h0), default=None) or
+                     h == max((g for g, _ in ordered if g < h0), default=None))]
+            width = max((float(np.max(np.abs(flat[j] - t))) / den for j in near), default=0.0)
+            verdict = ("within 1e-3" if err <= 1e-3 else
+                       "truth undetermined" if width > 1e-3 and err <= 2 * width else "off")
+            rows.append(dict(output=k, parameter=name, error=err, plateau_width=width, verdict=verdict))
+    return rows
+
+
+def summary(path: Path) -> None:
+    """Print the per-parameter table of every case whose raw arrays are in ``results/raw/``."""
+    rows = json.loads(path.read_text())["rows"]
+    print(f"{'case':14s} {'mu':>4s} {'n':>4s} {'output':26s} {'parameter':12s} {'error':>8s} {'plateau':>8s}  verdict")
+    for r in rows:
+        f = path.parent / "raw" / f"gradients_{r['case']}_{r['friction']:g}_{r['exponent']:g}.npz"
+        if not f.exists():
+            continue
+        raw = dict(np.load(f))
+        sizes = {k: v.shape[0] for k, v in jax.eval_shape(
+            _function(CASES[r["case"]], CASES[r["case"]].build(r["friction"], r["exponent"]), np.zeros(
+                CASES[r["case"]].n_out), jc.settings(CASES[r["case"]].t_end, n_out=CASES[r["case"]].n_out)),
+            jnp.asarray([float(params.get(CASES[r["case"]].build(r["friction"], r["exponent"]), p))
+                         for p in r["parameters"]])).items()}
+        blocks, start = {}, 0
+        for k, size in sorted(sizes.items()):
+            blocks[k] = slice(start, start + size)
+            start += size
+        r["per_parameter"] = per_parameter(raw, r["parameters"], blocks)
+        for q in r["per_parameter"]:
+            print(f"{r['case']:14s} {r['friction']:4g} {r['exponent']:4g} {q['output']:26s} {q['parameter']:12s} "
+                  f"{q['error']:8.1e} {q['plateau_width']:8.1e}  {q['verdict']}")
+    data = json.loads(path.read_text())
+    data["rows"] = rows
+    path.write_text(json.dumps(data, indent=1))
+
+
 def _key(case, mu, n):
     return f"{case}|{mu:g}|{n:g}"
 
@@ -340,8 +396,13 @@ def main(argv=None):
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--json", default=str(Path(__file__).parent / "results" / "gradients.json"))
     ap.add_argument("--restart", action="store_true", help="ignore the cases already in the JSON")
+    ap.add_argument("--summary", action="store_true",
+                    help="only print (and add to the JSON) the per-parameter table from results/raw/")
     args = ap.parse_args(argv)
     path = Path(args.json)
+    if args.summary:
+        summary(path)
+        return
     done = {}
     if path.exists() and not args.restart:
         done = {_key(r["case"], r["friction"], r["exponent"]): r for r in json.loads(path.read_text())["rows"]}
