@@ -26,6 +26,7 @@ from ._errors import (  # noqa: E402
     RESULTS,
     STATUS,
     CheckpointError,
+    DesignError,
     FitDataError,
     InitialConditionError,
     JaxclearError,

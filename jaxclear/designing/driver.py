@@ -182,8 +182,11 @@ def _design_locked(problem, variables, u0, start_mech, key, config, out, resume,
     history, bars = [], []
 
     def record(u, interrupt):
-        e = ev.gradient(u) if journal.find(u, True) is not None else ev.value(u)
-        g = projected_gradient_norm(u, np.asarray(e["jacobian"][0]) / ev.scale) if "jacobian" in e else float("nan")
+        # the gradient at every iterate (L-BFGS-B has it; SLSQP asks for it next): asking here keeps
+        # the order of evaluations, hence a resumed design, deterministic
+        grad_entry = ev.gradient(u) if interrupt is not None else None
+        e = ev.value(u)
+        g = float("nan") if grad_entry is None else projected_gradient_norm(u, np.asarray(grad_entry["jacobian"][0]) / ev.scale)
         h = {"iteration": len(history), "objective": float(e["values"][0]), "violation": violation(problem, e["values"]),
              "gradient_norm": g, "design": {v.name: float(v.from_unit(ui)) for v, ui in zip(variables, u)},
              "evaluations": ev.counts.values + ev.counts.gradients, "runs": ev.counts.runs,
@@ -214,7 +217,7 @@ def _design_locked(problem, variables, u0, start_mech, key, config, out, resume,
     status = status_of(res, bool(feasible), config["max_iter"])
     grad, sens = sensitivity(ev, u, values, jac) if report_sensitivity else (
         {v.name: float(jac[0][i]) / v.span for i, v in enumerate(variables)}, {})
-    start_eval = ev.gradient(u0) if journal.find(u0, True) is not None else first
+    start_eval = first
     if chaos is not None and journal.find(u0, True) is not None:  # plain against sensitivity solve at the start
         plain, tangent = f0, float(journal.find(u0, True)["values"][0])
         chaos["objective_spread"] = abs(tangent - plain) / abs(plain) if plain else abs(tangent)

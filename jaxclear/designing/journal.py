@@ -96,12 +96,15 @@ class Journal:
         table[self.point_key(entry["u"])] = entry
 
     def find(self, u, gradient: bool) -> dict | None:
-        """The evaluation at ``u``: with ``gradient``, one with the Jacobian; else any (one with
-        the Jacobian first, so that a resumed design answers as the first one did)."""
+        """The evaluation at ``u``: with ``gradient``, one with the Jacobian; else the plain one
+        if there is one, else one with the Jacobian. Deterministic whether the journal was filled
+        as the design went or read back at once: a plain evaluation at ``u`` is only ever made
+        while no Jacobian at ``u`` exists, so a request answered by a plain one the first time is
+        answered by it again on resumption."""
         k = self.point_key(u)
         if gradient:
             return self.gradients.get(k)
-        return self.gradients.get(k) or self.values.get(k)
+        return self.values.get(k) or self.gradients.get(k)
 
     def add(self, u, values, status, wall_s: float, jacobian=None) -> dict:
         """Record an evaluation (on disk first); returns it."""

@@ -69,8 +69,9 @@ def least_violation(ev: Evaluator) -> dict | None:
 
 def sensitivity(ev: Evaluator, u, values, jacobian) -> tuple[dict, dict]:
     """``(gradient, sensitivity)`` at the optimum: df/dx per variable, and per variable the
-    elasticity and the objective's relative change for a move of :data:`SENSITIVITY_STEP` of the
-    range down and up (simulated; a move that would leave the range is clipped to its bound)."""
+    elasticity and the objective's change for a move of :data:`SENSITIVITY_STEP` of the range
+    down and up (simulated; a move that would leave the range is clipped to its bound), as a
+    fraction of the start design's objective (``ev.scale``: an optimum near 0 has no scale)."""
     f = float(values[0])
     grad, sens = {}, {}
     for i, v in enumerate(ev.problem.variables):
@@ -81,7 +82,7 @@ def sensitivity(ev: Evaluator, u, values, jacobian) -> tuple[dict, dict]:
             w = np.array(u, dtype=float)
             w[i] = min(max(w[i] + sign * SENSITIVITY_STEP, 0.0), 1.0)
             fw = float(ev.value(w)["values"][0]) if w[i] != u[i] else f
-            changes.append((fw - f) / abs(f) if f else fw - f)
+            changes.append((fw - f) / ev.scale)
         grad[v.name] = g
         sens[v.name] = {"gradient": g, "elasticity": x * g / f if f else float("nan"), "change_minus": changes[0],
                         "change_plus": changes[1]}

@@ -52,9 +52,9 @@ class DesignResult:
             objective divided by its start value, the components that push against an active
             bound removed (0 at a bounded stationary point).
         sensitivity: variable -> ``{"gradient", "elasticity" (x/f df/dx), "change_minus",
-            "change_plus"}``: the objective's relative change when the variable moves 1 % of its
-            range down / up from the optimum (simulated, a bound clipped): how much a
-            manufacturing tolerance costs.
+            "change_plus"}``: the objective's change, as a fraction of its start value, when the
+            variable moves 1 % of its range down / up from the optimum (simulated, a bound
+            clipped): how much a manufacturing tolerance costs.
         iterations, evaluations (``{"values", "gradients", "replayed"}``), runs (simulations of
             the member runs, replayed ones included), gradient_cost (measured wall time of a
             gradient evaluation in value evaluations), wall_time_s (this design's, a resumed
@@ -137,11 +137,11 @@ class DesignResult:
         for c in self.constraints:
             lines.append(f"constraint {c['name']}: residual {c['optimum']:.3g} ({'met' if c['satisfied'] else 'NOT met'})")
         width = max(len(n) for n in self.design)
-        lines.append(f"  {'variable':<{width}}  {'start':>12}  {'optimum':>12}  {'df/dx':>11}  {'+-1% range':>17}")
+        lines.append(f"  {'variable':<{width}}  {'start':>12}  {'optimum':>12}  {'df/dx':>11}  {'+-1% range (of start)':>22}")
         for n, v in self.design.items():
             s = self.sensitivity.get(n, {})
             change = f"{100 * s.get('change_minus', float('nan')):+.2f}/{100 * s.get('change_plus', float('nan')):+.2f} %"
-            lines.append(f"  {n:<{width}}  {self.start[n]:>12.6g}  {v:>12.6g}  {self.gradient[n]:>11.3g}  {change:>17}")
+            lines.append(f"  {n:<{width}}  {self.start[n]:>12.6g}  {v:>12.6g}  {self.gradient[n]:>11.3g}  {change:>22}")
         if self.least_violation:
             lines.append(f"least constraint violation found: {self.least_violation['violation']:.3g} at "
                          f"{self.least_violation['design']}")
