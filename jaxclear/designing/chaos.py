@@ -28,7 +28,6 @@ import numpy as np
 from ..derivatives import amplification, derivative_horizon
 from ..integrate.compile import jit
 from .problem import DesignProblem
-from .variables import from_unit
 
 
 @jit
@@ -37,7 +36,7 @@ def _tangents(problem: DesignProblem, u):
     (each a full range of a variable)."""
 
     def run(uu):
-        m = problem.member_mechanism(from_unit(problem.variables, uu), 0)
+        m = problem.member_mechanism(problem.values(uu), 0)
         return problem.run(m, problem.settings_of(m)).sol
 
     sol, lin = jax.linearize(run, u)

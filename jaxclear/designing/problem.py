@@ -40,7 +40,7 @@ from ..model import Mechanism, crank_driver
 from ..sweep.batch import maps_one_by_one
 from .constraints import AbstractDesignConstraint
 from .objectives import AbstractObjective, Run
-from .variables import Variable, apply, from_unit
+from .variables import Variable
 
 #: Default output samples per crank revolution of a design's runs (impacts last tens of
 #: microseconds: 4000 samples per revolution is 3 us apart at 5000 rpm).
@@ -111,7 +111,9 @@ class DesignProblem(eqx.Module):
 
     mech: Mechanism
     members: Members
-    variables: tuple = eqx.field(static=True)
+    names: tuple = eqx.field(static=True)
+    low: jax.Array
+    high: jax.Array
     objective: AbstractObjective = eqx.field(static=True)
     constraints: tuple = eqx.field(static=True)
     revolutions: float = eqx.field(static=True)
@@ -132,6 +134,17 @@ class DesignProblem(eqx.Module):
         return self.base.max_steps
 
     @property
+    def variables(self) -> tuple[Variable, ...]:
+        """The variables' names and ranges (host side; the bounds are arrays of the problem, so
+        that designs over other ranges of the same names share the compiled programs)."""
+        lo, hi = np.asarray(self.low), np.asarray(self.high)
+        return tuple(Variable(n, float(lo[i]), float(hi[i]), float("nan"), "") for i, n in enumerate(self.names))
+
+    def values(self, u):
+        """Unit-cube coordinates -> variable values (traceable)."""
+        return self.low + u * (self.high - self.low)
+
+    @property
     def run_constraints(self) -> tuple:
         return tuple(c for c in self.constraints if c.uses_runs)
 
@@ -141,7 +154,7 @@ class DesignProblem(eqx.Module):
 
     def design_mechanism(self, x) -> Mechanism:
         """The mechanism at design values ``x`` (values, not unit coordinates)."""
-        return apply(self.mech, self.variables, x)
+        return params.replace_many(self.mech, {n: x[i] for i, n in enumerate(self.names)})
 
     def member_mechanism(self, x, k) -> Mechanism:
         """Member ``k``'s mechanism: the design, its operating point, start angle, guesses, offsets."""
@@ -180,7 +193,7 @@ class DesignProblem(eqx.Module):
     def outputs(self, u):
         """``(values (1 + C,), statuses (B,))``: the objective and the constraints' residuals at
         unit coordinates ``u``; NaN where a member's run failed."""
-        x = from_unit(self.variables, u)
+        x = self.values(u)
         ks = jnp.arange(self.members.count)
         f = lambda k: self.member_statistics(x, k)  # noqa: E731
         stats, status = jax.lax.map(f, ks) if self.one_by_one else jax.vmap(f)(ks)
@@ -295,7 +308,9 @@ def build_problem(mech: Mechanism, variables: tuple[Variable, ...], objective: A
                   constraints: tuple[AbstractDesignConstraint, ...], points: tuple[OperatingPoint, ...],
                   ensemble: Ensemble, revolutions: float, samples_per_revolution: int, base: Settings) -> DesignProblem:
     """The :class:`DesignProblem` (inputs checked by :func:`jaxclear.design`)."""
-    return DesignProblem(mech, build_members(mech, points, ensemble), variables, objective, constraints,
+    f = lambda a: jnp.asarray(np.asarray(a, dtype=float))  # noqa: E731
+    return DesignProblem(mech, build_members(mech, points, ensemble), tuple(v.name for v in variables),
+                         f([v.low for v in variables]), f([v.high for v in variables]), objective, constraints,
                          float(revolutions), n_samples(revolutions, samples_per_revolution), base, maps_one_by_one())
 
 
