@@ -215,3 +215,44 @@ def test_design_through_impacts(tmp_path):
     assert res.chaos is not None and "clearance" in res.chaos["amplification"]
     assert os.path.isfile(tmp_path / "design.png")
     assert isinstance(PeakForce(1e5), jc.designing.AbstractDesignConstraint)
+
+
+# ---- the command line ------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("argv, match", [
+    (["--vary", "clearence=1e-4:6e-4"], "design variable 'clearence' is not a number"),
+    (["--vary", "clearance=6e-4:1e-4"], "is inverted"),
+    (["--vary", "clearance=1e-4:6e-4", "--objective", "fastest"], "unknown objective 'fastest'"),
+    (["--vary", "clearance=1e-4:6e-4", "--constraint", "mass<=3"], "unknown constraint"),
+    (["--vary", "clearance=1e-4:6e-4", "--start", "clearance=1e-3"], "outside its range"),
+    (["--vary", "clearance=1e-4"], "expected NAME=LOW:HIGH"),
+    (["--vary", "clearance=a:b"], "not two numbers"),
+    (["--vary", "clearance=1e-4:6e-4", "--max-iter", "0"], "outside the allowed range"),
+    ([], "required"),
+])
+def test_cli_bad_input_exits_2(argv, match, tmp_path, capsys):
+    from jaxclear.cli import main
+
+    assert main(["design", "--no-progress", "--out", str(tmp_path / "out"), *argv]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert match in err[-1] and "Traceback" not in "\n".join(err)
+    assert not (tmp_path / "out" / "design.json").exists()
+
+
+@pytest.mark.slow
+def test_cli_design_file(tmp_path, capsys):
+    from jaxclear.cli import main
+
+    path = tmp_path / "slider.toml"
+    jc.save_mechanism(jc.preset("flores-slider-crank"), path)
+    out = tmp_path / "out"
+    argv = ["design", str(path), "--vary", "clearance=0.1e-3:0.6e-3", "--objective", "peak-force", "--revolutions",
+            "0.25", "--samples-per-revolution", "400", "--max-iter", "3", "--no-progress", "--no-chaos-check",
+            "--out", str(out)]
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    assert "objective (smooth peak contact force" in text and "clearance" in text
+    saved = json.loads((out / "design.json").read_text())
+    assert 0.1e-3 <= saved["design"]["clearance"] <= 0.6e-3
+    assert main(argv) == 0  # resumed from the journal: the same design
+    assert json.loads((out / "design.json").read_text())["design"] == saved["design"]
