@@ -256,3 +256,35 @@ def test_cli_design_file(tmp_path, capsys):
     assert 0.1e-3 <= saved["design"]["clearance"] <= 0.6e-3
     assert main(argv) == 0  # resumed from the journal: the same design
     assert json.loads((out / "design.json").read_text())["design"] == saved["design"]
+
+
+def test_operating_points_weighted_mean(four_bar):
+    """Two crank speeds, weights 1 and 3: the objective is the weighted mean of the two runs'
+    (the shaking force grows as the speed squared, its mean square as the fourth power)."""
+    variables = designing_variables(four_bar)
+    one = jc.designing.problem.build_problem(four_bar, variables, jc.designing.objective(shaking), (),
+                                             (OperatingPoint(),), Ensemble(), 1.0, 64, jc.Settings(t_end=1.0))
+    two = jc.designing.problem.build_problem(
+        four_bar, variables, jc.designing.objective(shaking), (),
+        (OperatingPoint({"speed_rpm": 500.0}, 1.0), OperatingPoint({"speed_rpm": 1000.0}, 3.0)), Ensemble(), 1.0, 64,
+        jc.Settings(t_end=1.0))
+    u = jnp.asarray([0.3, 0.6])
+    f1 = float(jc.designing.evaluate(one, u)[0][0])  # the preset runs at 500 rpm
+    f2 = float(jc.designing.evaluate(two, u)[0][0])
+    # (1 * f + 3 * 2^4 f) / 4; 1e-9: the kinematic analysis to its Newton tolerance at both speeds
+    assert f2 == pytest.approx(f1 * (1 + 3 * 16) / 4, rel=1e-9)
+
+
+def designing_variables(mech):
+    return jc.designing.check_variables(mech, VARIABLES)
+
+
+@pytest.mark.slow  # ~30 s: the kinematic analysis and its singular values run eagerly
+def test_assembles_constraint(four_bar):
+    from jaxclear.designing.constraints import Assembles
+
+    c = Assembles(samples=61).calibrated(four_bar)
+    assert float(c.residual(four_bar)) == pytest.approx(1.0 - 0.2, abs=0.05)  # soft minimum of 1 over the angles
+    # a rocker of 0.05 m cannot reach the coupler's end at every crank angle (0.1 + 0.3 > 0.35 + 0.05)
+    short = jc.params.replace(four_bar, "point_x:rocker.B", -0.075)  # O at -0.125: length 0.05 m
+    assert float(c.residual(short)) < 0
