@@ -159,19 +159,29 @@ def nan_objective(sol, mech):
 
 @pytest.fixture(scope="module")
 def impact_runs():
-    """The benchmark slider-crank over a quarter revolution (two impacts in its clearance joint):
-    the solution and its tangent w.r.t. the clearance (the default adjoint, error-controlled
-    sensitivities), and the plain solutions at clearance +- h for several h."""
+    """The benchmark slider-crank over a quarter revolution (its clearance joint in and out of
+    contact: the largest force 44 kN, the journal in free flight 64 % of the time): the solution
+    and its tangent w.r.t. the clearance (the default adjoint, error-controlled sensitivities),
+    and the plain solutions at clearance +- h for a sweep of steps h, all at rtol 1e-10."""
     mech = jc.preset("flores-slider-crank")
-    s = jc.Settings(t_end=0.25 * 2 * np.pi / 523.5987755982989, n_out=201, rtol=1e-8, atol=1e-11)
+    s = jc.Settings(t_end=0.25 * 2 * np.pi / 523.5987755982989, n_out=201, rtol=1e-10, atol=1e-13)
     c0 = float(jc.params.get(mech, "clearance"))
 
     def run(c):
         return jc.simulate(jc.params.replace(mech, "clearance", c), s)
 
-    sol, tangent = jax.jvp(run, (jnp.asarray(c0),), (jnp.asarray(1.0),))
-    plain = {h: (run(jnp.asarray(c0 + h)), run(jnp.asarray(c0 - h))) for h in (4e-8, 2e-8, 1e-8)}
-    return mech, sol, tangent, plain, c0
+    sol, tangent = jax.jit(lambda c: jax.jvp(run, (c,), (jnp.asarray(1.0),)))(jnp.asarray(c0))
+    plain = jax.jit(run)
+    return mech, sol, tangent, {h: (plain(c0 + h), plain(c0 - h)) for h in STEPS}, c0
+
+
+#: Central-difference steps [m] (clearance 0.5 mm). Measured sweep (rtol 1e-10): the differences
+#: agree from 3e-9 to 3e-8 m (a plateau: 1e-5 relative for peak-force, 4e-4 dissipated-energy,
+#: 2e-4 free-flight-fraction, 4e-3 rms-deviation, whose samples at the impacts cancel in the
+#: mean); below 1e-9 m rounding of the runs shows (2e-3), and from 3e-7 m up an impact enters or
+#: leaves the quarter revolution and the differences jump 20-fold. At rtol 1e-8 the plain runs'
+#: differences are off by up to 3 % (rms-deviation) while the sensitivities move by 4e-5.
+STEPS = (3e-9, 1e-8, 3e-8)
 
 
 @pytest.mark.slow
@@ -179,7 +189,6 @@ def impact_runs():
 def test_objective_derivative_central_differences(impact_runs, name):
     mech, sol, tangent, plain, c0 = impact_runs
     obj = objs.objective(name)
-    s_rev = jnp.asarray(0.25)
 
     def value(sol_, c):
         m = jc.params.replace(mech, "clearance", c)
@@ -188,18 +197,16 @@ def test_objective_derivative_central_differences(impact_runs, name):
             ideal_mech = m.ideal()
             ideal = jc.designing.problem.kinematic_solution(ideal_mech, jc.Settings(
                 t_end=float(sol.ts[-1]), n_out=sol.ts.shape[0]))
-        return obj.finish(obj.statistic(objs.Run(sol_, m, ideal, ideal_mech, s_rev)))
+        return obj.finish(obj.statistic(objs.Run(sol_, m, ideal, ideal_mech, jnp.asarray(0.25))))
 
-    # the derivative of the objective along the solution's tangent (chain rule; clearance also
-    # enters the statistic directly through the mechanism: jvp over both)
+    # the objective's derivative along the solution's tangent (the clearance also enters the
+    # statistic through the mechanism: jvp over both)
     _, d = jax.jvp(value, (sol, jnp.asarray(c0)), (tangent, jnp.asarray(1.0)))
-    cds = {h: (value(p, c0 + h) - value(m, c0 - h)) / (2 * h) for h, (p, m) in plain.items()}
-    # central differences converge as h^2 until rounding (rtol 1e-8 of the runs over h ~ 1e-8 m):
-    # the two smallest steps agree to ~1e-4 relative; the sensitivity within 1e-3 of them
-    # (accuracy of error-controlled sensitivities through impacts: docs/theory/sensitivities.md)
-    ref = float(cds[2e-8])
-    assert float(cds[1e-8]) == pytest.approx(ref, rel=2e-3)
-    assert float(d) == pytest.approx(ref, rel=3e-3, abs=1e-12 * abs(float(value(sol, c0))))
+    cds = [float((value(p, c0 + h) - value(m, c0 - h)) / (2 * h)) for h, (p, m) in plain.items()]
+    ref = cds[1]
+    # the plateau (see STEPS): 5e-3; the sensitivity within 3e-3 of its middle
+    assert max(abs(c - ref) for c in cds) <= 5e-3 * abs(ref)
+    assert float(d) == pytest.approx(ref, rel=3e-3)
 
 
 @pytest.mark.slow
