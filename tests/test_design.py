@@ -220,6 +220,7 @@ def test_design_through_impacts(tmp_path):
     assert 0.1e-3 <= res.design["clearance"] <= 0.6e-3
     assert res.constraints[0]["satisfied"]
     assert res.chaos is not None and "clearance" in res.chaos["amplification"]
+    assert 0 <= res.chaos["objective_spread"] < 1e-2  # a quarter revolution: predictable
     assert os.path.isfile(tmp_path / "design.png")
     assert isinstance(PeakForce(1e5), jc.designing.AbstractDesignConstraint)
 
@@ -295,3 +296,23 @@ def test_assembles_constraint(four_bar):
     # a rocker of 0.05 m cannot reach the coupler's end at every crank angle (0.1 + 0.3 > 0.35 + 0.05)
     short = jc.params.replace(four_bar, "point_x:rocker.B", -0.075)  # O at -0.125: length 0.05 m
     assert float(c.residual(short)) < 0
+
+
+@pytest.mark.slow  # compiles a 4-member and a 1-member program (~40 s)
+def test_ensemble_of_periodic_starts_tiles_the_revolution(four_bar):
+    """Four quarter-revolution runs starting at crank angles 0, 90, 180, 270 deg (periodic starts
+    in the ideal motion) average to the mean square of one whole revolution; the same quarter run
+    four times would not (the shaking force of the unbalanced four-bar peaks in one quarter)."""
+    variables = designing_variables(four_bar)
+
+    def value(revolutions, ensemble):
+        p = jc.designing.problem.build_problem(four_bar, variables, jc.designing.objective(shaking), (),
+                                               (OperatingPoint(),), ensemble, revolutions, 256, jc.Settings(t_end=1.0))
+        return float(jc.designing.evaluate(p, jnp.asarray([0.75, 0.8]))[0][0])
+
+    whole, quarters = value(1.0, Ensemble()), value(0.25, Ensemble(starts=4))
+    # both are sample means of the same periodic signal (257 and 4 x 65 samples, endpoints counted
+    # in each run): they agree to the sampling's O(1/64) = 1.6 %
+    assert quarters == pytest.approx(whole, rel=0.02)
+    first_quarter = value(0.25, Ensemble())
+    assert abs(first_quarter - whole) > 0.1 * whole

@@ -285,8 +285,10 @@ def _start_guesses(m: Mechanism, k: int):
         raise ParameterError(f"design runs start from the ideal-joint kinematics; the ideal-joint counterpart of "
                              f"{m.name!r} is not kinematically driven (its crank driver does not determine its motion)")
     period = 2.0 * math.pi / abs(float(crank_driver(m)[1].speed))
-    sol = kinematic_solution(ideal, make_settings(period, n_out=k + 1))
-    return np.asarray(sol.q)[:k], np.asarray(sol.qdot)[:k]
+    # 32 samples between members: the analysis continues each Newton solve from the last sample,
+    # and a quarter revolution apart is too far for it to converge (the slider-crank)
+    sol = kinematic_solution(ideal, make_settings(period, n_out=32 * k + 1))
+    return np.asarray(sol.q)[: 32 * k: 32], np.asarray(sol.qdot)[: 32 * k: 32]
 
 
 def _own_guesses(m: Mechanism):
