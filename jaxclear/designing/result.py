@@ -42,32 +42,37 @@ class DesignResult:
     Attributes:
         status: one of :data:`STATUSES`; ``success`` is True only for ``converged``.
         message: the method's own words on why it stopped.
-        design, start: variable name -> value at the optimum / at the start [SI].
+        design: variable name -> value at the optimum [SI].
+        start: variable name -> value at the start [SI].
         objective: ``{"name", "description", "unit", "start", "optimum", "improvement"}`` with
             ``improvement = 1 - optimum / start``.
         constraints: per constraint ``{"name", "kind" ("eq"/"ineq"), "start", "optimum",
             "satisfied"}`` (residuals in the SciPy convention: ``>= 0`` met, or ``= 0``).
         gradient: variable -> derivative of the objective at the optimum [objective unit per
-            variable unit]; ``gradient_norm``: norm of the gradient in unit coordinates, the
-            objective divided by its start value, the components that push against an active
-            bound removed (0 at a bounded stationary point).
+            variable unit].
+        gradient_norm: norm of the gradient in unit coordinates, the objective divided by its
+            start value, the components that push against an active bound removed (0 at a
+            bounded stationary point).
         sensitivity: variable -> ``{"gradient", "elasticity" (x/f df/dx), "change_minus",
             "change_plus"}``: the objective's change, as a fraction of its start value, when the
             variable moves 1 % of its range down / up from the optimum (simulated, a bound
             clipped): how much a manufacturing tolerance costs.
-        iterations, evaluations (``{"values", "gradients", "replayed"}``), runs (simulations of
-            the member runs, replayed ones included), gradient_cost (measured wall time of a
-            gradient evaluation in value evaluations), wall_time_s (this design's, a resumed
-            one's journal included).
+        iterations: the method's iterations.
+        evaluations: ``{"values", "gradients", "replayed"}`` (replayed: answered from the journal).
+        runs: simulations of the member runs, replayed ones included.
+        gradient_cost: measured wall time of a gradient evaluation in value evaluations.
+        wall_time_s: this call's wall time.
         history: per iteration ``{"iteration", "objective", "violation", "gradient_norm",
-            "design", "evaluations", "runs", "wall_s"}``.
+            "design", "evaluations", "gradients", "runs", "wall_s"}``.
         chaos: the horizon of predictability at the start (:mod:`jaxclear.designing.chaos`) and the
             spread between the plain and the sensitivity solve's objective; None if not checked.
         least_violation: with status ``infeasible``: ``{"violation", "design"}`` of the evaluated
             design that came closest.
         settings: the problem's settings (variables' ranges, method, runs, tolerances, members).
-        mechanism, start_mechanism: the optimum and the start as mechanisms (not written to JSON;
-            ``design.toml`` holds the optimum as a mechanism file).
+        mechanism: the optimum as a mechanism (not written to JSON; ``design.toml`` holds it as
+            a mechanism file).
+        start_mechanism: the start design as a mechanism.
+        comparison: the runs of the comparison figure (``plots=True``).
     """
 
     status: str
