@@ -6,7 +6,7 @@ before JAX starts its backends, asks XLA:CPU to compile small loops as single ke
 This module only re-exports the public API; the implementation lives in subpackages by layer:
 ``model`` (what a mechanism is) -> ``contact`` (force laws) -> ``elements`` (force elements
 with state) -> ``integrate`` (equations of motion, solvers, ``simulate``) -> ``analysis``,
-``io``, ``plot`` -> ``sweep``, ``fitting`` -> ``cli``. See docs/architecture.md.
+``io``, ``plot`` -> ``sweep``, ``fitting``, ``designing`` -> ``cli``. See docs/architecture.md.
 """
 
 from importlib.metadata import PackageNotFoundError as _PackageNotFoundError
@@ -26,6 +26,7 @@ from ._errors import (  # noqa: E402
     RESULTS,
     STATUS,
     CheckpointError,
+    DesignError,
     FitDataError,
     InitialConditionError,
     JaxclearError,
@@ -132,6 +133,7 @@ from .io import Measurements, read_measurements, timeseries_frame  # noqa: E402
 from .analysis import Accelerometer  # noqa: E402
 from .fitting import FitChannel, FitResult, fit, levenberg_marquardt, parameter_grad, synthetic_record  # noqa: E402
 from .wearing import WearHistory, WearOptions, plot_wear, wear  # noqa: E402
+from .designing import DesignResult, Ensemble, OperatingPoint, design  # noqa: E402
 
 try:
     __version__ = _version("jaxclear")

@@ -28,6 +28,11 @@ class FitDataError(ParameterError):
     at the start values that is zero or not finite (the message names the record)."""
 
 
+class DesignError(ParameterError):
+    """A design problem that cannot be solved honestly: the objective or a constraint is not
+    finite at the start design, or a design variable or option is unusable (the message names it)."""
+
+
 class MechanismError(JaxclearError):
     """The mechanism is malformed: unknown names, redundant or missing constraints."""
 

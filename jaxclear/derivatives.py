@@ -44,7 +44,8 @@ def differentiable_names(mech: Mechanism) -> list[str]:
     for k, joint in enumerate(mech.clearance_joints):
         suffix = "" if k == 0 else f"@{k}"
         for base in params.parameter_names():
-            if base in ("mass", "inertia", "point_x", "point_y", "speed", "speed_rpm", "angle0"):
+            if base in ("mass", "inertia", "centroid_x", "centroid_y", "point_x", "point_y", "speed", "speed_rpm",
+                        "angle0", "load_x", "load_y", "torque"):
                 continue
             try:
                 params._accessor(mech, base + suffix)
@@ -54,9 +55,11 @@ def differentiable_names(mech: Mechanism) -> list[str]:
     if crank_driver(mech) is not None:
         out += ["speed", "speed_rpm", "angle0"]
     for body in mech.bodies:
-        out += [f"mass:{body.name}", f"inertia:{body.name}"]
+        out += [f"mass:{body.name}", f"inertia:{body.name}", f"centroid_x:{body.name}", f"centroid_y:{body.name}"]
         out += [f"point_{c}:{body.name}.{p}" for p in body.points for c in "xy"]
     out += [f"point_{c}:ground.{p}" for p in mech.ground_points for c in "xy"]
+    for i, load in enumerate(mech.loads):
+        out += [f"torque:{i}"] if "torque" in type(load).__dataclass_fields__ else [f"load_x:{i}", f"load_y:{i}"]
     return out
 
 

@@ -30,6 +30,14 @@ name                    leaf                                                    
 ``inertia:BODY``        body centroidal inertia                                  kg m^2, (0, inf)
 ``point_x:BODY.POINT``  x of a body-fixed point (``ground.POINT``: of the frame)  m
 ``point_y:BODY.POINT``  y of the same point (geometry: link lengths, offsets)    m
+``centroid_x:BODY``     shift of the body's centroid along its own x axis        m, 0 = as given
+                        relative to its points: every body-fixed point moves by
+                        ``-value`` (a derived name, see below)
+``centroid_y:BODY``     the same along the body's y axis                         m, 0 = as given
+``load_x:K``            x of the force of load ``K`` (a ``PointForce``; ``K`` its   N
+                        index in ``mech.loads``), the load's constant part
+``load_y:K``            y of the same force                                      N
+``torque:K``            torque of load ``K`` (a ``Torque``)                      N m
 ``angle0``              first ``AngleDriver.angle0`` (crank angle at t = 0)      rad
 ``offset_x``            ``initial_offset[0]`` of the clearance joint (a journal:  m (rad)
                         eccentricity x; translational: lateral offset)
@@ -44,6 +52,14 @@ within its clearance (the assembly holds it there); ``angle0`` and the points mo
 mechanism's configuration. Each name is a differentiable input of
 :func:`~jaxclear.simulate` (``jaxclear.sensitivities``); the structure (names, which law,
 Gauss-point counts, the film variant) is static and has no name here.
+
+``centroid_x:BODY`` and ``centroid_y:BODY`` are derived names: the mass distribution of a link
+(where its centroid lies between its joints, as in balancing and in the optimal-design studies
+of Varedi et al. 2015) is set by moving every body-fixed point of the body by minus the
+shift, in the body's frame; the centroidal inertia, the mass and the body's position guess stay
+as given (the assembly places the body). Their value is the shift relative to the mechanism
+they are applied to (``get`` reads 0), so ``replace(mech, "centroid_x:rod", 0.01)`` moves the
+rod's centroid 10 mm towards its point of larger x. This is the one place that shift is made.
 
 ``width`` is an old name of ``length`` for the lubricated joint: still accepted, with a
 :class:`DeprecationWarning`.
@@ -117,6 +133,18 @@ INFO = {
                              "x of a body-fixed point (point_x:BODY.POINT)"),
     "point_y": ParameterInfo("point_y", "m", None, None, False, False, "none",
                              "y of a body-fixed point (point_y:BODY.POINT)"),
+    "centroid_x": ParameterInfo("centroid_x", "m", None, None, False, False, "none",
+                                "shift of a body's centroid along its x axis, its points moving the other way "
+                                "(centroid_x:BODY)"),
+    "centroid_y": ParameterInfo("centroid_y", "m", None, None, False, False, "none",
+                                "shift of a body's centroid along its y axis, its points moving the other way "
+                                "(centroid_y:BODY)"),
+    "load_x": ParameterInfo("load_x", "N", None, None, False, False, "none",
+                            "x of the force of a point load (load_x:K, K its index in mech.loads)"),
+    "load_y": ParameterInfo("load_y", "N", None, None, False, False, "none",
+                            "y of the force of a point load (load_y:K)"),
+    "torque": ParameterInfo("torque", "N m", None, None, False, False, "none",
+                            "torque of a torque load (torque:K, K its index in mech.loads)"),
     "angle0": ParameterInfo("angle0", "rad", None, None, False, False, "none", "crank angle at t = 0"),
     "offset_x": ParameterInfo("offset_x", "m", None, None, False, False, "none",
                               "initial offset of the clearance joint, first component"),
@@ -129,7 +157,8 @@ INFO = {
 }
 
 #: names of one component of a 2-vector leaf: name -> (leaf kind, component)
-COMPONENTS = {"point_x": ("point", 0), "point_y": ("point", 1), "offset_x": ("offset", 0), "offset_y": ("offset", 1),
+COMPONENTS = {"load_x": ("load", 0), "load_y": ("load", 1), "point_x": ("point", 0), "point_y": ("point", 1), "centroid_x": ("centroid", 0),
+              "centroid_y": ("centroid", 1), "offset_x": ("offset", 0), "offset_y": ("offset", 1),
               "velocity_x": ("velocity", 0), "velocity_y": ("velocity", 1)}
 
 
@@ -148,6 +177,14 @@ FRICTION_FIELDS = {
     "bristle_stiffness": "bristle_stiffness",
     "bristle_damping": "bristle_damping",
 }
+
+
+#: names that need a body (``NAME:BODY``)
+BODY_NAMES = ("mass", "inertia", "centroid_x", "centroid_y")
+#: names of a load's numbers (``NAME:K``, ``K`` the index of the load in ``mech.loads``)
+LOAD_NAMES = ("load_x", "load_y", "torque")
+#: derived names: several leaves set by one value (:func:`replace`), read as 0 (the shift from as given)
+DERIVED = ("centroid_x", "centroid_y")
 
 
 def parameter_names() -> list[str]:
@@ -172,9 +209,12 @@ def _split(name: str):
         base = DEPRECATED[base]
     if base not in INFO:
         raise ParameterError(f"unknown parameter {name!r}; valid names: {parameter_names()} "
-                             "(mass:BODY, inertia:BODY, and NAME@J for clearance joint J)")
-    if base in ("mass", "inertia") and body is None:
+                             "(mass:BODY, inertia:BODY, centroid_x:BODY, centroid_y:BODY, point_x:BODY.POINT, point_y:BODY.POINT, "
+                             "and NAME@J for clearance joint J)")
+    if base in BODY_NAMES and body is None:
         raise ParameterError(f"parameter {name!r} needs a body: {base}:BODY")
+    if base in LOAD_NAMES and (body is None or not body.isdigit()):
+        raise ParameterError(f"parameter {name!r} needs the index of a load: {base}:K (K in mech.loads)")
     if base in ("point_x", "point_y") and (body is None or "." not in body):
         raise ParameterError(f"parameter {name!r} needs a body and a point: {base}:BODY.POINT (ground.POINT for a "
                              "point of the frame)")
@@ -204,10 +244,13 @@ def _driver_index(mech: Mechanism, name: str) -> int:
 def _accessor(mech: Mechanism, name: str) -> tuple[Callable, Callable]:
     """(get, where) for a name; ``where(m)`` selects the leaf for ``eqx.tree_at``."""
     base, k, body = _split(name)
-    if base in ("mass", "inertia"):
+    if base in BODY_NAMES:
         i = mech.body_index(body)
         if i < 0:
             raise ParameterError(f"parameter {name!r}: the ground has no {base}")
+        if base in DERIVED:  # every point of the body; the value read is the shift from as given: 0
+            where = lambda m: m.bodies[i].points  # noqa: E731
+            return (lambda m: jnp.zeros((), dtype=float)), where
         where = (lambda m: m.bodies[i].mass) if base == "mass" else (lambda m: m.bodies[i].inertia)
         return where, where
     if base in ("speed", "speed_rpm", "angle0"):
@@ -215,6 +258,19 @@ def _accessor(mech: Mechanism, name: str) -> tuple[Callable, Callable]:
         field = "angle0" if base == "angle0" else "speed"
         w = lambda m: getattr(m.drivers[i], field)  # noqa: E731
         return w, w
+    if base in LOAD_NAMES:
+        i = int(body)
+        if not i < len(mech.loads):
+            raise ParameterError(f"parameter {name!r}: load index {i} outside [0, {len(mech.loads) - 1}] "
+                                 f"({len(mech.loads)} loads)")
+        load, field = mech.loads[i], "torque" if base == "torque" else "force"
+        if field not in type(load).__dataclass_fields__:
+            raise ParameterError(f"parameter {name!r}: load {i} is a {type(load).__name__}, which has no {field!r}")
+        where = lambda m: getattr(m.loads[i], field)  # noqa: E731
+        if base == "torque":
+            return where, where
+        k = COMPONENTS[base][1]
+        return (lambda m: where(m)[k]), where
     if base in ("point_x", "point_y"):
         owner, point = body.split(".", 1)
         if owner == GROUND:
@@ -297,6 +353,9 @@ def replace(mech: Mechanism, name: str, value) -> Mechanism:
         value = mech.clearance_joints[k].bearing_radius - value
     elif base == "speed_rpm":
         value = rpm_to_rad_s(value)
+    elif base in DERIVED:  # the centroid moves by value along one body axis: every point by -value
+        shift = jnp.zeros(2, dtype=float).at[COMPONENTS[base][1]].set(value)
+        value = {p: jnp.asarray(v, dtype=float) - shift for p, v in where(mech).items()}
     elif base in COMPONENTS:  # one component of a 2-vector leaf
         value = jnp.asarray(where(mech), dtype=float).at[COMPONENTS[base][1]].set(value)
     return eqx.tree_at(where, mech, value, is_leaf=lambda x: x is None)

@@ -73,3 +73,15 @@ def test_wear_notebook_runs(tmp_path):
     assert figures == ["wear_profile.png", "wear_slider.png"]
     text = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.outputs)
     assert "largest wear depth" in text and "worn: peak |slider acceleration|" in text
+
+
+def test_design_notebook_runs(tmp_path):
+    """notebooks/design.ipynb at small settings (the balanced four-bar, a 21 x 21 landscape, three
+    iterations of a half-revolution design through impacts): runs, writes its two figures."""
+    nb = execute_notebook("design.ipynb", tmp_path)
+    errors = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs if o.output_type == "error"]
+    assert not errors
+    figures = sorted(p.name for p in (tmp_path / "figures").glob("*.png"))
+    assert figures == ["design_comparison.png", "design_landscape.png"]
+    text = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.outputs)
+    assert "status converged" in text and "objective (RMS deviation" in text

@@ -8,6 +8,7 @@
     jaxclear sweep CONFIG.toml [options] run a parameter sweep
     jaxclear fit DATA.csv [options]      fit contact parameters to a measured record
     jaxclear wear [FILE.toml] [opts]     wear a clearance joint's bearing (Archard), resumable
+    jaxclear design [FILE.toml] --vary NAME=LOW:HIGH ...  optimal design through impacts, resumable
 
 One module per command (:mod:`.simulate`, :mod:`.presets`, :mod:`.models`, :mod:`.sweep`,
 :mod:`.fit`), each with ``HELP``, ``DESCRIPTION`` and ``configure(parser) -> run``, where
@@ -31,12 +32,12 @@ import sys
 
 from .. import __version__
 from .._errors import JaxclearError
-from . import animate, cache, check, fit, models, presets, simulate, sweep, wear
+from . import animate, cache, check, design, fit, models, presets, simulate, sweep, wear
 from .common import Formatter, Parser
 
 #: Commands in help order: name -> module.
 COMMANDS = {"presets": presets, "check": check, "simulate": simulate, "animate": animate, "models": models,
-            "sweep": sweep, "fit": fit, "wear": wear}
+            "sweep": sweep, "fit": fit, "wear": wear, "design": design}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -108,6 +109,8 @@ def _saved(args) -> str:
         return f"finished chunks are saved in {out!r}; run the same command again to resume"
     if args.command == "wear" and out:
         return f"every finished update is saved in {out!r}; run the same command again to resume"
+    if args.command == "design" and out:
+        return f"every evaluation is in the journal in {out!r}; run the same command again to resume"
     if args.command == "fit" and out:
         return f"the last iteration is checkpointed in {out!r}; run the same command again to resume"
     return "nothing was saved"

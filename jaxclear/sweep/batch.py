@@ -143,6 +143,13 @@ def _one_run(plan: Plan, mech: Mechanism, ideal: Mechanism | None, row):
     return _finish(plan, mech, row, sol, ideal_acc, ideal_status)
 
 
+def maps_one_by_one(platform: str | None = None) -> bool:
+    """Whether runs of a batch on ``platform`` (default: JAX's default backend) go one after another
+    (``jax.lax.map``) rather than side by side (``jax.vmap``): on CPU with single-kernel loops
+    (see :func:`one_by_one`, which applies it to a sweep's devices)."""
+    return (platform or jax.default_backend()) == "cpu" and loop_kernels_active()
+
+
 def one_by_one(plan: Plan) -> bool:
     """Whether a device integrates its runs one after another (``jax.lax.map``) rather than side
     by side (``jax.vmap``): ``not plan.side_by_side`` where that is set, else on CPU with
@@ -154,8 +161,7 @@ def one_by_one(plan: Plan) -> bool:
     device."""
     if plan.side_by_side is not None:
         return not plan.side_by_side
-    platform = jax.default_backend() if plan.mesh is None else plan.mesh.devices.flat[0].platform
-    return platform == "cpu" and loop_kernels_active()
+    return maps_one_by_one(None if plan.mesh is None else plan.mesh.devices.flat[0].platform)
 
 
 def _runs(plan: Plan, mech: Mechanism, ideal: Mechanism | None, rows):

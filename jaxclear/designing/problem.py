@@ -1,0 +1,322 @@
+r"""A design problem as one pure function: unit-cube coordinates ``u`` (P,) -> the objective and
+the constraints' residuals, and their Jacobian through the simulations.
+
+The runs of one evaluation are the *members*: every operating point (:class:`OperatingPoint`:
+speeds, loads, any :mod:`jaxclear.params` values, with a weight) times every member of the
+ensemble (:class:`Ensemble`: periodic starts at crank angles spread over a revolution, or start
+offsets of the journals spread over the clearance). They are mapped over in one program
+(``jax.lax.map`` on CPU, ``jax.vmap`` on accelerators, as the sweeps do,
+:func:`jaxclear.sweep.batch.maps_one_by_one`); the objective is the finish of the weighted mean
+of their statistics (:mod:`.objectives`) and each constraint pools them its way
+(:mod:`.constraints`).
+
+Derivatives: ``jax.linearize`` of the whole evaluation, then its linear map applied to the P unit
+vectors. Under ``Settings(adjoint="sensitivity")`` linearizing a simulation runs the
+error-controlled sensitivity solve once, with one tangent per perturbed scalar leaf of the
+mechanism (:mod:`jaxclear.integrate.sensitivity`); the P columns are then linear combinations,
+so the whole Jacobian costs one sensitivity solve per member (``jax.jacfwd`` would batch P of
+them).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import params
+from .._errors import ParameterError
+from ..elements.revolute_clearance import AbstractJournalJoint
+from ..integrate import Settings, simulate
+from ..integrate.compile import jit
+from ..integrate.kinematics import is_kinematic, kinematic_solution
+from ..integrate.settings import settings as make_settings
+from ..model import Mechanism, crank_driver
+from ..sweep.batch import maps_one_by_one
+from .constraints import AbstractDesignConstraint
+from .objectives import AbstractObjective, Run
+from .variables import Variable
+
+#: Default output samples per crank revolution of a design's runs (impacts last tens of
+#: microseconds: 4000 samples per revolution is 3 us apart at 5000 rpm).
+SAMPLES_PER_REVOLUTION = 4000
+#: Fewest output samples of a run.
+MIN_SAMPLES = 64
+
+
+@dataclass(frozen=True)
+class OperatingPoint:
+    """Where the design must work: :mod:`jaxclear.params` values (a crank speed, a load, a
+    payload mass...) applied on top of the design, and the point's weight (> 0) in the
+    objective's weighted mean."""
+
+    values: dict = dataclasses.field(default_factory=dict)
+    weight: float = 1.0
+
+
+@dataclass(frozen=True)
+class Ensemble:
+    """Several runs per operating point, their statistics averaged (theory: docs/theory/design.md).
+
+    Attributes:
+        starts: members, >= 1.
+        kind: ``"angles"``: member ``k`` starts at the crank angle ``angle0 + 2 pi k / starts``
+            in the ideal-joint motion with the journals as the mechanism places them (periodic
+            starts: short runs that tile a revolution); ``"offsets"``: every member starts at
+            ``angle0`` with the journals of revolute-type joints at rest at offsets spread
+            uniformly over the disc of radius ``spread`` times the clearance (a seeded sample).
+        spread: radius of the offsets' disc as a fraction of the clearance, in (0, 1).
+        seed: seed of the offsets' sample.
+    """
+
+    starts: int = 1
+    kind: str = "angles"
+    spread: float = 0.8
+    seed: int = 0
+
+    def check(self) -> None:
+        if isinstance(self.starts, bool) or not isinstance(self.starts, int) or self.starts < 1:
+            raise ParameterError(f"ensemble starts = {self.starts!r} outside the allowed range [1, inf) (an integer)")
+        if self.kind not in ("angles", "offsets"):
+            raise ParameterError(f"ensemble kind {self.kind!r} is not one of 'angles', 'offsets'")
+        if not 0.0 < self.spread < 1.0:
+            raise ParameterError(f"ensemble spread = {self.spread:g} outside the allowed range (0, 1)")
+
+
+class Members(eqx.Module):
+    """The runs of one evaluation (leading axis B): operating-point values (B, V) of ``names``,
+    crank-angle shifts (B,) [rad], journal offsets as fractions of the clearance (B, 2), weights
+    (B,) summing to 1, position and velocity guesses (B, n)."""
+
+    values: jax.Array
+    shift: jax.Array
+    offset: jax.Array
+    weight: jax.Array
+    guess_q: jax.Array
+    guess_qd: jax.Array
+    names: tuple = eqx.field(static=True)
+
+    @property
+    def count(self) -> int:
+        return int(self.weight.shape[0])
+
+
+class DesignProblem(eqx.Module):
+    """Everything one evaluation needs; its arrays are the mechanism's leaves and the members'."""
+
+    mech: Mechanism
+    members: Members
+    names: tuple = eqx.field(static=True)
+    low: jax.Array
+    high: jax.Array
+    objective: AbstractObjective = eqx.field(static=True)
+    constraints: tuple = eqx.field(static=True)
+    revolutions: float = eqx.field(static=True)
+    n_out: int = eqx.field(static=True)
+    base: Settings
+    one_by_one: bool = eqx.field(static=True)
+
+    @property
+    def rtol(self) -> float:
+        return self.base.rtol
+
+    @property
+    def atol(self) -> float:
+        return self.base.atol
+
+    @property
+    def max_steps(self) -> int:
+        return self.base.max_steps
+
+    @property
+    def variables(self) -> tuple[Variable, ...]:
+        """The variables' names and ranges (host side; the bounds are arrays of the problem, so
+        that designs over other ranges of the same names share the compiled programs)."""
+        lo, hi = np.asarray(self.low), np.asarray(self.high)
+        return tuple(Variable(n, float(lo[i]), float(hi[i]), float("nan"), "") for i, n in enumerate(self.names))
+
+    def values(self, u):
+        """Unit-cube coordinates -> variable values (traceable)."""
+        return self.low + u * (self.high - self.low)
+
+    @property
+    def run_constraints(self) -> tuple:
+        return tuple(c for c in self.constraints if c.uses_runs)
+
+    @property
+    def needs_ideal(self) -> bool:
+        return bool(self.objective.needs_ideal) and bool(self.mech.clearance_joints)
+
+    def design_mechanism(self, x) -> Mechanism:
+        """The mechanism at design values ``x`` (values, not unit coordinates)."""
+        return params.replace_many(self.mech, {n: x[i] for i, n in enumerate(self.names)})
+
+    def member_mechanism(self, x, k) -> Mechanism:
+        """Member ``k``'s mechanism: the design, its operating point, start angle, guesses, offsets."""
+        mb = self.members
+        m = params.replace_many(self.design_mechanism(x), {n: mb.values[k, i] for i, n in enumerate(mb.names)})
+        return _start(m, mb.shift[k], mb.offset[k], mb.guess_q[k], mb.guess_qd[k])
+
+    def settings_of(self, m: Mechanism, throw: bool = False) -> Settings:
+        """The run's settings: the design's settings over ``revolutions`` of ``m``'s crank
+        (traced speed) from t = 0, ``n_out`` samples, no progress bar."""
+        _, crank = crank_driver(m)
+        t_end = self.revolutions * 2.0 * jnp.pi / jnp.abs(crank.speed)
+        return dataclasses.replace(self.base, t_start=0.0, t_end=t_end, n_out=self.n_out, throw=throw, progress=False)
+
+    def run(self, m: Mechanism, s: Settings) -> Run:
+        """Simulate ``m`` (and its ideal-joint counterpart when the objective reads it). A
+        mechanism without force elements whose drivers determine its motion is not integrated:
+        its run is the kinematic analysis (exact to the Newton tolerance, a far smaller program)."""
+        sol = kinematic_solution(m, s) if is_kinematic(m) else simulate(m, s)
+        ideal = ideal_mech = None
+        if self.needs_ideal:
+            ideal_mech = m.ideal()
+            ideal = kinematic_solution(ideal_mech, s) if is_kinematic(ideal_mech) else simulate(ideal_mech, s)
+        return Run(sol, m, ideal, ideal_mech, jnp.asarray(self.revolutions, dtype=float))
+
+    def member_statistics(self, x, k):
+        """``(statistics (1 + R,), status)`` of member ``k``: the objective's statistic, then each
+        run constraint's; status the run's (or, if that is ok, the ideal run's) code."""
+        m = self.member_mechanism(x, k)
+        run = self.run(m, self.settings_of(m))
+        stats = [self.objective.statistic(run)] + [c.statistic(run) for c in self.run_constraints]
+        status = run.sol.status if run.ideal is None else jnp.where(run.sol.status != 0, run.sol.status,
+                                                                     run.ideal.status)
+        return jnp.stack([jnp.asarray(v, dtype=float) for v in stats]), status
+
+    def outputs(self, u):
+        """``(values (1 + C,), statuses (B,))``: the objective and the constraints' residuals at
+        unit coordinates ``u``; NaN where a member's run failed."""
+        x = self.values(u)
+        ks = jnp.arange(self.members.count)
+        f = lambda k: self.member_statistics(x, k)  # noqa: E731
+        stats, status = jax.lax.map(f, ks) if self.one_by_one else jax.vmap(f)(ks)
+        w = self.members.weight
+        values = [self.objective.finish(jnp.sum(w * stats[:, 0]))]
+        design = self.design_mechanism(x)
+        i = 1
+        for c in self.constraints:
+            pooled = None
+            if c.uses_runs:
+                pooled = c.pool(stats[:, i], w)
+                i += 1
+            values.append(c.residual(design, pooled))
+        out = jnp.stack([jnp.asarray(v, dtype=float) for v in values])
+        return jnp.where(jnp.all(status == 0), out, jnp.nan), status
+
+
+def _start(m: Mechanism, shift, offset, guess_q, guess_qd) -> Mechanism:
+    """``m`` started ``shift`` [rad] further along its crank, from the guesses, its revolute-type
+    journals at ``offset`` times their clearance."""
+    i, crank = crank_driver(m)
+    m = eqx.tree_at(lambda mm: mm.drivers[i].angle0, m, crank.angle0 + shift)
+    for b in range(len(m.bodies)):
+        m = eqx.tree_at(lambda mm: (mm.bodies[b].position, mm.bodies[b].velocity), m,
+                        (guess_q[3 * b: 3 * b + 3], guess_qd[3 * b: 3 * b + 3]))
+    for j, joint in enumerate(m.clearance_joints):
+        if isinstance(joint, AbstractJournalJoint):
+            m = eqx.tree_at(lambda mm: mm.clearance_joints[j].initial_offset, m,
+                            joint.initial_offset + offset * joint.clearance)
+    return m
+
+
+@jit
+def evaluate(problem: DesignProblem, u):
+    """The objective and constraints at ``u`` (one compiled program per problem structure)."""
+    return problem.outputs(u)
+
+
+@jit
+def evaluate_with_jacobian(problem: DesignProblem, u):
+    """``(values (1 + C,), jacobian (1 + C, P), statuses)`` at ``u``: one linearization (one
+    sensitivity solve per member), the Jacobian's columns its linear map on the unit vectors.
+    The values are those of the sensitivity solve (its steps are sized for the tangents too)."""
+    values, lin, status = jax.linearize(problem.outputs, u, has_aux=True)
+    columns = jax.vmap(lin)(jnp.eye(u.shape[0], dtype=u.dtype))  # (P, 1 + C)
+    return values, columns.T, status
+
+
+def n_samples(revolutions: float, per_revolution: int) -> int:
+    """Output samples of a run of ``revolutions``: ``per_revolution`` each, at least :data:`MIN_SAMPLES`."""
+    return max(int(round(per_revolution * revolutions)), MIN_SAMPLES) + 1
+
+
+def build_members(mech: Mechanism, points: tuple[OperatingPoint, ...], ensemble: Ensemble) -> Members:
+    """The members: every operating point times every ensemble member, with the guesses of its
+    start (the ideal-joint kinematics of the point at the member's crank angle)."""
+    names = tuple(sorted({n for p in points for n in p.values}))
+    for p in points:
+        missing = set(names) - set(p.values)
+        if missing:
+            raise ParameterError(f"operating point {p.values}: every point must set the same names; missing "
+                                 f"{sorted(missing)}")
+    total = sum(p.weight for p in points)
+    k = ensemble.starts
+    rows, shifts, offsets, weights, gq, gqd = [], [], [], [], [], []
+    periodic = ensemble.kind == "angles" and k > 1
+    for p in points:
+        m = params.replace_many(mech, p.values)
+        q, qd = _start_guesses(m, k) if periodic else _own_guesses(m)
+        sign = 1.0 if float(crank_driver(m)[1].speed) >= 0 else -1.0
+        disc = _offsets(ensemble) if ensemble.kind == "offsets" else np.zeros((k, 2))
+        for j in range(k):
+            a = j if periodic else 0
+            rows.append([float(p.values[n]) for n in names])
+            shifts.append(sign * 2.0 * math.pi * a / k if ensemble.kind == "angles" else 0.0)
+            offsets.append(disc[j])
+            weights.append(p.weight / total / k)
+            gq.append(q[a])
+            gqd.append(qd[a])
+    f = lambda a: jnp.asarray(np.asarray(a, dtype=float))  # noqa: E731
+    return Members(f(rows).reshape(len(rows), len(names)), f(shifts), f(offsets), f(weights), f(gq), f(gqd), names)
+
+
+def _start_guesses(m: Mechanism, k: int):
+    """Positions and velocities (k, n) of ``m``'s ideal-joint motion at ``k`` crank angles
+    spread over a revolution (from the assembly at each angle where the motion is not kinematic)."""
+    ideal = m.ideal() if m.clearance_joints else m
+    if not is_kinematic(ideal):
+        raise ParameterError(f"design runs start from the ideal-joint kinematics; the ideal-joint counterpart of "
+                             f"{m.name!r} is not kinematically driven (its crank driver does not determine its motion)")
+    period = 2.0 * math.pi / abs(float(crank_driver(m)[1].speed))
+    # 32 samples between members: the analysis continues each Newton solve from the last sample,
+    # and a quarter revolution apart is too far for it to converge (the slider-crank)
+    sol = kinematic_solution(ideal, make_settings(period, n_out=32 * k + 1))
+    return np.asarray(sol.q)[: 32 * k: 32], np.asarray(sol.qdot)[: 32 * k: 32]
+
+
+def _own_guesses(m: Mechanism):
+    """The mechanism's own position and velocity guesses (1, n)."""
+    q = np.concatenate([np.asarray(b.position, dtype=float) for b in m.bodies])
+    qd = np.concatenate([np.asarray(b.velocity, dtype=float) for b in m.bodies])
+    return q[None], qd[None]
+
+
+def _offsets(ensemble: Ensemble) -> np.ndarray:
+    """``starts`` offsets (k, 2) uniform over the disc of radius ``spread`` (fractions of the clearance)."""
+    rng = np.random.default_rng(ensemble.seed)
+    r = ensemble.spread * np.sqrt(rng.uniform(size=ensemble.starts))
+    a = rng.uniform(0.0, 2.0 * math.pi, size=ensemble.starts)
+    return np.stack([r * np.cos(a), r * np.sin(a)], axis=1)
+
+
+def build_problem(mech: Mechanism, variables: tuple[Variable, ...], objective: AbstractObjective,
+                  constraints: tuple[AbstractDesignConstraint, ...], points: tuple[OperatingPoint, ...],
+                  ensemble: Ensemble, revolutions: float, samples_per_revolution: int, base: Settings) -> DesignProblem:
+    """The :class:`DesignProblem` (inputs checked by :func:`jaxclear.design`)."""
+    f = lambda a: jnp.asarray(np.asarray(a, dtype=float))  # noqa: E731
+    return DesignProblem(mech, build_members(mech, points, ensemble), tuple(v.name for v in variables),
+                         f([v.low for v in variables]), f([v.high for v in variables]), objective, constraints,
+                         float(revolutions), n_samples(revolutions, samples_per_revolution), base, maps_one_by_one())
+
+
+__all__ = [
+    "DesignProblem", "Ensemble", "Members", "OperatingPoint", "SAMPLES_PER_REVOLUTION", "build_members",
+    "build_problem", "evaluate", "evaluate_with_jacobian", "n_samples",
+]

@@ -1,0 +1,318 @@
+"""jc.design: a known optimum (force balance of the four-bar, Berkof and Lowen 1969, in closed
+form), bounds and constraints held, resume bit-identical, bad input as one-line named errors;
+slow: each named objective's derivative through impacts against central differences, a design
+through impacts end to end, the chaos check."""
+
+import json
+import os
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxclear as jc
+from jaxclear.designing import Ensemble, OperatingPoint, objectives as objs
+from jaxclear.designing.constraints import PeakForce, PeakPenetration
+
+
+# ---- a known optimum: the force-balanced four-bar ------------------------------------------------
+#
+# The shaking force of a mechanism is the rate of change of its momentum, sum m_i a_Gi. For a
+# four-bar (crank l2 from O2, coupler l3 from A to B, rocker l4 from O4) the total mass centre
+# is stationary, whatever the crank angle, when (Berkof and Lowen, "A new method for completely
+# force balancing simple linkages", J. Eng. Ind. 91, 1969; loop closure eliminates the coupler's
+# angle): m2 r2 e^{i th2} = m3 l2 (r3/l3 e^{i th3} - 1) and m4 r4 e^{i th4} = -m3 r3 (l4/l3)
+# e^{i th3}, r_i the centroid's distance from the link's first pivot along its axis. The preset:
+# l2 = 0.1, l3 = 0.35, l4 = 0.25 m, m = 0.2, 0.5, 0.4 kg, the coupler's centroid at its middle
+# (r3/l3 = 1/2, th3 = 0): r2 = -0.5 * 0.5 * 0.1 / 0.2 = -0.125 m and r4 = -0.5 * 0.125 / 0.4 =
+# -0.15625 m. The crank's centroid is 0.05 m from O2 and the rocker's 0.125 m from O4 in the
+# preset, so the centroid shifts that balance it are -0.175 m and -0.28125 m.
+BALANCED = {"centroid_x:crank": -0.175, "centroid_x:rocker": -0.28125}
+VARIABLES = {"centroid_x:crank": (-0.3, 0.1), "centroid_x:rocker": (-0.4, 0.1)}
+FAST = dict(samples_per_revolution=64, check_chaos=False, plots=False, progress=False)
+
+
+def shaking(sol, mech):
+    """Mean square of the shaking force sum m_i a_Gi over the samples [N^2] (gravity's constant
+    part left out: it does not change with the design)."""
+    masses = jnp.stack([jnp.asarray(b.mass, dtype=float) for b in mech.bodies])
+    acc = sol.qddot.reshape(sol.qddot.shape[0], -1, 3)[:, :, :2]
+    force = jnp.einsum("b,tbk->tk", masses, acc)
+    return jnp.mean(jnp.sum(force**2, axis=1))
+
+
+@pytest.fixture(scope="module")
+def four_bar():
+    return jc.preset("four-bar").ideal()  # driven, no force element: the kinematic analysis (cheap)
+
+
+@pytest.fixture(scope="module")
+def balanced(four_bar, tmp_path_factory):
+    out = tmp_path_factory.mktemp("design")
+    return jc.design(four_bar, VARIABLES, shaking, out=out, **FAST), out
+
+
+def test_balanced_four_bar_closed_form(balanced):
+    res, out = balanced
+    assert res.status == "converged" and res.success
+    # closed form above; 1e-6 m: L-BFGS-B's projected-gradient stop on a quadratic objective
+    # (40516 N^2 at the start) leaves ~1e-9 N^2, i.e. shifts within ~1e-7 m
+    for name, want in BALANCED.items():
+        assert res.design[name] == pytest.approx(want, abs=1e-6)
+    assert res.objective["optimum"] < 1e-7 * res.objective["start"]
+    assert res.gradient_norm < 1e-4
+    assert set(res.sensitivity) == set(VARIABLES)
+    for f in ("design.json", "design_history.csv", "design.toml", jc.designing.JOURNAL_NAME):
+        assert os.path.isfile(out / f), f
+    saved = json.loads((out / "design.json").read_text())
+    assert saved["status"] == "converged" and saved["design"]["centroid_x:crank"] == res.design["centroid_x:crank"]
+    again = jc.load_mechanism(out / "design.toml")  # the optimum as a mechanism file: its crank's points moved
+    np.testing.assert_allclose(np.asarray(again.body("crank").points["O"]), [-0.05 + 0.175, 0.0], atol=1e-6)
+
+
+def test_bounds_held(four_bar):
+    # the balance lies outside these ranges: the optimum is on the bounds it pushes against
+    res = jc.design(four_bar, {"centroid_x:crank": (-0.1, 0.1), "centroid_x:rocker": (-0.4, 0.1)}, shaking,
+                    report_sensitivity=False, **FAST)
+    assert res.design["centroid_x:crank"] == -0.1  # exactly on the bound (L-BFGS-B projects)
+    for h in res.history:
+        for name, (low, high) in {"centroid_x:crank": (-0.1, 0.1), "centroid_x:rocker": (-0.4, 0.1)}.items():
+            assert low <= h["design"][name] <= high
+
+
+def test_resume_bit_identical(four_bar, balanced, tmp_path):
+    ref, _ = balanced
+
+    class Stop(Exception):
+        pass
+
+    def stop_at_two(record):
+        if record["iteration"] == 2:
+            raise Stop
+
+    with pytest.raises(Stop):
+        jc.design(four_bar, VARIABLES, shaking, out=tmp_path, callback=stop_at_two, **FAST)
+    lines = (tmp_path / jc.designing.JOURNAL_NAME).read_text().splitlines()
+    assert len(lines) > 2  # the key and the evaluations so far
+    res = jc.design(four_bar, VARIABLES, shaking, out=tmp_path, **FAST)
+    assert res.evaluations["replayed"] >= len(lines) - 1
+    assert res.design == ref.design  # bit for bit
+    assert res.objective == ref.objective
+    assert [h["objective"] for h in res.history] == [h["objective"] for h in ref.history]
+    assert res.sensitivity == ref.sensitivity
+
+
+def test_infeasible_reports_least_violation(four_bar):
+    # every design here weighs at least 1.0 kg (0.1 + 0.5 + 0.4): a total of at most 0.5 kg is out of reach
+    res = jc.design(four_bar, {"mass:crank": (0.1, 0.3)}, shaking, ["total-mass<=0.5"], **FAST)
+    assert res.status == "infeasible" and not res.success
+    lv = res.least_violation
+    assert lv["design"]["mass:crank"] == pytest.approx(0.1, abs=1e-9)  # the lightest design comes closest
+    assert lv["violation"] == pytest.approx((1.0 - 0.5) / 0.5, rel=1e-9)
+    assert not res.constraints[0]["satisfied"]
+
+
+# ---- bad input: one line, named -------------------------------------------------------------------
+
+@pytest.mark.parametrize("variables, match", [
+    ({"stiffnes": (1, 2)}, "design variable 'stiffnes' is not a number"),
+    ({"law": (1, 2)}, "design variable 'law' is not a number"),
+    ({"mass:crank": (0.3, 0.3)}, r"range \[0.3, 0.3\] is empty"),
+    ({"mass:crank": (0.3, 0.1)}, r"range \[0.3, 0.1\] is inverted"),
+    ({"mass:crank": (0.3, 0.5)}, "the start.*0.2, lies outside its range"),
+    ({"mass:crank": (-1.0, 0.5)}, "leaves the parameter's own range"),
+    ({}, "no design variable"),
+])
+def test_bad_variables(four_bar, variables, match):
+    with pytest.raises(jc.ParameterError, match=match) as err:
+        jc.design(four_bar, variables, shaking, **FAST)
+    assert "\n" not in str(err.value)
+
+
+def test_bad_options(four_bar):
+    for kwargs, match in [(dict(objective="fastest"), "unknown objective 'fastest'"),
+                          (dict(objective="peak-force"), "needs a clearance joint"),
+                          (dict(constraints=["mass<=3"]), "unknown constraint 'mass<=3'"),
+                          (dict(method="newton"), "design method 'newton'"),
+                          (dict(start={"mass:crank": 0.5}), "outside its range"),
+                          (dict(ensemble=Ensemble(starts=0)), "ensemble starts = 0"),
+                          (dict(points=[OperatingPoint({"speed_rpm": 500.0}, weight=-1.0)]), "weight = -1")]:
+        kw = dict(dict(objective=shaking), **kwargs)
+        with pytest.raises(jc.ParameterError, match=match) as err:
+            jc.design(four_bar, {"mass:crank": (0.1, 0.3)}, **kw, **FAST)
+        assert "\n" not in str(err.value)
+
+
+def test_objective_not_finite_at_start(four_bar, tmp_path):
+    with pytest.raises(jc.DesignError, match="not finite at the start design: nan_objective") as err:
+        jc.design(four_bar, VARIABLES, nan_objective, out=tmp_path, **FAST)
+    assert "\n" not in str(err.value)
+    assert not (tmp_path / "design.json").exists()  # nothing that claims success
+
+
+def nan_objective(sol, mech):
+    return jnp.nan * shaking(sol, mech)
+
+
+# ---- through impacts (slow: each structure compiles a sensitivity solve, ~1 min) -----------------
+
+@pytest.fixture(scope="module")
+def impact_runs():
+    """The benchmark slider-crank over a quarter revolution (its clearance joint in and out of
+    contact: the largest force 44 kN, the journal in free flight 64 % of the time): the solution
+    and its tangent w.r.t. the clearance (the default adjoint, error-controlled sensitivities),
+    and the plain solutions at clearance +- h for a sweep of steps h, all at rtol 1e-10."""
+    mech = jc.preset("flores-slider-crank")
+    s = jc.Settings(t_end=0.25 * 2 * np.pi / 523.5987755982989, n_out=201, rtol=1e-10, atol=1e-13)
+    c0 = float(jc.params.get(mech, "clearance"))
+
+    def run(c):
+        return jc.simulate(jc.params.replace(mech, "clearance", c), s)
+
+    sol, tangent = jax.jit(lambda c: jax.jvp(run, (c,), (jnp.asarray(1.0),)))(jnp.asarray(c0))
+    plain = jax.jit(run)
+    return mech, sol, tangent, {h: (plain(c0 + h), plain(c0 - h)) for h in STEPS}, c0
+
+
+#: Central-difference steps [m] (clearance 0.5 mm). Measured sweep (rtol 1e-10): the differences
+#: agree from 3e-9 to 3e-8 m (a plateau: 1e-5 relative for peak-force, 4e-4 dissipated-energy,
+#: 2e-4 free-flight-fraction, 4e-3 rms-deviation, whose samples at the impacts cancel in the
+#: mean); below 1e-9 m rounding of the runs shows (2e-3), and from 3e-7 m up an impact enters or
+#: leaves the quarter revolution and the differences jump 20-fold. At rtol 1e-8 the plain runs'
+#: differences are off by up to 3 % (rms-deviation) while the sensitivities move by 4e-5.
+STEPS = (3e-9, 1e-8, 3e-8)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["peak-force", "dissipated-energy", "free-flight-fraction", "rms-deviation"])
+def test_objective_derivative_central_differences(impact_runs, name):
+    mech, sol, tangent, plain, c0 = impact_runs
+    obj = objs.objective(name)
+
+    def value(sol_, c):
+        m = jc.params.replace(mech, "clearance", c)
+        ideal = ideal_mech = None
+        if obj.needs_ideal:
+            ideal_mech = m.ideal()
+            ideal = jc.designing.problem.kinematic_solution(ideal_mech, jc.Settings(
+                t_end=float(sol.ts[-1]), n_out=sol.ts.shape[0]))
+        return obj.finish(obj.statistic(objs.Run(sol_, m, ideal, ideal_mech, jnp.asarray(0.25))))
+
+    # the objective's derivative along the solution's tangent (the clearance also enters the
+    # statistic through the mechanism: jvp over both)
+    _, d = jax.jvp(value, (sol, jnp.asarray(c0)), (tangent, jnp.asarray(1.0)))
+    cds = [float((value(p, c0 + h) - value(m, c0 - h)) / (2 * h)) for h, (p, m) in plain.items()]
+    ref = cds[1]
+    # the plateau (see STEPS): 5e-3; the sensitivity within 3e-3 of its middle
+    assert max(abs(c - ref) for c in cds) <= 5e-3 * abs(ref)
+    assert float(d) == pytest.approx(ref, rel=3e-3)
+
+
+@pytest.mark.slow
+def test_design_through_impacts(tmp_path):
+    mech = jc.preset("flores-slider-crank")
+    res = jc.design(mech, {"clearance": (0.1e-3, 0.6e-3)}, "peak-force", [PeakPenetration(2e-4)],
+                    revolutions=0.25, samples_per_revolution=400, max_iter=4, check_chaos=True, out=tmp_path,
+                    progress=False)
+    assert res.status in ("converged", "max_iter")
+    assert res.objective["optimum"] < res.objective["start"]
+    assert 0.1e-3 <= res.design["clearance"] <= 0.6e-3
+    assert res.constraints[0]["satisfied"]
+    assert res.chaos is not None and "clearance" in res.chaos["amplification"]
+    assert 0 <= res.chaos["objective_spread"] < 1e-2  # a quarter revolution: predictable
+    assert os.path.isfile(tmp_path / "design.png")
+    assert isinstance(PeakForce(1e5), jc.designing.AbstractDesignConstraint)
+
+
+# ---- the command line ------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("argv, match", [
+    (["--vary", "clearence=1e-4:6e-4"], "design variable 'clearence' is not a number"),
+    (["--vary", "clearance=6e-4:1e-4"], "is inverted"),
+    (["--vary", "clearance=1e-4:6e-4", "--objective", "fastest"], "unknown objective 'fastest'"),
+    (["--vary", "clearance=1e-4:6e-4", "--constraint", "mass<=3"], "unknown constraint"),
+    (["--vary", "clearance=1e-4:6e-4", "--start", "clearance=1e-3"], "outside its range"),
+    (["--vary", "clearance=1e-4"], "expected NAME=LOW:HIGH"),
+    (["--vary", "clearance=a:b"], "not two numbers"),
+    (["--vary", "clearance=1e-4:6e-4", "--max-iter", "0"], "outside the allowed range"),
+    ([], "required"),
+])
+def test_cli_bad_input_exits_2(argv, match, tmp_path, capsys):
+    from jaxclear.cli import main
+
+    assert main(["design", "--no-progress", "--out", str(tmp_path / "out"), *argv]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert match in err[-1] and "Traceback" not in "\n".join(err)
+    assert not (tmp_path / "out" / "design.json").exists()
+
+
+@pytest.mark.slow
+def test_cli_design_file(tmp_path, capsys):
+    from jaxclear.cli import main
+
+    path = tmp_path / "slider.toml"
+    jc.save_mechanism(jc.preset("flores-slider-crank"), path)
+    out = tmp_path / "out"
+    argv = ["design", str(path), "--vary", "clearance=0.1e-3:0.6e-3", "--objective", "peak-force", "--revolutions",
+            "0.25", "--samples-per-revolution", "400", "--max-iter", "3", "--no-progress", "--no-chaos-check",
+            "--out", str(out)]
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    assert "objective (smooth peak contact force" in text and "clearance" in text
+    saved = json.loads((out / "design.json").read_text())
+    assert 0.1e-3 <= saved["design"]["clearance"] <= 0.6e-3
+    assert main(argv) == 0  # resumed from the journal: the same design
+    assert json.loads((out / "design.json").read_text())["design"] == saved["design"]
+
+
+def test_operating_points_weighted_mean(four_bar):
+    """Two crank speeds, weights 1 and 3: the objective is the weighted mean of the two runs'
+    (the shaking force grows as the speed squared, its mean square as the fourth power)."""
+    variables = designing_variables(four_bar)
+    one = jc.designing.problem.build_problem(four_bar, variables, jc.designing.objective(shaking), (),
+                                             (OperatingPoint(),), Ensemble(), 1.0, 64, jc.Settings(t_end=1.0))
+    two = jc.designing.problem.build_problem(
+        four_bar, variables, jc.designing.objective(shaking), (),
+        (OperatingPoint({"speed_rpm": 500.0}, 1.0), OperatingPoint({"speed_rpm": 1000.0}, 3.0)), Ensemble(), 1.0, 64,
+        jc.Settings(t_end=1.0))
+    u = jnp.asarray([0.3, 0.6])
+    f1 = float(jc.designing.evaluate(one, u)[0][0])  # the preset runs at 500 rpm
+    f2 = float(jc.designing.evaluate(two, u)[0][0])
+    # (1 * f + 3 * 2^4 f) / 4; 1e-9: the kinematic analysis to its Newton tolerance at both speeds
+    assert f2 == pytest.approx(f1 * (1 + 3 * 16) / 4, rel=1e-9)
+
+
+def designing_variables(mech):
+    return jc.designing.check_variables(mech, VARIABLES)
+
+
+@pytest.mark.slow  # ~30 s: the kinematic analysis and its singular values run eagerly
+def test_assembles_constraint(four_bar):
+    from jaxclear.designing.constraints import Assembles
+
+    c = Assembles(samples=61).calibrated(four_bar)
+    assert float(c.residual(four_bar)) == pytest.approx(1.0 - 0.2, abs=0.05)  # soft minimum of 1 over the angles
+    # a rocker of 0.05 m cannot reach the coupler's end at every crank angle (0.1 + 0.3 > 0.35 + 0.05)
+    short = jc.params.replace(four_bar, "point_x:rocker.B", -0.075)  # O at -0.125: length 0.05 m
+    assert float(c.residual(short)) < 0
+
+
+@pytest.mark.slow  # compiles a 4-member and a 1-member program (~40 s)
+def test_ensemble_of_periodic_starts_tiles_the_revolution(four_bar):
+    """Four quarter-revolution runs starting at crank angles 0, 90, 180, 270 deg (periodic starts
+    in the ideal motion) average to the mean square of one whole revolution; the same quarter run
+    four times would not (the shaking force of the unbalanced four-bar peaks in one quarter)."""
+    variables = designing_variables(four_bar)
+
+    def value(revolutions, ensemble):
+        p = jc.designing.problem.build_problem(four_bar, variables, jc.designing.objective(shaking), (),
+                                               (OperatingPoint(),), ensemble, revolutions, 256, jc.Settings(t_end=1.0))
+        return float(jc.designing.evaluate(p, jnp.asarray([0.75, 0.8]))[0][0])
+
+    whole, quarters = value(1.0, Ensemble()), value(0.25, Ensemble(starts=4))
+    # both are sample means of the same periodic signal (257 and 4 x 65 samples, endpoints counted
+    # in each run): they agree to the sampling's O(1/64) = 1.6 %
+    assert quarters == pytest.approx(whole, rel=0.02)
+    first_quarter = value(0.25, Ensemble())
+    assert abs(first_quarter - whole) > 0.1 * whole
