@@ -154,7 +154,13 @@ def one_by_one(plan: Plan) -> bool:
     device."""
     if plan.side_by_side is not None:
         return not plan.side_by_side
-    platform = jax.default_backend() if plan.mesh is None else plan.mesh.devices.flat[0].platform
+    return lanes_one_by_one(jax.default_backend() if plan.mesh is None else plan.mesh.devices.flat[0].platform)
+
+
+def lanes_one_by_one(platform: str) -> bool:
+    """Whether independent lanes of work (runs of a sweep, chains of a sampler) go one after
+    another (``jax.lax.map``) on a device of ``platform``: on CPU with single-kernel loops
+    (:func:`one_by_one` says why)."""
     return platform == "cpu" and loop_kernels_active()
 
 

@@ -1,0 +1,278 @@
+"""Bayesian identification (jaxclear.fitting.posterior) and tolerance analysis (jaxclear.tolerance),
+checked against truths not from our code: a linear-Gaussian posterior in closed form, Sobol indices
+of the Ishigami function in closed form, a small failure probability against brute force, binomial
+confidence intervals against their definitions."""
+
+from __future__ import annotations
+
+import json
+import os
+import warnings
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxclear as jc
+from jaxclear import ParameterError
+from jaxclear.analysis.sensor import Accelerometer
+from jaxclear.fitting import posterior
+from jaxclear.fitting.posterior_result import RHAT_LIMIT, build_result
+from jaxclear.fitting.priors import HalfNormal, LogNormal, Normal, Uniform, make_prior, parse_prior
+from jaxclear.fitting.records import sensor_signal
+
+SENSOR = Accelerometer(20e3)
+# a short record of the benchmark: 0.6 ms, two impacts, 200 kHz
+T_REC, RATE = 0.6e-3, 200e3
+
+
+# --------------------------------------------------------------------------------------
+# priors: densities against scipy.stats, bad input
+# --------------------------------------------------------------------------------------
+
+def test_prior_densities_match_scipy():
+    """Each prior's log density is scipy.stats' (an independent implementation), inside and at
+    points outside its support (-inf)."""
+    from scipy import stats
+
+    x = np.array([0.3, 1.0, 2.5])
+    cases = [(Normal(1.0, 0.5), stats.norm(1.0, 0.5)),
+             (LogNormal(2.0, 3.0), stats.lognorm(np.log(3.0), scale=2.0)),
+             (Uniform(0.2, 2.0), stats.uniform(0.2, 1.8)),
+             (HalfNormal(1.5), stats.halfnorm(scale=1.5))]
+    for prior, ref in cases:
+        np.testing.assert_allclose([float(prior.logpdf(v)) for v in x], ref.logpdf(x), rtol=1e-12)
+    assert float(Uniform(0.2, 2.0).logpdf(3.0)) == -np.inf
+    assert float(LogNormal(2.0, 3.0).logpdf(-1.0)) == -np.inf
+    assert float(HalfNormal(1.0).logpdf(-0.1)) == -np.inf
+
+
+@pytest.mark.parametrize("spec, match", [
+    ("normal:0:0", "sd must be > 0"), ("normal:0:-1", "improper"), ("uniform:1:1", "interval is empty"),
+    ("uniform:2:1", "low must be < high"), ("lognormal:1:1", "factor > 1"), ("lognormal:-1:10", "median"),
+    ("halfnormal:0", "scale must be > 0"), ("cauchy:0:1", "unknown prior kind"), ("normal:1", "takes 2 number"),
+    ("normal:a:1", "not a number"), ("normal:nan:1", "finite")])
+def test_bad_priors_are_named_errors(spec, match):
+    with pytest.raises(ParameterError, match=match):
+        parse_prior(spec, "prior of 'stiffness'")
+    with pytest.raises(ParameterError, match="stiffness"):
+        parse_prior(spec, "prior of 'stiffness'")
+
+
+def test_make_prior_is_parse_prior():
+    assert make_prior("normal", 1, 2).describe() == parse_prior("normal:1:2").describe() == "normal(mean=1, sd=2)"
+
+
+def test_prior_without_support_at_the_start_is_a_named_error():
+    from jaxclear.fitting.priors import check_support
+
+    with pytest.raises(ParameterError, match="prior of 'restitution'.*no support at the start value"):
+        check_support(Uniform(0.0, 0.5), "restitution", 0.9)
+    check_support(Uniform(0.0, 1.0), "restitution", 0.9)  # inside: no error
+
+
+# --------------------------------------------------------------------------------------
+# the sampler and its chunked, checkpointed driver on a Gaussian density in closed form
+# --------------------------------------------------------------------------------------
+
+class _Gaussian(eqx.Module):
+    """A density with the interface of :class:`~jaxclear.fitting.posterior_model.LogPosterior`
+    that the driver uses (``x0``, ``chol``, ``__call__(u)``): a correlated 2-D Gaussian in ``x``,
+    whitened with a metric 1.3 times too wide and without the correlation's full strength (as a
+    Gauss-Newton covariance is near the posterior's, not equal to it)."""
+
+    x0: jax.Array
+    chol: jax.Array
+    mean: jax.Array
+    prec: jax.Array
+
+    def __call__(self, u):
+        d = self.x0 + self.chol @ u - self.mean
+        return -0.5 * d @ self.prec @ d
+
+
+GAUSS_MEAN = np.array([1.0, -2.0])
+GAUSS_COV = np.array([[1.0, 0.8 * 0.5], [0.8 * 0.5, 0.25]])
+
+
+def _gauss():
+    metric = 1.3 * np.linalg.cholesky(np.array([[1.0, 0.6 * 0.5], [0.6 * 0.5, 0.25]]))
+    return _Gaussian(jnp.asarray([0.5, -1.8]), jnp.asarray(metric), jnp.asarray(GAUSS_MEAN),
+                     jnp.asarray(np.linalg.inv(GAUSS_COV)))
+
+
+def test_nuts_driver_matches_a_gaussian_to_two_digits(tmp_path):
+    """4 chains x 2500 draws (about 8000 effective): mean within 0.03 sd, sd within 3 %,
+    correlation within 0.02 (about 3 x the Monte Carlo standard errors 1/sqrt(ESS), 1/sqrt(2 ESS)); the
+    checkpointed run interrupted after 3 chunks and resumed draws the same numbers."""
+    from jaxclear.fitting.posterior import _sample
+
+    s = dict(chains=4, chunk=500, draws=2500, warmup=500, max_tree_depth=6, seed=3)
+    run = _sample(_gauss(), s, "k", None, True, False)
+    x = run["x"].reshape(-1, 2)
+    sd = np.sqrt(np.diag(GAUSS_COV))
+    assert np.all(np.abs(x.mean(0) - GAUSS_MEAN) < 0.03 * sd), x.mean(0)
+    assert np.all(np.abs(x.std(0) / sd - 1) < 0.03), x.std(0)
+    assert abs(np.corrcoef(x.T)[0, 1] - 0.8) < 0.02
+    assert run["diverging"].sum() == 0
+    from jaxclear.fitting.posterior_result import _summaries, diagnose
+
+    summary = _summaries({"a": run["x"][..., 0], "b": run["x"][..., 1]})
+    converged, warn = diagnose(summary, 0)
+    assert converged and not warn and min(v["ess_bulk"] for v in summary.values()) > 5000
+    # interrupted after warm-up + 2 chunks (draws=1000), then resumed to the full length
+    short = _sample(_gauss(), {**s, "draws": 1000}, "k", tmp_path, True, False)
+    assert (tmp_path / "posterior_checkpoint.npz").exists()
+    resumed = _sample(_gauss(), s, "k", tmp_path, True, False)
+    assert resumed["resumed"] and not short["resumed"]
+    np.testing.assert_array_equal(resumed["x"], run["x"])
+
+
+def test_chains_that_do_not_mix_are_flagged():
+    """Two chains stuck in different places: R-hat far above 1.05, not converged, the status line
+    and the summary say NOT CONVERGED first."""
+    from jaxclear.fitting.posterior_result import PosteriorResult, _summaries, diagnose
+
+    rng = np.random.default_rng(0)
+    a = rng.standard_normal((2, 300)) + np.array([[0.0], [3.0]])
+    summary = _summaries({"stiffness": a})
+    converged, warn = diagnose(summary, 2)
+    assert not converged and summary["stiffness"]["r_hat"] > 1.5
+    assert any("did not mix" in w for w in warn) and any("2 divergent" in w for w in warn)
+    res = PosteriorResult(free=("stiffness",), samples={"stiffness": a}, stats={}, summary=summary, divergences=2,
+                          warmup_divergences=0, converged=converged, warnings=warn, priors={}, settings={})
+    assert res.status_line().startswith("NOT CONVERGED") and res.format_summary().startswith("NOT CONVERGED")
+    assert RHAT_LIMIT == 1.05
+
+
+# --------------------------------------------------------------------------------------
+# the posterior against a closed form: the sensor's gain and bias enter linearly
+# --------------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def linear_case(tmp_path_factory):
+    """The benchmark's record (0.6 ms, 20 dB) seen through a sensor with gain 1.3 and bias 2000
+    m/s^2; the free parameters are the gain and the bias, with normal priors and the noise
+    known: the model ``y = g f + b`` is linear in them (``f`` the filtered acceleration, which
+    they do not change), so the posterior is Gaussian with precision ``A = X^T X / sigma^2 +
+    diag(1 / s^2)`` and mean ``A^-1 (X^T d / sigma^2 + m / s^2)``, ``X = [f, 1]`` (e.g. Gelman et
+    al., Bayesian Data Analysis, 3rd ed., section 14.8)."""
+    mech = jc.preset("flores-slider-crank")
+    truth = Accelerometer(20e3, gain=1.3, bias=2000.0)
+    rec = jc.synthetic_record(mech, T_REC, RATE, truth, snr_db=20, seed=11)
+    sigma = float(rec.metadata["noise_sigma_m_s2"])
+    # f: the model's unit-gain, zero-bias signal at the fit's integration tolerances
+    _, f, _ = sensor_signal(mech, T_REC, RATE, SENSOR, rtol=1e-8, atol=1e-11)
+    d = np.asarray(rec.slider_acc_m_s2)
+    m, s = np.array([1.0, 0.0]), np.array([0.5, 5000.0])
+    x = np.column_stack([f, np.ones_like(f)])
+    a = x.T @ x / sigma**2 + np.diag(1.0 / s**2)
+    cov = np.linalg.inv(a)
+    mean = cov @ (x.T @ d / sigma**2 + m / s**2)
+    priors = {"sensor_gain": f"normal:{m[0]}:{s[0]}", "sensor_bias": f"normal:{m[1]}:{s[1]}"}
+    return mech, rec, sigma, priors, mean, cov, tmp_path_factory.mktemp("linear")
+
+
+def _check_linear(res, mean, cov, n_sd_mean: float, sd_rel: float, corr_abs: float):
+    g, b = res.samples["sensor_gain"].ravel(), res.samples["sensor_bias"].ravel()
+    sd = np.sqrt(np.diag(cov))
+    assert abs(g.mean() - mean[0]) < n_sd_mean * sd[0] and abs(b.mean() - mean[1]) < n_sd_mean * sd[1]
+    assert abs(g.std() / sd[0] - 1) < sd_rel and abs(b.std() / sd[1] - 1) < sd_rel
+    assert abs(np.corrcoef(g, b)[0, 1] - cov[0, 1] / (sd[0] * sd[1])) < corr_abs
+
+
+@pytest.mark.slow
+def test_linear_gaussian_posterior_small(linear_case):
+    """Small version (slow: the fit and NUTS through the simulation compile for minutes): 2 chains x 200 draws. Monte Carlo tolerances for an effective sample size
+    of about 400: the mean within 0.25 sd (4 x its standard error 1/sqrt(400)), the sd within 15 %
+    (4 x 1/sqrt(2 * 400)), the correlation within 0.15."""
+    mech, rec, sigma, priors, mean, cov, folder = linear_case
+    res = posterior(rec, mech, ("sensor_gain", "sensor_bias"), {"sensor_gain": 1.0, "sensor_bias": 0.0},
+                    sensor=SENSOR, priors=priors, noise_sigma=sigma, chains=2, draws=200, warmup=100, chunk=100,
+                    predictive_draws=20, progress=False, out=folder / "small")
+    assert res.converged and res.divergences == 0 and "noise_sigma" not in res.samples
+    _check_linear(res, mean, cov, 0.25, 0.15, 0.15)
+    # the fit's Gauss-Newton std of a linear model, rescaled from the fit's noise estimate to the
+    # known one, is the likelihood's sd (the wide prior changes it by < 1e-3) up to the fit's own
+    # noise estimate and unknowns (its window states count in N - P): measured 4.8 % apart
+    gn = res.summary["sensor_gain"]["gn_std"] * sigma / res.gn["noise_sigma"]
+    assert abs(gn / np.sqrt(cov[0, 0]) - 1) < 0.1
+    files = set(os.listdir(folder / "small"))
+    assert {"posterior.nc", "posterior.json", "posterior_summary.csv", "posterior_pair.png",
+            "posterior_predictive.png", "posterior_checkpoint.npz"} <= files
+    doc = json.loads((folder / "small" / "posterior.json").read_text())
+    assert doc["converged"] is True and doc["priors"]["sensor_gain"] == "normal(mean=1, sd=0.5)"
+    import arviz as az
+
+    idata = az.from_netcdf(folder / "small" / "posterior.nc")
+    assert idata.posterior["sensor_gain"].shape == (2, 200)
+
+
+@pytest.mark.slow
+def test_linear_gaussian_posterior_to_two_digits(linear_case):
+    """4 chains x 2000 draws: mean and sd to 2 digits (mean within 0.03 sd, sd within 3 %)."""
+    mech, rec, sigma, priors, mean, cov, folder = linear_case
+    res = posterior(rec, mech, ("sensor_gain", "sensor_bias"), {"sensor_gain": 1.0, "sensor_bias": 0.0},
+                    sensor=SENSOR, priors=priors, noise_sigma=sigma, chains=4, draws=2000, warmup=200, chunk=500,
+                    predictive_draws=0, progress=False)
+    assert res.converged and res.min_ess() > 2000
+    _check_linear(res, mean, cov, 0.03, 0.03, 0.03)
+
+
+# --------------------------------------------------------------------------------------
+# jaxclear fit ... --posterior
+# --------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("args, match", [
+    (["--prior", "stiffness=uniform:2:1"], "prior of 'stiffness': uniform.*low must be < high"),
+    (["--prior", "clearance=normal:1:1"], r"priors given for \['clearance'\]"),
+    (["--prior", "stiffness=normal:1:0"], "sd must be > 0"),
+    (["--windows", "2"], "--posterior models window 0 only"),
+    (["--chains", "0"], "--chains"),
+])
+def test_cli_posterior_bad_input_is_one_line_before_the_fit(tmp_path, capsys, args, match):
+    """Checked before any fit or compilation (a second at most): exit 2 and one line."""
+    import re
+
+    from jaxclear.cli import main
+
+    path = tmp_path / "rec.csv"
+    path.write_text("t,slider_acc_m_s2\n" + "".join(f"{i * 5e-6},{0.0}\n" for i in range(200)))
+    code = main(["fit", str(path), "--posterior", "--out", str(tmp_path / "o"), "--no-progress", *args])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) >= 1 and re.search(match, err[-1]), err
+    assert "Traceback" not in "\n".join(err)
+
+
+@pytest.mark.slow
+def test_cli_posterior_of_stiffness_and_restitution(tmp_path, capsys):
+    """The benchmark's record (1.2 ms, 20 dB): fit, then 2 chains x 100 draws: every file, the
+    truth (stiffness of the preset, restitution 0.9) inside the posterior's 99 % range, a summary
+    that says converged or NOT CONVERGED; a second call resumes from the finished checkpoints."""
+    from jaxclear import params
+    from jaxclear.cli import main
+
+    mech = jc.preset("flores-slider-crank")
+    k0 = float(params.get(mech, "stiffness"))
+    path = tmp_path / "rec.csv"
+    jc.synthetic_record(mech, 1.2e-3, 200e3, SENSOR, snr_db=20, seed=7, path=path)
+    out = tmp_path / "out"
+    args = ["fit", str(path), "--window", "1e-3", "--sensor-cutoff-hz", "20000", "--start", "stiffness=1.3e11",
+            "--start", "restitution=0.75", "--posterior", "--chains", "2", "--draws", "100", "--warmup", "100",
+            "--chunk", "50", "--out", str(out), "--no-progress"]
+    assert main(args) == 0
+    text = capsys.readouterr().out
+    assert "converged (" in text or "NOT CONVERGED" in text
+    for f in ("posterior.nc", "posterior.json", "posterior_summary.csv", "posterior_pair.png",
+              "posterior_predictive.png", "posterior_predictive.csv", "posterior_checkpoint.npz"):
+        assert (out / f).stat().st_size > 0, f
+    doc = json.loads((out / "posterior.json").read_text())
+    k = doc["summary"]["stiffness"]
+    assert doc["converged"] == ("NOT CONVERGED" not in text)
+    assert k["q05"] - 3 * k["sd"] < k0 < k["q95"] + 3 * k["sd"]
+    assert set(doc["summary"]) == {"stiffness", "restitution", "noise_sigma"}
+    assert 0.6 < doc["predictive_coverage_90"] <= 1.0
+    assert main(args) == 0
+    assert json.loads((out / "posterior.json").read_text())["settings"]["resumed"] is True
