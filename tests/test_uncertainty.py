@@ -387,7 +387,7 @@ def test_linearised_estimate_is_exact_for_a_linear_model():
 
     inp = _inputs({"a": {"distribution": "normal", "mean": 1.0, "sd": 0.1},
                    "b": {"distribution": "normal", "mean": 0.5, "sd": 0.2}}, [["a", "b", 0.3]])
-    lin = tol.linearised(inp, 1.5, [2.0, -1.0], limit=1.9)
+    lin = tol.linearised(1.5, tol.score_gradient(inp, [2.0, -1.0]), limit=1.9)
     sd = np.sqrt(4 * 0.01 + 0.04 - 2 * 2 * 0.3 * 0.1 * 0.2)
     assert abs(lin["sd"] / sd - 1) < 1e-12
     assert abs(lin["probability"] - stats.norm.sf(0.4 / sd)) < 1e-12
@@ -413,10 +413,82 @@ def test_importance_sampling_of_a_small_probability_against_brute_force():
                            epsabs=1e-14)[0]
     assert 5e-5 < exact < 5e-4
     brute = tol.exceedance(evaluate(inp.sample(4_000_000, method="mc", seed=5))["y"], limit)
-    imp = tol.importance_exceedance(inp, evaluate, "y", limit, 0.0, [1.0, 0.5], 4000, seed=6)
+    imp = tol.importance_exceedance(inp, evaluate, "y", limit, 0.0, tol.score_gradient(inp, [1.0, 0.5]), 4000, seed=6)
     for r in (brute, imp):
         assert r["ci95"][0] <= exact <= r["ci95"][1], (r, exact)
     # brute force: relative standard error 1/sqrt(n p) = 4.7 % with 4e6 runs; importance sampling: 6.2 %
     # (measured) with 1000 times fewer runs
     assert imp["std_error"] / imp["probability"] < 0.08
     assert brute["ci95"][0] <= imp["probability"] <= brute["ci95"][1]
+
+
+# --------------------------------------------------------------------------------------
+# tolerance studies of a mechanism (the sweep's machinery) and jaxclear tolerance
+# --------------------------------------------------------------------------------------
+
+_STUDY = """
+[parameters]
+clearance = {distribution = "normal", mean = 0.5e-3, sd = 0.01667e-3, low = 0.45e-3, high = 0.55e-3}
+"mass:slider" = {distribution = "normal", mean = 0.14, sd = 0.000933}
+[study]
+n = 8
+%s
+[limits]
+%s
+[run]
+revolutions = 0.25
+samples_per_revolution = 200
+"""
+
+
+@pytest.mark.parametrize("study, limits, match", [
+    ("", "fraction_free_flight = 1.5", "limit of 'fraction_free_flight' = 1.5 is outside the metric's range"),
+    ("", "peak_contact_force_n = -5.0", "outside the metric's range"),
+    ("seed = 0\nmethod = \"halton\"", "", "method = .halton.: allowed: .sobol."),
+    ("widht = 3", "", r"unknown key\(s\) \['widht'\] in \[study\]"),
+    ("importance_n = 8", "", "importance_n needs a limit"),
+])
+def test_cli_tolerance_bad_input_is_one_line_before_any_run(tmp_path, capsys, study, limits, match):
+    import re
+
+    from jaxclear.cli import main
+
+    path = tmp_path / "study.toml"
+    path.write_text(_STUDY % (study, limits))
+    code = main(["tolerance", str(path), "--out", str(tmp_path / "o"), "--no-progress"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and re.search(match, err[0]), err
+    assert not (tmp_path / "o" / "runs").exists()  # nothing ran
+
+
+def test_example_study_file_loads():
+    from jaxclear.tolerance.config import load_study
+
+    k = load_study(os.path.join(os.path.dirname(__file__), "..", "examples", "tolerance.toml"))
+    assert k["inputs"].names == ["clearance", "point_x:crank.A", "point_x:rod.B", "mass:crank", "mass:rod",
+                                 "mass:slider"]
+    assert k["limits"] == {"peak_contact_force_n": 6.6e4} and k["n"] == 64
+
+
+@pytest.mark.slow
+def test_cli_tolerance_study_runs_and_resumes(tmp_path, capsys):
+    """8 Sobol' runs, the linearised runs, 4 x 4 Sobol' design runs, quarter of a revolution: every
+    file; the linearised mean is the run at the medians (clearance and mass are normal: their
+    means) and lies inside the sample's range; a second call resumes every batch without a run."""
+    from jaxclear.cli import main
+
+    path = tmp_path / "study.toml"
+    path.write_text(_STUDY % ("sobol_n = 4", "peak_contact_force_n = 6.6e4"))
+    out = tmp_path / "o"
+    assert main(["tolerance", str(path), "--out", str(out), "--no-progress"]) == 0
+    text = capsys.readouterr().out
+    assert "P(peak_contact_force_n > 66000)" in text and "Sobol' clearance" in text
+    d = json.loads((out / "tolerance.json").read_text())
+    s, lin = d["summary"]["peak_contact_force_n"], d["linearised"]["peak_contact_force_n"]
+    assert s["failed_runs"] == 0 and s["min"] <= lin["mean"] <= s["max"] or abs(lin["mean"] / s["mean"] - 1) < 0.05
+    ex = d["exceedance"]["peak_contact_force_n"]
+    assert ex["runs"] == 8 and ex["ci95"][0] <= ex["probability"] <= ex["ci95"][1]
+    for f in ("tolerance_runs.csv", "tolerance.png", "runs/runs.csv", "linearised/runs.csv", "sobol/runs.csv"):
+        assert (out / f).stat().st_size > 0, f
+    assert main(["tolerance", str(path), "--out", str(out), "--no-progress"]) == 0
+    assert json.loads((out / "tolerance.json").read_text())["summary"] == d["summary"]

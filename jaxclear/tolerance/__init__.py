@@ -15,11 +15,12 @@ from .estimators import (
     exceedance,
     importance_exceedance,
     linearised,
+    score_gradient,
     sobol_design,
     sobol_indices,
     wilson_interval,
 )
 
 __all__ = ["Inputs", "Marginal", "marginal", "inputs_from_dict", "correlation_matrix", "METRIC_RANGES",
-           "check_limit", "exceedance", "wilson_interval", "sobol_design", "sobol_indices", "linearised",
+           "check_limit", "exceedance", "wilson_interval", "sobol_design", "sobol_indices", "linearised", "score_gradient",
            "importance_exceedance"]

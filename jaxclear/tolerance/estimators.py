@@ -11,9 +11,10 @@ sampling for small probabilities. Each takes the study's :class:`~.distributions
   *Variance based sensitivity analysis of model output*, Comput. Phys. Commun. 181, 2010, and
   Jansen 1999 for the total effect) on SALib's Saltelli design, mapped through the marginals;
   they need independent inputs (a correlation is an error here).
-* Linearised: ``Y ~ f(mu) + g.(X - mu)``, mean ``f(mu)``, variance ``g^T C g`` (``C`` the inputs'
-  covariance), ``P(Y > limit) ~ 1 - Phi((limit - f(mu)) / sd)``; exact for a linear ``f`` of
-  normal inputs, wrong where ``f`` bends over the inputs' spread or the metric has a kink (a
+* Linearised, in the inputs' independent standard normal scores ``z``: ``Y ~ f(x(0)) + g_z . z``,
+  mean ``f(x(0))``, sd ``|g_z|`` (for normal inputs ``g_z . g_z = g^T C g``, ``C`` the inputs'
+  covariance, ``g`` the gradient over the values), ``P(Y > limit) ~ 1 - Phi((limit - f(x(0))) / sd)``;
+  exact for a linear ``f`` of normal inputs, wrong where ``f`` bends over the inputs' spread or the metric has a kink (a
   peak that jumps from one impact to another, contact that starts or stops).
 * Importance sampling (e.g. Rubinstein and Kroese, *Simulation and the Monte Carlo method*, 3rd
   ed., 2017, section 5.7): the standard normal scores ``z`` of the inputs drawn around the
@@ -103,14 +104,15 @@ def sobol_indices(problem: dict, y, seed: int = 0) -> dict:
     return {n: {k: float(s[k][i]) for k in ("S1", "S1_conf", "ST", "ST_conf")} for i, n in enumerate(problem["names"])}
 
 
-def linearised(inputs: Inputs, f0: float, grad, limit: float | None = None) -> dict:
-    """Mean, sd and (with ``limit``) exceedance probability of the first-order model (module
-    docstring); ``grad`` ``(P,)`` the derivatives at the means [metric unit per SI unit]."""
-    g = np.asarray(grad, dtype=float)
-    sd = np.array([m.sd for m in inputs.marginals])
-    corr = inputs.correlation if inputs.correlation is not None else np.eye(len(sd))
-    s = math.sqrt(max(float(g @ (corr * np.outer(sd, sd)) @ g), 0.0))
-    out = {"mean": float(f0), "sd": s, "gradient": g.tolist()}
+def linearised(f0: float, grad_scores, limit: float | None = None) -> dict:
+    """Mean, sd and (with ``limit``) exceedance probability of the first-order model in the
+    inputs' independent standard normal scores ``z`` (module docstring): ``Y ~ f0 + g_z . z``,
+    so ``sd = |g_z|``; ``f0`` the metric at ``z = 0`` (the marginals' medians), ``grad_scores``
+    ``(P,)`` its gradient over ``z`` (:func:`score_gradient` from one over the values). For normal
+    inputs ``|g_z|^2 = g^T C g`` with ``C`` the covariance."""
+    g = np.asarray(grad_scores, dtype=float)
+    s = float(np.linalg.norm(g))
+    out = {"mean": float(f0), "sd": s, "gradient_scores": g.tolist()}
     if limit is not None:
         out["probability"] = float(stats.norm.sf((limit - f0) / s)) if s > 0 else float(f0 > limit)
     return out
@@ -125,18 +127,22 @@ def score_gradient(inputs: Inputs, grad) -> np.ndarray:
     return lower.T @ (dxdz * g)
 
 
-def importance_exceedance(inputs: Inputs, evaluate, metric: str, limit: float, f_median: float, grad,
+def importance_exceedance(inputs: Inputs, evaluate, metric: str, limit: float, f_median: float, grad_scores,
                           n: int, seed: int = 0) -> dict:
     """``P(Y > limit)`` by importance sampling around the linearised design point (module
-    docstring). ``f_median``: the metric at ``x(z = 0)`` (the marginals' medians), ``grad``: its
-    derivatives over the values there. Returns the probability, its standard error and 95 %
+    docstring). ``f_median``: the metric at ``x(z = 0)`` (the marginals' medians), ``grad_scores``:
+    its gradient over the scores there (:func:`score_gradient`). Returns the probability, its standard error and 95 %
     interval, the design point and the runs."""
-    gz = score_gradient(inputs, grad)
+    gz = np.asarray(grad_scores, dtype=float)
     norm = float(np.linalg.norm(gz))
     if not norm > 0:
         raise ParameterError(f"importance sampling of {metric!r}: the gradient is zero at the medians (no "
                              "direction to shift the sampling to)")
     beta = (limit - f_median) / norm
+    if not beta > 0:
+        raise ParameterError(f"importance sampling of {metric!r}: the limit {limit:g} is not above the metric at the "
+                             f"medians ({f_median:g}), so the probability is not small (> 0.5 by the linear model): "
+                             "the plain sample estimates it")
     zstar = beta * gz / norm
     z = np.random.default_rng(seed).standard_normal((n, len(gz))) + zstar
     y = np.asarray(evaluate(inputs.scores_to_values(z))[metric], dtype=float)
