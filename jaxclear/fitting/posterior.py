@@ -67,12 +67,13 @@ def posterior(data, mech: Mechanism, free: Sequence[str] = DEFAULT_FREE, start: 
               max_steps: int = 200_000, align: str = "time", time_offset: float = 0.0, out=None,
               resume: bool = True, progress: bool = True, **fit_options) -> PosteriorResult:
     """Sample the posterior of the ``free`` parameters and of the noise level given a record
-    (method: module docstring and docs/theory/posterior.md).
+    (method: module docstring and docs/theory/uncertainty.md).
 
     Args:
-        data, mech, free, start, channels, sensor, window, rtol, atol, max_steps, align,
-            time_offset: as :func:`~jaxclear.fit` (the fit's residual and sensor model is the
-            likelihood); ``fit_options``: further :func:`~jaxclear.fit` arguments.
+        data: the record, as :func:`~jaxclear.fit` (so are ``mech``, ``free``, ``start``,
+            ``channels``, ``sensor``, ``window``, ``rtol``, ``atol``, ``max_steps``, ``align``,
+            ``time_offset``: the fit's residual and sensor model is the likelihood);
+            ``fit_options``: further :func:`~jaxclear.fit` arguments.
         fit_result: the least-squares fit of the same inputs (default: fitted here, with its
             checkpoint in ``out``).
         priors: ``name: prior`` (an :class:`~jaxclear.fitting.priors.AbstractPrior` or
@@ -80,13 +81,14 @@ def posterior(data, mech: Mechanism, free: Sequence[str] = DEFAULT_FREE, start: 
             ``"noise_sigma"``; the others get the documented defaults.
         noise_sigma: the noise standard deviation [unit of the first fitted column] if known
             (then it is not sampled); default None: sampled.
-        chains, draws, warmup: chains, kept draws per chain, warm-up draws per chain (step-size
-            tuning, discarded); chunk: draws per compiled chunk (``draws`` and ``warmup`` are rounded up to a
-            multiple); max_tree_depth: NUTS's largest number of trajectory doublings.
-        seed: random seed; predictive_draws: posterior draws for the predictive band.
+        chains: chains; ``draws``: kept draws per chain; ``warmup``: warm-up draws per chain
+            (step-size tuning, discarded); ``chunk``: draws per compiled chunk (``draws`` and
+            ``warmup`` are rounded up to a multiple); ``max_tree_depth``: NUTS's largest number
+            of trajectory doublings.
+        seed: random seed; ``predictive_draws``: posterior draws for the predictive band.
         windows: must be 1 (see the module docstring).
         out: folder for the checkpoint and the files (:meth:`PosteriorResult.write`; None: nothing
-            written, no resume); resume: continue from a matching checkpoint in ``out``.
+            written, no resume); ``resume``: continue from a matching checkpoint in ``out``.
 
     Returns:
         :class:`~jaxclear.fitting.posterior_result.PosteriorResult`; its ``converged`` is False
