@@ -492,3 +492,24 @@ def test_cli_tolerance_study_runs_and_resumes(tmp_path, capsys):
         assert (out / f).stat().st_size > 0, f
     assert main(["tolerance", str(path), "--out", str(out), "--no-progress"]) == 0
     assert json.loads((out / "tolerance.json").read_text())["summary"] == d["summary"]
+
+
+@pytest.mark.slow
+def test_calibration_small(tmp_path):
+    """The benchmark's calibration (benchmarks/bench_uncertainty.py) at small settings: 10 records
+    with their own true sensor gain and bias and noise, 2 chains x 200 draws. With a true coverage
+    of 90 %, 7 or more of 10 intervals hold the truth with probability 0.99 (binomial): asserted
+    for the posterior's intervals of the gain, the bias and the noise level."""
+    import argparse
+    import importlib.util
+
+    path = os.path.join(os.path.dirname(__file__), "..", "benchmarks", "bench_uncertainty.py")
+    spec = importlib.util.spec_from_file_location("bench_uncertainty", path)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    args = argparse.Namespace(records=10, free="sensor_gain,sensor_bias", chains=2, draws=200, warmup=100, chunk=100,
+                              t_rec=0.6e-3, rate=200e3, snr_db=20.0, seed=0)
+    res = bench.calibration(args)
+    for name in ("sensor_gain", "sensor_bias", "noise_sigma"):
+        assert res["table"][name]["post"]["coverage"] >= 0.7, res["table"]
+    assert "gn" in res["table"]["sensor_gain"]
