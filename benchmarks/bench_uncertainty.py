@@ -10,7 +10,8 @@
    ``--free stiffness,restitution`` calibrates the contact parameters instead (the true stiffness
    and restitution drawn per record too); that costs minutes per record on a laptop CPU.
 2. Speed (``--speed``): effective samples per second (ArviZ bulk ESS of the slowest quantity over
-   the sampling wall time, compilation excluded) of NUTS and of a random-walk Metropolis baseline
+   the sampling wall time, compilation excluded; NUTS's time includes its warm-up, the random
+   walk's its burn-in, the first half of its draws) of NUTS and of a random-walk Metropolis baseline
    (Gaussian steps of 2.38 / sqrt(D) in the same Gauss-Newton-whitened coordinates, Roberts, Gelman
    and Gilks 1997) on the same log posterior: stiffness, restitution and the noise level from the
    benchmark record.
