@@ -513,3 +513,12 @@ def test_calibration_small(tmp_path):
     for name in ("sensor_gain", "sensor_bias", "noise_sigma"):
         assert res["table"][name]["post"]["coverage"] >= 0.7, res["table"]
     assert "gn" in res["table"]["sensor_gain"]
+
+
+def test_sweep_takes_points_of_different_bodies_together():
+    """point_x of two bodies are two quantities (the sweep called them one and refused the pair)."""
+    cfg = jc.SweepConfig(list={"point_x:crank.A": [0.025, 0.0251], "point_x:rod.B": [0.06, 0.0601]},
+                         progress=False)
+    assert cfg.n_runs == 2
+    with pytest.raises(ParameterError, match="same"):
+        jc.SweepConfig(list={"mass:rod": [0.2], "mass:rod@0": [0.21]}, progress=False)
