@@ -132,8 +132,7 @@ from .io import Measurements, read_measurements, timeseries_frame  # noqa: E402
 from .analysis import Accelerometer  # noqa: E402
 from .fitting import FitChannel, FitResult, fit, levenberg_marquardt, parameter_grad, synthetic_record  # noqa: E402
 from .fitting import PosteriorResult, posterior  # noqa: E402
-from .tolerance import Inputs, inputs_from_dict  # noqa: E402
-from .tolerance.study import ToleranceResult, tolerance_study  # noqa: E402
+from .tolerance import Inputs, ToleranceResult, inputs_from_dict, tolerance_study  # noqa: E402
 from .wearing import WearHistory, WearOptions, plot_wear, wear  # noqa: E402
 
 try:

@@ -20,7 +20,8 @@ from .estimators import (
     sobol_indices,
     wilson_interval,
 )
+from .study import DEFAULT_METRICS, ToleranceResult, tolerance_study
 
-__all__ = ["Inputs", "Marginal", "marginal", "inputs_from_dict", "correlation_matrix", "METRIC_RANGES",
+__all__ = ["tolerance_study", "ToleranceResult", "DEFAULT_METRICS", "Inputs", "Marginal", "marginal", "inputs_from_dict", "correlation_matrix", "METRIC_RANGES",
            "check_limit", "exceedance", "wilson_interval", "sobol_design", "sobol_indices", "linearised", "score_gradient",
            "importance_exceedance"]
