@@ -187,9 +187,11 @@ class PosteriorResult:
         import matplotlib.pyplot as plt
 
         ref = {n: v for n, v in self.gn.get("estimates", {}).items()}
-        axes = az.plot_pair(self.to_inference_data(), kind="scatter", marginals=True, divergences=True,
-                            reference_values=ref or None, scatter_kwargs={"alpha": 0.5, "s": 10, "color": "C0"},
-                            textsize=9, figsize=(2.6 * len(self.samples),) * 2)
+        with warnings.catch_warnings():  # "no reference value for noise_sigma": the fit has none, by design
+            warnings.simplefilter("ignore", UserWarning)
+            axes = az.plot_pair(self.to_inference_data(), kind="scatter", marginals=True, divergences=True,
+                                reference_values=ref or None, scatter_kwargs={"alpha": 0.5, "s": 10, "color": "C0"},
+                                textsize=9, figsize=(2.6 * len(self.samples),) * 2)
         fig = np.ravel(axes)[0].figure
         title = "posterior (NUTS)" + ("" if self.converged else " - NOT CONVERGED")
         fig.suptitle(title + "; reference (green): least-squares optimum", fontsize=10, y=1.0)

@@ -99,6 +99,7 @@ class ToleranceResult:
                 ax.axvline(ex["limit"], color="C3", ls="--",
                            label=f"limit: P = {ex['probability']:.3g} [{ex['ci95'][0]:.2g}, {ex['ci95'][1]:.2g}]")
             ax.set_xlabel(m)
+            ax.ticklabel_format(axis="x", style="sci", scilimits=(-3, 4))
             ax.legend(fontsize=7)
         axes[0][0].set_ylabel("density")
         fig.tight_layout()
