@@ -80,6 +80,18 @@ def atomic_write_netcdf(path, ds) -> str:
     return atomic_write_bytes(path, ds.to_netcdf(engine="scipy"))
 
 
+def atomic_write_by(path, write, suffix: str = ".tmp") -> str:
+    """``write(tmp_path)`` writes the file under a temporary name (for writers that take a path,
+    e.g. ArviZ's NetCDF 4 groups); it is then fsync-ed and renamed to ``path``. Returns the path."""
+    path = os.fspath(path)
+    tmp = path + suffix
+    write(tmp)
+    with open(tmp, "rb+") as f:
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+    return path
+
+
 def atomic_write_text(path, text: str) -> str:
     """:func:`atomic_write_bytes` of UTF-8 text."""
     return atomic_write_bytes(path, text.encode("utf-8"))

@@ -85,3 +85,18 @@ def test_design_notebook_runs(tmp_path):
     assert figures == ["design_comparison.png", "design_landscape.png"]
     text = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.outputs)
     assert "status converged" in text and "objective (RMS deviation" in text
+
+
+@pytest.mark.slow
+def test_uncertainty_notebook_runs(tmp_path):
+    """notebooks/uncertainty.ipynb at small settings (1.2 ms record, 2 chains x 100 draws; 16 + 13 +
+    32 tolerance runs of a quarter revolution): runs, writes its three figures. Slow: the fit, NUTS
+    through the simulation and the sweep compile for several minutes on 2 shared cores."""
+    nb = execute_notebook("uncertainty.ipynb", tmp_path, timeout=1800)
+    errors = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs if o.output_type == "error"]
+    assert not errors
+    figures = sorted(p.name for p in (tmp_path / "figures").glob("*.png"))
+    assert figures == ["uncertainty_pair.png", "uncertainty_predictive.png", "uncertainty_tolerance.png"]
+    text = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.outputs)
+    assert "converged (" in text or "NOT CONVERGED" in text
+    assert "P(peak > 66000 N)" in text

@@ -32,12 +32,12 @@ import sys
 
 from .. import __version__
 from .._errors import JaxclearError
-from . import animate, cache, check, design, fit, models, presets, simulate, sweep, wear
+from . import animate, cache, check, design, fit, models, presets, simulate, sweep, tolerance, wear
 from .common import Formatter, Parser
 
 #: Commands in help order: name -> module.
 COMMANDS = {"presets": presets, "check": check, "simulate": simulate, "animate": animate, "models": models,
-            "sweep": sweep, "fit": fit, "wear": wear, "design": design}
+            "sweep": sweep, "fit": fit, "wear": wear, "design": design, "tolerance": tolerance}
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -23,12 +23,17 @@ jaxclear.fitting.targets), several at once with --weight COLUMN=W. Writes:
   fit.json              estimates, std (Gauss-Newton), loss, iterations, wall time, diagnostics
   fit.png               measured vs fitted acceleration and the residuals
   fit_checkpoint.json   the fit's state after every iteration: the same command resumes it
+With --posterior also the Bayesian posterior of the free parameters and the noise level (NUTS
+chains started from the fit's optimum; see jaxclear.fitting.posterior):
+  posterior.nc, posterior.json, posterior_summary.csv, posterior_pair.png,
+  posterior_predictive.png/.csv, posterior_checkpoint.npz (the same command resumes it)
 The first sample is the preset's start (crank angle 0, journal centred, velocities from the
 ideal kinematics). The loss is on short windows from that state (see jaxclear.fitting).
 Example: jaxclear fit data.csv --free stiffness,restitution --start stiffness=2e11 \\
          --start restitution=0.6 --sensor-cutoff-hz 20000 --out fit-out
          jaxclear fit rec.csv --preset four-bar --channel rocker_acc=body:rocker:phi:acc --window 0.005
-         jaxclear fit rec.csv --mechanism my-linkage.toml --channel rocker_acc=body:rocker:phi:acc"""
+         jaxclear fit rec.csv --mechanism my-linkage.toml --channel rocker_acc=body:rocker:phi:acc
+         jaxclear fit data.csv --posterior --chains 4 --draws 500 --prior stiffness=lognormal:1e10:10"""
 
 
 def configure(p: argparse.ArgumentParser):
@@ -84,6 +89,25 @@ def configure(p: argparse.ArgumentParser):
                    help="accelerometer bias [m/s^2] (default: 0)")
     s.add_argument("--oversample", type=number_in(int, 1), default=4, metavar="N",
                    help="model grid points per record sample, >= 1 (default: 4)")
+    b = p.add_argument_group("posterior (Bayesian identification)")
+    b.add_argument("--posterior", action="store_true",
+                   help="after the fit, sample the posterior of the free parameters and the noise level (NUTS, "
+                   "windows = 1 only) (default: off)")
+    b.add_argument("--chains", type=number_in(int, 1), default=4, metavar="N", help="chains, >= 1 (default: 4)")
+    b.add_argument("--draws", type=number_in(int, 1), default=500, metavar="N",
+                   help="kept draws per chain, >= 1, rounded up to a multiple of --chunk (default: 500)")
+    b.add_argument("--warmup", type=number_in(int, 0), default=200, metavar="N",
+                   help="warm-up draws per chain (step-size tuning, discarded), >= 0, rounded up to a multiple of --chunk "
+                   "(default: 200)")
+    b.add_argument("--chunk", type=number_in(int, 1), default=50, metavar="N",
+                   help="draws per checkpointed chunk, >= 1 (default: 50)")
+    b.add_argument("--prior", type=name_prior, action="append", default=[], metavar="NAME=KIND:A[:B]",
+                   help="prior of a free parameter or of noise_sigma: normal:MEAN:SD, lognormal:MEDIAN:FACTOR, "
+                   "uniform:LOW:HIGH, halfnormal:SCALE, repeatable (default: lognormal with a factor 10 around the "
+                   "start for positive parameters, uniform(0, 1) for restitution, halfnormal(data RMS) for the noise)")
+    b.add_argument("--noise-sigma", type=number_in(float, 0.0, low_open=True), metavar="S",
+                   help="known noise standard deviation [unit of the first column], > 0 (default: sampled)")
+    b.add_argument("--seed", type=number_in(int, 0), default=0, metavar="N", help="random seed, >= 0 (default: 0)")
     out = p.add_argument_group("output")
     out.add_argument("--out", default="./jaxclear-fit", metavar="DIR",
                      help="output folder, created if missing (default: ./jaxclear-fit)")
@@ -100,6 +124,13 @@ def run(args) -> int:
     free = [n.strip() for n in args.free.split(",") if n.strip()]
     sensor = Accelerometer(args.sensor_cutoff_hz, gain=args.sensor_gain, bias=args.sensor_bias,
                            oversample=args.oversample)
+    if args.posterior:  # its inputs checked before the fit
+        from ..fitting.posterior import check_priors
+
+        if args.windows != 1:
+            raise ParameterError(f"--posterior models window 0 only (it starts from the known state): use --windows 1, "
+                                 f"not {args.windows}")
+        check_priors(tuple(free), dict(args.prior))
     os.makedirs(args.out, exist_ok=True)
     laws = "the file's contact laws" if args.mechanism else args.model
     print(f"jaxclear fit: {args.data}, {mech.name} with {laws}, free {', '.join(free)}; sensor: "
@@ -122,7 +153,36 @@ def run(args) -> int:
         files.append(os.path.join(args.out, "fit.png"))
         res.plot(files[-1])
     _print_result(res, files)
+    if args.posterior:
+        _posterior(args, mech, free, channels, sensor, res)
     return 0
+
+
+def name_prior(text: str) -> tuple[str, str]:
+    """argparse type: ``NAME=KIND:A[:B]`` (checked by the posterior, which names the parameter)."""
+    name, sep, spec = text.partition("=")
+    if not sep or not name.strip() or not spec.strip():
+        raise argparse.ArgumentTypeError(f"expected NAME=KIND:A[:B] (e.g. stiffness=lognormal:1e10:10), got {text!r}")
+    return name.strip(), spec.strip()
+
+
+def _posterior(args, mech, free, channels, sensor, res):
+    """``--posterior``: sample, write the files, print the summary (flagged when not converged)."""
+    from ..fitting import posterior
+
+    print(f"jaxclear fit: posterior, {args.chains} chain(s) x ({args.warmup} warm-up + {args.draws} draws), NUTS from "
+          "the least-squares optimum", flush=True)
+    with warnings.catch_warnings():  # the diagnostics' warnings are printed by the summary
+        warnings.simplefilter("ignore", UserWarning)
+        post = posterior(args.data, mech, free, dict(args.start), fit_result=res, priors=dict(args.prior),
+                         noise_sigma=args.noise_sigma, chains=args.chains, draws=args.draws, warmup=args.warmup,
+                         chunk=args.chunk, seed=args.seed, channels=channels, sensor=sensor, windows=args.windows,
+                         rtol=args.rtol, atol=args.atol, align=args.align, out=args.out, resume=not args.restart,
+                         progress=not args.no_progress)
+    print(f"posterior in {post.wall_time_s:.1f} s wall ({post.gradient_evaluations} gradient evaluations); "
+          + post.format_summary())
+    print(f"wrote {os.path.join(args.out, 'posterior.nc')} and posterior.json, posterior_summary.csv, "
+          "posterior_pair.png, posterior_predictive.png/.csv")
 
 
 def column_channel(text: str) -> tuple[str, str]:

@@ -6,7 +6,7 @@ speeds, loads, any :mod:`jaxclear.params` values, with a weight) times every mem
 ensemble (:class:`Ensemble`: periodic starts at crank angles spread over a revolution, or start
 offsets of the journals spread over the clearance). They are mapped over in one program
 (``jax.lax.map`` on CPU, ``jax.vmap`` on accelerators, as the sweeps do,
-:func:`jaxclear.sweep.batch.maps_one_by_one`); the objective is the finish of the weighted mean
+:func:`jaxclear.sweep.batch.lanes_one_by_one`); the objective is the finish of the weighted mean
 of their statistics (:mod:`.objectives`) and each constraint pools them its way
 (:mod:`.constraints`).
 
@@ -37,7 +37,7 @@ from ..integrate.compile import jit
 from ..integrate.kinematics import is_kinematic, kinematic_solution
 from ..integrate.settings import settings as make_settings
 from ..model import Mechanism, crank_driver
-from ..sweep.batch import maps_one_by_one
+from ..sweep.batch import lanes_one_by_one
 from .constraints import AbstractDesignConstraint
 from .objectives import AbstractObjective, Run
 from .variables import Variable
@@ -313,7 +313,7 @@ def build_problem(mech: Mechanism, variables: tuple[Variable, ...], objective: A
     f = lambda a: jnp.asarray(np.asarray(a, dtype=float))  # noqa: E731
     return DesignProblem(mech, build_members(mech, points, ensemble), tuple(v.name for v in variables),
                          f([v.low for v in variables]), f([v.high for v in variables]), objective, constraints,
-                         float(revolutions), n_samples(revolutions, samples_per_revolution), base, maps_one_by_one())
+                         float(revolutions), n_samples(revolutions, samples_per_revolution), base, lanes_one_by_one())
 
 
 __all__ = [

@@ -129,7 +129,9 @@ checks, quiet cut), :mod:`.targets` (record columns mapped to named channels), :
 :mod:`.plan` (stages and starts), :mod:`.problem` (the checked inputs), :mod:`.state` (the fit
 state and its checkpoint), :mod:`.solver` (optimistix steps of one stage), :mod:`.run` (the
 plan with checkpoints), :mod:`.uncertainty`, :mod:`.result` (:class:`FitResult`),
-:mod:`.driver` (:func:`fit`), :mod:`.gradients` (:func:`parameter_grad`), :mod:`.legacy`
+:mod:`.driver` (:func:`fit`), :mod:`.priors`, :mod:`.posterior_model`, :mod:`.sampler`,
+:mod:`.posterior` (:func:`posterior`: the Bayesian posterior of the fit), :mod:`.posterior_result`,
+:mod:`.gradients` (:func:`parameter_grad`), :mod:`.legacy`
 (the deprecated NumPy Levenberg-Marquardt).
 """
 
@@ -139,6 +141,9 @@ from .gradients import parameter_grad, slider_power_loss
 from .legacy import LevenbergMarquardt, LMState, levenberg_marquardt
 from .parameters import DEFAULT_FREE, SENSOR_PARAMETERS, from_z, to_z
 from .plan import DEFAULT_HORIZONS, Stage
+from .posterior import POSTERIOR_CHECKPOINT, posterior
+from .posterior_result import PosteriorResult
+from .priors import HalfNormal, LogNormal, Normal, Uniform
 from .records import check_record, quiet_cut, sensor_signal, synthetic_record, write_measurements
 from .result import FitResult
 from .solver import Optimizer, make_optimizer
@@ -149,6 +154,13 @@ from .window import WindowInput, WindowModel, evaluate_window
 
 __all__ = [
     "fit",
+    "posterior",
+    "PosteriorResult",
+    "POSTERIOR_CHECKPOINT",
+    "Normal",
+    "LogNormal",
+    "Uniform",
+    "HalfNormal",
     "FitChannel",
     "DEFAULT_COLUMN",
     "read_channels_toml",

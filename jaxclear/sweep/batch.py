@@ -143,13 +143,6 @@ def _one_run(plan: Plan, mech: Mechanism, ideal: Mechanism | None, row):
     return _finish(plan, mech, row, sol, ideal_acc, ideal_status)
 
 
-def maps_one_by_one(platform: str | None = None) -> bool:
-    """Whether runs of a batch on ``platform`` (default: JAX's default backend) go one after another
-    (``jax.lax.map``) rather than side by side (``jax.vmap``): on CPU with single-kernel loops
-    (see :func:`one_by_one`, which applies it to a sweep's devices)."""
-    return (platform or jax.default_backend()) == "cpu" and loop_kernels_active()
-
-
 def one_by_one(plan: Plan) -> bool:
     """Whether a device integrates its runs one after another (``jax.lax.map``) rather than side
     by side (``jax.vmap``): ``not plan.side_by_side`` where that is set, else on CPU with
@@ -161,7 +154,15 @@ def one_by_one(plan: Plan) -> bool:
     device."""
     if plan.side_by_side is not None:
         return not plan.side_by_side
-    return maps_one_by_one(None if plan.mesh is None else plan.mesh.devices.flat[0].platform)
+    return lanes_one_by_one(None if plan.mesh is None else plan.mesh.devices.flat[0].platform)
+
+
+def lanes_one_by_one(platform: str | None = None) -> bool:
+    """Whether independent lanes of work (runs of a sweep or of a design's operating points,
+    chains of a sampler) go one after another (``jax.lax.map``) rather than side by side
+    (``jax.vmap``) on a device of ``platform`` (default: JAX's default backend): on CPU with
+    single-kernel loops (:func:`one_by_one` says why)."""
+    return (platform or jax.default_backend()) == "cpu" and loop_kernels_active()
 
 
 def _runs(plan: Plan, mech: Mechanism, ideal: Mechanism | None, rows):

@@ -76,6 +76,6 @@ def _canonical(name: str) -> tuple:
     base, joint, body = params._split(name)
     if base in ("speed", "speed_rpm"):
         return ("speed",)
-    if base in ("mass", "inertia"):
+    if base in ("mass", "inertia", "point_x", "point_y"):  # a body's (and point's) own quantity
         return (base, body)
     return (base, joint)

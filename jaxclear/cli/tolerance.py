@@ -1,0 +1,65 @@
+"""``jaxclear tolerance``: a tolerance study from a TOML file (JSON, CSV, PNG)."""
+
+from __future__ import annotations
+
+import argparse
+import os
+
+from .._xla_flags import request_host_devices
+from ..tolerance.config import load_study
+from ..tolerance.study import tolerance_study
+
+HELP = "tolerance study: distributions of parameters -> distributions of metrics, exceedance, sensitivity"
+DESCRIPTION = """\
+Sample the distributions of named parameters (normal, uniform, truncated normal; optional
+correlations) given in a TOML file, run the mechanism for every sample on the sweep's machinery
+(every device, chunk by chunk, resumed by the same command), and report the metrics'
+distributions, the probability that a metric exceeds its limit (95 % interval) beside the
+linearised estimate, Sobol' first and total indices ([study] sobol_n) and importance sampling
+for small probabilities ([study] importance_n). File format: python -c "import
+jaxclear.tolerance.config as c; print(c.__doc__)". Writes into the output folder:
+  tolerance.json       summary, exceedance, linearised, Sobol' indices, importance sampling
+  tolerance_runs.csv   the sampled parameters and the metrics of every run
+  tolerance.png        histograms of the metrics with the limits and the linearised density
+  runs/ linearised/ sobol/ importance/   one sweep folder per batch of runs (resumable)
+Example: jaxclear tolerance examples/tolerance.toml --out tol-out"""
+
+
+def configure(p: argparse.ArgumentParser):
+    p.add_argument("study", metavar="STUDY.toml", help="tolerance study file (TOML)")
+    p.add_argument("--out", metavar="DIR", help="output folder (default: the file's output.dir, else ./tolerance-out)")
+    p.add_argument("--restart", action="store_true", help="discard results already in the folder instead of resuming")
+    p.add_argument("--no-progress", action="store_true", help="hide the progress bars (default: shown)")
+    return run
+
+
+def run(args) -> int:
+    """Load the study (every key checked), run it, print the summary."""
+    request_host_devices()
+    kwargs = load_study(args.study)
+    if args.out:
+        kwargs["out"] = args.out
+    if args.no_progress:
+        kwargs["progress"] = False
+    res = tolerance_study(**kwargs, restart=args.restart)
+    print(f"jaxclear tolerance: {len(res.values)} runs of {', '.join(res.names)}")
+    for m, s in res.summary.items():
+        if "mean" in s:
+            print(f"  {m}: mean {s['mean']:.5g}, sd {s['sd']:.3g}, 90 % range [{s['q05']:.5g}, {s['q95']:.5g}]"
+                  + (f", {s['failed_runs']} failed run(s)" if s["failed_runs"] else ""))
+        lin = res.linearised.get(m)
+        if lin:
+            print(f"    linearised: mean {lin['mean']:.5g}, sd {lin['sd']:.3g}")
+        ex = res.exceedance.get(m)
+        if ex:
+            print(f"    P({m} > {ex['limit']:g}) = {ex['probability']:.4g}, 95 % interval [{ex['ci95'][0]:.3g}, "
+                  f"{ex['ci95'][1]:.3g}]" + (f"; linearised {ex['linearised_probability']:.3g}"
+                                             if "linearised_probability" in ex else ""))
+        imp = res.importance.get(m)
+        if imp:
+            print(f"    importance sampling ({imp['runs']} runs): {imp['probability']:.3g} +- {imp['std_error']:.2g}")
+        for name, si in res.sobol.get(m, {}).items():
+            print(f"    Sobol' {name}: first {si['S1']:.3f} +- {si['S1_conf']:.3f}, total {si['ST']:.3f} +- "
+                  f"{si['ST_conf']:.3f}")
+    print(f"wrote {os.path.join(kwargs['out'], 'tolerance.json')}, tolerance_runs.csv, tolerance.png")
+    return 0

@@ -1,0 +1,136 @@
+r"""Markov chains on a log density: the No-U-Turn sampler of BlackJAX (Hoffman and Gelman, *The
+No-U-Turn sampler*, JMLR 15, 2014) with its step size tuned by dual averaging during warm-up,
+and a random-walk Metropolis baseline (for the speed benchmark), run in compiled chunks of draws
+(warm-up and draws alike) whose end states are returned, so that a driver can checkpoint between chunks and resume.
+
+Several chains run one after another on a CPU device with single-kernel loops (``jax.lax.map``:
+there the lanes of a ``vmap`` would run one after another inside the loop's kernel anyway, and a
+batch of NUTS trajectories would wait for the longest; :func:`jaxclear.sweep.batch.lanes_one_by_one`)
+and side by side (``jax.vmap``) on accelerators.
+
+The mass matrix is the identity: the density is given in whitened coordinates
+(:mod:`.posterior_model`: the Gauss-Newton covariance is the metric), and it is not adapted.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+from ..sweep.batch import lanes_one_by_one
+
+#: Acceptance rate the warm-up's dual averaging aims at (Stan's and BlackJAX's default).
+TARGET_ACCEPT = 0.8
+
+
+class ChainState(NamedTuple):
+    """Per chain (leading axis: chains): position ``(C, D)``, log density ``(C,)``, gradient ``(C, D)``."""
+
+    position: jax.Array
+    logdensity: jax.Array
+    grad: jax.Array
+
+
+def _over_chains(f, *args):
+    """``f`` mapped over the leading (chain) axis: one after another on CPU, else side by side."""
+    if lanes_one_by_one(jax.default_backend()):
+        return jax.lax.map(lambda a: f(*a), args)
+    return jax.vmap(f)(*args)
+
+
+@eqx.filter_jit
+def init_states(logdensity, positions) -> ChainState:
+    """The chains' states at ``positions`` ``(C, D)`` (log density and its gradient)."""
+    def one(u):
+        v, g = jax.value_and_grad(logdensity)(u)
+        return ChainState(u, v, g)
+    return _over_chains(one, positions)
+
+
+def _blackjax():
+    """BlackJAX, imported on first use (at trace time), so that ``import jaxclear`` does not load it."""
+    import blackjax
+    import blackjax.adaptation.step_size  # noqa: F401 - the dual averaging of the warm-up
+
+    return blackjax
+
+
+def _nuts_step(logdensity, key, state: ChainState, step_size, max_doublings: int):
+    blackjax = _blackjax()
+    kernel = blackjax.nuts.build_kernel()
+    hmc = blackjax.mcmc.hmc.HMCState(state.position, state.logdensity, state.grad)
+    new, info = kernel(key, hmc, logdensity, step_size, jnp.ones_like(state.position), max_doublings)
+    return ChainState(new.position, new.logdensity, new.logdensity_grad), info
+
+
+class StepSize(NamedTuple):
+    """Dual-averaging state per chain (leading axis: chains), BlackJAX's
+    ``DualAveragingAdaptationState`` fields: ``log_step_size`` (the step during warm-up),
+    ``log_step_size_avg`` (the tuned step, used after the warm-up), ``step``, ``avg_error``, ``mu``."""
+
+    log_step_size: jax.Array
+    log_step_size_avg: jax.Array
+    step: jax.Array
+    avg_error: jax.Array
+    mu: jax.Array
+
+
+def _dual_averaging():
+    return _blackjax().adaptation.step_size.dual_averaging_adaptation(TARGET_ACCEPT)
+
+
+def init_step_size(step0: float, chains: int) -> StepSize:
+    """The dual averaging's start (Hoffman and Gelman 2014, section 3.2.1: ``mu = log(10 step0)``)."""
+    da = _dual_averaging()[0](step0)
+    return StepSize(*(jnp.broadcast_to(jnp.asarray(a, dtype=float), (chains,)) for a in da))
+
+
+@eqx.filter_jit
+def nuts_chunk(logdensity, states: ChainState, step: StepSize, keys, adapt, n_draws: int, max_doublings: int):
+    """``n_draws`` NUTS draws per chain. With ``adapt`` (a traced bool: warm-up and draws share one
+    compilation, the expensive part when the density runs a simulation and its derivative) the
+    step size is tuned by dual averaging (Hoffman and Gelman 2014, section 3.2.1) towards
+    :data:`TARGET_ACCEPT`; without it the tuned step (``log_step_size_avg``) is used and not
+    changed. Returns the end states, the step-size states and per draw ``(C, n_draws)``:
+    positions ``(C, n, D)``, log density, divergence, acceptance rate, leapfrog steps, tree depth."""
+    _, da_update, _ = _dual_averaging()
+
+    def chain(state, da, key):
+        def body(carry, k):
+            st, da = carry
+            eps = jnp.exp(jnp.where(adapt, da.log_step_size, da.log_step_size_avg))
+            st, info = _nuts_step(logdensity, k, st, eps, max_doublings)
+            new = StepSize(*da_update(_blackjax().adaptation.step_size.DualAveragingAdaptationState(*da), info.acceptance_rate))
+            da = jax.tree.map(lambda a, b: jnp.where(adapt, a, b), new, da)
+            return (st, da), (st.position, st.logdensity, info.is_divergent, info.acceptance_rate,
+                              info.num_integration_steps, info.num_trajectory_expansions)
+        (st, da), out = jax.lax.scan(body, (state, da), jax.random.split(key, n_draws))
+        return st, da, out
+
+    return _over_chains(chain, states, step, keys)
+
+
+@eqx.filter_jit
+def random_walk_chunk(logdensity, states: ChainState, keys, scale, n_draws: int):
+    """``n_draws`` random-walk Metropolis draws per chain (Gaussian steps of standard deviation
+    ``scale`` in the whitened coordinates; ``2.38 / sqrt(D)`` is the optimal scaling of Roberts,
+    Gelman and Gilks, Ann. Appl. Probab. 7, 1997, for a Gaussian target). Returns the end
+    states, positions ``(C, n, D)`` and acceptance ``(C, n)``; the gradient is not used (zeros)."""
+    blackjax = _blackjax()
+    kernel = blackjax.mcmc.random_walk.build_additive_step()
+
+    def step_fn(key, x):
+        return scale * jax.random.normal(key, x.shape, x.dtype)
+
+    def chain(state, key):
+        def body(st, k):
+            rw = blackjax.mcmc.random_walk.RWState(st.position, st.logdensity)
+            new, info = kernel(k, rw, logdensity, step_fn)
+            st = ChainState(new.position, new.logdensity, st.grad)
+            return st, (st.position, info.is_accepted)
+        return jax.lax.scan(body, state, jax.random.split(key, n_draws))
+
+    return _over_chains(chain, states, keys)

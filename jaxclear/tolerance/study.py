@@ -1,0 +1,203 @@
+r"""A tolerance study of a mechanism: :func:`tolerance_study` (API) and ``jaxclear tolerance``.
+
+Every batch of runs is a sweep (:func:`jaxclear.sweep.run_sweep`, a ``list`` of the sampled
+values): vmapped runs compiled once, on every device (several hosts through
+``jax.distributed``), written chunk by chunk, resumed by the same call. The study's folder
+holds one sweep folder per batch, each with its own ``runs.csv``:
+
+* ``runs/``: the sample (Sobol' points by default) for the distributions and exceedance
+  probabilities of the metrics;
+* ``linearised/``: the run at the marginals' medians (``z = 0``) and ``2 P`` runs at
+  ``z = +-h e_i`` (``h`` = :data:`SCORE_STEP` standard deviations of the scores): the central
+  differences give the gradient over the scores, ``g_z``, for the linearised estimate
+  (:func:`~.estimators.linearised`). Differences, not :func:`jaxclear.sensitivities`: the metrics
+  are maxima and fractions of samples whose exact derivative is the slope of one impact's peak
+  or zero (a fraction of samples is piecewise constant); a difference over a tenth of the
+  tolerance is the slope the tolerance sees;
+* ``sobol/``: SALib's Saltelli design (``sobol_n (P + 2)`` runs) for the first and total indices;
+* ``importance/``: ``importance_n`` runs around the linearised design point of the first limit.
+
+Metrics (:func:`jaxclear.analysis.metrics.run_metrics`, after ``transient_revolutions``):
+``peak_contact_force_n``, ``rms_acc_deviation_m_s2`` (the slider acceleration against the
+ideal-joint mechanism's), ``fraction_free_flight`` (time out of contact), or any other sweep
+metric.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._errors import ParameterError
+from .._storage import atomic_write_json, atomic_write_text
+from ..model import Mechanism
+from .distributions import Inputs
+from .estimators import check_limit, exceedance, importance_exceedance, linearised, sobol_design, sobol_indices
+
+#: Metrics of a study by default.
+DEFAULT_METRICS = ("peak_contact_force_n", "rms_acc_deviation_m_s2", "fraction_free_flight")
+#: Step of the central differences over the scores [standard deviations].
+SCORE_STEP = 0.1
+#: Run settings passed to each batch's :class:`~jaxclear.sweep.SweepConfig`.
+RUN_OPTIONS = ("revolutions", "transient_revolutions", "samples_per_revolution", "solver", "rtol", "atol",
+               "max_steps", "chunk_size", "devices")
+
+
+@dataclass
+class ToleranceResult:
+    """What :func:`tolerance_study` returns and writes (``tolerance.json``, ``tolerance.png``).
+
+    Attributes: ``names``, ``values`` ``(n, P)`` the sampled inputs, ``metrics`` name -> ``(n,)``,
+    ``summary`` metric -> mean, sd, quantiles, failed runs; ``exceedance`` metric -> sampled
+    probability with its 95 % interval, the linearised one beside it (and importance sampling's
+    for the first limit); ``sobol`` metric -> name -> S1, ST and their 95 % half-widths;
+    ``linearised`` metric -> mean, sd, gradient over the scores; ``settings``."""
+
+    names: list
+    values: np.ndarray
+    metrics: dict
+    summary: dict
+    exceedance: dict = field(default_factory=dict)
+    sobol: dict = field(default_factory=dict)
+    linearised: dict = field(default_factory=dict)
+    importance: dict = field(default_factory=dict)
+    settings: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return {"parameters": self.names, "summary": self.summary, "exceedance": self.exceedance,
+                "sobol": self.sobol, "linearised": self.linearised, "importance": self.importance,
+                "settings": self.settings}
+
+    def write(self, out) -> list:
+        import pandas as pd
+
+        os.makedirs(out, exist_ok=True)
+        table = pd.DataFrame({**{n: self.values[:, i] for i, n in enumerate(self.names)}, **self.metrics})
+        return [atomic_write_json(os.path.join(out, "tolerance.json"), self.to_dict()),
+                atomic_write_text(os.path.join(out, "tolerance_runs.csv"), table.to_csv(index_label="run")),
+                self.plot(os.path.join(out, "tolerance.png"))]
+
+    def plot(self, path=None):
+        """Histograms of the metrics, the limits and the linearised normal density over them."""
+        import matplotlib.pyplot as plt
+        from scipy import stats
+
+        names = list(self.metrics)
+        fig, axes = plt.subplots(1, len(names), figsize=(4.2 * len(names), 3.4), squeeze=False)
+        for ax, m in zip(axes[0], names):
+            y = self.metrics[m][np.isfinite(self.metrics[m])]
+            ax.hist(y, bins=30, density=True, color="C0", alpha=0.6, label=f"{len(y)} runs")
+            lin = self.linearised.get(m)
+            if lin and lin["sd"] > 0:
+                lo, hi = lin["mean"] - 3 * lin["sd"], lin["mean"] + 3 * lin["sd"]
+                g = np.linspace(min(lo, y.min()) if y.size else lo, max(hi, y.max()) if y.size else hi, 200)
+                ax.plot(g, stats.norm.pdf(g, lin["mean"], lin["sd"]), "C1", label="linearised")
+            ex = self.exceedance.get(m)
+            if ex:
+                ax.axvline(ex["limit"], color="C3", ls="--",
+                           label=f"limit: P = {ex['probability']:.3g} [{ex['ci95'][0]:.2g}, {ex['ci95'][1]:.2g}]")
+            ax.set_xlabel(m)
+            ax.ticklabel_format(axis="x", style="sci", scilimits=(-3, 4))
+            ax.legend(fontsize=7)
+        axes[0][0].set_ylabel("density")
+        fig.tight_layout()
+        if path is None:
+            return fig
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        return os.fspath(path)
+
+
+def _evaluator(mech: Mechanism | None, preset: str | None, run: dict, metrics: tuple, names: list, out: str,
+               restart: bool, progress: bool):
+    """``evaluate(tag, X) -> {metric: (n,)}``: the runs of ``X`` as a sweep in ``out/tag``."""
+    from ..sweep import SweepConfig, run_sweep
+
+    def evaluate(tag: str, x: np.ndarray) -> dict:
+        cfg = SweepConfig(list={n: [float(v) for v in x[:, i]] for i, n in enumerate(names)}, mechanism=mech,
+                          preset=preset if mech is None else None, out=os.path.join(out, tag), progress=progress,
+                          source=f"tolerance study ({tag})", **run)
+        res = run_sweep(cfg, restart=restart)
+        missing = [m for m in metrics if m not in res.table]
+        if missing:
+            raise ParameterError(f"tolerance study: unknown metric(s) {missing}; this mechanism's: "
+                                 f"{[c for c in res.table if c not in names and c not in ('run', 't_end_s')]}")
+        return {m: np.asarray(res.table[m], dtype=float) for m in metrics}
+
+    return evaluate
+
+
+def tolerance_study(inputs: Inputs, mech: Mechanism | None = None, *, preset: str = "flores-slider-crank",
+                    n: int = 256, method: str = "sobol", seed: int = 0, metrics=DEFAULT_METRICS,
+                    limits: dict | None = None, linearise: bool = True, sobol_n: int = 0, importance_n: int = 0,
+                    out="tolerance-out", restart: bool = False, progress: bool = True,
+                    **run_options) -> ToleranceResult:
+    """Sample the inputs, run the mechanism for each sample, and estimate (module docstring).
+
+    Args:
+        inputs: the distributions (:func:`~.distributions.inputs_from_dict`).
+        mech: the mechanism (default: the ``preset``).
+        n: runs of the sample (Sobol': rounded up to a power of 2); method: ``"sobol"`` or ``"mc"``.
+        metrics: sweep metric names; limits: metric -> limit for the exceedance probability.
+        linearise: also the linearised estimate (``2 P + 1`` runs).
+        sobol_n: base points of the Sobol' indices (0: none; ``sobol_n (P + 2)`` runs).
+        importance_n: runs of importance sampling for the first limit (0: none; needs ``linearise``).
+        out: the study's folder (one sweep folder per batch); restart: discard earlier results.
+        run_options: :data:`RUN_OPTIONS` of each batch's :class:`~jaxclear.sweep.SweepConfig`.
+    """
+    bad = sorted(set(run_options) - set(RUN_OPTIONS))
+    if bad:
+        raise ParameterError(f"tolerance_study: unknown option(s) {bad}; allowed: {list(RUN_OPTIONS)}")
+    metrics = tuple(metrics)
+    limits = {m: check_limit(m, v) for m, v in (limits or {}).items()}
+    unknown = sorted(set(limits) - set(metrics))
+    if unknown:
+        raise ParameterError(f"tolerance_study: limits given for {unknown}, which are not among the metrics {metrics}")
+    for name, count, low in (("n", n, 2), ("sobol_n", sobol_n, 0), ("importance_n", importance_n, 0)):
+        if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < low:
+            raise ParameterError(f"tolerance_study: {name} = {count!r}: expected an integer >= {low}")
+    if importance_n and not (limits and linearise):
+        raise ParameterError("tolerance_study: importance_n needs a limit and linearise=True (the design point)")
+    names = inputs.names
+    evaluate = _evaluator(mech, preset, dict(run_options), metrics, names, os.fspath(out), restart, progress)
+    x = inputs.sample(n, method, seed)
+    y = evaluate("runs", x)
+    summary = {m: _describe(v) for m, v in y.items()}
+    res = ToleranceResult(names, x, y, summary, settings=dict(n=int(len(x)), method=method, seed=seed,
+                                                               inputs={m.name: m.describe() for m in inputs.marginals},
+                                                               correlation=None if inputs.correlation is None
+                                                               else inputs.correlation.tolist(), **run_options))
+    for m, lim in limits.items():
+        res.exceedance[m] = exceedance(y[m], lim)
+    if linearise:
+        p = len(names)
+        z = np.vstack([np.zeros(p), SCORE_STEP * np.eye(p), -SCORE_STEP * np.eye(p)])
+        yl = evaluate("linearised", inputs.scores_to_values(z))
+        for m, v in yl.items():
+            g = (v[1: p + 1] - v[p + 1:]) / (2 * SCORE_STEP)
+            res.linearised[m] = linearised(v[0], g, limits.get(m))
+            if m in res.exceedance:
+                res.exceedance[m]["linearised_probability"] = res.linearised[m]["probability"]
+        if importance_n:
+            m0 = next(iter(limits))
+            lin = res.linearised[m0]
+            res.importance[m0] = importance_exceedance(inputs, lambda xx: evaluate("importance", xx), m0, limits[m0],
+                                                       lin["mean"], lin["gradient_scores"], importance_n, seed)
+    if sobol_n:
+        problem, xs = sobol_design(inputs, sobol_n, seed)
+        ys = evaluate("sobol", xs)
+        res.sobol = {m: sobol_indices(problem, v, seed) for m, v in ys.items()}
+    res.write(os.fspath(out))
+    return res
+
+
+def _describe(v: np.ndarray) -> dict:
+    ok = v[np.isfinite(v)]
+    if not ok.size:
+        return {"failed_runs": int(v.size)}
+    q = np.quantile(ok, [0.05, 0.5, 0.95])
+    return {"mean": float(ok.mean()), "sd": float(ok.std(ddof=1)) if ok.size > 1 else 0.0, "q05": float(q[0]),
+            "q50": float(q[1]), "q95": float(q[2]), "min": float(ok.min()), "max": float(ok.max()),
+            "failed_runs": int(v.size - ok.size)}
