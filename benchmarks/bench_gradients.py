@@ -5,9 +5,10 @@ horizon and named outputs of one simulation):
 
 * **truth**: central differences (one-sided, second order, for a parameter at 0: friction) of tight runs (rtol 1e-10 / atol 1e-13), relative steps 1e-3,
   1e-4, 1e-5, 1e-6 of each parameter (of 0.1 for a parameter at 0), and at rtol 1e-11 /
-  atol 1e-14 with steps 1e-4 and 1e-5; the truth is, per output and parameter, the difference
-  that agrees best with a neighbour (the next step, or the same step at the other tolerance):
-  the middle of the plateau, whose distance to that neighbour is the truth's own uncertainty.
+  atol 1e-14 with steps 1e-5 and 1e-6; the truth is, per output and parameter, the difference
+  that agrees best with a neighbour in step (the next larger or smaller step, at either
+  tolerance): the middle of the plateau, whose distance to that neighbour is the truth's own
+  uncertainty. The raw differences and Jacobians are kept in ``results/raw/`` (not committed).
   The step sweep is written to the JSON, so the plateau can be read there.
 * **sensitivities**: ``jax.jacfwd`` of the simulation at the default settings
   (``Settings(adjoint="sensitivity")``: error-controlled forward sensitivities);
@@ -197,17 +198,22 @@ def _errors(J, T, blocks, scale):
 def _plateau(fd, blocks, scale):
     """The true derivative ``(L, P)`` and its uncertainty per block: for each output block and
     parameter, among the central differences (tolerance, step), the one closest to a neighbour
-    (the next step at the same tolerance, or the same step at the other tolerance): the middle
-    of the plateau; its uncertainty is that distance (relative to the derivative's largest
-    magnitude over the block's samples)."""
+    in step (the next larger or smaller step, at either tolerance): the middle of the plateau
+    over the step sweep; its uncertainty is that distance (relative to the derivative's largest
+    magnitude over the block's samples). Agreement of two tolerances at one step is not a
+    plateau: a step too large for the output's curvature gives the same wrong slope at both."""
     cands = [(tol, h) for tol, cols in fd.items() for h in cols]
     steps = {tol: sorted(cols, reverse=True) for tol, cols in fd.items()}
 
-    def neighbours(c):
+    def neighbours(c):  # the next larger and smaller steps, at either tolerance
         tol, h = c
-        i = steps[tol].index(h)
-        out = [(tol, steps[tol][j]) for j in (i - 1, i + 1) if 0 <= j < len(steps[tol])]
-        return out + [(t, h) for t in fd if t != tol and h in fd[t]]
+        out = []
+        for t in fd:
+            larger = [g for g in steps[t] if g > h]
+            smaller = [g for g in steps[t] if g < h]
+            out += [(t, min(larger))] if larger else []
+            out += [(t, max(smaller))] if smaller else []
+        return out
 
     def dist(a, b, sl, i):
         x, y = fd[a[0]][a[1]][sl, i] * scale[i], fd[b[0]][b[1]][sl, i] * scale[i]
@@ -243,7 +249,7 @@ def run_case(case: Case, mu: float, n: float, repeats: int) -> dict:
 
     # truth: central differences of tight runs, with the step sweep
     fd = {}
-    for label, tol, steps in (("1e-10", TIGHT, STEPS), ("1e-11", TIGHTER, STEPS[1:3])):
+    for label, tol, steps in (("1e-10", TIGHT, STEPS), ("1e-11", TIGHTER, STEPS[2:])):
         f = jax.jit(_flat(_function(case, mech, record, jc.settings(case.t_end, n_out=case.n_out, **tol))))
         cols = {}
         f0 = np.asarray(f(jnp.asarray(x0)))
@@ -263,6 +269,8 @@ def run_case(case: Case, mu: float, n: float, repeats: int) -> dict:
         fd[label] = cols
     truth, spread = _plateau(fd, blocks, scale)
     row["truth_spread"] = spread
+    raw = {f"fd_{lab}_{h:g}": cols[h] for lab, cols in fd.items() for h in cols}
+    raw.update(truth=truth, scale=scale, value_true=value_true)
     row["step_sweep"] = {lab: {f"{h:g}": {k: (cols[h][sl] * scale).tolist() if cols[h][sl].shape[0] == 1 else
                                          float(np.max(np.abs(cols[h][sl] * scale)))
                                          for k, sl in blocks.items()} for h in cols} for lab, cols in fd.items()}
@@ -276,6 +284,7 @@ def run_case(case: Case, mu: float, n: float, repeats: int) -> dict:
 
     sens_fn = jax.jit(jax.jacfwd(_flat(outputs)))
     J, c, t = _timed(sens_fn, jnp.asarray(x0), repeats)
+    J_sens = J
     row["sensitivity_error"], row["sensitivity_s"], row["sensitivity_compile_s"] = _errors(J, truth, blocks, scale), t, c
     J2 = np.asarray(sens_fn(jnp.asarray(x0 * (1 + SCATTER))))
     row["scatter"] = _errors(J2, J, blocks, scale)
@@ -286,7 +295,9 @@ def run_case(case: Case, mu: float, n: float, repeats: int) -> dict:
         fn = jax.jit(jax.jacfwd(_flat(_function(case, mech, record, s))))
         J, c, t = _timed(fn, jnp.asarray(x0), repeats)
         key = "loop" if rtol is None else f"loop_rtol_{rtol:g}"
+        raw[key] = J
         row[f"{key}_error"], row[f"{key}_s"], row[f"{key}_compile_s"] = _errors(J, truth, blocks, scale), t, c
+    raw[f"sensitivity"] = J_sens
     # equal accuracy: the cheapest loop tolerance at least as accurate as the sensitivities
     target = max(max(row["sensitivity_error"].values()), 1e-3)
     for key in ["loop"] + [f"loop_rtol_{r:g}" for r in LOOP_RTOLS]:
@@ -297,6 +308,7 @@ def run_case(case: Case, mu: float, n: float, repeats: int) -> dict:
     else:
         row["equal_accuracy_loop"] = None
         row["equal_accuracy_ratio"] = None
+    row["raw"] = raw
     return row
 
 
@@ -344,6 +356,9 @@ def main(argv=None):
                 t0 = time.perf_counter()
                 row = run_case(CASES[name], mu, n, args.repeats)
                 row["case_wall_s"] = time.perf_counter() - t0
+                raw = row.pop("raw")
+                (path.parent / "raw").mkdir(parents=True, exist_ok=True)
+                np.savez(path.parent / "raw" / f"gradients_{name}_{mu:g}_{n:g}.npz", **raw)
                 done[key] = row
                 _print(row)
                 path.parent.mkdir(parents=True, exist_ok=True)

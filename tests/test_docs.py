@@ -275,7 +275,9 @@ def test_readme_quick_start_is_what_ci_runs():
     assert test.startswith("python3 -m pip install -e \".[test]\" && python3 -m pytest")
     assert test in _read(".ci/run").splitlines()
     assert len(readme.splitlines()) <= 200
-    assert "Derivatives/sensitivities" in readme  # the lead's placeholder
+    # the derivatives' section replaced the placeholder: it says what they are and links the theory
+    assert "Derivatives/sensitivities" not in readme
+    assert "## Derivatives" in readme and "docs/theory/sensitivities.md" in readme
 
 
 def test_reference_mechanisms_page_lists_every_preset():

@@ -290,3 +290,45 @@ def test_hybrid_gradient_reverse_mode_is_finite():
     s = jc.settings(1.2e-3, n_out=3, rtol=1e-10, atol=1e-14)
     g = np.asarray(eqx.filter_jit(jax.grad(_hybrid_loss(s)))(jnp.asarray([1.0, 0.8])))
     assert np.all(np.isfinite(g)), g
+
+
+@pytest.mark.slow
+def test_loop_derivatives_do_not_converge_and_replay_makes_reverse_mode_worse():
+    """Why derivatives through the loop (``adjoint="forward"``, ``"recursive"``) do not converge
+    with the tolerance over several impacts, and why reverse mode is worse (docs:
+    theory/sensitivities.md, "Reverse mode"); the sensitivities do.
+
+    The benchmark slider-crank, friction 0.1, the slider velocity at 4 ms (ten contacts) w.r.t.
+    stiffness and clearance (per unit log), all at rtol 1e-10. Truth: central differences at
+    rtol 1e-11, relative step 1e-4 (0.7325 and 0.2329; steps 1e-5 and 1e-6 give 0.7300 / 0.7427
+    and 0.2352 / 0.2449, so 2 % is the truth's own resolution for clearance). Measured: the
+    sensitivities 0.7322 and 0.2329; forward mode through the loop 1.160 and -1.780 (the
+    derivative of a discretization whose steps are sized for the values: its step sequence
+    differs from reverse mode's program, which rounds differently, and each is far off);
+    reverse mode with a checkpoint at every step 0.824 and -0.144; with diffrax's default
+    checkpoints -23.4 and 138.3: its backward pass recomputes the steps from checkpoints in a
+    differently compiled program whose rounding flips decisions taken on numbers placed at a
+    contact switch on purpose, so it chains the derivatives of steps that do not follow each
+    other."""
+    mech = jc.preset("flores-slider-crank", friction=0.1)
+    names = ("stiffness", "clearance")
+    x0 = np.array([float(params.get(mech, n)) for n in names])
+
+    def f(settings):
+        return lambda x: jc.simulate(params.replace_many(mech, dict(zip(names, x))), settings).qdot[-1, 6] * 1.0
+
+    tight = f(jc.settings(4e-3, n_out=2, rtol=1e-11, atol=1e-14, max_steps=400_000))
+    value = jax.jit(tight)
+    truth = np.array([(float(value(jnp.asarray(x0 * (1 + 1e-4 * e)))) - float(value(jnp.asarray(x0 * (1 - 1e-4 * e)))))
+                      / 2e-4 for e in np.eye(2)])
+    base = dict(n_out=2, rtol=1e-10, atol=1e-13, max_steps=200_000)
+    x = jnp.asarray(x0)
+    sens = np.asarray(jax.jit(jax.jacfwd(f(jc.settings(4e-3, **base))))(x)) * x0
+    fwd = np.asarray(jax.jit(jax.jacfwd(f(jc.settings(4e-3, adjoint="forward", **base))))(x)) * x0
+    every = np.asarray(jax.jit(jax.grad(f(jc.settings(4e-3, adjoint="recursive", checkpoints=200_000, **base))))(x))
+    replay = np.asarray(jax.jit(jax.grad(f(jc.settings(4e-3, adjoint="recursive", **base))))(x)) * x0
+    every = every * x0
+    err = lambda g: np.max(np.abs(g - truth)) / np.max(np.abs(truth))  # noqa: E731
+    assert err(sens) < 2e-2, (sens, truth)  # the truth's own resolution (docstring)
+    assert err(fwd) > 5e-2 and err(every) > 5e-2, (fwd, every, truth)
+    assert err(replay) > 2 * err(every), (replay, every, truth)
