@@ -95,6 +95,22 @@ def projector(mech: Mechanism, t, q, qdot, w) -> jax.Array:
 
 def tangent_basis(mech: Mechanism, t, q, qdot, w, count: int) -> jax.Array:
     """``count`` orthonormal vectors (2n, count) of :math:`T\\mathcal M` in the weighted
-    coordinates (eigenvectors of :func:`projector` of eigenvalue 1)."""
-    _, vectors = jnp.linalg.eigh(projector(mech, t, q, qdot, w))
-    return vectors[:, ::-1][:, :count]
+    coordinates: the projections (:func:`projector`) of the coordinate directions
+    :math:`e_1, e_2, \\dots` (positions, then velocities), orthonormalised in that order (Gram-Schmidt,
+    twice for rounding), a direction that adds less than ``1e-6`` of its length skipped. So the
+    basis is the same for the same state (a start basis an independent implementation can repeat:
+    for a body on a slide, its position and velocity along the slide)."""
+    size = 2 * mech.n_coordinates
+    proj = projector(mech, t, q, qdot, w)
+    basis = jnp.zeros((size, count), q.dtype)
+    kept = jnp.zeros((), jnp.int32)
+    for i in range(size):
+        v = proj[:, i]
+        for _ in range(2):
+            v = v - basis @ (basis.T @ v)
+        norm = jnp.sqrt(jnp.sum(v**2))
+        keep = (norm > 1e-6) & (kept < count)
+        column = jnp.where(keep, v / jnp.where(norm > 0, norm, 1.0), basis[:, jnp.minimum(kept, count - 1)])
+        basis = basis.at[:, jnp.minimum(kept, count - 1)].set(column)
+        kept = kept + keep.astype(jnp.int32)
+    return basis
