@@ -132,6 +132,18 @@ from .io import Measurements, read_measurements, timeseries_frame  # noqa: E402
 from .analysis import Accelerometer  # noqa: E402
 from .fitting import FitChannel, FitResult, fit, levenberg_marquardt, parameter_grad, synthetic_record  # noqa: E402
 from .wearing import WearHistory, WearOptions, plot_wear, wear  # noqa: E402
+from . import chaos  # noqa: E402
+from .analysis.sections import detect_period, period_name, section as poincare_section  # noqa: E402
+from .chaos import (  # noqa: E402
+    LyapunovError,
+    LyapunovMap,
+    LyapunovResult,
+    lyapunov,
+    lyapunov_map,
+    psd,
+    rosenstein,
+    zero_one_test,
+)
 
 try:
     __version__ = _version("jaxclear")

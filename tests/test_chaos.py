@@ -117,6 +117,13 @@ def test_bad_input_is_named():
         lyapunov(mech, s)
     with pytest.raises(jc.ParameterError, match=r"tol = .*\(0, inf\)"):
         lyapunov(mech, s, interval=1.0, tol=-1.0)
+    crank = jc.preset("flores-slider-crank")
+    with pytest.raises(jc.ParameterError, match=r"output channel 'joint:3:ecc_x': '3' is no clearance joint"):
+        jc.lyapunov_map(crank, s, ["clearance"], [[1e-4]], revolutions=8, channels=["joint:3:ecc_x"])
+    with pytest.raises(jc.ParameterError, match=r"too short for a converged estimate"):
+        jc.lyapunov_map(crank, s, ["clearance"], [[1e-4]], revolutions=2)
+    with pytest.raises(jc.ParameterError, match=r"no_such"):
+        jc.lyapunov_map(crank, s, ["no_such"], [[1e-4]], revolutions=8)
 
 
 def test_missed_convergence_is_a_named_error(linear_run):

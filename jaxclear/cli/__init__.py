@@ -8,6 +8,7 @@
     jaxclear sweep CONFIG.toml [options] run a parameter sweep
     jaxclear fit DATA.csv [options]      fit contact parameters to a measured record
     jaxclear wear [FILE.toml] [opts]     wear a clearance joint's bearing (Archard), resumable
+    jaxclear chaos [FILE.toml] [opts]    Lyapunov exponents, Poincare section, 0-1 test, spectrum
 
 One module per command (:mod:`.simulate`, :mod:`.presets`, :mod:`.models`, :mod:`.sweep`,
 :mod:`.fit`), each with ``HELP``, ``DESCRIPTION`` and ``configure(parser) -> run``, where
@@ -31,12 +32,12 @@ import sys
 
 from .. import __version__
 from .._errors import JaxclearError
-from . import animate, cache, check, fit, models, presets, simulate, sweep, wear
+from . import animate, cache, chaos, check, fit, models, presets, simulate, sweep, wear
 from .common import Formatter, Parser
 
 #: Commands in help order: name -> module.
 COMMANDS = {"presets": presets, "check": check, "simulate": simulate, "animate": animate, "models": models,
-            "sweep": sweep, "fit": fit, "wear": wear}
+            "sweep": sweep, "fit": fit, "wear": wear, "chaos": chaos}
 
 
 def build_parser() -> argparse.ArgumentParser:
