@@ -31,7 +31,8 @@ def plot_spectra(reports, path: str | None = None) -> Figure:
         ax = fig.add_subplot(len(reports), 1, i + 1)
         ax.semilogy(c.frequency[1:], c.density[1:])
         ax.set_ylabel(f"PSD [{c.unit}$^2$/Hz]")
-        ax.set_title(f"{c.name}: peak {c.peak_frequency:.4g} Hz, 0-1 test K = {c.k:.2f}", fontsize=9)
+        ax.set_title(f"{c.name}: peak {c.peak_frequency:.4g} Hz, 0-1 test K = {c.k:.2f}" if c.k == c.k else
+                     f"{c.name}: peak {c.peak_frequency:.4g} Hz (0-1 test: too few samples)", fontsize=9)
     ax.set_xlabel("frequency [Hz]")
     if path:
         fig.savefig(path, dpi=120)
