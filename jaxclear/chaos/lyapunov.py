@@ -196,7 +196,8 @@ def _member(mech, s, names, row, revolutions, transient_revolutions, per_revolut
     r = benettin(m, s, None, transient=transient_revolutions * period, interval=period / per_revolution,
                  windows=revolutions * per_revolution, discard=discard, samples=samples, count=count,
                  scale=manifold.time_scale(m), keep=bool(channels))
-    sections = jnp.zeros((revolutions, 0), r.running.dtype)
+    # one NaN column without channels (sliced off outside): lax.map's batching cannot reshape an empty output
+    sections = jnp.full((revolutions, 1), jnp.nan, r.running.dtype)
     if channels:
         # one sample per revolution: the last sample of every per_revolution-th interval
         every = per_revolution * samples
@@ -247,6 +248,9 @@ def lyapunov_map(mech: Mechanism, s: Settings, names: Sequence[str], values, *, 
                              f"[{MIN_INTERVALS}, inf)")
     if not transient_revolutions >= 0:
         raise ParameterError(f"transient_revolutions = {transient_revolutions!r} is outside the allowed range [0, inf)")
+    if batch_size is not None and (isinstance(batch_size, bool) or not isinstance(batch_size, (int, np.integer))
+                                   or batch_size < 1):
+        raise ParameterError(f"batch_size = {batch_size!r} is outside the allowed range [1, inf) (or None: all rows at once)")
     count = _count(mech, count)
     channels = tuple(str(c) for c in channels)
     for c in channels:
@@ -255,4 +259,5 @@ def lyapunov_map(mech: Mechanism, s: Settings, names: Sequence[str], values, *, 
     s = dataclasses.replace(s, throw=False)
     out = _compiled_map(mech, s, names, values, int(revolutions), float(transient_revolutions), int(per_revolution),
                         int(samples), count, channels, int(discard), batch_size)
-    return LyapunovMap(values, *out)
+    exponents, spread, stderr, status, run_status, sections, running = out
+    return LyapunovMap(values, exponents, spread, stderr, status, run_status, sections[..., :len(channels)], running)
