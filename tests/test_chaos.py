@@ -250,3 +250,25 @@ def test_tangent_exponent_against_rosenstein(chaotic_runs):
     estimate = rosenstein(x, float(sol.ts[1] - sol.ts[0]), emb_dim=4, min_tsep=16, trajectory_len=32)
     ratio = estimate / float(r.exponents[0])
     assert 0.6 <= ratio <= 1.1, (estimate, float(r.exponents[0]))
+
+
+@pytest.mark.slow
+def test_map_row_equals_the_single_run():
+    """lyapunov_map's row for a speed is lyapunov at that speed (the same transient, intervals
+    and start). The benchmark at 5000 rpm is chaotic (~450 1/s): the two programs' interval ends
+    differ by rounding (the period computed traced or in Python), which the motion amplifies by
+    e^(450 t), so they agree bit-close only early: the Poincare section's first two revolutions to
+    1e-6 relative, and the exponents after 6 revolutions within 3 combined standard errors."""
+    mech = jc.preset("flores-slider-crank")
+    period = jc.crank_period(mech)
+    mp = jc.lyapunov_map(mech, jc.settings(1.0), ["speed_rpm"], [[5000.0]], revolutions=6, transient_revolutions=1,
+                         count=1, channels=["joint:0:ecc_x"])
+    s = jc.settings(7 * period, throw=False)
+    r = lyapunov(mech, s, interval=period, transient=period, count=1)
+    assert int(mp.status[0]) == 0 and int(r.status) == 0
+    sol = trajectory(mech, s, r)
+    ecc = np.asarray(jc.channel(mech, sol, "joint:0:ecc_x"))[7::8]
+    print("map", np.asarray(mp.sections[0, :, 0]), "single", ecc)
+    np.testing.assert_allclose(np.asarray(mp.sections[0, :2, 0]), ecc[:2], rtol=1e-6)
+    se = math.hypot(float(mp.stderr[0, 0]), float(r.stderr[0]))
+    assert abs(float(mp.exponents[0, 0]) - float(r.exponents[0])) <= 3 * se
