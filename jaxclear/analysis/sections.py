@@ -83,5 +83,8 @@ def detect_period(points, max_period: int = MAX_PERIOD, rtol: float = 1e-3) -> i
 
 
 def period_name(n: int, max_period: int = MAX_PERIOD) -> str:
-    """``"period-1"``, ``"period-2"``, ... or ``"not periodic (n > 16)"``."""
-    return f"period-{n}" if n > 0 else f"not periodic (n > {max_period})"
+    """``"period-1"``, ``"period-2"``, ... or ``"not periodic (n > 16)"`` (``max_period``: the
+    longest period looked for; below 1, too few points to tell)."""
+    if n > 0:
+        return f"period-{n}"
+    return f"not periodic (n > {max_period})" if max_period >= 1 else "too few section points to tell"

@@ -56,7 +56,7 @@ def plot_sections(reports, path: str | None = None) -> Figure:
         ax.set_ylabel(f"revolution k + 1 [{a.unit}]")
     from ..analysis.sections import period_name
 
-    ax.set_title(f"Poincare section, once per revolution: {period_name(a.period)}", fontsize=9)
+    ax.set_title(f"Poincare section, once per revolution: {period_name(a.period, a.longest)}", fontsize=9)
     if path:
         fig.savefig(path, dpi=120)
     return fig

@@ -19,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import params
-from .._errors import RESULTS, JaxclearError, ParameterError, SolverError, is_concrete, status_message
+from .._errors import RESULTS, JaxclearError, ParameterError, is_concrete, status_message
 from ..analysis.channels import channel
 from ..integrate import Settings, Solution, State
 from ..integrate import solve
@@ -136,7 +136,8 @@ def raise_for_status(result: LyapunovResult, s: Settings, tol: float | None = No
     exceeds ``tol``."""
     code = int(result.status)
     if code == 1:
-        raise LyapunovError(f"jaxclear: lyapunov: {STATUS[1]}: {status_message(int(result.run_status), max_steps=s.max_steps)}")
+        why = status_message(int(result.run_status), max_steps=s.max_steps)
+        raise LyapunovError(f"jaxclear: lyapunov: {STATUS[1]}: {why}")
     if code != 0:
         raise LyapunovError(f"jaxclear: lyapunov: {STATUS[code]} (interval {float(result.interval):g} s)")
     if tol is not None:
@@ -250,7 +251,8 @@ def lyapunov_map(mech: Mechanism, s: Settings, names: Sequence[str], values, *, 
         raise ParameterError(f"transient_revolutions = {transient_revolutions!r} is outside the allowed range [0, inf)")
     if batch_size is not None and (isinstance(batch_size, bool) or not isinstance(batch_size, (int, np.integer))
                                    or batch_size < 1):
-        raise ParameterError(f"batch_size = {batch_size!r} is outside the allowed range [1, inf) (or None: all rows at once)")
+        raise ParameterError(f"batch_size = {batch_size!r} is outside the allowed range [1, inf) "
+                             "(or None: all rows at once)")
     count = _count(mech, count)
     channels = tuple(str(c) for c in channels)
     for c in channels:

@@ -20,7 +20,7 @@ import numpy as np
 
 from .._errors import ParameterError
 from .._storage import atomic_write_json, atomic_write_text
-from ..analysis.sections import check_channels, detect_period, period_name, section_indices
+from ..analysis.sections import MAX_PERIOD, check_channels, detect_period, period_name, section_indices
 from ..integrate import Settings
 from ..model import Mechanism, crank_driver
 from . import figures
@@ -41,6 +41,7 @@ class ChannelReport:
     period: int  # 0: not periodic within MAX_PERIOD
     k: float  # the 0-1 statistic
     k_on: str  # "section" or "samples"
+    longest: int  # the longest period the section can show (two repeats): min(16, (K - 1) // 2)
     frequency: np.ndarray = field(repr=False)
     density: np.ndarray = field(repr=False)
 
@@ -76,7 +77,8 @@ def characterise(mech: Mechanism, s: Settings, channels, *, per_revolution: int 
         k = zero_one_test(series)[0] if series.size >= 100 else float("nan")
         f, p = psd(values, dt)
         k_on = "section" if on_section else ("samples" if series.size >= 100 else "too few samples")
-        reports.append(ChannelReport(name, unit, sect, detect_period(sect), k, k_on, f, p))
+        longest = max(0, min(MAX_PERIOD, (sect.size - 1) // 2))
+        reports.append(ChannelReport(name, unit, sect, detect_period(sect, longest), k, k_on, longest, f, p))
     return r, reports
 
 
@@ -104,7 +106,8 @@ def write_report(folder: str, mech: Mechanism, result, reports) -> dict:
         [[f"{t:.10g}", *(f"{v:.10g}" for v in row)] for t, row in zip(np.asarray(result.times), running)],
         ["time [s]", *(f"exponent {i + 1} [1/s]" for i in range(ex.size))]))
     atomic_write_text(os.path.join(folder, "channels.csv"), _csv(
-        [[c.name, c.unit, period_name(c.period), f"{c.k:.4g}", c.k_on, f"{c.peak_frequency:.6g}"] for c in reports],
+        [[c.name, c.unit, period_name(c.period, c.longest), f"{c.k:.4g}", c.k_on, f"{c.peak_frequency:.6g}"]
+         for c in reports],
         ["channel", "unit", "Poincare section", "0-1 test K", "0-1 test on", "PSD peak [Hz]"]))
     summary = {
         "mechanism": mech.name,
@@ -113,7 +116,8 @@ def write_report(folder: str, mech: Mechanism, result, reports) -> dict:
         "largest": float(ex.max()), "sum": float(ex.sum()),
         "e_folding_time": float(1 / ex.max()) if ex.max() > 0 else None,
         "interval": float(result.interval), "intervals_counted": int(running.shape[0]),
-        "channels": {c.name: {"period": c.period, "zero_one_K": c.k, "zero_one_on": c.k_on,
+        "channels": {c.name: {"period": c.period, "longest_period_tested": c.longest, "zero_one_K": c.k,
+                              "zero_one_on": c.k_on,
                               "psd_peak_Hz": c.peak_frequency} for c in reports},
     }
     atomic_write_json(os.path.join(folder, "summary.json"), summary, indent=2)

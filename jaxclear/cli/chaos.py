@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 
+from ..analysis.sections import period_name
 from ..chaos.report import characterise, write_report
 from .common import add_mechanism_file_option, add_mechanism_options, fmt, number_in
 from .simulate import add_integration_options, load, settings_from
