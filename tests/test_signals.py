@@ -62,3 +62,13 @@ def test_bad_input_is_named():
         psd(np.ones(100), 0.0)
     with pytest.raises(jc.ParameterError, match=r"stride = 0 samples per period .*\[1, inf\)"):
         section_indices(100, 0)
+
+
+def test_period_of_a_section_near_zero_is_measured_against_the_channel():
+    """A period-1 section lying near zero (a slider's velocity at a dead centre, 5e-3 m/s, with
+    the integration's noise 3e-4 m/s) of a channel whose run reaches 0.5 m/s: period-1 against
+    the channel's size (noise 6e-4 of it, tolerance 1e-2), none against the section's own."""
+    rng = np.random.default_rng(0)
+    points = -5e-3 + 3e-4 * rng.uniform(-0.5, 0.5, 60)
+    assert detect_period(points, rtol=1e-2, scale=0.5) == 1
+    assert detect_period(points, rtol=1e-2) == 0

@@ -62,17 +62,21 @@ def section(mech: Mechanism, sol: Solution, channels, index):
     return jnp.stack([channel(mech, sub, c) for c in check_channels(mech, channels)], axis=-1)
 
 
-def detect_period(points, max_period: int = MAX_PERIOD, rtol: float = 1e-3) -> int:
-    """The period ``n`` of a sequence of section points ``points`` (K,) or (K, C): the smallest
-    ``n <= max_period`` with :math:`|x_{k+n} - x_k| \\le` ``rtol`` times the channel's size
-    (its largest magnitude over the points) for every ``k`` and channel; 0 when there is none
-    (not periodic within ``max_period``: quasi-periodic, chaotic, or still in its transient).
-    Needs ``K > 2 n`` points to call a period ``n`` (two repeats)."""
+def detect_period(points, max_period: int = MAX_PERIOD, rtol: float = 1e-3, scale=None) -> int:
+    r"""The period ``n`` of a sequence of section points ``points`` (K,) or (K, C): the smallest
+    ``n <= max_period`` with :math:`|x_{k+n} - x_k| \le` ``rtol`` times the channel's size for
+    every ``k`` and channel; 0 when there is none (not periodic within ``max_period``:
+    quasi-periodic, chaotic, or still in its transient). The size is ``scale`` (a number or one
+    per channel: e.g. the channel's largest magnitude over the whole run, the right measure
+    where the section lies near zero, such as a slider's velocity at a dead centre), by default
+    the largest magnitude over the points. Needs ``K > 2 n`` points to call a period ``n`` (two
+    repeats)."""
     p = np.asarray(points, dtype=float)
     p = p[:, None] if p.ndim == 1 else p
     if not np.all(np.isfinite(p)):
         return 0
-    size = np.max(np.abs(p), axis=0)
+    size = np.max(np.abs(p), axis=0) if scale is None else np.broadcast_to(np.abs(np.asarray(scale, float)),
+                                                                            p.shape[1:])
     size = np.where(size > 0, size, 1.0)
     for n in range(1, max_period + 1):
         if p.shape[0] <= 2 * n:

@@ -79,7 +79,9 @@ def zero_one_test(values, c=None, n_c: int = 100, n_cut: int | None = None, seed
     :math:`K` the median over ``n_c`` values of :math:`c` drawn uniformly from
     :data:`C_RANGE` (or the given ``c``). :math:`K \approx 0`: regular; :math:`K \approx 1`:
     chaotic. The samples should not oversample the motion (the authors' advice: about one
-    sample per forcing period or per mean oscillation; a Poincare section is ideal).
+    sample per forcing period or per mean oscillation). Not on the Poincare section of a
+    period-1 orbit: that is a constant plus the integration's noise, whose random walk the test
+    reads as chaos (:mod:`.report` thins the samples to 4 a revolution instead).
 
     Written here because no maintained Python library implements it; the formulas are those of
     the 2009 paper, eqs. (2.1)-(2.5) and (3.1)-(3.2).

@@ -85,7 +85,7 @@ def run(args) -> int:
               "loses its meaning after a few of these")
     for c in reports:
         print(f"  {c.name}: Poincare section {c.period and f'period-{c.period}' or 'not periodic'}, "
-              + (f"0-1 test K = {c.k:.2f} (on the {c.k_on})" if c.k == c.k else
+              + (f"0-1 test K = {c.k:.2f} (on {c.k_on})" if c.k == c.k else
                  "0-1 test not run (fewer than 100 samples: run longer)")
               + f", PSD peak {c.peak_frequency:.4g} Hz")
     print(f"  written to {args.out} (exponents.csv, running.csv, channels.csv, summary.json, running.png, "
