@@ -81,7 +81,8 @@ def zero_one_test(values, c=None, n_c: int = 100, n_cut: int | None = None, seed
     chaotic. The samples should not oversample the motion (the authors' advice: about one
     sample per forcing period or per mean oscillation). Not on the Poincare section of a
     period-1 orbit: that is a constant plus the integration's noise, whose random walk the test
-    reads as chaos (:mod:`.report` thins the samples to 4 a revolution instead).
+    reads as chaos (:mod:`.report` thins the samples to 2 a revolution instead: the forcing's harmonics then
+    alias to 0 and pi, outside the range of c).
 
     Written here because no maintained Python library implements it; the formulas are those of
     the 2009 paper, eqs. (2.1)-(2.5) and (3.1)-(3.2).
