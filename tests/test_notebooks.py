@@ -100,3 +100,17 @@ def test_uncertainty_notebook_runs(tmp_path):
     text = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.outputs)
     assert "converged (" in text or "NOT CONVERGED" in text
     assert "P(peak > 66000 N)" in text
+
+
+@pytest.mark.slow
+def test_chaos_notebook_runs(tmp_path):
+    """notebooks/chaos.ipynb at small settings (6 speeds, 6 revolutions; about 5 minutes on 2
+    shared cores, mostly compiling the tangent program): runs, writes its two figures, prints the
+    e-folding times."""
+    nb = execute_notebook("chaos.ipynb", tmp_path)
+    errors = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs if o.output_type == "error"]
+    assert not errors
+    figures = sorted(p.name for p in (tmp_path / "figures").glob("*.png"))
+    assert figures == ["chaos_bifurcation.png", "chaos_points.png"]
+    text = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.outputs)
+    assert "lambda_1 =" in text and "0-1 test K =" in text and ("e-folding time" in text or "no horizon" in text)

@@ -9,6 +9,8 @@
     jaxclear fit DATA.csv [options]      fit contact parameters to a measured record
     jaxclear wear [FILE.toml] [opts]     wear a clearance joint's bearing (Archard), resumable
     jaxclear design [FILE.toml] --vary NAME=LOW:HIGH ...  optimal design through impacts, resumable
+    jaxclear chaos [FILE.toml] [opts]    Lyapunov exponents, Poincare section, 0-1 test, spectrum
+    jaxclear tolerance STUDY.toml        tolerance study: sampled parameters, metrics, Sobol' indices
 
 One module per command (:mod:`.simulate`, :mod:`.presets`, :mod:`.models`, :mod:`.sweep`,
 :mod:`.fit`), each with ``HELP``, ``DESCRIPTION`` and ``configure(parser) -> run``, where
@@ -32,12 +34,12 @@ import sys
 
 from .. import __version__
 from .._errors import JaxclearError
-from . import animate, cache, check, design, fit, models, presets, simulate, sweep, tolerance, wear
+from . import animate, cache, chaos, check, design, fit, models, presets, simulate, sweep, tolerance, wear
 from .common import Formatter, Parser
 
 #: Commands in help order: name -> module.
 COMMANDS = {"presets": presets, "check": check, "simulate": simulate, "animate": animate, "models": models,
-            "sweep": sweep, "fit": fit, "wear": wear, "design": design, "tolerance": tolerance}
+            "sweep": sweep, "fit": fit, "wear": wear, "design": design, "tolerance": tolerance, "chaos": chaos}
 
 
 def build_parser() -> argparse.ArgumentParser:

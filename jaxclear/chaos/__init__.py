@@ -1,0 +1,25 @@
+r"""How chaotic is a mechanism's motion: Lyapunov exponents from the tangent dynamics, spectra and
+tests for chaos.
+
+* :mod:`~jaxclear.chaos.manifold`: the phase space (the tangent space of the constraint
+  manifold) and its metric;
+* :mod:`~jaxclear.chaos.benettin`: Benettin's method with QR renormalisation on the
+  error-controlled tangents (:class:`LyapunovResult`);
+* :mod:`~jaxclear.chaos.lyapunov`: :func:`lyapunov`, :func:`lyapunov_map`, :func:`trajectory`;
+* :mod:`~jaxclear.chaos.signals`: power spectral density (Welch), the 0-1 test for chaos,
+  Rosenstein's time-series exponent; Poincare sections and their period are in
+  :mod:`jaxclear.analysis.sections`;
+* :mod:`~jaxclear.chaos.report`, :mod:`~jaxclear.chaos.figures`: one operating point's tables
+  and figures (``jaxclear chaos``).
+
+Theory: docs/theory/chaos.md.
+"""
+
+from .benettin import STATUS, LyapunovResult
+from .lyapunov import MIN_INTERVALS, LyapunovError, LyapunovMap, lyapunov, lyapunov_map, trajectory
+from .signals import channel_series, psd, rosenstein, zero_one_test
+from .report import characterise, write_report
+
+__all__ = ["STATUS", "MIN_INTERVALS", "LyapunovError", "LyapunovMap", "LyapunovResult", "channel_series",
+           "characterise", "lyapunov", "lyapunov_map", "psd", "rosenstein", "trajectory", "write_report",
+           "zero_one_test"]

@@ -1,0 +1,265 @@
+r"""Lyapunov exponents of a mechanism from its tangent dynamics: :func:`lyapunov` (one operating
+point, its running estimate and convergence), :func:`lyapunov_map` (many operating points in one
+compiled, batched program: a bifurcation map coloured by the largest exponent) and
+:func:`trajectory` (the run's :class:`~jaxclear.Solution`, for any named channel).
+
+Method: :mod:`.benettin`; the space: :mod:`.manifold`; theory: docs/theory/chaos.md.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Sequence
+
+import diffrax
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import params
+from .._errors import RESULTS, JaxclearError, ParameterError, is_concrete, status_message
+from ..analysis.channels import channel
+from ..integrate import Settings, Solution, State
+from ..integrate import solve
+from ..model import Mechanism, crank_driver
+from . import manifold
+from .benettin import STATUS, LyapunovResult, benettin
+
+#: Fewest renormalisation intervals that count (after ``discard``): a running estimate and its
+#: spread over the last half need at least this many.
+MIN_INTERVALS = 4
+
+
+class LyapunovError(JaxclearError):
+    """The Lyapunov exponents could not be computed as asked: the run failed, its tangents
+    overflowed, or the estimate did not converge to the requested tolerance."""
+
+
+def _check_interval(interval):
+    if interval is None or not is_concrete(interval):
+        return
+    value = float(interval)
+    if not (math.isfinite(value) and value > 0):
+        raise ParameterError(f"interval = {value:g} s (the renormalisation interval) is outside the allowed range "
+                             "(0, inf) s")
+
+
+def _count(mech: Mechanism, count) -> int:
+    p = manifold.dimension(mech)
+    if p < 1:
+        raise ParameterError(f"mechanism {mech.name!r} has no free motion (2(n - m) = {p}): no Lyapunov exponent")
+    if count is None:
+        return p
+    if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or not 1 <= count <= p:
+        raise ParameterError(f"count = {count!r} exponents is outside the allowed range [1, {p}] (the dimension "
+                             f"2(n - m) of the phase space of {mech.name!r})")
+    return int(count)
+
+
+def _default_interval(mech: Mechanism) -> float:
+    found = crank_driver(mech)
+    if found is None or float(found[1].speed) == 0.0:
+        raise ParameterError(f"interval: mechanism {mech.name!r} has no turning crank, so there is no default "
+                             "renormalisation interval (one revolution); give interval [s] > 0")
+    return 2.0 * math.pi / abs(float(found[1].speed))
+
+
+@eqx.filter_jit
+def _compiled(mech, s, y0, transient, interval, scale, windows, discard, samples, count, keep):
+    return benettin(mech, s, y0, transient=transient, interval=interval, windows=windows, discard=discard,
+                    samples=samples, count=count, scale=scale, keep=keep)
+
+
+def lyapunov(mech: Mechanism, s: Settings, interval: float | None = None, *, transient: float = 0.0,
+             discard: int = 0, count: int | None = None, samples: int = 8, time_scale: float | None = None,
+             y0: State | None = None, tol: float | None = None, keep: bool = True) -> LyapunovResult:
+    r"""The Lyapunov spectrum of ``mech`` over the run of ``s`` (Benettin's method on the tangent
+    dynamics, :mod:`.benettin`), over the tangent space of the constraint manifold
+    (:mod:`.manifold`).
+
+    Args:
+        mech: the mechanism.
+        s: the settings: the run is ``[s.t_start, s.t_end]``; ``rtol``, ``atol``, ``solver``,
+            ``max_steps`` (per interval) apply to the state and its tangents.
+        interval: the renormalisation interval [s] > 0 (default one crank revolution). The time
+            after the transient is cut into the fewest equal intervals no longer than this.
+        transient: time [s] integrated without tangents first (to reach the attractor).
+        discard: intervals at the start that do not count (the basis aligns with the most
+            expanding directions).
+        count: how many exponents (the largest ``count``; default all :math:`2(n - m)`).
+        samples: output samples per interval (the trajectory, :func:`trajectory`).
+        time_scale: the metric's weight on the velocities [s] (default :math:`1/|\omega|` of
+            the crank, else 1 s); the exponents do not depend on it.
+        y0: start state (default: assembled at ``s.t_start``).
+        tol: the convergence asked for [1/s]: the running estimate's spread over the last half
+            of the counted intervals must not exceed it (else :class:`LyapunovError`).
+        keep: keep the trajectory's samples in the result.
+
+    Returns:
+        :class:`~jaxclear.chaos.LyapunovResult`. With ``s.throw`` (default) and concrete
+        inputs, a failed run, an overflow (status 2) or a missed ``tol`` raise
+        :class:`LyapunovError`; with ``s.throw=False`` they are the result's ``status``.
+    """
+    _check_interval(interval)
+    count = _count(mech, count)
+    interval = _default_interval(mech) if interval is None else interval
+    if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 1:
+        raise ParameterError(f"samples = {samples!r} per interval is outside the allowed range [1, inf)")
+    if isinstance(discard, bool) or not isinstance(discard, (int, np.integer)) or discard < 0:
+        raise ParameterError(f"discard = {discard!r} intervals is outside the allowed range [0, inf)")
+    if tol is not None and not (math.isfinite(tol) and tol > 0):
+        raise ParameterError(f"tol = {tol!r} 1/s (the requested convergence) is outside the allowed range (0, inf)")
+    duration = float(s.t_end) - s.t_start - float(transient)
+    if not float(transient) >= 0 or duration <= 0:
+        raise ParameterError(f"transient = {float(transient):g} s is outside the allowed range [0, t_end - t_start = "
+                             f"{float(s.t_end) - s.t_start:g} s)")
+    windows = max(1, math.ceil(duration / float(interval) - 1e-9))
+    if windows - discard < MIN_INTERVALS:
+        raise ParameterError(
+            f"the run is too short for a converged estimate: {windows} renormalisation interval(s) of "
+            f"{duration / windows:g} s after the transient, {discard} discarded, leaves {windows - discard}, "
+            f"outside the allowed range [{MIN_INTERVALS}, inf); raise t_end (now {float(s.t_end):g} s), or shorten "
+            f"interval (now {float(interval):g} s) or transient")
+    scale = manifold.time_scale(mech) if time_scale is None else jnp.asarray(float(time_scale))
+    s_run = dataclasses.replace(s, throw=False)
+    result = _compiled(mech, s_run, y0, jnp.asarray(float(transient)), jnp.asarray(duration / windows), scale,
+                       int(windows), int(discard), int(samples), count, bool(keep))
+    if s.throw:
+        raise_for_status(result, s, tol)
+    return result
+
+
+def raise_for_status(result: LyapunovResult, s: Settings, tol: float | None = None) -> None:
+    """:class:`LyapunovError` for a concrete result whose status is not 0, or whose spread
+    exceeds ``tol``."""
+    code = int(result.status)
+    if code == 1:
+        why = status_message(int(result.run_status), max_steps=s.max_steps)
+        raise LyapunovError(f"jaxclear: lyapunov: {STATUS[1]}: {why}")
+    if code != 0:
+        raise LyapunovError(f"jaxclear: lyapunov: {STATUS[code]} (interval {float(result.interval):g} s)")
+    if tol is not None:
+        spread = float(jnp.max(result.spread))
+        if not spread <= tol:
+            raise LyapunovError(
+                f"jaxclear: lyapunov: the estimate did not converge to tol = {tol:g} 1/s: its running estimate still "
+                f"moves by {spread:.3g} 1/s over the last half of {result.running.shape[0]} intervals "
+                f"(exponents {np.array2string(np.asarray(result.exponents), precision=4)}); run longer (t_end)")
+
+
+def trajectory(mech: Mechanism, s: Settings, result: LyapunovResult) -> Solution:
+    """The run of a :func:`lyapunov` result (``keep=True``) as a :class:`~jaxclear.Solution` on
+    its output grid (``samples`` per interval after the transient): accelerations, reactions and
+    contact outputs recomputed from the stored states, so that any named channel
+    (:func:`jaxclear.channel`) applies. Traceable."""
+    packed = result.packed
+    ts = result.ts
+    steps = jnp.asarray(result.num_steps)
+    run = solve.Integration(packed, steps, steps, jnp.zeros_like(steps), diffrax.RESULTS.successful)
+    begin = solve.Start(packed[0], jnp.asarray(True), RESULTS.successful, None)
+    sol, _ = solve.solution(mech, s, ts, packed, run, begin)
+    return eqx.tree_at(lambda x: x.status, sol, jnp.asarray(result.run_status, jnp.int32))
+
+
+# ---- many operating points --------------------------------------------------------------
+
+
+class LyapunovMap(eqx.Module):
+    """:func:`lyapunov_map`'s result, one row per operating point.
+
+    Attributes:
+        values: (B, P) the parameters' values (``names`` order).
+        exponents: (B, count) [1/s]; spread, stderr: (B, count) [1/s] (see
+            :class:`~jaxclear.chaos.LyapunovResult`).
+        status, run_status: (B,) codes (:data:`~jaxclear.chaos.benettin.STATUS`,
+            :class:`~jaxclear.RESULTS`).
+        sections: (B, K, C) the channels at every whole revolution after the transient (a
+            Poincare section per channel; ``K`` = revolutions).
+        running: (B, R, count) running estimates after each counted interval.
+    """
+
+    values: jax.Array
+    exponents: jax.Array
+    spread: jax.Array
+    stderr: jax.Array
+    status: jax.Array
+    run_status: jax.Array
+    sections: jax.Array
+    running: jax.Array
+
+
+def _member(mech, s, names, row, revolutions, transient_revolutions, per_revolution, samples, count, channels,
+            discard):
+    m = params.replace_many(mech, {n: row[i] for i, n in enumerate(names)})
+    period = 2.0 * jnp.pi / jnp.abs(crank_driver(m)[1].speed)
+    r = benettin(m, s, None, transient=transient_revolutions * period, interval=period / per_revolution,
+                 windows=revolutions * per_revolution, discard=discard, samples=samples, count=count,
+                 scale=manifold.time_scale(m), keep=bool(channels))
+    # one NaN column without channels (sliced off outside): lax.map's batching cannot reshape an empty output
+    sections = jnp.full((revolutions, 1), jnp.nan, r.running.dtype)
+    if channels:
+        # one sample per revolution: the last sample of every per_revolution-th interval
+        every = per_revolution * samples
+        sub = eqx.tree_at(lambda x: (x.ts, x.packed), r, (r.ts[every - 1::every], r.packed[every - 1::every]))
+        sol = trajectory(m, s, sub)
+        sections = jnp.stack([channel(m, sol, c) for c in channels], axis=-1)
+    return (r.exponents, r.spread, r.stderr, r.status, r.run_status, sections, r.running)
+
+
+@eqx.filter_jit
+def _compiled_map(mech, s, names, values, revolutions, transient_revolutions, per_revolution, samples, count,
+                  channels, discard, batch_size):
+    f = lambda row: _member(mech, s, names, row, revolutions, transient_revolutions, per_revolution,  # noqa: E731
+                            samples, count, channels, discard)
+    return jax.lax.map(f, values, batch_size=batch_size)
+
+
+def lyapunov_map(mech: Mechanism, s: Settings, names: Sequence[str], values, *, revolutions: int,
+                 transient_revolutions: float = 0.0, per_revolution: int = 1, samples: int = 8, count: int = 1,
+                 channels: Sequence[str] = (), discard: int = 0, batch_size: int | None = None) -> LyapunovMap:
+    """The Lyapunov exponents of many operating points: ``mech`` with the parameters ``names``
+    (:mod:`jaxclear.params`) set to each row of ``values`` (B, P), one compiled program batched
+    over the rows (``jax.vmap`` in batches of ``batch_size``, default all at once; 1 runs them
+    one after another, which is faster on CPU, where the lanes of a batch wait for its slowest).
+
+    Every run: ``transient_revolutions`` crank revolutions without tangents, then
+    ``revolutions`` revolutions with ``count`` tangents renormalised ``per_revolution`` times a
+    revolution, ``samples`` output samples per interval; ``channels`` (named channels,
+    :func:`jaxclear.channel`) are sampled once per revolution (a Poincare section each, for a
+    bifurcation diagram). ``s`` gives the tolerances and the solver (its ``t_end`` is not used).
+    Nothing raises for a failed member: its ``status`` says what happened.
+    """
+    names = tuple(str(n) for n in names)
+    values = jnp.atleast_2d(jnp.asarray(values, float))
+    if values.shape[1] != len(names):
+        raise ParameterError(f"values has {values.shape[1]} columns for {len(names)} names {list(names)}")
+    for n in names:
+        params.get(mech, n)  # a named ParameterError for an unknown name
+    if crank_driver(mech) is None:
+        raise ParameterError(f"lyapunov_map runs whole crank revolutions: mechanism {mech.name!r} has no AngleDriver")
+    for key, v, low in (("revolutions", revolutions, 1), ("per_revolution", per_revolution, 1),
+                        ("samples", samples, 1), ("discard", discard, 0)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < low:
+            raise ParameterError(f"{key} = {v!r} is outside the allowed range [{low}, inf)")
+    if revolutions * per_revolution - discard < MIN_INTERVALS:
+        raise ParameterError(f"the runs are too short for a converged estimate: revolutions x per_revolution - discard "
+                             f"= {revolutions * per_revolution - discard} intervals, outside the allowed range "
+                             f"[{MIN_INTERVALS}, inf)")
+    if not transient_revolutions >= 0:
+        raise ParameterError(f"transient_revolutions = {transient_revolutions!r} is outside the allowed range [0, inf)")
+    if batch_size is not None and (isinstance(batch_size, bool) or not isinstance(batch_size, (int, np.integer))
+                                   or batch_size < 1):
+        raise ParameterError(f"batch_size = {batch_size!r} is outside the allowed range [1, inf) "
+                             "(or None: all rows at once)")
+    count = _count(mech, count)
+    channels = tuple(str(c) for c in channels)
+    for c in channels:
+        from ..analysis.channels import unit
+        unit(mech, c)  # a named ParameterError for a channel that does not exist
+    s = dataclasses.replace(s, throw=False)
+    out = _compiled_map(mech, s, names, values, int(revolutions), float(transient_revolutions), int(per_revolution),
+                        int(samples), count, channels, int(discard), batch_size)
+    exponents, spread, stderr, status, run_status, sections, running = out
+    return LyapunovMap(values, exponents, spread, stderr, status, run_status, sections[..., :len(channels)], running)
