@@ -83,6 +83,7 @@ def test_channel_targets_are_checked(tmp_path, capsys):
     assert code != 0 and "'other' is not a fitted column" in capsys.readouterr().err
 
 
+@pytest.mark.slow  # 88 s on 2 cores; the fit of a lubricated joint (a law the fast fit tests do not cover is the only new part)
 def test_viscosity_fit_on_the_lubricated_joint():
     """The lubricated benchmark (short-bearing film, 0.4 Pa s) from a start 2x off in viscosity:
     1 ms of slider acceleration at 200 kHz (20 dB noise, made at rtol 1e-10), one window;
@@ -170,6 +171,7 @@ def _lowpass_reference(t, u, cutoff_hz):
     return y
 
 
+@pytest.mark.slow  # 121 s on 2 cores; multi-channel fits keep their fast unit tests
 def test_two_channels_with_their_own_sensors_and_weights():
     """Two record columns, each mapped to its own channel with its own sensor and weight, in one
     fit of stiffness (start 2x) and restitution (start 0.7): the rocker's angular acceleration

@@ -315,7 +315,7 @@ def test_state_pack_roundtrip():
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
 
 
-@pytest.mark.parametrize("name", ["tsit5", "dopri5", "dopri8", "bosh3"])
+@pytest.mark.parametrize("name", ["tsit5", "dopri5", pytest.param("dopri8", marks=pytest.mark.slow), "bosh3"])  # dopri8: 50 s
 def test_unrolled_stages_equal_diffrax(name):
     """Two consecutive steps (the second uses the first-same-as-last stage) of jaxclear's
     unrolled Runge-Kutta against diffrax's own solver on the clearance slider-crank: the new

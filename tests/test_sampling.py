@@ -104,6 +104,7 @@ def _loss(mech, adjoint, sampling):
     return f
 
 
+@pytest.mark.slow  # 74 s on 2 cores; reverse mode through the loop is no longer the default adjoint
 def test_reverse_mode_equals_diffrax_saving():
     """With fewer samples than a block, "block" takes diffrax's steps, so the reverse-mode
     derivative of a scalar of the samples equals that of "loop" to rounding (1e-9 relative):
