@@ -31,13 +31,19 @@ def execute_notebook(name: str, tmp_path: Path, timeout: int = 900):
     return nb
 
 
-def test_contact_models_notebook_runs(tmp_path):
-    nb = execute_notebook("contact_models.ipynb", tmp_path)
-    errors = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs if o.output_type == "error"]
-    assert not errors
+def run_notebook(name: str, tmp_path: Path, timeout: int = 900) -> tuple[list, str]:
+    """Execute ``name`` (:func:`execute_notebook`), assert that no cell raised, and return the
+    figures it wrote (sorted file names) and the text its cells printed."""
+    nb = execute_notebook(name, tmp_path, timeout)
+    cells = [c for c in nb.cells if c.cell_type == "code"]
+    assert not [o for c in cells for o in c.outputs if o.output_type == "error"]
     figures = sorted(p.name for p in (tmp_path / "figures").glob("*.png"))
+    return figures, "".join(o.get("text", "") for c in cells for o in c.outputs)
+
+
+def test_contact_models_notebook_runs(tmp_path):
+    figures, text = run_notebook("contact_models.ipynb", tmp_path)
     assert figures == ["effective_restitution.png", "hybrid_vs_ln_orbits.png", "hybrid_vs_ln_signals.png"]
-    text = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.outputs)
     # the single-impact check inside the notebook: simulated e equals the closed form
     lines = [line for line in text.splitlines() if "max |simulated - closed form|" in line]
     assert len(lines) == 8 and all(float(line.split("=")[-1]) < 1e-5 for line in lines)
@@ -55,35 +61,23 @@ def test_joints_notebook_runs(tmp_path):
     """notebooks/joints.ipynb (dry against lubricated benchmark, guide clearance) end to end, one
     crank revolution of each mechanism with JAXCLEAR_QUICK=1 (about 2 minutes on 2 shared cores,
     mostly compilation)."""
-    nb = execute_notebook("joints.ipynb", tmp_path)
-    errors = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs if o.output_type == "error"]
-    assert not errors
-    figures = sorted(p.name for p in (tmp_path / "figures").glob("*.png"))
+    figures, text = run_notebook("joints.ipynb", tmp_path)
     assert figures == ["joints_dry_vs_lubricated.png", "joints_guide_clearance.png"]
-    text = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.outputs)
     assert "lubricated: impacts   0" in text
 
 
 def test_wear_notebook_runs(tmp_path):
     """notebooks/wear.ipynb at small settings (2 updates, 45 elements): runs, writes its two figures."""
-    nb = execute_notebook("wear.ipynb", tmp_path)
-    errors = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs if o.output_type == "error"]
-    assert not errors
-    figures = sorted(p.name for p in (tmp_path / "figures").glob("*.png"))
+    figures, text = run_notebook("wear.ipynb", tmp_path)
     assert figures == ["wear_profile.png", "wear_slider.png"]
-    text = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.outputs)
     assert "largest wear depth" in text and "worn: peak |slider acceleration|" in text
 
 
 def test_design_notebook_runs(tmp_path):
     """notebooks/design.ipynb at small settings (the balanced four-bar, a 21 x 21 landscape, three
     iterations of a half-revolution design through impacts): runs, writes its two figures."""
-    nb = execute_notebook("design.ipynb", tmp_path)
-    errors = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs if o.output_type == "error"]
-    assert not errors
-    figures = sorted(p.name for p in (tmp_path / "figures").glob("*.png"))
+    figures, text = run_notebook("design.ipynb", tmp_path)
     assert figures == ["design_comparison.png", "design_landscape.png"]
-    text = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.outputs)
     assert "status converged" in text and "objective (RMS deviation" in text
 
 
@@ -92,12 +86,8 @@ def test_uncertainty_notebook_runs(tmp_path):
     """notebooks/uncertainty.ipynb at small settings (1.2 ms record, 2 chains x 100 draws; 16 + 13 +
     32 tolerance runs of a quarter revolution): runs, writes its three figures. Slow: the fit, NUTS
     through the simulation and the sweep compile for several minutes on 2 shared cores."""
-    nb = execute_notebook("uncertainty.ipynb", tmp_path, timeout=1800)
-    errors = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs if o.output_type == "error"]
-    assert not errors
-    figures = sorted(p.name for p in (tmp_path / "figures").glob("*.png"))
+    figures, text = run_notebook("uncertainty.ipynb", tmp_path, timeout=1800)
     assert figures == ["uncertainty_pair.png", "uncertainty_predictive.png", "uncertainty_tolerance.png"]
-    text = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.outputs)
     assert "converged (" in text or "NOT CONVERGED" in text
     assert "P(peak > 66000 N)" in text
 
@@ -107,10 +97,6 @@ def test_chaos_notebook_runs(tmp_path):
     """notebooks/chaos.ipynb at small settings (6 speeds, 6 revolutions; about 5 minutes on 2
     shared cores, mostly compiling the tangent program): runs, writes its two figures, prints the
     e-folding times."""
-    nb = execute_notebook("chaos.ipynb", tmp_path)
-    errors = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs if o.output_type == "error"]
-    assert not errors
-    figures = sorted(p.name for p in (tmp_path / "figures").glob("*.png"))
+    figures, text = run_notebook("chaos.ipynb", tmp_path)
     assert figures == ["chaos_bifurcation.png", "chaos_points.png"]
-    text = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.outputs)
     assert "lambda_1 =" in text and "0-1 test K =" in text and ("e-folding time" in text or "no horizon" in text)
