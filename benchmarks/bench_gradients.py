@@ -234,6 +234,15 @@ def _plateau(fd, blocks, scale):
     return truth, spread
 
 
+def _blocks(outputs, x0) -> dict:
+    """The slices of the flattened outputs (:func:`_flat`: sorted keys), traced, not run."""
+    blocks, start = {}, 0
+    for k, v in sorted(jax.eval_shape(outputs, jnp.asarray(x0)).items()):
+        blocks[k] = slice(start, start + v.shape[0])
+        start += v.shape[0]
+    return blocks
+
+
 def run_case(case: Case, mu: float, n: float, repeats: int) -> dict:
     mech = case.build(mu, n)
     x0 = np.array([float(params.get(mech, p)) for p in case.names])
@@ -241,11 +250,7 @@ def run_case(case: Case, mu: float, n: float, repeats: int) -> dict:
     record = _record(case, mech, x0)
     default = jc.settings(case.t_end, n_out=case.n_out)
     outputs = _function(case, mech, record, default)
-    shapes = {k: v.shape[0] for k, v in jax.eval_shape(outputs, jnp.asarray(x0)).items()}
-    blocks, start = {}, 0
-    for k, size in sorted(shapes.items()):
-        blocks[k] = slice(start, start + size)
-        start += size
+    blocks = _blocks(outputs, x0)
     row = dict(case=case.name, friction=mu, exponent=n, parameters=list(case.names))
 
     # truth: central differences of tight runs, with the step sweep
@@ -351,15 +356,10 @@ def summary(path: Path) -> None:
         if not f.exists():
             continue
         raw = dict(np.load(f))
-        sizes = {k: v.shape[0] for k, v in jax.eval_shape(
-            _function(CASES[r["case"]], CASES[r["case"]].build(r["friction"], r["exponent"]), np.zeros(
-                CASES[r["case"]].n_out), jc.settings(CASES[r["case"]].t_end, n_out=CASES[r["case"]].n_out)),
-            jnp.asarray([float(params.get(CASES[r["case"]].build(r["friction"], r["exponent"]), p))
-                         for p in r["parameters"]])).items()}
-        blocks, start = {}, 0
-        for k, size in sorted(sizes.items()):
-            blocks[k] = slice(start, start + size)
-            start += size
+        case = CASES[r["case"]]
+        mech = case.build(r["friction"], r["exponent"])
+        x0 = np.array([float(params.get(mech, p)) for p in r["parameters"]])
+        blocks = _blocks(_function(case, mech, np.zeros(case.n_out), jc.settings(case.t_end, n_out=case.n_out)), x0)
         r["per_parameter"] = per_parameter(raw, r["parameters"], blocks)
         for q in r["per_parameter"]:
             print(f"{r['case']:14s} {r['friction']:4g} {r['exponent']:4g} {q['output']:26s} {q['parameter']:12s} "
