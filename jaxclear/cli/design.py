@@ -10,7 +10,7 @@ from ..designing import METHODS, OBJECTIVES, Ensemble, OperatingPoint, design
 from ..designing.problem import SAMPLES_PER_REVOLUTION
 from ..integrate import Settings
 from .common import add_mechanism_file_option, add_mechanism_options, name_value, number_in
-from .simulate import load
+from .simulate import add_tolerance_options, load
 
 HELP = "optimal design through impacts: minimise an objective over named variables, resumable"
 DESCRIPTION = f"""\
@@ -98,12 +98,7 @@ def configure(p: argparse.ArgumentParser):
                    help="each run's length in crank revolutions [-], > 0 (default: 1)")
     r.add_argument("--samples-per-revolution", type=number_in(int, 8), default=SAMPLES_PER_REVOLUTION, metavar="N",
                    help=f"output samples per revolution [-], >= 8 (default: {SAMPLES_PER_REVOLUTION})")
-    r.add_argument("--rtol", type=number_in(float, 0.0, 1.0, True, True), default=1e-6, metavar="TOL",
-                   help="relative tolerance of the adaptive step [-], in (0, 1) (default: 1e-6)")
-    r.add_argument("--atol", type=number_in(float, 0.0, low_open=True), default=1e-9, metavar="TOL",
-                   help="absolute tolerance of the adaptive step, > 0 (default: 1e-9)")
-    r.add_argument("--max-steps", type=number_in(int, 1), default=400_000, metavar="N",
-                   help="maximum number of solver steps per run [-], >= 1 (default: 400000)")
+    add_tolerance_options(r)
     o = p.add_argument_group("output")
     o.add_argument("--out", default="./jaxclear-design", metavar="DIR",
                    help="output folder, created if missing, locked while running (default: ./jaxclear-design)")

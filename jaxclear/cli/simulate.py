@@ -67,13 +67,18 @@ def add_integration_options(p: argparse.ArgumentParser):
                       f"{3 * runs.SAMPLES_PER_REVOLUTION + 1} for 3 revolutions)")
     run_.add_argument("--solver", default="tsit5", metavar="NAME",
                       help=f"explicit/implicit Runge-Kutta solver, one of {', '.join(SOLVERS)} (default: tsit5)")
-    run_.add_argument("--rtol", type=number_in(float, 0.0, 1.0, True, True), default=1e-6, metavar="TOL",
-                      help="relative tolerance of the adaptive step [-], in (0, 1) (default: 1e-6)")
-    run_.add_argument("--atol", type=number_in(float, 0.0, low_open=True), default=1e-9, metavar="TOL",
-                      help="absolute tolerance of the adaptive step [m, rad, m/s, rad/s], > 0 (default: 1e-9)")
-    run_.add_argument("--max-steps", type=number_in(int, 1), default=400_000, metavar="N",
-                      help="maximum number of solver steps [-], >= 1 (default: 400000)")
+    add_tolerance_options(run_)
     add_free_dof_option(run_)
+
+
+def add_tolerance_options(group):
+    """``--rtol``, ``--atol`` and ``--max-steps`` of every run (simulate, animate, chaos, wear, design)."""
+    group.add_argument("--rtol", type=number_in(float, 0.0, 1.0, True, True), default=1e-6, metavar="TOL",
+                       help="relative tolerance of the adaptive step [-], in (0, 1) (default: 1e-6)")
+    group.add_argument("--atol", type=number_in(float, 0.0, low_open=True), default=1e-9, metavar="TOL",
+                       help="absolute tolerance of the adaptive step [m, rad, m/s, rad/s], > 0 (default: 1e-9)")
+    group.add_argument("--max-steps", type=number_in(int, 1), default=400_000, metavar="N",
+                       help="maximum number of solver steps per run [-], >= 1 (default: 400000)")
 
 
 def add_free_dof_option(group):
