@@ -36,7 +36,7 @@ class ChainState(NamedTuple):
 
 def _over_chains(f, *args):
     """``f`` mapped over the leading (chain) axis: one after another on CPU, else side by side."""
-    if lanes_one_by_one(jax.default_backend()):
+    if lanes_one_by_one():
         return jax.lax.map(lambda a: f(*a), args)
     return jax.vmap(f)(*args)
 
