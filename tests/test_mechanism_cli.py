@@ -120,15 +120,20 @@ def test_sweep_config_names_a_file_with_each_new_element(tmp_path, kind):
 @pytest.mark.slow
 def test_sweep_over_a_guide_clearance_file(tmp_path):
     """`jaxclear sweep` with [mechanism] file = the guide-clearance slider-crank: two restitutions,
-    0.05 revolutions (3 ms), both runs ok in runs.csv."""
+    0.05 revolutions (3 ms), both runs ok in runs.csv, with one corner's force as a channel
+    (``--channel``: its largest value >= its mean >= 0, a compressive contact force)."""
     (tmp_path / "m.toml").write_text(_element_file(tmp_path, "slider-crank-guide-clearance").read_text())
     (tmp_path / "sweep.toml").write_text(
         '[mechanism]\nfile = "m.toml"\n[grid]\nrestitution = [0.5, 0.9]\n'
         "[run]\nrevolutions = 0.05\nsamples_per_revolution = 100\nideal_reference = false\n[output]\nchunk_size = 2\n")
     out = tmp_path / "out"
-    assert main(["sweep", str(tmp_path / "sweep.toml"), "--out", str(out), "--no-plots"]) == 0
+    assert main(["sweep", str(tmp_path / "sweep.toml"), "--out", str(out), "--no-plots",
+                 "--channel", "joint:0:rear_lower_normal_force"]) == 0
     rows = (out / "runs.csv").read_text().strip().splitlines()
     assert len(rows) == 1 + 2
     header = rows[0].split(",")
     status = [r.split(",")[header.index("status")] for r in rows[1:]]
     assert status == ["0", "0"], rows
+    for r in rows[1:]:
+        col = lambda s: float(r.split(",")[header.index(f"{s}__joint_0_rear_lower_normal_force")])  # noqa: E731
+        assert col("max") >= col("mean") >= col("min") >= 0.0

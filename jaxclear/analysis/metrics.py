@@ -21,6 +21,7 @@ from .._numbers import as_typed
 from ..integrate import Solution
 from ..integrate.compile import jit
 from ..model import Mechanism, crank_driver
+from .channels import channel
 
 #: Keys of :func:`summary`, in output order, with their units (``-`` for dimensionless).
 SUMMARY_KEYS: dict[str, str] = {
@@ -127,6 +128,27 @@ def joint_metrics(mech: Mechanism, sol: Solution, start: int = 0) -> dict:
         "impacts": mem.impacts[-1] - mem.impacts[start],
         "energy_dissipated_j": -(mem.work[-1] - mem.work[start]),
     }
+
+
+#: Statistics of a named output channel over the metrics window, in column order: smallest,
+#: largest, mean and root mean square of the window's samples (:func:`channel_metrics`).
+_CHANNEL_STATS = {"min": jnp.min, "max": jnp.max, "mean": jnp.mean,
+                  "rms": lambda x: jnp.sqrt(jnp.mean(jnp.square(x.astype(float))))}
+CHANNEL_STATS = tuple(_CHANNEL_STATS)
+
+
+def channel_metrics(mech: Mechanism, sol: Solution, names, start: int = 0) -> dict:
+    """:data:`CHANNEL_STATS` of each named output channel (:mod:`jaxclear.analysis.channels`,
+    e.g. ``joint:0:min_film_thickness``, ``joint:0:rear_lower_normal_force``) over the window's
+    samples ``sol.ts[start:]`` (``start`` static): ``{(name, stat): scalar}``, traceable (sweeps
+    vmap it over runs), in the channel's unit. Statistics of the samples only: a peak between two
+    samples is not seen (unlike ``peak_contact_force_n``, which reads the solver steps' running
+    peak); the mean and RMS weight the samples equally (a uniform output grid: time averages)."""
+    out = {}
+    for name in names:
+        x = channel(mech, sol, name)[start:]
+        out.update({(name, stat): f(x) for stat, f in _CHANNEL_STATS.items()})
+    return out
 
 
 def _mode_fractions(sol: Solution, start: int = 0) -> dict:

@@ -10,6 +10,7 @@ import jax
 from .._errors import ParameterError
 from .._xla_flags import request_host_devices
 from .common import number_in
+from ..sweep.labels import channel_column
 from ..sweep import (CSV_NAME, MANIFEST_NAME, NETCDF_NAME, bifurcation, heatmap, load_config, make_mesh, poincare_plot,
                      run_sweep)
 
@@ -19,7 +20,8 @@ Run a parameter sweep described by a TOML file (see examples/sweep.toml): a grid
 over any numeric parameters, split over all local devices (on CPU one device per core unless
 XLA_FLAGS sets --xla_force_host_platform_device_count), compiled once, written chunk by chunk
 to the output folder:
-  runs.csv                one row per run: index, parameters, metrics, status, status message
+  runs.csv                one row per run: index, parameters, metrics, statistics of the
+                          --channel channels (min__KEY, max__KEY, mean__KEY, rms__KEY), status
   manifest.json           the sweep's definition and hash (a re-run resumes the same sweep)
   chunks/chunk_NNNNNN.npz Poincare points (and time series with --trajectories)
   results.nc              everything as a labelled dataset (NetCDF; xarray.open_dataset reads it)
@@ -43,6 +45,10 @@ def configure(p: argparse.ArgumentParser):
                    help="number of local devices to use, >= 1 and at most the devices available (default: all)")
     p.add_argument("--trajectories", action="store_true", default=None,
                    help="also store the time series in the chunk files (default: the file's, else off)")
+    p.add_argument("--channel", action="append", metavar="NAME",
+                   help="a named output channel to summarize per run (min, max, mean, rms over the metrics "
+                   "window; with --trajectories also its time series), e.g. joint:0:min_film_thickness, "
+                   "joint:0:rear_lower_normal_force; repeatable; replaces the file's output.channels")
     p.add_argument("--restart", action="store_true", help="discard results already in the folder instead of resuming")
     p.add_argument("--no-plots", action="store_true", help="write CSV/NPZ/JSON only, no PNG (default: off)")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar (default: shown)")
@@ -60,7 +66,8 @@ def run(args) -> int:
         raise ParameterError(f"--devices = {args.devices} is outside the allowed range [1, {available}] "
                              f"(devices available: {available})")
     cfg = load_config(args.config, out=args.out, chunk_size=args.chunk_size, devices=args.devices,
-                      trajectories=args.trajectories, progress=False if args.no_progress else None)
+                      trajectories=args.trajectories, progress=False if args.no_progress else None,
+                      channels=args.channel)
     mode = "grid" if cfg.grid is not None else "list"
     mesh = make_mesh(cfg.devices)  # the devices the sweep runs on
     print(f"jaxclear sweep: {cfg.n_runs} runs ({mode} over {', '.join(cfg.names)}), {cfg.revolutions:g} revolutions "
@@ -85,7 +92,8 @@ def _plots(cfg, res, grid: bool) -> list[str]:
     sections of a sweep, in its output folder; returns the paths written."""
     files = []
     if grid and len(cfg.names) == 2:
-        for metric in PLOT_METRICS:
+        channels = tuple(channel_column(c, stat) for c in cfg.channel_units for stat in ("min", "max"))
+        for metric in PLOT_METRICS + channels:
             if metric in res.table:
                 files.append(os.path.join(cfg.out, f"heatmap_{metric}.png"))
                 heatmap(res, metric, x=cfg.names[0], y=cfg.names[1], path=files[-1])

@@ -9,8 +9,9 @@ one after another (``jax.lax.map``, on CPU: :func:`one_by_one`), the other phase
    :math:`t_{end} = N_{rev}\, 2\pi / |\omega|` with ``n_out`` output samples;
 2. :func:`_ideal_run` (``ideal_reference``): the ideal-joint mechanism at the same speed on the
    same time grid, for the slider-acceleration deviation;
-3. :func:`_finish`: the per-run metrics (:func:`jaxclear.analysis.metrics.run_metrics`), the Poincare
-   section and, optionally, the time series.
+3. :func:`_finish`: the per-run metrics (:func:`jaxclear.analysis.metrics.run_metrics`), the
+   statistics of the named channels (:func:`jaxclear.analysis.metrics.channel_metrics`), the
+   Poincare section and, optionally, the time series.
 
 The phases run in whatever order XLA schedules them: nothing in the compiled chunk calls LAPACK
 (``tests/test_sweep.py::test_compiled_chunk_has_no_lapack_call`` checks the compiled HLO), so
@@ -32,8 +33,10 @@ from .. import params
 from .._xla_flags import loop_kernels_active
 from ..elements import journal_state
 from ..model import Mechanism, crank_driver
-from ..analysis.metrics import run_metrics
+from ..analysis.channels import channel
+from ..analysis.metrics import channel_metrics, run_metrics
 from ..integrate import Settings, jit, simulate
+from .labels import channel_column, channel_key
 from .plan import Plan
 
 #: Metrics that stay defined for a failed run (counts and status); the others become NaN.
@@ -100,8 +103,9 @@ def _poincare(plan: Plan, m: Mechanism, sol):
     return jax.vmap(lambda q, qd: journal_state(m, q, qd).reshape(k, 4))(sol.q[idx], sol.qdot[idx])
 
 
-def _trajectories(m: Mechanism, sol, ideal_acc) -> dict:
-    """The stored time series of one run (``trajectories = true``), keys ``traj_*``."""
+def _trajectories(plan: Plan, m: Mechanism, sol, ideal_acc) -> dict:
+    """The stored time series of one run (``trajectories = true``), keys ``traj_*`` (a named
+    channel's: ``traj_KEY``, :func:`~jaxclear.sweep.labels.channel_key`)."""
     out = {"traj_ts": sol.ts, "traj_ecc": sol.ecc, "traj_normal_force": sol.normal_force,
            "traj_penetration": sol.penetration, "traj_mode": sol.mode}
     slider = m.role("slider")
@@ -109,6 +113,7 @@ def _trajectories(m: Mechanism, sol, ideal_acc) -> dict:
         out["traj_slider_acc"] = sol.coordinate(m, slider, "x", derivative=2)
         if ideal_acc is not None:
             out["traj_ideal_slider_acc"] = ideal_acc
+    out.update({f"traj_{channel_key(name)}": channel(m, sol, name) for name in plan.channels})
     return out
 
 
@@ -125,12 +130,14 @@ def _finish(plan: Plan, mech: Mechanism, row, sol, ideal_acc, ideal_status):
             if ideal_status is not None and key in _DEVIATION_KEYS:
                 value = jnp.where(ideal_status != 0, jnp.nan, value)
         out[key] = value
+    for (name, stat), value in channel_metrics(m, sol, plan.channels, plan.start).items():
+        out[channel_column(name, stat)] = jnp.where(failed, jnp.nan, value.astype(sol.ts.dtype))
     if ideal_status is not None:
         out["ideal_status"] = ideal_status
     out["t_end_s"] = sol.ts[-1]
     out["poincare"] = _poincare(plan, m, sol)
     if plan.trajectories:
-        out.update(_trajectories(m, sol, ideal_acc))
+        out.update(_trajectories(plan, m, sol, ideal_acc))
     return out
 
 

@@ -28,6 +28,8 @@ from ..mechanism_files import load_mechanism
 from ..presets import PRESETS, preset
 from ..integrate import SOLVERS, Settings
 from ..integrate.settings import MAX_OUT_SAMPLES
+from ..analysis.channels import unit as channel_unit
+from .labels import channel_key
 from .values import MAX_RUNS, _canonical, _number, _values
 
 #: Allowed keys of a sweep configuration file, per table (see :func:`load_config`).
@@ -37,11 +39,11 @@ CONFIG_KEYS = {
     "list": "parameters swept together (zipped, equal lengths): NAME = [values]",
     "run": "revolutions, transient_revolutions, samples_per_revolution, solver, rtol, atol, max_steps, "
            "ideal_reference",
-    "output": "dir, chunk_size, trajectories, progress, devices",
+    "output": "dir, chunk_size, trajectories, progress, devices, channels",
 }
 RUN_KEYS = ("revolutions", "transient_revolutions", "samples_per_revolution", "solver", "rtol", "atol",
             "max_steps", "ideal_reference")
-OUTPUT_KEYS = ("dir", "chunk_size", "trajectories", "progress", "devices")
+OUTPUT_KEYS = ("dir", "chunk_size", "trajectories", "progress", "devices", "channels")
 
 #: Largest runs x output samples of a sweep that stores its time series (``trajectories``):
 #: about 100 bytes per sample of a one-joint mechanism on disk and in ``SweepResult``, ~5 GB.
@@ -70,6 +72,12 @@ class SweepConfig:
         out: output folder; chunk_size: runs per chunk (``"auto"`` or an integer, rounded up to a
             multiple of the number of devices); trajectories: also store the time series;
         progress: tqdm bar over the chunks; devices: number of devices to use (``None``: all).
+        channels: named output channels (:mod:`jaxclear.analysis.channels`, e.g.
+            ``joint:0:min_film_thickness``, ``joint:0:film_force``, ``joint:0:rear_lower_normal_force``,
+            ``joint:0:feature``, ``point:rod:P:acc:norm``) summarized per run over the metrics window:
+            columns ``min__KEY``, ``max__KEY``, ``mean__KEY``, ``rms__KEY``
+            (:func:`jaxclear.sweep.labels.channel_column`; units in the dataset's attributes) and,
+            with ``trajectories``, the time series ``traj_KEY``.
     """
 
     grid: dict | None = None
@@ -91,6 +99,7 @@ class SweepConfig:
     trajectories: bool = False
     progress: bool = True
     devices: int | None = None
+    channels: tuple | list = ()
     source: str = "<python>"
 
     def __post_init__(self):
@@ -109,6 +118,7 @@ class SweepConfig:
         if self._ideal is not None and self._mech.role("slider") is None:
             self._ideal = None  # the deviation metrics are defined for a slider only
         self._check_parameters(table)
+        self._check_channels()
         self._check_run()
         self._check_output()
 
@@ -190,6 +200,27 @@ class SweepConfig:
                 raise ParameterError(f"{src}: the crank speed is 0: crank revolutions are undefined")
         self._ideal_names = tuple(n for n in names if self._ideal is not None and _applies(self._ideal, n))
 
+    def _check_channels(self):
+        """Every channel name is a string the mechanism answers (its unit), no two share a column."""
+        src, names = self.source, self.channels
+        if isinstance(names, str) or not isinstance(names, (list, tuple)):
+            raise ParameterError(f"{src}: output.channels = {names!r}: expected a list of channel names such as "
+                                 "['joint:0:min_film_thickness'] (CLI: --channel NAME)")
+        units, keys = {}, {}
+        for name in names:
+            if not isinstance(name, str) or not name.strip():
+                raise ParameterError(f"{src}: output.channels: {name!r} is not a channel name")
+            try:
+                units[name] = channel_unit(self._mech, name)
+            except JaxclearError as err:
+                raise ParameterError(f"{src}: output.channels: {err}") from None
+            key = channel_key(name)
+            if key in keys:
+                raise ParameterError(f"{src}: output.channels {keys[key]!r} and {name!r} share the column name "
+                                     f"{key!r}; keep one")
+            keys[key] = name
+        self._channel_units = units
+
     def _check_run(self):
         """Revolutions, samples and integration settings."""
         src = self.source
@@ -270,6 +301,11 @@ class SweepConfig:
         return dict(self._axes)
 
     @property
+    def channel_units(self) -> dict[str, str]:
+        """The summarized output channels, name -> unit."""
+        return dict(self._channel_units)
+
+    @property
     def n_runs(self) -> int:
         return int(self._values.shape[0])
 
@@ -306,7 +342,9 @@ class SweepConfig:
         else:
             mech = {"mechanism": self._mech.name, "leaves_sha256": _tree_hash(self._mech),
                     "ideal_leaves_sha256": None if self._ideal is None else _tree_hash(self._ideal)}
+        extra = {"channels": list(self._channel_units)} if self._channel_units else {}  # old hashes unchanged
         return {
+            **extra,
             "mechanism": mech,
             "mode": "grid" if self.grid is not None else "list",
             "parameters": {n: [float(v) for v in a] for n, a in self._axes.items()},

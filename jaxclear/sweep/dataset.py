@@ -10,7 +10,9 @@ Layout of the dataset (CF-style attributes ``units`` and ``long_name`` on every 
   the integer ones (``run``, ``status``, step counts) and ``""`` in ``status_message``;
 * list sweep: the dimension ``run`` (the run index), the parameters as coordinates along it;
 * variables: every column of ``runs.csv`` that is not a parameter (``t_end_s``, the metrics of
-  :data:`jaxclear.analysis.metrics.RUN_METRIC_KEYS`, ``status``, ``status_message``, ``run``)
+  :data:`jaxclear.analysis.metrics.RUN_METRIC_KEYS`, the named channels' statistics
+  ``STAT__KEY`` with the channel's unit and ``long_name`` "STAT of CHANNEL", ``status``,
+  ``status_message``, ``run``)
   and ``poincare`` with the extra dimensions ``section``, ``joint`` and ``coordinate``
   (:data:`~jaxclear.sweep.store.POINCARE_COORDS`);
 * dataset attributes: the sweep's mode (``sweep_mode``: a global attribute ``mode`` would
@@ -33,8 +35,9 @@ from .store import NETCDF_NAME, POINCARE_COORDS
 _POINCARE_UNITS = ("m", "m", "m s-1", "m s-1")
 
 
-def _attrs(name: str) -> dict:
-    return {"units": column_unit(name), "long_name": long_name(name)}
+def _attrs(name: str, channels: dict | None = None) -> dict:
+    """CF attributes of a column (``channels``: the manifest's ``channel_columns``)."""
+    return {"units": column_unit(name, channels), "long_name": long_name(name, channels)}
 
 
 def _grid_index(table: dict, names, axes: dict) -> tuple:
@@ -69,6 +72,7 @@ def to_dataset(table: dict, names, axes: dict, mode: str, poincare: np.ndarray, 
     :class:`~jaxclear.sweep.SweepResult`."""
     names = list(names)
     columns = [c for c in table if c not in names]
+    chan = manifest.get("channel_columns", {})
     points = np.asarray(poincare)
     has_points = points.ndim == 4 and points.shape[0] == len(table.get("run", ()))
     if mode == "grid":
@@ -76,7 +80,7 @@ def to_dataset(table: dict, names, axes: dict, mode: str, poincare: np.ndarray, 
         shape = tuple(len(axes[n]) for n in names)
         idx = _grid_index(table, names, axes)
         coords = {n: (n, np.asarray(axes[n], dtype=float), _attrs(n)) for n in names}
-        data = {c: (dims, _filled(shape, table[c], idx), _attrs(c)) for c in columns}
+        data = {c: (dims, _filled(shape, table[c], idx), _attrs(c, chan)) for c in columns}
         if "status_message" in data:
             data["status_message"] = (dims, data["status_message"][1].astype(str), _attrs("status_message"))
         if has_points:
@@ -87,7 +91,7 @@ def to_dataset(table: dict, names, axes: dict, mode: str, poincare: np.ndarray, 
         dims = ["run"]
         coords = {"run": ("run", table["run"], _attrs("run"))}
         coords.update({n: ("run", table[n], _attrs(n)) for n in names})
-        data = {c: (dims, np.asarray(table[c]).astype(str) if c == "status_message" else table[c], _attrs(c))
+        data = {c: (dims, np.asarray(table[c]).astype(str) if c == "status_message" else table[c], _attrs(c, chan))
                 for c in columns if c != "run"}
     if has_points:
         data["poincare"] = (dims + ["section", "joint", "coordinate"], points,
@@ -97,10 +101,11 @@ def to_dataset(table: dict, names, axes: dict, mode: str, poincare: np.ndarray, 
     return xr.Dataset(data, coords=coords, attrs=_manifest_attrs(manifest))
 
 
-def to_dataframe(table: dict, names) -> pd.DataFrame:
-    """One row per run, indexed by the run index; ``df.attrs["units"]``: column -> unit."""
+def to_dataframe(table: dict, names, channels: dict | None = None) -> pd.DataFrame:
+    """One row per run, indexed by the run index; ``df.attrs["units"]``: column -> unit
+    (``channels``: the manifest's ``channel_columns``)."""
     df = pd.DataFrame({c: v for c, v in table.items() if c != "run"}, index=pd.Index(table["run"], name="run"))
-    df.attrs["units"] = {c: column_unit(c) for c in df.columns}
+    df.attrs["units"] = {c: column_unit(c, channels) for c in df.columns}
     df.attrs["parameters"] = list(names)
     return df
 

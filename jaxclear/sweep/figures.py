@@ -32,10 +32,11 @@ def axis_label(name: str) -> tuple[str, float]:
     return _label(name, column_unit(name), _SHORT.get(name.split("@")[0], long_name(name)))
 
 
-def metric_label(metric: str) -> str:
-    """``peak_contact_force_n`` -> ``peak contact force [N]`` (the dataset's units)."""
-    unit = column_unit(metric)
-    return f"{long_name(metric)} [{'-' if unit in ('', '1') else unit}]"
+def metric_label(metric: str, channels: dict | None = None) -> str:
+    """``peak_contact_force_n`` -> ``peak contact force [N]`` (the dataset's units; ``channels``:
+    the manifest's ``channel_columns``, for a named channel's statistic)."""
+    unit = column_unit(metric, channels)
+    return f"{long_name(metric, channels)} [{'-' if unit in ('', '1') else unit}]"
 
 
 def _fixed(res: SweepResult) -> str:
@@ -67,11 +68,12 @@ def heatmap(res: SweepResult, metric: str, x: str, y: str, path=None, log: bool 
     da = da.transpose(y, x)
     (xl, xs), (yl, ys) = axis_label(x), axis_label(y)
     fixed = _fixed(res)
-    title = f"{metric_label(metric)} over {x} x {y}" + (f"\n{fixed}" if fixed else "")
+    label = metric_label(metric, res.manifest.get("channel_columns"))
+    title = f"{label} over {x} x {y}" + (f"\n{fixed}" if fixed else "")
     if sel:
         title += "; " + ", ".join(f"{k} = {v:g}" for k, v in sel.items())
     return plot_heatmap(path, da[x].values * xs, da[y].values * ys, da.values, xlabel=xl, ylabel=yl,
-                        zlabel=metric_label(metric), log=log, title=title)
+                        zlabel=label, log=log, title=title)
 
 
 def bifurcation(res: SweepResult, parameter: str, coordinate: str = "e_x", joint: int = 0, path=None):

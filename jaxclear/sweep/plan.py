@@ -23,6 +23,8 @@ class Plan:
         trajectories: also return the time series.
         mesh: the 1-D ``jax.sharding.Mesh`` (axis ``"batch"``) the chunk is sharded over
             (``None`` for an unbatched call of the per-run function).
+        channels: named output channels summarized per run (and stored as time series with
+            ``trajectories``).
         side_by_side: whether a device integrates its runs side by side (``jax.vmap``, True)
             or one after another (``jax.lax.map``, False); ``None`` (default): chosen for the
             device (:func:`jaxclear.sweep.batch.one_by_one`).
@@ -41,6 +43,7 @@ class Plan:
     trajectories: bool
     mesh: Any
     side_by_side: bool | None = None
+    channels: tuple[str, ...] = ()
 
 
 def make_plan(cfg, mesh, trajectories: bool | None = None, ideal: bool = True) -> Plan:
@@ -51,4 +54,5 @@ def make_plan(cfg, mesh, trajectories: bool | None = None, ideal: bool = True) -
         n_out=cfg.n_out, start=cfg.window_start, section=cfg.section, solver=cfg.solver, rtol=float(cfg.rtol),
         atol=float(cfg.atol), max_steps=int(cfg.max_steps),
         trajectories=bool(cfg.trajectories if trajectories is None else trajectories), mesh=mesh,
+        channels=tuple(cfg.channel_units),
     )

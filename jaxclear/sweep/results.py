@@ -71,7 +71,7 @@ class SweepResult:
     def to_dataframe(self):
         """The results as a :class:`pandas.DataFrame`: one row per run (index ``run``), the
         parameters and metrics as columns, ``df.attrs["units"]`` their units."""
-        return _dataset().to_dataframe(self.table, self.names)
+        return _dataset().to_dataframe(self.table, self.names, self.manifest.get("channel_columns"))
 
     def trajectories(self) -> dict:
         """The stored time series (``trajectories = true``): key -> (n_runs, ...) arrays."""

@@ -26,6 +26,7 @@ from .._errors import CheckpointError, ParameterError
 from ..analysis.metrics import RUN_METRIC_KEYS
 from .._errors import STATUS
 from .config import SweepConfig
+from .labels import channel_columns
 
 CSV_NAME = "runs.csv"
 MANIFEST_NAME = "manifest.json"
@@ -47,7 +48,7 @@ _INT_COLUMNS = ("run", "impacts", "num_steps", "num_accepted_steps", "num_reject
 
 def csv_columns(cfg: SweepConfig) -> list[str]:
     """Header of ``runs.csv``: run index, parameters, metrics, statuses and the status message."""
-    keys = _metric_keys(cfg)
+    keys = _metric_keys(cfg) + list(channel_columns(cfg.channel_units))
     cols = ["run", *cfg.names, "t_end_s"] + [k for k in keys if k != "status"]
     if cfg.ideal is not None:
         cols.append("ideal_status")
@@ -230,6 +231,7 @@ def manifest(cfg: SweepConfig, layout: dict) -> dict:
         "poincare_coords": list(POINCARE_COORDS),
         "base_clearance_m": [float(c.clearance) for c in cfg.base_mechanism.clearance_joints],
         "section_samples": list(cfg.section),
+        "channel_columns": channel_columns(cfg.channel_units),
     }
 
 
