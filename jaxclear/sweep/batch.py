@@ -35,6 +35,7 @@ from ..elements import journal_state
 from ..model import Mechanism, crank_driver
 from ..analysis.channels import channel
 from ..analysis.metrics import channel_metrics, run_metrics
+from ..analysis.sections import at_samples
 from ..integrate import Settings, jit, simulate
 from .labels import channel_column, channel_key
 from .plan import Plan
@@ -99,8 +100,8 @@ def _poincare(plan: Plan, m: Mechanism, sol):
     k = len(m.clearance_joints)
     if not (k and len(plan.section)):
         return jnp.zeros((len(plan.section), k, 4), sol.ts.dtype)
-    idx = jnp.asarray(plan.section, dtype=jnp.int32)
-    return jax.vmap(lambda q, qd: journal_state(m, q, qd).reshape(k, 4))(sol.q[idx], sol.qdot[idx])
+    sub = at_samples(sol, jnp.asarray(plan.section, dtype=jnp.int32))
+    return jax.vmap(lambda q, qd: journal_state(m, q, qd).reshape(k, 4))(sub.q, sub.qdot)
 
 
 def _trajectories(plan: Plan, m: Mechanism, sol, ideal_acc) -> dict:

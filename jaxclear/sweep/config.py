@@ -29,6 +29,7 @@ from ..presets import PRESETS, preset
 from ..integrate import SOLVERS, Settings
 from ..integrate.settings import MAX_OUT_SAMPLES
 from ..analysis.channels import unit as channel_unit
+from ..analysis.sections import section_indices
 from .labels import channel_key
 from .values import MAX_RUNS, _canonical, _number, _values
 
@@ -327,8 +328,7 @@ class SweepConfig:
         """Output sample indices of the Poincare section: every whole revolution after the transient."""
         s = self.samples_per_revolution
         first = math.ceil(self.transient_revolutions - 1e-12)
-        last = math.floor(self.revolutions + 1e-12)
-        return tuple(k * s for k in range(first, last + 1) if k * s < self.n_out)
+        return tuple(int(i) for i in section_indices(self.n_out, s, first * s)) if first * s < self.n_out else ()
 
     @property
     def window_start(self) -> int:
