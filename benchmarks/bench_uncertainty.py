@@ -15,9 +15,11 @@
    (Gaussian steps of 2.38 / sqrt(D) in the same Gauss-Newton-whitened coordinates, Roberts, Gelman
    and Gilks 1997) on the same log posterior: stiffness, restitution and the noise level from the
    benchmark record.
+3. Tolerance runs per second (``--tolerance-speed``, ``--tolerance-runs 64``): a tolerance study
+   against the serial loop on the same samples (:func:`tolerance_speed`).
 
 Run from the repository root: ``PYTHONPATH=. python benchmarks/bench_uncertainty.py [--records 30]
-[--free sensor_gain,sensor_bias] [--speed]``. Results: printed tables and
+[--free sensor_gain,sensor_bias] [--speed] [--tolerance-speed]``. Results: printed tables and
 ``benchmarks/results/uncertainty.json``.
 """
 
@@ -152,6 +154,74 @@ def speed(args) -> dict:
     return out
 
 
+def tolerance_speed(args) -> dict:
+    """Runs per second of a tolerance study (``jc.tolerance_study``: each batch a list sweep,
+    chunked, vmapped or mapped per device, written as it goes) against the plain serial loop a
+    user would write (one jitted ``simulate`` of the clearance and of the ideal-joint mechanism per
+    sample, then ``run_metrics``), on the same samples, settings and metrics: the inputs of
+    ``examples/tolerance.toml`` (clearance, two link lengths, three masses), half a crank revolution
+    of the benchmark at 400 samples per revolution, rtol 1e-6. First calls (with compilation) and
+    steady state (a second study into a fresh folder, the program cached) reported separately."""
+    import tempfile
+    import tomllib
+
+    import equinox as eqx
+
+    from jaxclear.analysis.metrics import run_metrics
+    from jaxclear.sweep.config import _applies
+    from jaxclear.tolerance import inputs_from_dict, tolerance_study
+
+    with open("examples/tolerance.toml", "rb") as f:
+        inputs = inputs_from_dict(tomllib.load(f), "examples/tolerance.toml")
+    mech, ideal = jc.preset("flores-slider-crank"), jc.preset("flores-slider-crank", ideal=True)
+    run = dict(revolutions=0.5, samples_per_revolution=400)
+    n = args.tolerance_runs
+    timings, results = {}, []
+    with tempfile.TemporaryDirectory() as d:
+        for tag in ("first", "steady"):
+            t0 = time.perf_counter()
+            results.append(tolerance_study(inputs, mech, n=n, linearise=False, out=os.path.join(d, tag),
+                                           progress=False, **run))
+            timings[tag] = time.perf_counter() - t0
+    res = results[-1]
+    names, x = list(res.names), np.asarray(res.values)
+    settings = jc.Settings(t_end=jnp.asarray(0.5 * jc.crank_period(mech)), n_out=201, throw=False)
+
+    @eqx.filter_jit
+    def one(m, im):
+        sol, isol = jc.simulate(m, settings), jc.simulate(im, settings)
+        return run_metrics(m, sol, isol.coordinate(im, "slider", "x", derivative=2))
+
+    def sample(i):
+        change = dict(zip(names, x[i]))
+        return (params.replace_many(mech, change),
+                params.replace_many(ideal, {k: v for k, v in change.items() if _applies(ideal, k)}))
+
+    loop = {}
+    t0 = time.perf_counter()
+    jax.block_until_ready(one(*sample(0)))
+    loop["first_call_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    out = [jax.tree_util.tree_map(np.asarray, one(*sample(i))) for i in range(len(x))]
+    loop["steady_s"] = time.perf_counter() - t0
+    peak = np.array([o["peak_contact_force_n"] for o in out])
+    diff = float(np.max(np.abs(peak - res.metrics["peak_contact_force_n"]) / np.abs(peak)))
+    table = {"runs": int(len(x)),
+             "study_first_s": timings["first"], "study_steady_s": timings["steady"],
+             "study_runs_per_s": len(x) / timings["steady"],
+             "loop_first_call_s": loop["first_call_s"], "loop_steady_s": loop["steady_s"],
+             "loop_runs_per_s": len(x) / loop["steady_s"],
+             "speedup_steady": loop["steady_s"] / timings["steady"],
+             "peak_force_max_rel_difference": diff, "devices": len(jax.devices())}
+    print(f"\ntolerance study vs serial loop ({len(x)} runs of half a revolution, {len(jax.devices())} device(s)):")
+    print(f"  study: {timings['first']:.1f} s first (with compilation), {timings['steady']:.1f} s steady: "
+          f"{table['study_runs_per_s']:.1f} runs/s")
+    print(f"  loop:  {loop['first_call_s']:.1f} s first call, {loop['steady_s']:.1f} s steady for all runs: "
+          f"{table['loop_runs_per_s']:.1f} runs/s  (study {table['speedup_steady']:.2f}x the loop's rate)")
+    print(f"  peak contact force, study against loop: largest relative difference {diff:.1e}")
+    return table
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--records", type=int, default=30)
@@ -166,6 +236,9 @@ def main():
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--speed", action="store_true")
     p.add_argument("--rw-factor", type=int, default=10, help="random-walk draws per NUTS draw")
+    p.add_argument("--tolerance-speed", action="store_true",
+                   help="runs per second of a tolerance study against the serial loop (issue 31, point 6)")
+    p.add_argument("--tolerance-runs", type=int, default=64)
     p.add_argument("--json", default="benchmarks/results/uncertainty.json")
     args = p.parse_args()
     t0 = time.perf_counter()
@@ -175,6 +248,8 @@ def main():
         res["calibration"] = calibration(args)
     if args.speed:
         res["speed"] = speed(args)
+    if args.tolerance_speed:
+        res["tolerance_speed"] = tolerance_speed(args)
     res["wall_s"] = time.perf_counter() - t0
     os.makedirs(os.path.dirname(args.json), exist_ok=True)
     with open(args.json, "w") as f:
