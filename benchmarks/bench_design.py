@@ -2,12 +2,13 @@
 
 A Varedi-type study (Varedi, Daniali, Dardel and Fathi, Mechanism and Machine Theory 86, 2015:
 particle swarm over the links' mass distribution) on the benchmark slider-crank with its
-clearance joint: vary the rod's mass distribution (``centroid_x:rod``, ``centroid_y:rod``,
-``mass:rod`` within +-50 %) within their ranges and minimise the RMS deviation of the slider acceleration
-from the ideal joint over a run. Side by side, from the same starts:
+clearance joint: vary the links' mass distribution (``centroid_x:rod``, ``centroid_y:rod``, the
+rod's and the crank's masses within +-50 % with their total fixed, see :data:`CASES`) and
+minimise the RMS deviation of the slider acceleration from the ideal joint over a run. Side by
+side, from the same starts:
 
-* **gradient**: ``jc.design`` (L-BFGS-B on the unit cube, gradients from the error-controlled
-  sensitivities through the impacts);
+* **gradient**: ``jc.design`` (L-BFGS-B on the unit cube, SLSQP with the total-mass equality;
+  gradients from the error-controlled sensitivities through the impacts);
 * **CMA-ES**: ``cma`` (Hansen's maintained implementation), bounds on the unit cube, sigma0 0.25;
 * **DE**: ``scipy.optimize.differential_evolution`` (best1bin, no polishing), its population
   seeded with the start.
@@ -19,13 +20,14 @@ counted at its measured cost in simulations (steady-state wall time of a gradien
 that of a value evaluation, both compiled, in the same process). Wall times exclude compilation
 (every program is compiled by a warm-up before the timed runs).
 
-Outputs: a table on stdout, ``--json`` (default benchmarks/results/design.json) and ``--png``
-(default benchmarks/results/design.png: best objective against simulations).
+Outputs: a table on stdout, ``--json`` (default benchmarks/results/design.json, with
+``_four_bar`` for ``--case four-bar`` and ``_ensemble`` for ``--ensemble K``) and ``--png`` (the
+same name: best objective against simulations).
 
-Usage: python benchmarks/bench_design.py [--revolutions 0.25] [--samples 400] [--starts 2]
-[--budget 60] [--json ...] [--png ...]. The defaults are small settings (a quarter revolution,
-~10 minutes on 2 shared cores); the issue's full study (a revolution or an ensemble, masses
-within +-50 % with the total mass fixed, the four-bar too) is larger than that.
+Usage: python benchmarks/bench_design.py [--case slider-crank|four-bar] [--revolutions 0.25]
+[--samples 400] [--starts 2] [--budget 60] [--max-iter 15] [--ensemble 1] [--json ...] [--png ...].
+The defaults are small settings (a quarter revolution); the runs recorded in benchmarks/README.md
+("Optimal design") give their command lines, each under ~10 minutes on 2 shared cores.
 """
 
 from __future__ import annotations
@@ -45,28 +47,61 @@ from matplotlib.figure import Figure
 import jaxclear as jc
 from jaxclear import designing
 
-#: The rod's mass distribution: its centroid along and across its axis, and its mass within +-50 %.
-#: (The crank's is left out: the crank is driven at constant speed, so its mass distribution
-#: changes the driving torque only, not the motion: its derivative is 0 to rounding.)
+#: Each case: the preset, its design variables with their ranges, and the masses held to a fixed
+#: total. The slider-crank (Varedi et al.'s study): the rod's centroid along and across its axis,
+#: the rod's and the crank's masses within +-50 %, the sum of the crank's and the rod's masses fixed
+#: at its nominal 0.51 kg (``TotalMass`` of jaxclear.designing.constraints, an equality for the
+#: gradient method). The crank is driven at constant speed, so its mass distribution changes the
+#: driving torque only, not the motion (its derivative is 0 to rounding): its mass follows the rod's
+#: through the total. The gradient-free methods search the other variables and set the follower
+#: to total - rod (the rod's whole range keeps the crank's within its own: 0.195..0.405 kg).
 CASES = {
     "slider-crank": ("flores-slider-crank", {"centroid_x:rod": (-0.05, 0.05), "centroid_y:rod": (-0.02, 0.02),
-                                             "mass:rod": (0.105, 0.315)}),
+                                             "mass:rod": (0.105, 0.315), "mass:crank": (0.15, 0.45)},
+                     {"bodies": ("crank", "rod"), "follower": "mass:crank", "leader": "mass:rod"}),
     # the four-bar (500 rpm, clearance between coupler and rocker): the rocker's angular acceleration
     "four-bar": ("four-bar", {"centroid_x:coupler": (-0.05, 0.05), "centroid_x:rocker": (-0.05, 0.05),
-                              "mass:rocker": (0.2, 0.6)}),
+                              "mass:rocker": (0.2, 0.6)}, None),
 }
 VARIABLES = CASES["slider-crank"][1]
+
+
+class Space:
+    """The gradient-free methods' coordinates (the unit cube of the variables but the follower)
+    and the full unit coordinates of the design (the follower's mass the total minus the leader's)."""
+
+    def __init__(self, mech, variables, total):
+        self.variables = designing.check_variables(mech, variables)
+        self.total = total
+        names = [v.name for v in self.variables]
+        self.free = [i for i, n in enumerate(names) if total is None or n != total["follower"]]
+        if total is not None:
+            self.follower, self.leader = names.index(total["follower"]), names.index(total["leader"])
+            self.mass = float(sum(mech.body(b).mass for b in total["bodies"]))
+
+    def constraints(self):
+        if self.total is None:
+            return []
+        return [designing.TotalMass(tuple(self.total["bodies"]), self.mass)]
+
+    def full(self, w) -> np.ndarray:
+        u = np.full(len(self.variables), 0.5)
+        u[self.free] = np.clip(np.asarray(w, dtype=float), 0.0, 1.0)
+        if self.total is not None:
+            leader = self.variables[self.leader].from_unit(u[self.leader])
+            u[self.follower] = self.variables[self.follower].to_unit(self.mass - leader)
+        return u
 
 
 class Counter:
     """The objective at unit coordinates, one simulation per call, with its best-so-far trace."""
 
-    def __init__(self, problem):
-        self.problem, self.trace, self.wall = problem, [], 0.0
+    def __init__(self, problem, space):
+        self.problem, self.space, self.trace, self.wall = problem, space, [], 0.0
 
-    def __call__(self, u) -> float:
+    def __call__(self, w) -> float:
         t0 = time.perf_counter()
-        values, _ = designing.evaluate(self.problem, jnp.asarray(np.clip(u, 0.0, 1.0), dtype=float))
+        values, _ = designing.evaluate(self.problem, jnp.asarray(self.space.full(w), dtype=float))
         self.wall += time.perf_counter() - t0
         f = float(values[0])
         f = f if np.isfinite(f) else 1e12
@@ -75,11 +110,11 @@ class Counter:
         return f
 
 
-def run_gradient(mech, kw, u0, problem) -> dict:
-    variables = designing.check_variables(mech, VARIABLES)
-    start = {v.name: v.from_unit(u) for v, u in zip(variables, u0)}
+def run_gradient(mech, kw, u0, problem, space) -> dict:
+    variables = space.variables
+    start = {v.name: float(v.from_unit(u)) for v, u in zip(variables, u0)}
     t0 = time.perf_counter()
-    res = jc.design(mech, VARIABLES, "rms-deviation", start=start, **kw)
+    res = jc.design(mech, VARIABLES, "rms-deviation", space.constraints(), start=start, **kw)
     wall = time.perf_counter() - t0
     cost = res.gradient_cost
     # simulations so far at each iteration: values at 1 each, gradients at their measured cost; the
@@ -93,41 +128,46 @@ def run_gradient(mech, kw, u0, problem) -> dict:
     return {"best": best[-1], "start_objective": res.objective["start"], "optimum_sensitivity_solve":
             res.objective["optimum"], "simulations": float(sims), "wall_s": wall, "gradient_cost": cost,
             "status": res.status, "design": res.design, "trace": [(s, b) for (s, _), b in zip(trace, best)],
-            "evaluations": res.evaluations}
+            "evaluations": res.evaluations, "constraints": res.constraints}
 
 
-def noise(problem, u0, steps=(1e-12, 1e-10, 1e-8, 1e-6)) -> dict:
-    """The objective's relative change when every coordinate moves by ``step`` of its range: a smooth
-    objective changes in proportion to the step, a rugged (numerically chaotic) one by a constant."""
-    f0 = float(designing.evaluate(problem, jnp.asarray(u0, dtype=float))[0][0])
+def noise(problem, space, w0, steps=(1e-12, 1e-10, 1e-8, 1e-6)) -> dict:
+    """The objective's relative change when every free coordinate moves by ``step`` of its range: a
+    smooth objective changes in proportion to the step, a rugged (numerically chaotic) one by a constant."""
+    f0 = float(designing.evaluate(problem, jnp.asarray(space.full(w0), dtype=float))[0][0])
     out = {}
     for h in steps:
-        f = float(designing.evaluate(problem, jnp.asarray(np.asarray(u0) + h, dtype=float))[0][0])
+        f = float(designing.evaluate(problem, jnp.asarray(space.full(np.asarray(w0) + h), dtype=float))[0][0])
         out[repr(h)] = (f - f0) / f0
     return out
 
 
-def run_cma(problem, u0, budget: int, seed: int) -> dict:
+def run_cma(problem, space, w0, budget: int, seed: int) -> dict:
     import cma
 
-    f = Counter(problem)
+    f = Counter(problem, space)
     t0 = time.perf_counter()
-    es = cma.CMAEvolutionStrategy(list(u0), 0.25, {"bounds": [0.0, 1.0], "maxfevals": budget, "seed": seed,
+    es = cma.CMAEvolutionStrategy(list(w0), 0.25, {"bounds": [0.0, 1.0], "maxfevals": budget, "seed": seed,
                                                    "verbose": -9})
     es.optimize(f)
     return {"best": float(es.result.fbest), "simulations": len(f.trace), "wall_s": time.perf_counter() - t0,
-            "trace": f.trace, "design_u": list(map(float, es.result.xbest))}
+            "trace": f.trace, "design": design_of(space, es.result.xbest)}
 
 
-def run_de(problem, u0, budget: int, seed: int) -> dict:
-    f = Counter(problem)
-    p = len(u0)
+def run_de(problem, space, w0, budget: int, seed: int) -> dict:
+    f = Counter(problem, space)
+    p = len(w0)
     popsize = 5  # members = popsize * p; generations from the budget
     t0 = time.perf_counter()
-    res = so.differential_evolution(f, [(0.0, 1.0)] * p, x0=np.asarray(u0), popsize=popsize,
+    res = so.differential_evolution(f, [(0.0, 1.0)] * p, x0=np.asarray(w0), popsize=popsize,
                                     maxiter=max(budget // (popsize * p) - 1, 1), polish=False, seed=seed, tol=0.0)
     return {"best": float(res.fun), "simulations": len(f.trace), "wall_s": time.perf_counter() - t0,
-            "trace": f.trace, "design_u": list(map(float, res.x))}
+            "trace": f.trace, "design": design_of(space, res.x)}
+
+
+def design_of(space, w) -> dict:
+    """The design (values, the follower's included) at the gradient-free coordinates ``w``."""
+    return {v.name: float(v.from_unit(u)) for v, u in zip(space.variables, space.full(w))}
 
 
 def first_within(trace, target: float, rel: float = 0.01):
@@ -148,36 +188,44 @@ def main():
     ap.add_argument("--max-iter", type=int, default=15)
     ap.add_argument("--ensemble", type=int, default=1,
                     help="periodic starts per evaluation, each run --revolutions / ENSEMBLE long (default 1)")
-    ap.add_argument("--json", default="benchmarks/results/design.json")
-    ap.add_argument("--png", default="benchmarks/results/design.png")
+    ap.add_argument("--json", default=None, help="default benchmarks/results/design[_four_bar][_ensemble].json")
+    ap.add_argument("--png", default=None, help="default: the JSON's name with .png")
     args = ap.parse_args()
+    stem = "benchmarks/results/design" + ("_four_bar" if args.case == "four-bar" else "") + (
+        "_ensemble" if args.ensemble > 1 else "")
+    args.json = args.json or stem + ".json"
+    args.png = args.png or (args.json[: -len(".json")] + ".png" if args.json.endswith(".json") else stem + ".png")
     global VARIABLES
-    preset, VARIABLES = CASES[args.case]
+    preset, VARIABLES, total = CASES[args.case]
     mech = jc.preset(preset)
+    space = Space(mech, VARIABLES, total)
     ensemble = designing.Ensemble(starts=args.ensemble)
     run_revolutions = args.revolutions / args.ensemble
     kw = dict(revolutions=run_revolutions, samples_per_revolution=args.samples, max_iter=args.max_iter,
               ensemble=ensemble, check_chaos=False, report_sensitivity=False, plots=False, progress=False)
     rng = np.random.default_rng(0)
-    starts = [np.full(len(VARIABLES), 0.5)] + [rng.uniform(0.1, 0.9, len(VARIABLES)) for _ in range(args.starts - 1)]
-    variables = designing.check_variables(mech, VARIABLES)
+    nfree = len(space.free)
+    # the nominal design (the middle of every range), then seeded starts; the follower from the total
+    starts = [np.full(nfree, 0.5)] + [rng.uniform(0.1, 0.9, nfree) for _ in range(args.starts - 1)]
+    variables = space.variables
     problem = designing.problem.build_problem(mech, variables, designing.objective("rms-deviation"), (),
                                               (designing.OperatingPoint(),), ensemble, run_revolutions,
                                               args.samples, jc.Settings(t_end=1.0))
     t0 = time.perf_counter()
-    warm = jc.design(mech, VARIABLES, "rms-deviation", **dict(kw, max_iter=1))  # compiles value and gradient
+    warm = jc.design(mech, VARIABLES, "rms-deviation", space.constraints(), **dict(kw, max_iter=1))  # compiles
     compile_s = time.perf_counter() - t0
     nominal = warm.objective["start"]
-    rugged = noise(problem, starts[0])
+    rugged = noise(problem, space, starts[0])
     print("relative change of the objective when the design moves by h of each range, at the first start:",
           {h: f"{v:+.2e}" for h, v in rugged.items()}, flush=True)
     rows = []
-    for i, u0 in enumerate(starts):
-        g = run_gradient(mech, kw, u0, problem)
-        c = run_cma(problem, u0, args.budget, seed=i + 1)
-        d = run_de(problem, u0, args.budget, seed=i + 1)
+    for i, w0 in enumerate(starts):
+        u0 = space.full(w0)
+        g = run_gradient(mech, kw, u0, problem, space)
+        c = run_cma(problem, space, w0, args.budget, seed=i + 1)
+        d = run_de(problem, space, w0, args.budget, seed=i + 1)
         target = min(c["best"], d["best"])
-        row = {"start": list(map(float, u0)), "target_gradient_free": target, "gradient": g, "cma": c, "de": d,
+        row = {"start": design_of(space, w0), "target_gradient_free": target, "gradient": g, "cma": c, "de": d,
                "gradient_simulations_to_target": first_within(g["trace"], target),
                "cma_simulations_to_target": first_within(c["trace"], target),
                "de_simulations_to_target": first_within(d["trace"], target)}
@@ -188,6 +236,8 @@ def main():
               f"{d['best']:.6g} in {d['simulations']} ({d['wall_s']:.1f} s); gradient reaches 1 % of the best "
               f"gradient-free at {row['gradient_simulations_to_target']}", flush=True)
     out = {"case": f"{preset}, rms-deviation of the output link's acceleration", "variables": VARIABLES,
+           "total_mass": None if total is None else {"bodies": list(total["bodies"]), "kg": space.mass,
+                                                     "follower": total["follower"], "leader": total["leader"]},
            "revolutions": args.revolutions, "ensemble": args.ensemble, "samples_per_revolution": args.samples, "budget": args.budget,
            "nominal_objective": nominal, "objective_noise": rugged, "compile_s": compile_s, "rows": rows, "machine": platform.platform(),
            "jax_backend": jax.default_backend()}
@@ -196,19 +246,24 @@ def main():
     fig = Figure(figsize=(7.5, 4.5))
     ax = fig.subplots()
     for i, row in enumerate(rows):
-        for key, color, label in (("gradient", "C0", "gradient (L-BFGS-B)"), ("cma", "C1", "CMA-ES"),
+        method = "SLSQP" if space.constraints() else "L-BFGS-B"
+        for key, color, label in (("gradient", "C0", f"gradient ({method})"), ("cma", "C1", "CMA-ES"),
                                   ("de", "C2", "differential evolution")):
             tr = np.asarray(row[key]["trace"], dtype=float)
             ax.plot(tr[:, 0], tr[:, 1], color=color, ls="-" if i == 0 else "--", marker="o" if key == "gradient" else None,
                     ms=3, label=f"{label}, start {i}")
     ax.axhline(nominal, color="gray", lw=0.8, ls=":", label="nominal design")
     ax.set_xlabel("simulations (a gradient at its measured cost)")
-    ax.set_ylabel("best RMS deviation of the output's acceleration")
+    ax.set_ylabel(f"best RMS deviation of the output's acceleration [{warm.objective['unit']}]")
     ax.set_xscale("log")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7)
-    ax.set_title(f"{preset}, {args.revolutions:g} revolution ({args.ensemble} run(s) per evaluation): "
-                 f"{', '.join(VARIABLES)}", fontsize=8)
+    runs = (f"{args.revolutions:g} revolution per evaluation as an ensemble of {args.ensemble} periodic starts of "
+            f"{run_revolutions:g} revolution" if args.ensemble > 1 else f"one run of {args.revolutions:g} revolution "
+            "per evaluation")
+    held = f"; total mass of {' + '.join(total['bodies'])} fixed at {space.mass:g} kg" if total else ""
+    ax.set_title(f"Design of the {preset}: RMS deviation from the ideal joint, best so far\n{runs}\n"
+                 f"{', '.join(VARIABLES)}{held}", fontsize=8)
     fig.tight_layout()
     fig.savefig(args.png, dpi=110)
     print(f"nominal objective {nominal:.6g}; written {args.json}, {args.png}")

@@ -135,7 +135,7 @@ from .fitting import FitChannel, FitResult, fit, levenberg_marquardt, parameter_
 from .fitting import PosteriorResult, posterior  # noqa: E402
 from .tolerance import Inputs, ToleranceResult, inputs_from_dict, tolerance_study  # noqa: E402
 from .wearing import WearHistory, WearOptions, plot_wear, wear  # noqa: E402
-from .designing import DesignResult, Ensemble, OperatingPoint, design  # noqa: E402
+from .designing import DesignResult, Ensemble, OperatingPoint, RuggedObjectiveWarning, design  # noqa: E402
 from . import chaos  # noqa: E402
 from .analysis.sections import detect_period, period_name, section as poincare_section  # noqa: E402
 from .chaos import (  # noqa: E402

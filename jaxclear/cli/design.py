@@ -104,7 +104,8 @@ def configure(p: argparse.ArgumentParser):
                    help="output folder, created if missing, locked while running (default: ./jaxclear-design)")
     o.add_argument("--restart", action="store_true", help="discard a previous design's journal in --out")
     o.add_argument("--no-chaos-check", action="store_true",
-                   help="skip the derivative-horizon check at the start (one sensitivity solve)")
+                   help="skip the chaos checks at the start: the derivative horizon (one sensitivity solve) and "
+                   "the objective's roughness (6 runs per variable at +-1e-10..1e-6 of its range)")
     o.add_argument("--no-sensitivity", action="store_true",
                    help="skip the +-1 %% runs around the optimum (the sensitivity table)")
     o.add_argument("--no-progress", action="store_true", help="hide the progress bar (default: shown)")

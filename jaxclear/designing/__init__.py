@@ -19,6 +19,7 @@ gradients through the simulations (theory: docs/theory/design.md).
   and a before/after figure (:mod:`.report`, :mod:`.figures`, :mod:`.result`).
 """
 
+from .chaos import RuggedObjectiveWarning
 from .constraints import (AbstractDesignConstraint, Assembles, PeakForce, PeakPenetration, TotalMass,
                           UserConstraint, constraint)
 from .driver import design
@@ -33,7 +34,7 @@ from .variables import Variable, check_variables, design_names
 __all__ = [
     "AbstractDesignConstraint", "AbstractObjective", "Assembles", "DesignProblem", "DesignResult", "DissipatedEnergy",
     "Ensemble", "FreeFlightFraction", "JOURNAL_NAME", "METHODS", "OBJECTIVES", "OperatingPoint", "PeakForce",
-    "PeakPenetration", "RmsDeviation", "STATUSES", "SmoothPeakForce", "TotalMass", "UserConstraint", "UserObjective",
+    "PeakPenetration", "RmsDeviation", "RuggedObjectiveWarning", "STATUSES", "SmoothPeakForce", "TotalMass", "UserConstraint", "UserObjective",
     "Variable", "check_variables", "constraint", "design", "design_names", "evaluate", "evaluate_with_jacobian",
     "objective",
 ]

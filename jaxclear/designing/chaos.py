@@ -15,6 +15,17 @@ what works instead (an ensemble of shorter runs, :class:`~jaxclear.designing.Ens
 A second, free sign is the spread between the objective of the plain run and of the sensitivity
 solve (whose steps are sized for the tangents too): both are within the tolerance of the same
 trajectory where the motion is predictable, and differ by far more where it is not.
+
+Neither measure looks at the objective itself, and an objective can be rugged while the state's
+tangents stay moderate (a mean over many impacts, each of which a tiny change moves to another
+branch of the motion: the slider-crank's one-revolution RMS deviation changes by -6 % for any step
+from 1e-12 to 1e-6 of the ranges, benchmarks/bench_design.py). :func:`roughness_report` measures it
+directly: the plain objective at ``u +- h e_i`` for tiny steps ``h`` (:data:`ROUGHNESS_STEPS` of
+each range, 6 P evaluations of the already compiled program), against the gradient's linear
+prediction ``+- g_i h``. A smooth objective follows the prediction to the solver's noise; an
+objective that moves by more than :data:`ROUGHNESS_LIMIT` (relative) beyond it is numerically
+chaotic along that variable: :func:`jaxclear.design` warns with
+:class:`RuggedObjectiveWarning` (a :class:`jaxclear.DerivativeHorizonWarning`).
 """
 
 from __future__ import annotations
@@ -25,9 +36,30 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..derivatives import amplification, derivative_horizon
+from ..derivatives import DerivativeHorizonWarning, amplification, derivative_horizon
 from ..integrate.compile import jit
 from .problem import DesignProblem
+
+#: Steps of the roughness check, fractions of each variable's range: far below any design
+#: tolerance (the gradient's prediction g h is then negligible for a smooth objective), far above
+#: rounding of the unit coordinates (2e-16), and spread over four decades, since a chaotic
+#: objective's jumps do not shrink with the step while a smooth one's changes do.
+ROUGHNESS_STEPS = (1e-10, 1e-8, 1e-6)
+#: Relative change of the objective beyond the gradient's prediction above which it is called
+#: rugged. Measured on the RMS deviation with the variables of benchmarks/bench_design.py (rtol
+#: 1e-6, +- each step of 1e-10..1e-6 of each range): the slider-crank over a quarter revolution
+#: (predictable; 400 samples per revolution, 18 probes at the middle of the ranges) moves by
+#: 6e-6..6.6e-4 (the step-size control's noise, not growing with the step); over a whole
+#: revolution (chaotic; 1000 samples) by 3.3e-3..2.3e-2 at each of 20 probes around the nominal
+#: design and 6e-2..1.4e-1 around the middle of the ranges; the four-bar over a revolution
+#: (chaotic) by 1.2e-2..3.9e-1. 2e-3 lies 3x above the noise and 1.6x below the smallest jump.
+ROUGHNESS_LIMIT = 2e-3
+
+
+class RuggedObjectiveWarning(DerivativeHorizonWarning):
+    """The objective of a design changes by far more than its gradient predicts for a tiny step of
+    a variable (:func:`jaxclear.designing.chaos.roughness_report`): it is numerically chaotic
+    there, and a gradient-based search follows noise."""
 
 
 @jit
@@ -60,4 +92,66 @@ def horizon_report(problem: DesignProblem, u) -> dict:
     return {"run_s": run_s, "amplification": amp, "horizon_s": horizon, "past_horizon": past}
 
 
-__all__ = ["horizon_report"]
+def roughness_report(value, u, f0: float, gradient, names, steps: tuple | None = None,
+                     limit: float | None = None) -> dict:
+    """How far the objective departs from its linear prediction for tiny steps of each variable.
+
+    Args:
+        value: ``value(u) -> float``, the plain objective at unit coordinates.
+        u: the unit coordinates (P,) of the design.
+        f0: ``value(u)``.
+        gradient: the objective's gradient (P,) with respect to ``u``.
+        names: the variables' names (P).
+        steps: the steps as fractions of each range; each coordinate moves by ``+- step`` (only
+            inwards at a bound); None: :data:`ROUGHNESS_STEPS`.
+        limit: relative excess over the prediction above which a variable is reported rugged;
+            None: :data:`ROUGHNESS_LIMIT`.
+
+    Returns:
+        ``{"steps", "limit", "step": {name: the step of the largest excess}, "change": {name:
+        the relative change there}, "predicted": {name: the gradient's relative prediction
+        there}, "excess": {name: |change - predicted|}, "rugged": [names above limit]}`` (a
+        non-finite change counts as rugged).
+    """
+    steps = tuple(ROUGHNESS_STEPS if steps is None else steps)
+    limit = ROUGHNESS_LIMIT if limit is None else limit
+    u = np.asarray(u, dtype=float)
+    g = np.asarray(gradient, dtype=float)
+    scale = abs(f0) if f0 != 0 else 1.0
+    out = {"steps": list(steps), "limit": limit, "step": {}, "change": {}, "predicted": {}, "excess": {},
+           "rugged": []}
+    for i, name in enumerate(names):
+        worst = None
+        for step in steps:
+            for sign in (1.0, -1.0):
+                v = u.copy()
+                v[i] = np.clip(u[i] + sign * step, 0.0, 1.0)
+                h = v[i] - u[i]
+                if h == 0.0:
+                    continue  # at a bound: only the inward step
+                change = (float(value(v)) - f0) / scale
+                predicted = float(g[i]) * h / scale
+                excess = abs(change - predicted) if np.isfinite(change) else float("inf")
+                if worst is None or not excess <= worst[3]:
+                    worst = (sign * step, change, predicted, excess)
+        (out["step"][name], out["change"][name], out["predicted"][name], out["excess"][name]) = worst
+        if not worst[3] <= limit:
+            out["rugged"].append(name)
+    return out
+
+
+def rugged_message(mech_name: str, report: dict) -> str:
+    """The one warning line for a rugged objective: the worst variable, its change, the remedy."""
+    name = max(report["rugged"], key=lambda n: report["excess"][n])
+    others = [n for n in report["rugged"] if n != name]
+    also = f" (also {', '.join(others)})" if others else ""
+    return (f"design of {mech_name!r}: the objective is rugged at the start: a step of {report['step'][name]:+.0e} "
+            f"of the range of {name}{also} changes it by {100 * report['change'][name]:+.3g} % where its gradient "
+            f"predicts {100 * report['predicted'][name]:+.2g} %: it is numerically chaotic there and a gradient "
+            "follows noise; average shorter runs over an ensemble of starts (jaxclear.designing.Ensemble(starts=k), "
+            "--ensemble K with --revolutions R/K), shorten the runs (revolutions), or use a "
+            "gradient-free search")
+
+
+__all__ = ["ROUGHNESS_LIMIT", "ROUGHNESS_STEPS", "RuggedObjectiveWarning", "horizon_report", "roughness_report",
+           "rugged_message"]
