@@ -13,6 +13,9 @@ slider-crank (Flores et al., 0.5 mm clearance; jaxclear's preset ``flores-slider
    Rosenstein's estimate (``nolds.lyap_r``) on each series: wall time of both parts, and the
    estimates beside the tangent exponents.
 
+4. **Convergence** (``--convergence``): the one point again renormalised every half revolution and
+   at rtol 1e-8, each over the same ``--revolutions``: interval and tolerance independence.
+
 Writes ``results/chaos.json``. Small settings (``--quick``) keep it under 10 minutes on 2 shared
 cores; the numbers then are costs, not converged exponents.
 """
@@ -37,19 +40,32 @@ from jaxclear.chaos.signals import rosenstein
 HERE = os.path.dirname(os.path.abspath(__file__))
 
 
-def one_point(mech, revolutions: int, transient: int):
+def one_point(mech, revolutions: int, transient: int, fraction: float = 1.0, rtol: float = 1e-6,
+              repeat: bool = True):
+    """The largest exponent over ``revolutions`` after ``transient`` ones, renormalised every
+    ``fraction`` of a revolution, at ``rtol`` (atol = rtol / 1000); timed twice (first call with
+    compilation, then steady) unless ``repeat`` is off (then both times are the one call's)."""
     period = jc.crank_period(mech)
-    s = jc.settings((revolutions + transient) * period, throw=False)
+    # max_steps is per renormalisation interval; over thousands of revolutions at 5000 rpm a rare
+    # interval needs more than the default 400,000 steps (measured: revolution 127 at rtol 1e-8,
+    # interval 1 revolution), so the long runs get 4 million
+    s = jc.settings((revolutions + transient) * period, throw=False, rtol=rtol, atol=rtol * 1e-3,
+                    max_steps=4_000_000)
+    kw = dict(interval=fraction * period, transient=transient * period, count=1, samples=4, keep=False)
     t = time.perf_counter()
-    r = jc.lyapunov(mech, s, interval=period, transient=transient * period, count=1, samples=4, keep=False)
+    r = jc.lyapunov(mech, s, **kw)
     first = time.perf_counter() - t
-    t = time.perf_counter()
-    r = jc.lyapunov(mech, s, interval=period, transient=transient * period, count=1, samples=4, keep=False)
-    steady = time.perf_counter() - t
+    steady = first
+    if repeat:
+        t = time.perf_counter()
+        r = jc.lyapunov(mech, s, **kw)
+        steady = time.perf_counter() - t
     lam, se = float(r.exponents[0]), float(r.stderr[0])
     need = revolutions * (se / (0.005 * abs(lam))) ** 2 if lam else float("nan")
-    return {"speed_rpm": float(params.get(mech, "speed_rpm")), "revolutions": revolutions, "exponent": lam,
+    return {"speed_rpm": float(params.get(mech, "speed_rpm")), "revolutions": revolutions,
+            "interval_revolutions": fraction, "rtol": rtol, "exponent": lam,
             "stderr": se, "relative_stderr": se / abs(lam), "spread": float(r.spread[0]), "status": int(r.status),
+            "run_status": int(r.run_status),
             "first_call_s": first, "steady_s": steady, "steady_s_per_revolution": steady / (revolutions + transient),
             "revolutions_for_2_digits": need,
             "time_for_2_digits_s": need * steady / (revolutions + transient)}
@@ -110,6 +126,9 @@ def main():
                     help="speeds of the time-series comparison (default: all --points)")
     ap.add_argument("--quick", action="store_true", help="small settings (under 10 minutes on 2 cores)")
     ap.add_argument("--only-point", action="store_true", help="the one operating point only (no map)")
+    ap.add_argument("--convergence", action="store_true",
+                    help="also the one point renormalised every half revolution and at rtol 1e-8 (same "
+                    "revolutions; each call timed once); implies --only-point")
     ap.add_argument("--out", default=os.path.join(HERE, "results", "chaos.json"))
     a = ap.parse_args()
     if a.quick:
@@ -117,10 +136,23 @@ def main():
     mech = jc.preset("flores-slider-crank", speed_rpm=a.speed_rpm)
     result = {"settings": vars(a), "device": jax.devices()[0].device_kind, "cores": os.cpu_count()}
     print("one point ...", flush=True)
-    result["one_point"] = one = one_point(mech, a.revolutions, 1)
+    result["one_point"] = one = one_point(mech, a.revolutions, 1, repeat=not a.convergence)
     print(json.dumps(one, indent=1), flush=True)
+    if a.convergence:  # the same point renormalised every half revolution, and at rtol 1e-8
+        result["convergence"] = [one]
+        for fraction, rtol in ((0.5, 1e-6), (1.0, 1e-8)):
+            print(f"interval {fraction} revolution, rtol {rtol:g} ...", flush=True)
+            result["convergence"].append(one_point(mech, a.revolutions, 1, fraction, rtol, repeat=False))
+            print(json.dumps(result["convergence"][-1], indent=1), flush=True)
+            os.makedirs(os.path.dirname(a.out), exist_ok=True)
+            with open(a.out, "w") as f:
+                json.dump(result, f, indent=1)
+        print("\ninterval [rev]  rtol    exponent [1/s]  standard error")
+        for c in result["convergence"]:
+            print(f"{c['interval_revolutions']:14g}  {c['rtol']:6g}  {c['exponent']:14.1f}  {c['stderr']:.1f} "
+                  f"({100 * c['relative_stderr']:.2f} %)")
 
-    if a.only_point:
+    if a.only_point or a.convergence:
         os.makedirs(os.path.dirname(a.out), exist_ok=True)
         with open(a.out, "w") as f:
             json.dump(result, f, indent=1)
