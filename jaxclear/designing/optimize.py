@@ -155,7 +155,11 @@ def choose_method(method: str, constrained: bool) -> str:
 def minimize(ev: Evaluator, u0: np.ndarray, method: str, max_iter: int, ftol: float, gtol: float, callback):
     """Run SciPy's ``method`` from ``u0`` on the unit cube; ``callback(u)`` after every iteration."""
     p = len(u0)
-    bounds = so.Bounds(np.zeros(p), np.ones(p))
+    # keep_feasible: trust-constr's interior-point method otherwise treats the bounds as constraints
+    # that its iterates may violate, and the runs would leave the variables' ranges (a crank mass
+    # of 0.03 kg for a range [0.1, 0.3] was simulated before this); L-BFGS-B and SLSQP keep their
+    # bounds anyway and ignore the flag
+    bounds = so.Bounds(np.zeros(p), np.ones(p), keep_feasible=True)
     cons = ev.problem.constraints
 
     def cb(intermediate_result):
@@ -172,10 +176,6 @@ def minimize(ev: Evaluator, u0: np.ndarray, method: str, max_iter: int, ftol: fl
     specs = [so.NonlinearConstraint(lambda u, i=i: ev.constraint(u, i), 0.0, 0.0 if c.equality else np.inf,
                                     jac=lambda u, i=i: ev.constraint_gradient(u, i)[None, :])
              for i, c in enumerate(cons)]
-    # keep_feasible: trust-constr's interior-point method otherwise treats the bounds as constraints
-    # that its iterates may violate, and the runs would leave the variables' ranges (a crank mass
-    # of 0.03 kg for a range [0.1, 0.3] was simulated before this)
-    bounds = so.Bounds(np.zeros(p), np.ones(p), keep_feasible=True)
     return so.minimize(ev.objective_and_gradient, u0, jac=True, method=method, bounds=bounds, constraints=specs,
                        callback=cb, options={"maxiter": max_iter, "gtol": gtol, "xtol": ftol})
 
