@@ -249,9 +249,14 @@ def _blocks(outputs, x0) -> dict:
     return blocks
 
 
-def run_case(case: Case, mu: float, n: float, repeats: int) -> dict:
+def _nominal(case: Case, mu: float, n: float):
+    """The case's mechanism at friction ``mu`` and exponent ``n`` and its parameters' values."""
     mech = case.build(mu, n)
-    x0 = np.array([float(params.get(mech, p)) for p in case.names])
+    return mech, np.array([float(params.get(mech, p)) for p in case.names])
+
+
+def run_case(case: Case, mu: float, n: float, repeats: int) -> dict:
+    mech, x0 = _nominal(case, mu, n)
     scale = np.where(x0 != 0, np.abs(x0), 0.1)  # the parameters' scales (derivatives reported per unit log)
     record = _record(case, mech, x0)
     default = jc.settings(case.t_end, n_out=case.n_out)
@@ -382,8 +387,7 @@ def converge(path: Path, cases=None) -> None:
             continue
         t0 = time.perf_counter()
         case = CASES[r["case"]]
-        mech = case.build(r["friction"], r["exponent"])
-        x0 = np.array([float(params.get(mech, p)) for p in r["parameters"]])
+        mech, x0 = _nominal(case, r["friction"], r["exponent"])
         record = _record(case, mech, x0)
         for label, tol in (("1e-10", TIGHT), ("1e-11", TIGHTER)):
             s = jc.settings(case.t_end, n_out=case.n_out, **tol)
@@ -403,8 +407,7 @@ def summary(path: Path) -> None:
             continue
         raw = dict(np.load(f))
         case = CASES[r["case"]]
-        mech = case.build(r["friction"], r["exponent"])
-        x0 = np.array([float(params.get(mech, p)) for p in r["parameters"]])
+        mech, x0 = _nominal(case, r["friction"], r["exponent"])
         blocks = _blocks(_function(case, mech, np.zeros(case.n_out), jc.settings(case.t_end, n_out=case.n_out)), x0)
         r["per_parameter"] = per_parameter(raw, r["parameters"], blocks)
         for q in r["per_parameter"]:
