@@ -255,7 +255,23 @@ def _nominal(case: Case, mu: float, n: float):
     return mech, np.array([float(params.get(mech, p)) for p in case.names])
 
 
-def run_case(case: Case, mu: float, n: float, repeats: int) -> dict:
+def _saved_truth(path: Path) -> dict | None:
+    """The central differences ``{tolerance: {step: (L, P)}}`` of an earlier run's raw arrays
+    (``--keep-truth``), or None where there are none."""
+    if not path.exists():
+        return None
+    raw = np.load(path)
+    fd = {lab: {float(k.split("_")[2]): raw[k] for k in raw.files if k.startswith(f"fd_{lab}_")}
+          for lab in ("1e-10", "1e-11")}
+    if not all(fd.values()) or "value_true" not in raw.files:
+        return None
+    return dict(fd=fd, value_true=raw["value_true"])
+
+
+def run_case(case: Case, mu: float, n: float, repeats: int, saved: dict | None = None) -> dict:
+    """One case's row (and its raw arrays under ``"raw"``); ``saved``: the truth's central
+    differences of an earlier run (:func:`_saved_truth`), reused instead of recomputed (they
+    depend on the values of tight runs only, not on how derivatives are computed)."""
     mech, x0 = _nominal(case, mu, n)
     scale = np.where(x0 != 0, np.abs(x0), 0.1)  # the parameters' scales (derivatives reported per unit log)
     record = _record(case, mech, x0)
@@ -265,8 +281,12 @@ def run_case(case: Case, mu: float, n: float, repeats: int) -> dict:
     row = dict(case=case.name, friction=mu, exponent=n, parameters=list(case.names))
 
     # truth: central differences of tight runs, with the step sweep
-    fd = {}
+    fd = {} if saved is None else saved["fd"]
+    if saved is not None:
+        value_true = saved["value_true"]
     for label, tol, steps in (("1e-10", TIGHT, STEPS), ("1e-11", TIGHTER, STEPS[2:])):
+        if saved is not None:
+            break
         f = jax.jit(_flat(_function(case, mech, record, jc.settings(case.t_end, n_out=case.n_out, **tol))))
         cols = {}
         f0 = np.asarray(f(jnp.asarray(x0)))
@@ -447,6 +467,9 @@ def main(argv=None):
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--json", default=str(Path(__file__).parent / "results" / "gradients.json"))
     ap.add_argument("--restart", action="store_true", help="ignore the cases already in the JSON")
+    ap.add_argument("--keep-truth", action="store_true",
+                    help="reuse the central differences of results/raw/ (they depend on tight runs' values only) "
+                    "and recompute everything else (give a new --json to resume it)")
     ap.add_argument("--summary", action="store_true",
                     help="only print (and add to the JSON) the per-parameter table from results/raw/")
     ap.add_argument("--converged", action="store_true",
@@ -474,7 +497,8 @@ def main(argv=None):
                     _print(done[key])
                     continue
                 t0 = time.perf_counter()
-                row = run_case(CASES[name], mu, n, args.repeats)
+                saved = _saved_truth(path.parent / "raw" / f"gradients_{name}_{mu:g}_{n:g}.npz") if args.keep_truth else None
+                row = run_case(CASES[name], mu, n, args.repeats, saved)
                 row["case_wall_s"] = time.perf_counter() - t0
                 raw = row.pop("raw")
                 (path.parent / "raw").mkdir(parents=True, exist_ok=True)
