@@ -334,7 +334,7 @@ def run_case(case: Case, mu: float, n: float, repeats: int, saved: dict | None =
         key = "loop" if rtol is None else f"loop_rtol_{rtol:g}"
         raw[key] = J
         row[f"{key}_error"], row[f"{key}_s"], row[f"{key}_compile_s"] = _errors(J, truth, blocks, scale), t, c
-    raw[f"sensitivity"] = J_sens
+    raw["sensitivity"] = J_sens
     # equal accuracy: the cheapest loop tolerance at least as accurate as the sensitivities
     target = max(max(row["sensitivity_error"].values()), 1e-3)
     for key in ["loop"] + [f"loop_rtol_{r:g}" for r in LOOP_RTOLS]:

@@ -272,3 +272,63 @@ def test_map_row_equals_the_single_run():
     np.testing.assert_allclose(np.asarray(mp.sections[0, :2, 0]), ecc[:2], rtol=1e-6)
     se = math.hypot(float(mp.stderr[0, 0]), float(r.stderr[0]))
     assert abs(float(mp.exponents[0, 0]) - float(r.exponents[0])) <= 3 * se
+
+
+def test_tangent_tolerance_grows_with_the_tangents():
+    """The Lyapunov run's tangents solve a linear equation, so their error control is invariant
+    under a scaling of the tangents (TangentSystem.weigh_error): above the reference size the
+    error the controller scales (by atol + rtol |y|) is that of tangents measured against
+    atol times their size over the reference; scaling the tangents and their errors by 1e6 leaves
+    the scaled error unchanged to rounding, and leaves it alone below the reference (or without
+    one: the sensitivities' system). Without it, a component that the constraints hold near zero
+    was asked for atol absolutely while the tangent grew 1e10-fold in a revolution of the
+    benchmark slider-crank, whose steps then shrank to the floor (400,000 not enough)."""
+    from jaxclear.integrate import solve
+    from jaxclear.integrate.sensitivity import Rebuild, TangentSystem
+
+    mech = oscillator()
+    s = jc.settings(1.0)
+    size = solve.start(mech, s, None).packed.shape[0]
+    n, count, rtol, atol = mech.n_coordinates, 2, 1e-8, 1e-12
+    leaves, treedef = __import__("jax").tree_util.tree_flatten((mech, s, None))
+    ref = 0.5
+
+    def system(reference):
+        return TangentSystem(mech, s.baumgarte, Rebuild(leaves, treedef, ()), (), (), jnp.asarray(1e-12), size,
+                             count, None if reference is None else jnp.asarray(reference))
+
+    rng = np.random.default_rng(0)
+    y0, y1, ey = rng.normal(size=(3, size))
+    t0, t1, et = rng.normal(size=(3, count, size)) * 1e3
+    t0[:, 1] = t1[:, 1] = 1e-9  # a component the constraints hold near zero
+
+    def scaled(sys_, c):
+        v0, v1 = np.concatenate([y0, c * t0.ravel()]), np.concatenate([y1, c * t1.ravel()])
+        e = np.concatenate([ey * 1e-9, c * et.ravel() * 1e-9])
+        w = np.asarray(sys_.weigh_error(jnp.asarray(v0), jnp.asarray(v1), jnp.asarray(e), rtol, atol))
+        return w / (atol + rtol * np.maximum(np.abs(v0), np.abs(v1))), e
+
+    big, _ = scaled(system(ref), 1.0)
+    bigger, _ = scaled(system(ref), 1e6)
+    np.testing.assert_allclose(bigger, big, rtol=1e-12)
+    # below the reference, and without one, the error is left as it is
+    small, e = scaled(system(1e9), 1.0)
+    plain, _ = scaled(system(None), 1.0)
+    np.testing.assert_array_equal(small, plain)
+    np.testing.assert_array_equal(np.asarray(system(None).weigh_error(0.0, 0.0, jnp.asarray(e), rtol, atol)), e)
+
+
+@pytest.mark.slow
+def test_long_intervals_on_the_chaotic_benchmark_do_not_stall():
+    """The benchmark slider-crank at 5000 rpm (chaotic, lambda ~ 450 1/s: the tangent grows
+    about 1e10-fold over some revolutions), renormalised once a revolution at rtol 1e-8 over 90
+    revolutions: every interval finishes within the default 400,000 steps (before the tangents'
+    tolerance grew with them, the interval starting at revolution 86 did not; measured after:
+    459,618 steps in all, about 5,000 a revolution, lambda 458 1/s, 31 s)."""
+    mech = jc.preset("flores-slider-crank", speed_rpm=5000.0)
+    period = jc.crank_period(mech)
+    r = lyapunov(mech, jc.settings(91 * period, rtol=1e-8, atol=1e-11, throw=False), interval=period,
+                 transient=period, count=1, samples=1, keep=False)
+    assert int(r.status) == 0 and int(r.run_status) == 0
+    assert int(r.num_steps) < 90 * 20_000
+    assert 200 < float(r.exponents[0]) < 900

@@ -153,8 +153,12 @@ def benettin(mech: Mechanism, s: Settings, y0: State | None, *, transient, inter
     tangents = jnp.zeros((count, size), dtype).at[:, :2 * n].set((basis / w[:, None]).T)
 
     leaves, treedef = jax.tree_util.tree_flatten((mech, s, None))
+    # the tangents' absolute tolerance grows with them (TangentSystem.weigh_error): the reference
+    # is the size of a tangent just after renormalising (a unit vector of the metric spread over
+    # the 2n coordinates: its largest entry in the coordinates' units)
+    reference = jnp.max(1.0 / w) / jnp.sqrt(w.shape[0])
     system = TangentSystem(mech, s.baumgarte, Rebuild(leaves, treedef, ()), (), (),
-                           DTMIN_FRACTION * interval, size, count)
+                           DTMIN_FRACTION * interval, size, count, reference)
     fractions = jnp.arange(1, samples + 1, dtype=dtype) / samples
 
     def window(carry, k):

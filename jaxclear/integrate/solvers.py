@@ -238,6 +238,9 @@ class StopOnNonFinite(AbstractWrappedController):
 
     def adapt_step_size(self, t0, t1, y0, y1_candidate, args, y_error, error_order, controller_state):
         inner_state, fails = controller_state
+        # the system's own weighing of the error (AbstractSystem.weigh_error) before the
+        # controller scales it by atol + rtol |y|
+        y_error = args.weigh_error(y0, y1_candidate, y_error, self.inner.rtol, self.inner.atol)
         keep, tprev, tnext, jump, state, result = self.inner.adapt_step_size(
             t0, t1, y0, y1_candidate, args, y_error, error_order, inner_state
         )

@@ -83,6 +83,12 @@ class AbstractSystem(eqx.Module):
     def norm(self):
         """The step-size controller's error norm (a callable on the scaled error vector)."""
 
+    def weigh_error(self, v0, v1, error, rtol, atol):
+        """The step's error estimate as the step-size controller is to scale it (by ``atol +
+        rtol max(|v0|, |v1|)`` per entry): ``error`` itself, unless a system measures some
+        entries against another absolute tolerance."""
+        return error
+
 
 class MechanismSystem(AbstractSystem):
     """A mechanism's packed state (:class:`~jaxclear.integrate.state.State`) under
