@@ -49,7 +49,10 @@ def run(args) -> int:
                   + (f", {s['failed_runs']} failed run(s)" if s["failed_runs"] else ""))
         lin = res.linearised.get(m)
         if lin:
-            print(f"    linearised: mean {lin['mean']:.5g}, sd {lin['sd']:.3g}")
+            print(f"    linearised: mean {lin['mean']:.5g}, sd {lin['sd']:.3g}"
+                  + (f"; from derivatives sd {lin['derivatives']['sd']:.3g} (gradient "
+                     f"{100 * lin['derivatives']['distance_to_differences']:.3g} % from the differences')"
+                     if "derivatives" in lin else ""))
         ex = res.exceedance.get(m)
         if ex:
             print(f"    P({m} > {ex['limit']:g}) = {ex['probability']:.4g}, 95 % interval [{ex['ci95'][0]:.3g}, "

@@ -151,6 +151,14 @@ def _one_run(plan: Plan, mech: Mechanism, ideal: Mechanism | None, row):
     return _finish(plan, mech, row, sol, ideal_acc, ideal_status)
 
 
+def run_outputs(plan: Plan, mech: Mechanism, ideal: Mechanism | None, row):
+    """One run's outputs (metrics, Poincare points, time series) as a pure function of its
+    parameter row ``(P,)``: what a sweep batches, here for one row, so ``jax.jacfwd`` of it gives
+    the metrics' derivatives through the engine's error-controlled sensitivities (the tolerance
+    study's linearised estimate from derivatives)."""
+    return _one_run(plan, mech, ideal, row)
+
+
 def one_by_one(plan: Plan) -> bool:
     """Whether a device integrates its runs one after another (``jax.lax.map``) rather than side
     by side (``jax.vmap``): ``not plan.side_by_side`` where that is set, else on CPU with

@@ -10,7 +10,7 @@ r"""A tolerance study's TOML file (``jaxclear tolerance STUDY.toml``; :func:`loa
     [correlations]           # optional
     pairs = [["clearance", "point_x:crank.A", 0.2]]
 
-    [study]                  # n, method ("sobol" | "mc"), seed, metrics, linearise, sobol_n, importance_n
+    [study]                  # n, method ("sobol" | "mc"), seed, metrics, linearise, derivatives, sobol_n, importance_n
     n = 256
     sobol_n = 64
 
@@ -37,7 +37,7 @@ from .distributions import inputs_from_dict
 from .study import RUN_OPTIONS
 
 TABLES = {"mechanism": None, "parameters": None, "correlations": ("pairs",),
-          "study": ("n", "method", "seed", "metrics", "linearise", "sobol_n", "importance_n"), "limits": None,
+          "study": ("n", "method", "seed", "metrics", "linearise", "derivatives", "sobol_n", "importance_n"), "limits": None,
           "run": RUN_OPTIONS, "output": ("dir", "progress")}
 
 

@@ -13,7 +13,11 @@ holds one sweep folder per batch, each with its own ``runs.csv``:
   (:func:`~.estimators.linearised`). Differences, not :func:`jaxclear.sensitivities`: the metrics
   are maxima and fractions of samples whose exact derivative is the slope of one impact's peak
   or zero (a fraction of samples is piecewise constant); a difference over a tenth of the
-  tolerance is the slope the tolerance sees;
+  tolerance is the slope the tolerance sees. With ``derivatives=True`` the gradient at the medians
+  is also taken from the derivatives (``jax.jacfwd`` of one run's metrics: the engine's
+  error-controlled sensitivities, :func:`_derivative_gradients`) and written beside the
+  differences' with their relative distance: where the two part (a maximum whose sample moves, a
+  fraction of samples, whose derivative is zero), the first-order model fails;
 * ``sobol/``: SALib's Saltelli design (``sobol_n (P + 2)`` runs) for the first and total indices;
 * ``importance/``: ``importance_n`` runs around the linearised design point of the first limit.
 
@@ -34,7 +38,8 @@ from .._errors import ParameterError
 from .._storage import atomic_write_json, atomic_write_text
 from ..model import Mechanism
 from .distributions import Inputs
-from .estimators import check_limit, exceedance, importance_exceedance, linearised, sobol_design, sobol_indices
+from .estimators import (check_limit, exceedance, importance_exceedance, linearised, score_gradient, sobol_design,
+                         sobol_indices)
 
 #: Metrics of a study by default.
 DEFAULT_METRICS = ("peak_contact_force_n", "rms_acc_deviation_m_s2", "fraction_free_flight")
@@ -129,9 +134,29 @@ def _evaluator(mech: Mechanism | None, preset: str | None, run: dict, metrics: t
     return evaluate
 
 
+def _derivative_gradients(mech: Mechanism | None, preset: str | None, run: dict, metrics: tuple, names: list,
+                          x0: np.ndarray, out: str) -> dict:
+    """metric -> ``(P,)`` its gradient over the input values at ``x0``, by forward-mode
+    differentiation of one run of the same sweep configuration (:func:`jaxclear.sweep.batch.run_outputs`)."""
+    import jax
+    import jax.numpy as jnp
+
+    from ..sweep import SweepConfig
+    from ..sweep.batch import run_outputs
+    from ..sweep.plan import make_plan
+
+    cfg = SweepConfig(list={n: [float(v)] for n, v in zip(names, x0)}, mechanism=mech,
+                      preset=preset if mech is None else None, out=out, progress=False,
+                      source="tolerance study (derivatives)", **run)
+    plan = make_plan(cfg, None, trajectories=False)
+    jac = jax.jit(jax.jacfwd(lambda row: {m: run_outputs(plan, cfg.base_mechanism, cfg.ideal, row)[m] for m in metrics}))
+    return {m: np.asarray(g, dtype=float) for m, g in jac(jnp.asarray(x0, dtype=float)).items()}
+
+
 def tolerance_study(inputs: Inputs, mech: Mechanism | None = None, *, preset: str = "flores-slider-crank",
                     n: int = 256, method: str = "sobol", seed: int = 0, metrics=DEFAULT_METRICS,
-                    limits: dict | None = None, linearise: bool = True, sobol_n: int = 0, importance_n: int = 0,
+                    limits: dict | None = None, linearise: bool = True, derivatives: bool = False,
+                    sobol_n: int = 0, importance_n: int = 0,
                     out="tolerance-out", restart: bool = False, progress: bool = True,
                     **run_options) -> ToleranceResult:
     """Sample the inputs, run the mechanism for each sample, and estimate (module docstring).
@@ -142,6 +167,8 @@ def tolerance_study(inputs: Inputs, mech: Mechanism | None = None, *, preset: st
         n: runs of the sample (Sobol': rounded up to a power of 2); method: ``"sobol"`` or ``"mc"``.
         metrics: sweep metric names; limits: metric -> limit for the exceedance probability.
         linearise: also the linearised estimate (``2 P + 1`` runs).
+        derivatives: also the linearised estimate's gradient from the engine's derivatives
+            (one forward-mode run at the medians, ``P`` tangents), beside the differences'.
         sobol_n: base points of the Sobol' indices (0: none; ``sobol_n (P + 2)`` runs).
         importance_n: runs of importance sampling for the first limit (0: none; needs ``linearise``).
         out: the study's folder (one sweep folder per batch); restart: discard earlier results.
@@ -158,6 +185,8 @@ def tolerance_study(inputs: Inputs, mech: Mechanism | None = None, *, preset: st
     for name, count, low in (("n", n, 2), ("sobol_n", sobol_n, 0), ("importance_n", importance_n, 0)):
         if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < low:
             raise ParameterError(f"tolerance_study: {name} = {count!r}: expected an integer >= {low}")
+    if derivatives and not linearise:
+        raise ParameterError("tolerance_study: derivatives=True adds to the linearised estimate: it needs linearise=True")
     if importance_n and not (limits and linearise):
         raise ParameterError("tolerance_study: importance_n needs a limit and linearise=True (the design point)")
     names = inputs.names
@@ -180,6 +209,19 @@ def tolerance_study(inputs: Inputs, mech: Mechanism | None = None, *, preset: st
             res.linearised[m] = linearised(v[0], g, limits.get(m))
             if m in res.exceedance:
                 res.exceedance[m]["linearised_probability"] = res.linearised[m]["probability"]
+        if derivatives:
+            grads = _derivative_gradients(mech, preset, dict(run_options), metrics, names,
+                                          inputs.scores_to_values(np.zeros((1, len(names))))[0],
+                                          os.path.join(os.fspath(out), "derivatives"))
+            for m, g in grads.items():
+                gz = score_gradient(inputs, g)
+                fd = np.asarray(res.linearised[m]["gradient_scores"])
+                lin = linearised(res.linearised[m]["mean"], gz, limits.get(m))
+                lin["gradient_values"] = g.tolist()
+                # where the first-order model fails, the slope at the medians and the one over a tenth of
+                # the tolerance part
+                lin["distance_to_differences"] = float(np.linalg.norm(gz - fd) / max(np.linalg.norm(fd), 1e-300))
+                res.linearised[m]["derivatives"] = lin
         if importance_n:
             m0 = next(iter(limits))
             lin = res.linearised[m0]
