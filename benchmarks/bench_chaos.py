@@ -46,9 +46,9 @@ def one_point(mech, revolutions: int, transient: int, fraction: float = 1.0, rto
     ``fraction`` of a revolution, at ``rtol`` (atol = rtol / 1000); timed twice (first call with
     compilation, then steady) unless ``repeat`` is off (then both times are the one call's)."""
     period = jc.crank_period(mech)
-    # max_steps is per renormalisation interval; over thousands of revolutions at 5000 rpm a rare
-    # interval needs more than the default 400,000 steps (measured: revolution 127 at rtol 1e-8,
-    # interval 1 revolution), so the long runs get 4 million
+    # max_steps is per renormalisation interval (about 5,000 steps a revolution at rtol 1e-8); the
+    # margin of 4 million was needed before the tangents' tolerance grew with them (one interval
+    # then stalled at the step floor) and is kept: it costs nothing where it is not used
     s = jc.settings((revolutions + transient) * period, throw=False, rtol=rtol, atol=rtol * 1e-3,
                     max_steps=4_000_000)
     kw = dict(interval=fraction * period, transient=transient * period, count=1, samples=4, keep=False)
