@@ -255,42 +255,41 @@ def _nominal(case: Case, mu: float, n: float):
     return mech, np.array([float(params.get(mech, p)) for p in case.names])
 
 
-def _saved_truth(path: Path) -> dict | None:
-    """The central differences ``{tolerance: {step: (L, P)}}`` of an earlier run's raw arrays
-    (``--keep-truth``), or None where there are none."""
+def _raw_path(path: Path, case: str, mu: float, n: float) -> Path:
+    """The raw arrays of a case, beside the JSON ``path`` (``raw/``, not committed)."""
+    return path.parent / "raw" / f"gradients_{case}_{mu:g}_{n:g}.npz"
+
+
+TOLERANCE_LABELS = ("1e-10", "1e-11")
+
+
+def _differences(raw) -> dict:
+    """The central differences ``{tolerance: {step: (L, P)}}`` among raw arrays (keys
+    ``fd_TOL_STEP``)."""
+    return {lab: {float(k.split("_")[2]): raw[k] for k in raw if k.startswith(f"fd_{lab}_")} for lab in TOLERANCE_LABELS}
+
+
+def _saved_truth(path: Path) -> tuple | None:
+    """``(differences, value_true)`` of an earlier run's raw arrays (``--keep-truth``), or None
+    where there are none."""
     if not path.exists():
         return None
-    raw = np.load(path)
-    fd = {lab: {float(k.split("_")[2]): raw[k] for k in raw.files if k.startswith(f"fd_{lab}_")}
-          for lab in ("1e-10", "1e-11")}
-    if not all(fd.values()) or "value_true" not in raw.files:
+    raw = dict(np.load(path))
+    fd = _differences(raw)
+    if not all(fd.values()) or "value_true" not in raw:
         return None
-    return dict(fd=fd, value_true=raw["value_true"])
+    return fd, raw["value_true"]
 
 
-def run_case(case: Case, mu: float, n: float, repeats: int, saved: dict | None = None) -> dict:
-    """One case's row (and its raw arrays under ``"raw"``); ``saved``: the truth's central
-    differences of an earlier run (:func:`_saved_truth`), reused instead of recomputed (they
-    depend on the values of tight runs only, not on how derivatives are computed)."""
-    mech, x0 = _nominal(case, mu, n)
-    scale = np.where(x0 != 0, np.abs(x0), 0.1)  # the parameters' scales (derivatives reported per unit log)
-    record = _record(case, mech, x0)
-    default = jc.settings(case.t_end, n_out=case.n_out)
-    outputs = _function(case, mech, record, default)
-    blocks = _blocks(outputs, x0)
-    row = dict(case=case.name, friction=mu, exponent=n, parameters=list(case.names))
-
-    # truth: central differences of tight runs, with the step sweep
-    fd = {} if saved is None else saved["fd"]
-    if saved is not None:
-        value_true = saved["value_true"]
-    for label, tol, steps in (("1e-10", TIGHT, STEPS), ("1e-11", TIGHTER, STEPS[2:])):
-        if saved is not None:
-            break
+def _true_differences(case: Case, mech, record, x0, scale) -> tuple:
+    """The truth's central differences of tight runs over the step sweep (one-sided, second
+    order, for a parameter at 0), ``{tolerance: {step: (L, P)}}``, and the tight run's values."""
+    fd = {}
+    for label, tol, steps in zip(TOLERANCE_LABELS, (TIGHT, TIGHTER), (STEPS, STEPS[2:])):
         f = jax.jit(_flat(_function(case, mech, record, jc.settings(case.t_end, n_out=case.n_out, **tol))))
         cols = {}
         f0 = np.asarray(f(jnp.asarray(x0)))
-        if label == "1e-10":
+        if label == TOLERANCE_LABELS[0]:
             value_true = f0
         for h in steps:
             J = []
@@ -304,6 +303,24 @@ def run_case(case: Case, mu: float, n: float, repeats: int, saved: dict | None =
                     J.append((np.asarray(f(jnp.asarray(x0 + e))) - np.asarray(f(jnp.asarray(x0 - e)))) / (2 * e[i]))
             cols[h] = np.stack(J, axis=1)
         fd[label] = cols
+    return fd, value_true
+
+
+def run_case(case: Case, mu: float, n: float, repeats: int, saved: tuple | None = None) -> dict:
+    """One case's row (and its raw arrays under ``"raw"``); ``saved``: the truth's central
+    differences and values of an earlier run (:func:`_saved_truth`), reused instead of
+    recomputed (they depend on the values of tight runs only, not on how derivatives are
+    computed)."""
+    mech, x0 = _nominal(case, mu, n)
+    scale = np.where(x0 != 0, np.abs(x0), 0.1)  # the parameters' scales (derivatives reported per unit log)
+    record = _record(case, mech, x0)
+    default = jc.settings(case.t_end, n_out=case.n_out)
+    outputs = _function(case, mech, record, default)
+    blocks = _blocks(outputs, x0)
+    row = dict(case=case.name, friction=mu, exponent=n, parameters=list(case.names))
+
+    # truth: central differences of tight runs, with the step sweep
+    fd, value_true = saved if saved is not None else _true_differences(case, mech, record, x0, scale)
     truth, spread = _plateau(fd, blocks, scale)
     row["truth_spread"] = spread
     raw = {f"fd_{lab}_{h:g}": cols[h] for lab, cols in fd.items() for h in cols}
@@ -356,7 +373,7 @@ def per_parameter(raw, names, blocks) -> list:
     ``truth_spread`` (the distance to the closest neighbour, which two noisy differences can meet by
     chance). A derivative whose plateau is wider than 1e-3 cannot be checked to 1e-3 by central
     differences at these tolerances: its row says ``truth undetermined``."""
-    fd = {lab: {float(k.split("_")[2]): raw[k] for k in raw if k.startswith(f"fd_{lab}_")} for lab in ("1e-10", "1e-11")}
+    fd = _differences(raw)
     truth, scale, sens = raw["truth"], raw["scale"], raw["sensitivity"]
     rows = []
     for k, sl in blocks.items():
@@ -399,7 +416,7 @@ def converge(path: Path, cases=None) -> None:
     plateau and the two tolerances agree to 1e-4 (:func:`per_parameter`)."""
     for r in json.loads(path.read_text())["rows"]:
         key = _key(r["case"], r["friction"], r["exponent"])
-        f = path.parent / "raw" / f"gradients_{r['case']}_{r['friction']:g}_{r['exponent']:g}.npz"
+        f = _raw_path(path, r["case"], r["friction"], r["exponent"])
         if not f.exists() or (cases and key not in cases):
             continue
         raw = dict(np.load(f))
@@ -409,7 +426,7 @@ def converge(path: Path, cases=None) -> None:
         case = CASES[r["case"]]
         mech, x0 = _nominal(case, r["friction"], r["exponent"])
         record = _record(case, mech, x0)
-        for label, tol in (("1e-10", TIGHT), ("1e-11", TIGHTER)):
+        for label, tol in zip(TOLERANCE_LABELS, (TIGHT, TIGHTER)):
             s = jc.settings(case.t_end, n_out=case.n_out, **tol)
             raw[f"sens_{label}"] = np.asarray(jax.jit(jax.jacfwd(_flat(_function(case, mech, record, s))))(jnp.asarray(x0)))
         np.savez(f, **raw)
@@ -422,7 +439,7 @@ def summary(path: Path) -> None:
     print(f"{'case':14s} {'mu':>4s} {'n':>4s} {'output':26s} {'parameter':12s} {'error':>8s} {'plateau':>8s} "
           f"{'vs conv.':>8s} {'conv-fd':>8s} {'1e-10/11':>8s}  verdict")
     for r in rows:
-        f = path.parent / "raw" / f"gradients_{r['case']}_{r['friction']:g}_{r['exponent']:g}.npz"
+        f = _raw_path(path, r["case"], r["friction"], r["exponent"])
         if not f.exists():
             continue
         raw = dict(np.load(f))
@@ -497,12 +514,12 @@ def main(argv=None):
                     _print(done[key])
                     continue
                 t0 = time.perf_counter()
-                saved = _saved_truth(path.parent / "raw" / f"gradients_{name}_{mu:g}_{n:g}.npz") if args.keep_truth else None
+                saved = _saved_truth(_raw_path(path, name, mu, n)) if args.keep_truth else None
                 row = run_case(CASES[name], mu, n, args.repeats, saved)
                 row["case_wall_s"] = time.perf_counter() - t0
                 raw = row.pop("raw")
                 (path.parent / "raw").mkdir(parents=True, exist_ok=True)
-                np.savez(path.parent / "raw" / f"gradients_{name}_{mu:g}_{n:g}.npz", **raw)
+                np.savez(_raw_path(path, name, mu, n), **raw)
                 done[key] = row
                 _print(row)
                 path.parent.mkdir(parents=True, exist_ok=True)
