@@ -11,7 +11,7 @@ restitution 0.5 to 0.95 drawn from a fixed grid) are computed
   value, on one device, in each of the ``--modes``: ``auto`` (what a sweep does: on CPU with
   single-kernel loops the runs of a device one after another, ``jax.lax.map``) and ``vmap``
   (side by side, ``Plan(side_by_side=True)``);
-* by a serial Python loop over the *same* per-run function (``jaxclear.sweep._one_run``,
+* by a serial Python loop over the *same* per-run function (``jaxclear.sweep.run_outputs``,
   unbatched, jitted once with ``equinox.filter_jit``), one call per run; this is the baseline of
   the "vs serial" column and of the issue's target. The sweep integrates with diffrax's
   ``while_loop`` over the Runge-Kutta stages (``Settings(stages="loop")``), the faster form
@@ -146,7 +146,7 @@ def time_serial(args, values, stages="loop") -> dict:
     try:
         # a fresh function object per call: jit caches compilations by function, and the
         # stages setting is read inside it
-        f = eqx.filter_jit(lambda *a: sweep._one_run(*a))
+        f = eqx.filter_jit(lambda *a: sweep.run_outputs(*a))
         mech = cfg.base_mechanism
         t = time.perf_counter()
         jax.block_until_ready(f(plan, mech, None, jnp.asarray(values[0])))

@@ -230,7 +230,7 @@ def test_runs_one_after_another_or_side_by_side():
     assert sweep.batch.one_by_one(dataclasses.replace(plan, side_by_side=False))
     values = sweep._put(cfg.values, plan.mesh)
     outs = [sweep._fetch(sweep._run_chunk(values, cfg.base_mechanism, None, p)) for p in (plan, side)]
-    single = [jax.jit(lambda r: sweep._one_run(plan, cfg.base_mechanism, None, r))(row) for row in cfg.values]
+    single = [jax.jit(lambda r: sweep.run_outputs(plan, cfg.base_mechanism, None, r))(row) for row in cfg.values]
     for k, row in enumerate(cfg.values):
         ref = {key: np.asarray(v) for key, v in single[k].items()}
         assert int(ref["status"]) == 0

@@ -232,7 +232,12 @@ class StopOnNonFinite(AbstractWrappedController):
     first step, 0.83 of the revolution, whose candidate overflows; 2 ms is finite); a state that
     is not finite at any step length ends the solve after 5 tries. The solve then reports
     ``diffrax.RESULTS.dt_min_reached``, which :func:`~jaxclear.simulate` maps to
-    ``nonfinite_state``."""
+    ``nonfinite_state``.
+
+    Being the wrapper next to the PID controller, it also hands the step's error estimate to the
+    system's :meth:`~jaxclear.integrate.system.AbstractSystem.weigh_error` before the PID
+    controller scales it (diffrax takes one scalar ``atol``; a Lyapunov run's tangents need
+    their own)."""
 
     inner: diffrax.AbstractAdaptiveStepSizeController
 

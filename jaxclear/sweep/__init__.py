@@ -72,7 +72,7 @@ from __future__ import annotations
 import importlib
 import warnings
 
-from .batch import TRACES, TraceCounter, _one_run, _run_chunk, _runs, _settings, compiled_hlo
+from .batch import TRACES, TraceCounter, _run_chunk, _runs, _settings, compiled_hlo, run_outputs
 from .config import CONFIG_KEYS, OUTPUT_KEYS, RUN_KEYS, SweepConfig, config_from_dict, load_config
 from .devices import (
     BYTES_PER_SAMPLE,

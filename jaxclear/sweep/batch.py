@@ -142,21 +142,16 @@ def _finish(plan: Plan, mech: Mechanism, row, sol, ideal_acc, ideal_status):
     return out
 
 
-def _one_run(plan: Plan, mech: Mechanism, ideal: Mechanism | None, row):
-    """One run, unbatched: the three phases in order (what :func:`_runs` vmaps)."""
+def run_outputs(plan: Plan, mech: Mechanism, ideal: Mechanism | None, row):
+    """One run, unbatched: the three phases in order (what :func:`_runs` batches). Its outputs
+    (metrics, Poincare points, time series) are a pure function of the parameter row ``(P,)``, so
+    ``jax.jacfwd`` of it gives the metrics' derivatives through the engine's error-controlled
+    sensitivities (the tolerance study's linearised estimate from derivatives)."""
     sol = _clearance_run(plan, mech, row)
     ideal_acc = ideal_status = None
     if ideal is not None:
         ideal_acc, ideal_status = _ideal_run(plan, mech, ideal, row)
     return _finish(plan, mech, row, sol, ideal_acc, ideal_status)
-
-
-def run_outputs(plan: Plan, mech: Mechanism, ideal: Mechanism | None, row):
-    """One run's outputs (metrics, Poincare points, time series) as a pure function of its
-    parameter row ``(P,)``: what a sweep batches, here for one row, so ``jax.jacfwd`` of it gives
-    the metrics' derivatives through the engine's error-controlled sensitivities (the tolerance
-    study's linearised estimate from derivatives)."""
-    return _one_run(plan, mech, ideal, row)
 
 
 def one_by_one(plan: Plan) -> bool:

@@ -115,15 +115,23 @@ class ToleranceResult:
         return os.fspath(path)
 
 
+def _sweep_config(mech: Mechanism | None, preset: str | None, run: dict, names: list, x: np.ndarray, out: str,
+                  tag: str, progress: bool):
+    """The :class:`~jaxclear.sweep.SweepConfig` of the runs ``x`` ``(n, P)`` in ``out/tag``."""
+    from ..sweep import SweepConfig
+
+    return SweepConfig(list={n: [float(v) for v in x[:, i]] for i, n in enumerate(names)}, mechanism=mech,
+                       preset=preset if mech is None else None, out=os.path.join(out, tag), progress=progress,
+                       source=f"tolerance study ({tag})", **run)
+
+
 def _evaluator(mech: Mechanism | None, preset: str | None, run: dict, metrics: tuple, names: list, out: str,
                restart: bool, progress: bool):
     """``evaluate(tag, X) -> {metric: (n,)}``: the runs of ``X`` as a sweep in ``out/tag``."""
-    from ..sweep import SweepConfig, run_sweep
+    from ..sweep import run_sweep
 
     def evaluate(tag: str, x: np.ndarray) -> dict:
-        cfg = SweepConfig(list={n: [float(v) for v in x[:, i]] for i, n in enumerate(names)}, mechanism=mech,
-                          preset=preset if mech is None else None, out=os.path.join(out, tag), progress=progress,
-                          source=f"tolerance study ({tag})", **run)
+        cfg = _sweep_config(mech, preset, run, names, x, out, tag, progress)
         res = run_sweep(cfg, restart=restart)
         missing = [m for m in metrics if m not in res.table]
         if missing:
@@ -141,13 +149,10 @@ def _derivative_gradients(mech: Mechanism | None, preset: str | None, run: dict,
     import jax
     import jax.numpy as jnp
 
-    from ..sweep import SweepConfig
     from ..sweep.batch import run_outputs
     from ..sweep.plan import make_plan
 
-    cfg = SweepConfig(list={n: [float(v)] for n, v in zip(names, x0)}, mechanism=mech,
-                      preset=preset if mech is None else None, out=out, progress=False,
-                      source="tolerance study (derivatives)", **run)
+    cfg = _sweep_config(mech, preset, run, names, np.asarray(x0, dtype=float)[None], out, "derivatives", False)
     plan = make_plan(cfg, None, trajectories=False)
     jac = jax.jit(jax.jacfwd(lambda row: {m: run_outputs(plan, cfg.base_mechanism, cfg.ideal, row)[m] for m in metrics}))
     return {m: np.asarray(g, dtype=float) for m, g in jac(jnp.asarray(x0, dtype=float)).items()}
@@ -211,8 +216,7 @@ def tolerance_study(inputs: Inputs, mech: Mechanism | None = None, *, preset: st
                 res.exceedance[m]["linearised_probability"] = res.linearised[m]["probability"]
         if derivatives:
             grads = _derivative_gradients(mech, preset, dict(run_options), metrics, names,
-                                          inputs.scores_to_values(np.zeros((1, len(names))))[0],
-                                          os.path.join(os.fspath(out), "derivatives"))
+                                          inputs.scores_to_values(np.zeros((1, len(names))))[0], os.fspath(out))
             for m, g in grads.items():
                 gz = score_gradient(inputs, g)
                 fd = np.asarray(res.linearised[m]["gradient_scores"])
