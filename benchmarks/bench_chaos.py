@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import time
 
@@ -114,6 +113,13 @@ def time_series(mech, rpm, revolutions: int, transient: int, samples: int = 64):
     return {"first_run_s": t_first, "runs_s": t_runs, "rosenstein_s": t_ros, "estimates": est, "run_status": statuses}
 
 
+def _write(result: dict, path: str) -> None:
+    """The results so far, as JSON at ``path`` (its folder created)."""
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    with open(path, "w") as f:
+        json.dump(result, f, indent=1)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--speed-rpm", type=float, default=5000.0)
@@ -144,18 +150,14 @@ def main():
             print(f"interval {fraction} revolution, rtol {rtol:g} ...", flush=True)
             result["convergence"].append(one_point(mech, a.revolutions, 1, fraction, rtol, repeat=False))
             print(json.dumps(result["convergence"][-1], indent=1), flush=True)
-            os.makedirs(os.path.dirname(a.out), exist_ok=True)
-            with open(a.out, "w") as f:
-                json.dump(result, f, indent=1)
+            _write(result, a.out)
         print("\ninterval [rev]  rtol    exponent [1/s]  standard error")
         for c in result["convergence"]:
             print(f"{c['interval_revolutions']:14g}  {c['rtol']:6g}  {c['exponent']:14.1f}  {c['stderr']:.1f} "
                   f"({100 * c['relative_stderr']:.2f} %)")
 
     if a.only_point or a.convergence:
-        os.makedirs(os.path.dirname(a.out), exist_ok=True)
-        with open(a.out, "w") as f:
-            json.dump(result, f, indent=1)
+        _write(result, a.out)
         print("written", a.out)
         return
     rpm = np.linspace(a.rpm_low, a.rpm_high, a.points)
@@ -185,9 +187,7 @@ def main():
     ts["per_point_s"] = (ts["runs_s"] + ts["rosenstein_s"]) / k
     result["time_series"] = ts
     print(json.dumps({x: ts[x] for x in ("runs_s", "rosenstein_s", "per_point_s")}), flush=True)
-    os.makedirs(os.path.dirname(a.out), exist_ok=True)
-    with open(a.out, "w") as f:
-        json.dump(result, f, indent=1)
+    _write(result, a.out)
     print("written", a.out)
 
 
