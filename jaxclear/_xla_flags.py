@@ -10,6 +10,18 @@ machine code, as in XLA:CPU's runtime before thunks); its size limit is the back
 ``xla_cpu_small_while_loop_byte_threshold`` (1 kB by default, which none of jaxclear's loops
 meets). Raising it runs a crank revolution about 4x faster on 2 cores (benchmarks/README.md).
 
+A second flag goes with it: ``--xla_cpu_experimental_ynn_fusion_type=`` (empty: no YNNPACK
+library fusions). XLA:CPU hands some matrix products (``dot``) to YNNPACK as *custom* fusions,
+and ``SmallWhileLoopHoistingPass`` refuses a loop that contains one, so the whole loop falls
+back to thunks. A plain simulation has no such product, but every batched one has: the
+error-controlled sensitivities (:mod:`jaxclear.integrate.sensitivity`; the tangents' ``vmap``
+turns the vector field's matrix-vector products into a 4 x 4 product) and a vmapped sweep.
+Measured on the 2-core machine: ``jax.jacfwd`` of the slider-crank with a clearance guide (4
+parameters) 144 ms -> 24 ms, a ``vmap`` of 32 runs of the benchmark 653 ms -> 282 ms; a single
+run and a one-parameter ``jax.grad`` unchanged. The products are a few numbers each, where
+YNNPACK has nothing to gain. A value the user set in ``XLA_FLAGS`` is kept; the flag is added
+and withheld together with the loop option (``JAXCLEAR_SMALL_LOOP_BYTES=0`` leaves both).
+
 The option can only be given through the ``XLA_FLAGS`` environment variable (JAX's per-call
 ``compiler_options`` cannot set XLA's map-valued ``xla_backend_extra_options``), and XLA reads
 that variable once, when JAX starts its backends. So it is added here, at import, before any
@@ -45,6 +57,9 @@ DEFAULT_BYTES = 1_000_000_000
 #: Environment variable overriding :data:`DEFAULT_BYTES` (``0``: leave XLA's default).
 ENV = "JAXCLEAR_SMALL_LOOP_BYTES"
 _EXTRA = "--xla_backend_extra_options="
+#: The XLA flag (empty value: none) that keeps small products out of YNNPACK's custom fusions,
+#: which a single-kernel loop cannot hold.
+NO_LIBRARY_FUSIONS = "--xla_cpu_experimental_ynn_fusion_type="
 #: The XLA flag that splits the host CPU into several JAX devices.
 HOST_DEVICES_FLAG = "--xla_force_host_platform_device_count"
 
@@ -57,7 +72,8 @@ class SlowLoopsWarning(UserWarning):
 def with_loop_option(flags: str, nbytes: int) -> str:
     """``flags`` (an ``XLA_FLAGS`` value) with ``OPTION=nbytes`` added to its
     ``--xla_backend_extra_options`` (a comma-separated ``key=value`` list), or that flag
-    appended; unchanged where ``OPTION`` is already there."""
+    appended, and :data:`NO_LIBRARY_FUSIONS` appended where the YNNPACK fusion flag is not
+    there; unchanged where ``OPTION`` is already there (the user's choice)."""
     if OPTION in flags:
         return flags
     tokens = flags.split()
@@ -65,8 +81,12 @@ def with_loop_option(flags: str, nbytes: int) -> str:
         if token.startswith(_EXTRA):
             value = token[len(_EXTRA):]
             tokens[i] = f"{_EXTRA}{value},{OPTION}={nbytes}" if value else f"{_EXTRA}{OPTION}={nbytes}"
-            return " ".join(tokens)
-    return " ".join(tokens + [f"{_EXTRA}{OPTION}={nbytes}"])
+            break
+    else:
+        tokens.append(f"{_EXTRA}{OPTION}={nbytes}")
+    if not any(t.startswith(NO_LIBRARY_FUSIONS.rstrip("=")) for t in tokens):
+        tokens.append(NO_LIBRARY_FUSIONS)
+    return " ".join(tokens)
 
 
 def requested_bytes() -> int:
@@ -114,7 +134,7 @@ def apply(started: bool | None = None) -> bool:
             "JAX's backends were started before jaxclear was imported, so XLA cannot be told to "
             "compile jaxclear's solver loops as single kernels (about 4x slower on CPU). Import "
             f"jaxclear before running any JAX computation, or start Python with XLA_FLAGS="
-            f"'{_EXTRA}{OPTION}={nbytes}'; set {ENV}=0 to silence this.",
+            f"'{with_loop_option('', nbytes)}'; set {ENV}=0 to silence this.",
             SlowLoopsWarning,
             stacklevel=3,
         )

@@ -1,4 +1,4 @@
-"""jaxclear's XLA:CPU option for single-kernel loops (``jaxclear/_xla_flags.py``): how it is
+"""jaxclear's XLA:CPU options for single-kernel loops (``jaxclear/_xla_flags.py``): how it is
 added to ``XLA_FLAGS``, its switch, the warning where JAX started first, and that it changes
 speed, not results (a run with and without it, in separate processes, agrees to rounding)."""
 
@@ -15,15 +15,19 @@ import jaxclear as jc
 from jaxclear import _xla_flags as X
 
 OPT = f"{X.OPTION}={X.DEFAULT_BYTES}"
+YNN = X.NO_LIBRARY_FUSIONS
 
 
 @pytest.mark.parametrize("before, after", [
-    ("", f"--xla_backend_extra_options={OPT}"),
-    ("--xla_force_host_platform_device_count=2", f"--xla_force_host_platform_device_count=2 --xla_backend_extra_options={OPT}"),
+    ("", f"--xla_backend_extra_options={OPT} {YNN}"),
+    ("--xla_force_host_platform_device_count=2",
+     f"--xla_force_host_platform_device_count=2 --xla_backend_extra_options={OPT} {YNN}"),
     ("--xla_backend_extra_options=xla_cpu_disable_loop_unrolling=false",
-     f"--xla_backend_extra_options=xla_cpu_disable_loop_unrolling=false,{OPT}"),
-    ("--xla_backend_extra_options=", f"--xla_backend_extra_options={OPT}"),
+     f"--xla_backend_extra_options=xla_cpu_disable_loop_unrolling=false,{OPT} {YNN}"),
+    ("--xla_backend_extra_options=", f"--xla_backend_extra_options={OPT} {YNN}"),
     (f"--xla_backend_extra_options={X.OPTION}=5", f"--xla_backend_extra_options={X.OPTION}=5"),  # the user's
+    ("--xla_cpu_experimental_ynn_fusion_type=dot",  # the user's YNNPACK choice is kept
+     f"--xla_cpu_experimental_ynn_fusion_type=dot --xla_backend_extra_options={OPT}"),
 ])
 def test_option_is_added_to_the_flags(before, after):
     assert X.with_loop_option(before, X.DEFAULT_BYTES) == after
@@ -89,6 +93,7 @@ def test_same_results_with_and_without_single_kernel_loops():
     tolerance, and here the step sequences are equal)."""
     on, off = _child({}), _child({X.ENV: "0"})
     assert X.OPTION in on["flags"] and X.OPTION not in off["flags"]
+    assert X.NO_LIBRARY_FUSIONS in on["flags"] and X.NO_LIBRARY_FUSIONS not in off["flags"]
     assert on["steps"] == off["steps"]
     np.testing.assert_allclose(on["q"], off["q"], rtol=1e-9, atol=1e-15)
     assert on["fn"] == pytest.approx(off["fn"], rel=1e-9)
@@ -142,3 +147,31 @@ def test_sweep_command_asks_for_one_device_per_core(monkeypatch, tmp_path):
     monkeypatch.setattr(cli_sweep, "request_host_devices", lambda n=None: asked.append(n) or False)
     assert main(["sweep", str(tmp_path / "missing.toml")]) != 0
     assert asked == [None]  # the default: one per usable core
+
+
+def test_sensitivities_loop_compiles_to_single_kernels():
+    """The error-controlled sensitivities (``jax.jacfwd`` of a run, two parameters) batch the
+    vector field's products over the tangents; with YNNPACK's custom fusions off
+    (``X.NO_LIBRARY_FUSIONS``) no product becomes one, and every ``while`` loop of the program
+    is hoisted into a single kernel (``xla_cpu_small_call``). Measured with the fusions on: the
+    loops stay thunks and a 4-parameter Jacobian of the clearance-guide slider-crank takes 6x
+    as long (jaxclear/_xla_flags.py)."""
+    import jax
+    import jax.numpy as jnp
+    from conftest import free_journal
+
+    from jaxclear import params
+
+    assert X.NO_LIBRARY_FUSIONS in os.environ.get("XLA_FLAGS", "")
+    mech = free_journal(restitution=0.8, friction=jc.Friction(0.1), offset=(-0.2e-3, 0.25e-3))
+    s = jc.settings(0.5e-3, n_out=5)
+
+    def run(x):
+        m = params.replace_many(mech, {"stiffness": x[0], "restitution": x[1]})
+        return jc.simulate(m, s).q[-1]
+
+    x = jnp.asarray([float(params.get(mech, "stiffness")), 0.8])
+    text = jax.jit(jax.jacfwd(run)).lower(x).compile().as_text()
+    assert "__ynn_fusion" not in text
+    assert text.count(" while(") > 0
+    assert text.count("xla_cpu_small_call") >= text.count(" while(")
