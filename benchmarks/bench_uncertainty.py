@@ -40,6 +40,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxclear import params
+from jaxclear._storage import atomic_write_json, locked_folder
 from jaxclear.analysis.sensor import Accelerometer
 from jaxclear.tolerance import wilson_interval
 
@@ -52,17 +53,39 @@ def _record(mech, truth: dict, seed: int, t_rec: float, rate: float, snr_db: flo
     return jc.synthetic_record(m, t_rec, rate, sensor, snr_db=snr_db, seed=seed, rtol=1e-10, atol=1e-13)
 
 
-def calibration(args) -> dict:
+_CALIBRATION_KEYS = ("free", "chains", "draws", "warmup", "chunk", "t_rec", "rate", "snr_db", "seed")
+
+
+def _resumed_rows(args) -> list:
+    """Records already done by an earlier run of the same calibration settings (``args.json``
+    written after each record): a killed run resumes where it stopped."""
+    if not getattr(args, "json", None):
+        return []
+    try:
+        with open(args.json) as f:
+            old = json.load(f)
+    except (OSError, ValueError):
+        return []
+    same = all(old.get("settings", {}).get(k) == getattr(args, k) for k in _CALIBRATION_KEYS)
+    return list(old.get("calibration", {}).get("records", [])) if same else []
+
+
+def calibration(args, save=None) -> dict:
+    """The coverage study; ``save(partial_result)`` is called after every record."""
     mech0 = jc.preset("flores-slider-crank")
     free = tuple(args.free.split(","))
     rng = np.random.default_rng(args.seed)
-    rows = []
+    rows = _resumed_rows(args)[: args.records]
+    if rows:
+        print(f"resuming after {len(rows)} records from {args.json}", flush=True)
     for i in range(args.records):
         truth = {"sensor_gain": rng.uniform(0.8, 1.2), "sensor_bias": rng.uniform(-3000, 3000)}
         if "stiffness" in free:
             truth["stiffness"] = float(params.get(mech0, "stiffness")) * rng.uniform(0.7, 1.4)
         if "restitution" in free:
             truth["restitution"] = rng.uniform(0.6, 0.95)
+        if i < len(rows):  # done before the kill: the generator has advanced past its draws
+            continue
         fixed_truth = {k: v for k, v in truth.items() if k not in free and not k.startswith("sensor_")}
         mech = params.replace_many(mech0, fixed_truth) if fixed_truth else mech0
         sensor = Accelerometer(20e3, gain=truth["sensor_gain"] if "sensor_gain" not in free else 1.0,
@@ -89,6 +112,12 @@ def calibration(args) -> dict:
         rows.append(row)
         print(f"record {i:2d}: {row['wall_s']:6.1f} s, {'converged' if post.converged else 'NOT CONVERGED'}, "
               + ", ".join(f"{n} {'in' if row[n]['post'] else 'OUT'}" for n in (*free, "noise_sigma")), flush=True)
+        if save is not None:
+            save({"complete": False, "records": rows})
+    return _coverage_table(free, rows)
+
+
+def _coverage_table(free, rows) -> dict:
     table = {}
     for n in (*free, "noise_sigma"):
         entry = {}
@@ -105,7 +134,7 @@ def calibration(args) -> dict:
                 for k, v in e.items()}
         print(f"  {n:<14} {cell.get('post', '-'):>22} {cell.get('gn', '-'):>22}")
     print(f"  not converged: {sum(not r['converged'] for r in rows)}, divergences: {sum(r['divergences'] for r in rows)}")
-    return {"table": table, "records": rows}
+    return {"complete": True, "table": table, "records": rows}
 
 
 def speed(args) -> dict:
@@ -245,15 +274,17 @@ def main():
     res = {"settings": vars(args), "machine": platform.platform(), "jax": jax.__version__,
            "device": str(jax.devices()[0])}
     if args.records:
-        res["calibration"] = calibration(args)
+        def save(partial):
+            atomic_write_json(args.json, {**res, "calibration": partial}, indent=1, default=float)
+
+        with locked_folder(os.path.dirname(args.json) or ".", "results folder"):
+            res["calibration"] = calibration(args, save)
     if args.speed:
         res["speed"] = speed(args)
     if args.tolerance_speed:
         res["tolerance_speed"] = tolerance_speed(args)
     res["wall_s"] = time.perf_counter() - t0
-    os.makedirs(os.path.dirname(args.json), exist_ok=True)
-    with open(args.json, "w") as f:
-        json.dump(res, f, indent=1, default=float)
+    atomic_write_json(args.json, res, indent=1, default=float)
     print(f"wrote {args.json} ({res['wall_s']:.0f} s)")
 
 

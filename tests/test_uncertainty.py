@@ -535,11 +535,14 @@ def test_linearised_estimate_from_the_derivatives(tmp_path):
 
 
 @pytest.mark.slow
-def test_calibration_small(tmp_path):
+@pytest.mark.parametrize("free", ["sensor_gain,sensor_bias", "stiffness,restitution"])
+def test_calibration_small(tmp_path, free):
     """The benchmark's calibration (benchmarks/bench_uncertainty.py) at small settings: 10 records
-    with their own true sensor gain and bias and noise, 2 chains x 200 draws. With a true coverage
-    of 90 %, 7 or more of 10 intervals hold the truth with probability 0.99 (binomial): asserted
-    for the posterior's intervals of the gain, the bias and the noise level."""
+    with their own truths (sensor gain and bias, or contact stiffness and restitution) and noise,
+    2 chains x 200 draws. With a true coverage of 90 %, 7 or more of 10 intervals hold the truth
+    with probability 0.99 (binomial): asserted for the posterior's intervals of each free
+    parameter and the noise level. A killed calibration resumes from its JSON: the second call
+    redoes none of the records."""
     import argparse
     import importlib.util
 
@@ -547,12 +550,22 @@ def test_calibration_small(tmp_path):
     spec = importlib.util.spec_from_file_location("bench_uncertainty", path)
     bench = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(bench)
-    args = argparse.Namespace(records=10, free="sensor_gain,sensor_bias", chains=2, draws=200, warmup=100, chunk=100,
-                              t_rec=0.6e-3, rate=200e3, snr_db=20.0, seed=0)
-    res = bench.calibration(args)
-    for name in ("sensor_gain", "sensor_bias", "noise_sigma"):
+    args = argparse.Namespace(records=10, free=free, chains=2, draws=200, warmup=100, chunk=100,
+                              t_rec=0.6e-3, rate=200e3, snr_db=20.0, seed=0, json=str(tmp_path / "cal.json"))
+    saved = []
+
+    def save(partial):
+        saved.append(len(partial["records"]))
+        json_text = json.dumps({"settings": vars(args), "calibration": partial}, default=float)
+        (tmp_path / "cal.json").write_text(json_text)
+
+    res = bench.calibration(args, save)
+    assert saved == list(range(1, 11))
+    for name in (*free.split(","), "noise_sigma"):
         assert res["table"][name]["post"]["coverage"] >= 0.7, res["table"]
-    assert "gn" in res["table"]["sensor_gain"]
+    assert "gn" in res["table"][free.split(",")[0]]
+    again = bench.calibration(args, save)  # everything resumed: nothing redone
+    assert saved == list(range(1, 11)) and again["table"] == res["table"]
 
 
 def test_sweep_takes_points_of_different_bodies_together():
