@@ -83,9 +83,11 @@ def test_design_notebook_runs(tmp_path):
 
 @pytest.mark.slow
 def test_uncertainty_notebook_runs(tmp_path):
-    """notebooks/uncertainty.ipynb at small settings (1.2 ms record, 2 chains x 100 draws; 16 + 13 +
-    32 tolerance runs of a quarter revolution): runs, writes its three figures. Slow: the fit, NUTS
-    through the simulation and the sweep compile for several minutes on 2 shared cores."""
+    """notebooks/uncertainty.ipynb at small settings (0.6 ms record: the first impact, 2 chains x
+    100 draws; 16 + 13 + 32 tolerance runs of a quarter revolution): runs, writes its three
+    figures. Slow: about 4.5 minutes on 2 shared cores (10 with the 1.2 ms record it had), most
+    of it compiling the fit's, the posterior's and the sweep's programs (the fit about 1 minute,
+    NUTS through the sensitivities another)."""
     figures, text = run_notebook("uncertainty.ipynb", tmp_path, timeout=1800)
     assert figures == ["uncertainty_pair.png", "uncertainty_predictive.png", "uncertainty_tolerance.png"]
     assert "converged (" in text or "NOT CONVERGED" in text
