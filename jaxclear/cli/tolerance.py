@@ -51,7 +51,7 @@ def run(args) -> int:
         if lin:
             print(f"    linearised: mean {lin['mean']:.5g}, sd {lin['sd']:.3g}"
                   + (f"; from derivatives sd {lin['derivatives']['sd']:.3g} (gradient "
-                     f"{100 * lin['derivatives']['distance_to_differences']:.3g} % from the differences')"
+                     f"{100 * lin['derivatives']['distance_to_differences']:.3g} % from the differences)"
                      if "derivatives" in lin else ""))
         ex = res.exceedance.get(m)
         if ex:
