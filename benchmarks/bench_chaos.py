@@ -34,6 +34,7 @@ import numpy as np
 
 import jaxclear as jc
 from jaxclear import params
+from jaxclear._storage import atomic_write_json
 from jaxclear.chaos.signals import rosenstein
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -114,10 +115,9 @@ def time_series(mech, rpm, revolutions: int, transient: int, samples: int = 64):
 
 
 def _write(result: dict, path: str) -> None:
-    """The results so far, as JSON at ``path`` (its folder created)."""
-    os.makedirs(os.path.dirname(path), exist_ok=True)
-    with open(path, "w") as f:
-        json.dump(result, f, indent=1)
+    """The results so far, as JSON at ``path`` (its folder created; written atomically)."""
+    os.makedirs(os.path.dirname(path) or ".", exist_ok=True)
+    atomic_write_json(path, result, indent=1, sort_keys=False)
 
 
 def main():

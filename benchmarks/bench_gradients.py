@@ -57,6 +57,7 @@ import numpy as np
 
 import jaxclear as jc
 from jaxclear import params
+from jaxclear._storage import atomic_write_json
 
 TIGHT = dict(rtol=1e-10, atol=1e-13, max_steps=4_000_000)
 TIGHTER = dict(rtol=1e-11, atol=1e-14, max_steps=4_000_000)
@@ -454,7 +455,7 @@ def summary(path: Path) -> None:
                   f"{q['error']:8.1e} {q['plateau_width']:8.1e}{conv}  {q['verdict']}")
     data = json.loads(path.read_text())
     data["rows"] = rows
-    path.write_text(json.dumps(data, indent=1))
+    atomic_write_json(path, data, indent=1, sort_keys=False)
 
 
 def _key(case, mu, n):
@@ -522,10 +523,7 @@ def main(argv=None):
                 np.savez(_raw_path(path, name, mu, n), **raw)
                 done[key] = row
                 _print(row)
-                path.parent.mkdir(parents=True, exist_ok=True)
-                tmp = path.with_suffix(".tmp.json")
-                tmp.write_text(json.dumps(dict(meta=meta, rows=list(done.values())), indent=1))
-                os.replace(tmp, path)
+                atomic_write_json(path, dict(meta=meta, rows=list(done.values())), indent=1, sort_keys=False)
 
 
 if __name__ == "__main__":

@@ -177,7 +177,7 @@ def speed(args) -> dict:
            "random_walk": {"draws_per_chain": n_rw, "kept": n_rw - half, "chains": args.chains, "min_bulk_ess": ess_rw,
                            "sampling_s": t_rw, "ess_per_s": ess_rw / t_rw,
                            "acceptance": float(np.mean(np.asarray(acc)))}}
-    print(f"\nESS/s (min bulk ESS over stiffness, restitution, log noise / sampling wall time):")
+    print("\nESS/s (min bulk ESS over stiffness, restitution, log noise / sampling wall time):")
     for k, v in out.items():
         print(f"  {k:<12} ESS {v['min_bulk_ess']:8.1f} in {v['sampling_s']:7.1f} s: {v['ess_per_s']:.3g} /s")
     return out
