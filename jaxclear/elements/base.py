@@ -96,9 +96,12 @@ class AbstractForceElement(eqx.Module):
         """``(generalized force (n,), state derivative (same tree as state), outputs)``."""
 
     @abc.abstractmethod
-    def after_step(self, mech: Mechanism, t0, q0, qd0, t1, q1, qd1, state) -> tuple[Any, BoolScalar]:
+    def after_step(self, mech: Mechanism, t0, q0, qd0, t1, q1, qd1, state, qdd=None) -> tuple[Any, BoolScalar]:
         """The state's update after an accepted step ``[t0, t1]`` (memory rules) and whether
-        the force law changed within the step (the solver then re-evaluates its first stage)."""
+        the force law changed within the step (the solver then re-evaluates its first stage).
+        ``qdd``: None, or the accelerations ``(qdd0, qdd1)`` (n,) at the step's ends, which the
+        sensitivity solve gives for the derivative of an approach speed stored at an onset
+        (:func:`~jaxclear.elements.memory.penetration_accelerations`)."""
 
     def onset(self, mech: Mechanism, t0, q0, qd0, t1, q1, qd1, state) -> tuple[Scalar, BoolScalar]:
         """Where a candidate step ``[t0, t1]`` must be split for the element's force law to

@@ -44,7 +44,8 @@ from ..model.geometry import perp, safe_normal
 from ..model.joints import Revolute
 from ..model.mechanism import Mechanism, point_load, point_position, point_velocity
 from .base import AbstractForceElement, ContactOutput
-from .memory import N_FIELDS, ContactMemory, kink_fraction, onset_fraction, onset_update, with_peak_force
+from .memory import (N_FIELDS, ContactMemory, kink_fraction, onset_fraction, onset_update, penetration_accelerations,
+                     with_peak_force)
 
 
 class JournalState(eqx.Module):
@@ -199,14 +200,15 @@ class AbstractJournalJoint(AbstractForceElement):
         rate = jnp.where(out.normal_force > 0.0, rate, 0.0)
         return gen, JournalState(memory.rate(out.power), rate), out
 
-    def after_step(self, mech: Mechanism, t0, q0, qd0, t1, q1, qd1, state):
+    def after_step(self, mech: Mechanism, t0, q0, qd0, t1, q1, qd1, state, qdd=None):
         """The impact-memory rule over the accepted step ``[t0, t1]``
         (:func:`~jaxclear.elements.memory.onset_update`), then the running peak force at the
         step's end."""
         memory, bristles = self.split_state(state)
         kin0, kin1 = self.kinematics(mech, q0, qd0), self.kinematics(mech, q1, qd1)
         p0, p1 = self.law.penetration(kin0), self.law.penetration(kin1)
-        new, crossed = onset_update(memory, t0, t1, p0, p1, kin0.deltadot, kin1.deltadot)
+        accel = penetration_accelerations(lambda q, qd: self.kinematics(mech, q, qd).deltadot, q0, qd0, q1, qd1, qdd)
+        new, crossed = onset_update(memory, t0, t1, p0, p1, kin0.deltadot, kin1.deltadot, accel)
         _, out = self.contact(mech, q1, qd1, new.impact_velocity)
         new = with_peak_force(new, out.normal_force)
         if self.friction.state_size == 0:

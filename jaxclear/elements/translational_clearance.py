@@ -58,7 +58,8 @@ from ..model.geometry import perp, rotate
 from ..model.joints import Translational
 from ..model.mechanism import Mechanism, point_load, point_position, point_velocity
 from .base import AbstractForceElement, ContactOutput, contact_mode
-from .memory import N_FIELDS, ContactMemory, kink_fraction, onset_fraction, onset_update, with_peak_force
+from .memory import (N_FIELDS, ContactMemory, kink_fraction, onset_fraction, onset_update, penetration_accelerations,
+                     with_peak_force)
 
 #: Corner signs (sigma along the slider, tau across it): rear-lower, front-lower, rear-upper, front-upper.
 SIGMA = np.array([-1.0, 1.0, -1.0, 1.0])
@@ -435,12 +436,14 @@ class TranslationalClearanceJoint(AbstractForceElement):
         gen, powers, out, _, rate = self._contact(mech, q, qdot, state.corners.impact_velocity, bristles)
         return gen, CornerMemory(state.corners.rate(powers), rate), out
 
-    def after_step(self, mech: Mechanism, t0, q0, qd0, t1, q1, qd1, state: CornerMemory):
+    def after_step(self, mech: Mechanism, t0, q0, qd0, t1, q1, qd1, state: CornerMemory, qdd=None):
         """The impact-memory rule for every corner over ``[t0, t1]``, then each corner's
         running peak force; a corner's bristle states relax to zero at its onset."""
         k0, k1 = self.corner_kinematics(mech, q0, qd0), self.corner_kinematics(mech, q1, qd1)
         pen = jax.vmap(self.law.penetration)
-        new, crossed = onset_update(state.corners, t0, t1, pen(k0), pen(k1), k0.deltadot, k1.deltadot)
+        accel = penetration_accelerations(lambda q, qd: self.corner_kinematics(mech, q, qd).deltadot,
+                                          q0, qd0, q1, qd1, qdd)
+        new, crossed = onset_update(state.corners, t0, t1, pen(k0), pen(k1), k0.deltadot, k1.deltadot, accel)
         bristles = self.corner_bristles(state, q1.dtype)
         f_n, _, _ = self.corner_forces(mech, q1, qd1, new.impact_velocity, bristles)
         if bristles is not None:

@@ -51,6 +51,7 @@ from .._types import Array, Float
 from ..model.mechanism import Mechanism
 from . import solve
 from .dynamics import Baumgarte, flat_vector_field
+from .state import State
 from .system import AbstractSystem, memory_step
 
 
@@ -124,9 +125,16 @@ class TangentSystem(AbstractSystem):
         return self._pack(fy, jax.vmap(lin)(tangents, self.directions))
 
     def after_step(self, t0, v0, t1, v1):
+        """The memory rules on the values and their derivative on the tangents; where the step
+        crossed into contact, the approach speed's derivative takes the penetration's
+        acceleration at the onset from the vector field at the step's ends (two evaluations,
+        values only; :func:`~jaxclear.elements.memory.penetration_accelerations`)."""
         (y0, s0), (y1, s1) = self._split(v0), self._split(v1)
         _, changed = memory_step(self.mech, t0, y0, t1, y1)
-        y1_new, lin = jax.linearize(lambda a, b, p: memory_step(self.rebuild(p)[0], t0, a, t1, b)[0], y0, y1,
+        rates = lambda: tuple(State.unpack(self.primal_rate(t, y), self.mech).qdot for t, y in ((t0, y0), (t1, y1)))  # noqa: E731
+        zeros = lambda: (jnp.zeros(self.mech.n_coordinates, y0.dtype),) * 2  # noqa: E731
+        qdd = jax.lax.cond(changed, rates, zeros)
+        y1_new, lin = jax.linearize(lambda a, b, p: memory_step(self.rebuild(p)[0], t0, a, t1, b, qdd)[0], y0, y1,
                                     self.point)
         return self._pack(y1_new, jax.vmap(lin)(s0, s1, self.directions)), changed
 

@@ -23,15 +23,16 @@ from .dynamics import Baumgarte, flat_vector_field
 from .state import State
 
 
-def memory_step(mech: Mechanism, t0, v0, t1, v1) -> tuple[Float[Array, " N"], BoolScalar]:
+def memory_step(mech: Mechanism, t0, v0, t1, v1, qdd=None) -> tuple[Float[Array, " N"], BoolScalar]:
     """Every force element's ``after_step`` over the accepted step ``[t0, t1]`` from the packed
     state ``v0`` to ``v1`` (the impact-memory rule of :mod:`jaxclear.elements.memory`): the
     packed state at ``t1`` with the updated element states, and whether any element's force law
-    changed within the step (a contact onset)."""
+    changed within the step (a contact onset). ``qdd``: None, or the accelerations at the
+    step's ends (the sensitivity solve's, for the approach speeds' derivatives)."""
     a, b = State.unpack(v0, mech), State.unpack(v1, mech)
     states, changed = [], jnp.zeros((), bool)
     for element, state in zip(mech.clearance_joints, b.elements):
-        new, crossed = element.after_step(mech, t0, a.q, a.qdot, t1, b.q, b.qdot, state)
+        new, crossed = element.after_step(mech, t0, a.q, a.qdot, t1, b.q, b.qdot, state, qdd)
         states.append(new)
         changed = changed | crossed
     return State(b.q, b.qdot, tuple(states)).pack(), changed
