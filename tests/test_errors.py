@@ -124,6 +124,8 @@ def test_step_limit_reported_without_throw():
     (dict(solver="euler9"), r"unknown solver 'euler9'; valid: \["),
     (dict(n_out=1), r"n_out = 1 output samples outside the allowed range \[2, 2000000\]"),
     (dict(stages="fused"), r"stages must be 'unrolled' or 'loop', got 'fused'"),
+    (dict(derivative_tolerance=0.0), r"derivative_tolerance = 0 outside the allowed range \(0, 1\]"),
+    (dict(derivative_tolerance=2.0), r"derivative_tolerance = 2 outside the allowed range \(0, 1\]"),
 ])
 def test_bad_settings(kwargs, match):
     with pytest.raises(jc.ParameterError, match=match):

@@ -1,5 +1,6 @@
 r"""Error-controlled forward sensitivities: the derivatives of a simulation with respect to its
-parameters, integrated with the state and held to the same tolerances.
+parameters, integrated with the state and held to the values' tolerances times
+``Settings.derivative_tolerance`` (0.1 by default).
 
 For a state :math:`y(t; \theta)` with :math:`\dot y = f(t, y, \theta)`, the tangent
 :math:`S_j = \partial y/\partial\theta_j` obeys the variational equation
@@ -40,6 +41,7 @@ are perturbed scalar inputs.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import ClassVar
 
 import equinox as eqx
@@ -208,7 +210,8 @@ def tangent_run(primals, tangents):
     """The JVP rule of :func:`~jaxclear.simulate` (``Settings(adjoint="sensitivity")``):
     ``primals = (mech, settings, y0)``, ``tangents`` the same with ``None`` for the inputs that
     are not perturbed. Returns the solution (of the sensitivity solve: its steps are controlled
-    on the values and the tangents) and its tangent."""
+    on the values and the tangents, at ``Settings.derivative_tolerance`` times the tolerances)
+    and its tangent."""
     leaves, treedef = jax.tree_util.tree_flatten(primals)
     tleaves = treedef.flatten_up_to(tangents)
     perturbed = tuple(i for i, (x, t) in enumerate(zip(leaves, tleaves))
@@ -228,7 +231,9 @@ def tangent_run(primals, tangents):
     v0, start_tangent = jax.linearize(lambda p: solve.start(*rebuild(p)).packed, point)
     t0, t1, ts = solve.grid(s, begin, dtype)
     system = TangentSystem(mech, s.baumgarte, rebuild, point, dirs, DTMIN_FRACTION * (t1 - t0), size, count)
-    run = solve.integrate(system, s, t0, t1, ts, jnp.concatenate([v0, jax.vmap(start_tangent)(dirs).reshape(-1)]))
+    f = s.derivative_tolerance
+    tight = dataclasses.replace(s, rtol=s.rtol * f, atol=s.atol * f) if f != 1 else s
+    run = solve.integrate(system, tight, t0, t1, ts, jnp.concatenate([v0, jax.vmap(start_tangent)(dirs).reshape(-1)]))
     samples = run.samples[:, :size]
     tangent_samples = jnp.moveaxis(run.samples[:, size:].reshape(-1, count, size), 1, 0)  # (P, T, N)
 
