@@ -60,8 +60,9 @@ class Settings(eqx.Module):
             and a misfit's derivative is a sum whose terms cancel (measured on
             ``benchmarks/bench_gradients.py``'s worst misfit, slider-crank friction 0.1,
             n = 1: the derivatives at parameter values 1e-7 apart departed from a straight
-            line by 1.7e-3 at rtol 1e-6, by 2.4e-5 at 1e-7, for 0.96-1.29x the Jacobian's
-            time on three cases: its steps are spent at the onsets). The values of a plain
+            line by 1.7e-3 at rtol 1e-6, by 2.4e-5 at 1e-7, for 1.07-1.24x the Jacobian's
+            time where contacts dominate (its steps are spent at the onsets), up to 2-3.5x
+            on the lubricated joint, whose smooth film's steps the tolerance sets). The values of a plain
             run keep ``rtol``; those returned with derivatives come from the sensitivity
             solve. Only with ``adjoint="sensitivity"``.
         checkpoints: number of checkpoints of reverse mode (``None``: diffrax's default,
