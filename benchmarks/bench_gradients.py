@@ -361,15 +361,8 @@ def run_case(case: Case, mu: float, n: float, repeats: int, saved: tuple | None 
         row[f"{key}_error"], row[f"{key}_s"], row[f"{key}_compile_s"] = _errors(J, truth, blocks, scale), t, c
     raw["sensitivity"] = J_sens
     # equal accuracy: the cheapest loop tolerance at least as accurate as the sensitivities
-    target = max(max(row["sensitivity_error"].values()), 1e-3)
-    for key in LOOP_KEYS:
-        if max(row[f"{key}_error"].values()) <= target:
-            row["equal_accuracy_loop"] = key
-            row["equal_accuracy_ratio"] = row[f"{key}_s"] / row["sensitivity_s"]
-            break
-    else:
-        row["equal_accuracy_loop"] = None
-        row["equal_accuracy_ratio"] = None
+    worst = {k: max(row[f"{k}_error"].values()) for k in ("sensitivity",) + LOOP_KEYS}
+    row["equal_accuracy_loop"], row["equal_accuracy_ratio"] = _cheapest_loop(worst, row)
     row["raw"] = raw
     return row
 
@@ -467,11 +460,18 @@ def settled_accuracy(raw, rows, blocks, names, timing) -> dict:
         den = max(float(np.max(np.abs(ref))), 1e-300)
         for k in worst:
             worst[k] = max(worst[k], float(np.max(np.abs(raw[k][sl, i] * scale[i] - ref))) / den)
+    loop, ratio = _cheapest_loop(worst, timing)
+    return dict(settled=count, of=len(rows), worst=worst, loop=loop, ratio=ratio,
+                tightest_loop_ratio=timing[f"{LOOP_KEYS[-1]}_s"] / timing["sensitivity_s"])
+
+
+def _cheapest_loop(worst, timing):
+    """The cheapest loop tolerance whose worst error (``worst``: key -> error) is within
+    max(the sensitivities' error, 1e-3), and its time over the sensitivities' (``timing``: a
+    results row); ``(None, None)`` where none is."""
     target = max(worst["sensitivity"], 1e-3)
     loop = next((k for k in LOOP_KEYS if worst[k] <= target), None)
-    return dict(settled=count, of=len(rows), worst=worst, loop=loop,
-                ratio=timing[f"{loop}_s"] / timing["sensitivity_s"] if loop else None,
-                tightest_loop_ratio=timing[f"{LOOP_KEYS[-1]}_s"] / timing["sensitivity_s"])
+    return loop, (timing[f"{loop}_s"] / timing["sensitivity_s"] if loop else None)
 
 
 def summary(path: Path) -> None:
