@@ -160,8 +160,10 @@ def _record(case: Case, mech, x0):
     return np.asarray(case.channel(sol, true))
 
 
-def _function(case: Case, mech, record, settings):
-    """``f(x)``: the outputs flattened ``(L,)`` and the block slices, for parameter values ``x``."""
+def _function(case: Case, mech, record, settings, steps=False):
+    """``f(x)``: the outputs (name -> array) for parameter values ``x``; with ``steps``, the pair
+    (outputs, the run's solver steps, accepted and rejected: under ``jax.jacfwd`` with
+    ``has_aux`` the sensitivity solve's own)."""
     names = case.names
     ts = jnp.linspace(0.0, case.t_end, case.n_out)
     rec = jnp.asarray(record)
@@ -170,16 +172,20 @@ def _function(case: Case, mech, record, settings):
         m = params.replace_many(mech, {n: x[i] for i, n in enumerate(names)})
         sol = jc.simulate(m, settings)
         mis = lambda mask: _misfit(case.channel(sol, m), rec, mask)  # noqa: E731
-        return {k: jnp.atleast_1d(v) for k, v in case.outputs(sol, m, ts, mis).items()}
+        out = {k: jnp.atleast_1d(v) for k, v in case.outputs(sol, m, ts, mis).items()}
+        return (out, sol.num_accepted_steps + sol.num_rejected_steps) if steps else out
 
     return outputs
 
 
 def _flat(outputs):
+    """``f(x)``: ``outputs(x)`` flattened ``(L,)`` (and its aux, where it returns a pair)."""
     def f(x):
         out = outputs(x)
+        out, aux = out if isinstance(out, tuple) else (out, None)
         # in the keys' sorted order: the order of jax.eval_shape's dict, from which the blocks are cut
-        return jnp.concatenate([out[k] for k in sorted(out)])
+        flat = jnp.concatenate([out[k] for k in sorted(out)])
+        return flat if aux is None else (flat, aux)
     return f
 
 
