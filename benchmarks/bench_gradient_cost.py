@@ -63,20 +63,9 @@ def _settings(case, method, rtol, f):
 
 
 def references(raw, case, mech, record, x0):
-    """``[(block slice, parameter index, reference (L_block,))]``: the settled derivatives
-    (:func:`bench_gradients.per_parameter`'s verdicts; the undetermined left out), per unit log
-    parameter."""
+    """The settled derivatives of a case (:func:`bench_gradients.settled_references`)."""
     blocks = bg._blocks(bg._function(case, mech, record, jc.settings(case.t_end, n_out=case.n_out)), x0)
-    rows = bg.per_parameter(raw, list(case.names), blocks)
-    scale = raw["scale"]
-    where = [(sl, i) for sl in blocks.values() for i in range(len(case.names))]
-    out = []
-    for q, (sl, i) in zip(rows, where):
-        if "converged sensitivities" in q["verdict"]:
-            out.append((sl, i, raw["sens_1e-11"][sl, i] * scale[i]))
-        elif q["plateau_width"] <= TARGET:
-            out.append((sl, i, raw["truth"][sl, i] * scale[i]))
-    return out
+    return bg.settled_references(raw, bg.per_parameter(raw, list(case.names), blocks), blocks, case.names)
 
 
 def run_case(spec: str, repeats: int, raw_json: Path) -> dict:
@@ -98,8 +87,7 @@ def run_case(spec: str, repeats: int, raw_json: Path) -> dict:
         fn = jax.jit(jax.jacfwd(bg._flat(bg._function(case, mech, record, _settings(case, method, rtol, f), steps=True)),
                                 has_aux=True))
         J, compile_s, t = bg._timed(lambda x: fn(x)[0], x, repeats)
-        worst = max(float(np.max(np.abs(J[sl, i] * scale[i] - r)) / max(float(np.max(np.abs(r))), 1e-300))
-                    for sl, i, r in refs)
+        worst = bg.settled_error(J, refs, scale)
         steps = int(fn(x)[1])
         row["ladder"].append(dict(method=method, rtol=rtol, derivative_tolerance=f, worst=worst, s=t,
                                   compile_s=compile_s, steps=steps))

@@ -451,24 +451,35 @@ def settled_accuracy(raw, rows, blocks, names, timing) -> dict:
     results row). Unlike ``equal_accuracy_loop``, which measures both against the raw
     differences, whose own error (up to 0.2 where they have no plateau) lets the loop "reach"
     them."""
+    refs = settled_references(raw, rows, blocks, names)
+    worst = {k: settled_error(raw[k], refs, raw["scale"]) for k in ("sensitivity",) + LOOP_KEYS}
+    loop, ratio = _cheapest_loop(worst, timing)
+    return dict(settled=len(refs), of=len(rows), worst=worst, loop=loop, ratio=ratio,
+                tightest_loop_ratio=timing[f"{LOOP_KEYS[-1]}_s"] / timing["sensitivity_s"])
+
+
+def settled_references(raw, rows, blocks, names) -> list:
+    """``[(block slice, parameter index, reference (L_block,))]``, per unit log parameter: the
+    derivatives whose true value is settled (:func:`per_parameter`'s ``rows``: the converged
+    sensitivities where they decided the verdict, else the central differences where their
+    plateau is within 1e-3; the undetermined ones left out)."""
     scale = raw["scale"]
-    worst = {k: 0.0 for k in ("sensitivity",) + LOOP_KEYS}
     where = [(sl, i) for sl in blocks.values() for i in range(len(names))]
-    count = 0
+    out = []
     for q, (sl, i) in zip(rows, where):
         if "converged sensitivities" in q["verdict"]:
-            ref = raw["sens_1e-11"][sl, i] * scale[i]
+            out.append((sl, i, raw["sens_1e-11"][sl, i] * scale[i]))
         elif q["plateau_width"] <= 1e-3:
-            ref = raw["truth"][sl, i] * scale[i]
-        else:
-            continue
-        count += 1
-        den = max(float(np.max(np.abs(ref))), 1e-300)
-        for k in worst:
-            worst[k] = max(worst[k], float(np.max(np.abs(raw[k][sl, i] * scale[i] - ref))) / den)
-    loop, ratio = _cheapest_loop(worst, timing)
-    return dict(settled=count, of=len(rows), worst=worst, loop=loop, ratio=ratio,
-                tightest_loop_ratio=timing[f"{LOOP_KEYS[-1]}_s"] / timing["sensitivity_s"])
+            out.append((sl, i, raw["truth"][sl, i] * scale[i]))
+    return out
+
+
+def settled_error(J, refs, scale) -> float:
+    """The worst relative error of a Jacobian ``J`` (L, P) over ``refs``
+    (:func:`settled_references`): per derivative, the largest absolute error over the block's
+    samples over the reference's largest magnitude; 0 where ``refs`` is empty."""
+    return max((float(np.max(np.abs(J[sl, i] * scale[i] - r))) / max(float(np.max(np.abs(r))), 1e-300)
+                for sl, i, r in refs), default=0.0)
 
 
 def _cheapest_loop(worst, timing):
