@@ -338,7 +338,7 @@ def onset_update(memory: ContactMemory, t0, t1, p0, p1, r0, r1, accel=None) -> t
 
 
 def penetration_accelerations(rate, q0, qd0, q1, qd1, qdd):
-    """The accelerations ``(a0, a1)`` [m/s^2] of penetrations whose rates are ``rate(q, qdot)``
+    r"""The accelerations ``(a0, a1)`` [m/s^2] of penetrations whose rates are ``rate(q, qdot)``
     [m/s] at a step's two ends, given the coordinates' accelerations ``qdd = (qdd0, qdd1)``:
     :math:`\ddot\delta = \partial\dot\delta/\partial q\,\dot q + \partial\dot\delta/
     \partial\dot q\,\ddot q` (a JVP), values only (no derivative flows through them). None
