@@ -350,13 +350,24 @@ def _record(path, rate_hz: float, span_s: float):
     return path
 
 
-def _problem(path, window, windows=1):
+def _problem(path, window, windows=1, rtol=1e-6):
     from jaxclear.fitting.problem import build_problem
 
-    settings = dict(max_iter=3, ftol=1e-8, xtol=1e-8, rtol=1e-6, atol=1e-9, max_steps=1000, align="time",
+    settings = dict(max_iter=3, ftol=1e-8, xtol=1e-8, rtol=rtol, atol=rtol * 1e-3, max_steps=1000, align="time",
                     time_offset=0.0, optimizer="lm")
     return build_problem(str(path), jc.preset("flores-slider-crank"), ["stiffness"], None, None, window, windows,
                          (1.0,), None, 1, settings)
+
+
+def test_fit_model_runs_its_sensitivities_at_its_own_tolerance_where_it_is_tight(tmp_path):
+    """The fit's window model asks for the sensitivity solve at its own tolerance
+    (``derivative_tolerance`` 1) where its rtol is 1e-7 or tighter (the fits' 1e-8: smooth
+    derivatives already, and the tenth cost their Jacobians about 1.2x), at Settings' default
+    tenth where it is looser."""
+    rec = _record(tmp_path / "r.csv", 20000.0, 0.004)
+    assert _problem(rec, 0.002, rtol=1e-8).model.settings.derivative_tolerance == 1.0
+    assert _problem(rec, 0.002, rtol=1e-7).model.settings.derivative_tolerance == 1.0
+    assert _problem(rec, 0.002, rtol=1e-6).model.settings.derivative_tolerance == jc.Settings.derivative_tolerance == 0.1
 
 
 def test_fit_window_against_short_records(tmp_path, capsys):

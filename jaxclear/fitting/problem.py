@@ -35,12 +35,13 @@ FIT_SAMPLING = "block"
 
 
 def derivative_tolerance(rtol: float) -> float:
-    """The fit's :class:`~jaxclear.Settings` ``derivative_tolerance`` for a model at ``rtol``: 1 (the
-    sensitivity solve at the model's own tolerance) where ``rtol`` is 1e-7 or tighter, else
-    :class:`~jaxclear.Settings`' default (a tenth). The tenth keeps a misfit's derivatives smooth in the parameters at the default
-    rtol 1e-6 (their non-smooth part at parameter values 1e-7 apart: 1.7e-3 at rtol 1e-6, 2.0e-5
-    at 1e-7, 1.5e-6 at 1e-8; ``benchmarks/README.md``, "Derivatives through impacts"); the fit's
-    model runs at 1e-8, where it is already smooth, and the tenth cost its Jacobians about 1.2x."""
+    """The fit's :class:`~jaxclear.Settings` ``derivative_tolerance`` for a model at ``rtol``: 1
+    (the sensitivity solve at the model's own tolerance) where ``rtol`` is 1e-7 or tighter, else
+    :class:`~jaxclear.Settings`' default (a tenth). The tenth keeps a misfit's derivatives smooth
+    in the parameters at the default rtol 1e-6 (their non-smooth part at parameter values 1e-7
+    apart: 1.7e-3 at rtol 1e-6, 2.0e-5 at 1e-7, 1.5e-6 at 1e-8; ``benchmarks/README.md``,
+    "Derivatives through impacts"); the fit's model runs at 1e-8, where it is already smooth,
+    and the tenth cost its Jacobians about 1.2x."""
     return 1.0 if rtol <= 1e-7 else Settings.derivative_tolerance
 
 
