@@ -79,16 +79,15 @@ def run_case(spec: str, repeats: int, raw_json: Path) -> dict:
     scale = raw["scale"]
     x = jnp.asarray(x0)
     value_fn = jax.jit(bg._flat(bg._function(case, mech, record, jc.settings(case.t_end, n_out=case.n_out), steps=True)))
-    _, _, value_s = bg._timed(lambda x: value_fn(x)[0], x, repeats)
+    (_, value_steps), _, value_s = bg._timed(value_fn, x, repeats)
     row = dict(case=name, friction=mu, exponent=n, settled=len(refs), value_s=value_s,
-               value_steps=int(value_fn(x)[1]), ladder=[])
+               value_steps=int(value_steps), ladder=[])
     for method, rtol, f in LADDER:
         # the steps as the Jacobian's aux: its primal run (for the sensitivities, their own solve)
         fn = jax.jit(jax.jacfwd(bg._flat(bg._function(case, mech, record, _settings(case, method, rtol, f), steps=True)),
                                 has_aux=True))
-        J, compile_s, t = bg._timed(lambda x: fn(x)[0], x, repeats)
-        worst = bg.settled_error(J, refs, scale)
-        steps = int(fn(x)[1])
+        (J, steps), compile_s, t = bg._timed(fn, x, repeats)
+        worst, steps = bg.settled_error(J, refs, scale), int(steps)
         row["ladder"].append(dict(method=method, rtol=rtol, derivative_tolerance=f, worst=worst, s=t,
                                   compile_s=compile_s, steps=steps))
         print(f"  {_label(method, rtol, f):28s} worst {worst:8.1e}  {t / value_s:6.1f}x the value  "
@@ -109,10 +108,14 @@ def equal_accuracy(ladder, target=TARGET) -> dict:
                 loop_over_sensitivities=(lp["s"] / s["s"]) if s and lp else None)
 
 
+def _spec(row) -> str:
+    """A results row's case as ``case:friction:exponent``."""
+    return f"{row['case']}:{row['friction']:g}:{row['exponent']:g}"
+
+
 def _reached(raw_json: Path) -> list[str]:
     rows = json.loads(raw_json.read_text())["rows"]
-    return [f"{r['case']}:{r['friction']:g}:{r['exponent']:g}" for r in rows
-            if (r.get("settled_accuracy") or {}).get("loop")]
+    return [_spec(r) for r in rows if (r.get("settled_accuracy") or {}).get("loop")]
 
 
 def main(argv=None):
@@ -127,11 +130,10 @@ def main(argv=None):
     if args.cases == "reached":
         specs = _reached(raw_json)
     elif args.cases == "all":
-        specs = [f"{r['case']}:{r['friction']:g}:{r['exponent']:g}" for r in json.loads(raw_json.read_text())["rows"]]
+        specs = [_spec(r) for r in json.loads(raw_json.read_text())["rows"]]
     else:
         specs = args.cases.split(",")
-    done = {f"{r['case']}:{r['friction']:g}:{r['exponent']:g}": r
-            for r in (json.loads(path.read_text())["rows"] if path.exists() else [])}
+    done = {_spec(r): r for r in (json.loads(path.read_text())["rows"] if path.exists() else [])}
     meta = dict(machine=platform.processor() or platform.machine(), cores=os.cpu_count(), jax=jax.__version__,
                 date=time.strftime("%Y-%m-%d"), target=TARGET)
     for spec in specs:
