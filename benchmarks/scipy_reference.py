@@ -64,6 +64,7 @@ def params(**overrides) -> dict:
         R_B=0.010,  # bearing radius (on slider) [m]
         R_J=0.0095,  # journal radius (on rod) [m]
         E=207e9, nu=0.3,  # Young's modulus [Pa], Poisson ratio (both bodies)
+        K=None,  # contact stiffness [N/m^1.5]; None: contact_stiffness's Hertz value
         c_r=0.9,  # coefficient of restitution
         mu=0.0,  # friction coefficient
         v0=1e-4, v1=1e-3,  # Ambrosio friction velocity tolerances [m/s]
@@ -88,7 +89,10 @@ HYSTERESIS = {
 
 
 def contact_stiffness(p) -> float:
-    """Lankarani-Nikravesh generalised stiffness K [N/m^1.5] for internal cylinder contact."""
+    """Lankarani-Nikravesh generalised stiffness K [N/m^1.5] for internal cylinder contact
+    (``p["K"]`` instead when that is given)."""
+    if p.get("K") is not None:
+        return float(p["K"])
     sigma = (1.0 - p["nu"] ** 2) / p["E"]  # same material for bearing and journal
     R_B, R_J = p["R_B"], p["R_J"]
     return (4.0 / 3.0) / (sigma + sigma) * math.sqrt(R_B * R_J / (R_B - R_J))
@@ -364,17 +368,25 @@ def initial_state(p):
 # ----------------------------------------------------------------------------------
 # simulation driver
 # ----------------------------------------------------------------------------------
-def simulate(p, t_end, ts=None, rtol=1e-6, atol=1e-9, method="RK45", ideal=False):
+def simulate(p, t_end, ts=None, rtol=1e-6, atol=1e-9, method="RK45", ideal=False, start=None):
     """Integrate from t=0 to t_end; results sampled on ts (default 1000 uniform points).
 
-    Returns dict: t, q (N,9), qdot (N,9), slider_acc (N,), delta (N,), F_N (N,),
-    n_impacts, nfev, wall_s (integration wall time, excluding output post-processing).
+    ``start=(t0, y0, deltadot0)`` continues from the state y0 = [q, qdot] at t0 (the onset
+    approach speed deltadot0 of an ongoing contact) instead of ``initial_state`` at t=0.
+
+    Returns dict: t, q (N,9), qdot (N,9), qdd (N,9), slider_acc (N,), delta (N,), F_N (N,),
+    deltadot0 (N,) (the onset approach speed the force law used at each output time),
+    n_impacts, impact_times (the contact onsets' times), nfev, wall_s (integration wall time,
+    excluding output post-processing).
     """
-    ts = np.linspace(0.0, t_end, 1000) if ts is None else np.asarray(ts, dtype=float)
-    if ts[0] < 0.0 or ts[-1] > t_end or np.any(np.diff(ts) < 0):
-        raise ValueError("ts must be sorted and lie in [0, t_end]")
-    q0, qd0 = initial_state(p)
-    y0 = np.concatenate([q0, qd0])
+    if start is None:  # start-up (deltadot0 is irrelevant until the first onset)
+        t0, y0, deltadot0 = 0.0, np.concatenate(initial_state(p)), p["floor"]
+    else:
+        t0, y0, deltadot0 = float(start[0]), np.array(start[1], dtype=float), float(start[2])
+    ts = np.linspace(t0, t_end, 1000) if ts is None else np.asarray(ts, dtype=float)
+    if ts[0] < t0 or ts[-1] > t_end or np.any(np.diff(ts) < 0):
+        raise ValueError("ts must be sorted and lie in [t0, t_end]")
+    q0 = y0[:9]
 
     n0 = RHS_COUNTER.n
     wall0 = time.perf_counter()
@@ -383,11 +395,10 @@ def simulate(p, t_end, ts=None, rtol=1e-6, atol=1e-9, method="RK45", ideal=False
     DD0 = np.zeros(len(ts))  # deltadot0 valid at each output time
     k = 0  # next output index to fill
     n_impacts = 0
-    deltadot0 = p["floor"]  # irrelevant until the first onset
-    t0 = 0.0
+    impact_times = []
 
     if ideal:
-        sol = solve_ivp(lambda t, y: rhs(t, y, p, 0.0, True), (0.0, t_end), y0,
+        sol = solve_ivp(lambda t, y: rhs(t, y, p, 0.0, True), (t0, t_end), y0,
                         method=method, t_eval=ts, rtol=rtol, atol=atol)
         if not sol.success:
             raise RuntimeError(sol.message)
@@ -428,6 +439,7 @@ def simulate(p, t_end, ts=None, rtol=1e-6, atol=1e-9, method="RK45", ideal=False
             else:
                 in_contact = True
                 n_impacts += 1
+                impact_times.append(t0)
                 deltadot0 = contact(y0[:9], y0[9:], p, deltadot0)["deltadot"]
 
     wall_s = time.perf_counter() - wall0
@@ -435,17 +447,18 @@ def simulate(p, t_end, ts=None, rtol=1e-6, atol=1e-9, method="RK45", ideal=False
     if k != len(ts):
         raise RuntimeError("integration ended before all output times were reached")
 
-    slider_acc = np.empty(len(ts))
+    qdd = np.empty((len(ts), 9))
     delta = np.full(len(ts), np.nan)
     F_N = np.zeros(len(ts))
     for i, (t, y) in enumerate(zip(ts, Y)):
         o = outputs(t, y, p, DD0[i], ideal)
-        slider_acc[i] = o["qdd"][6]
+        qdd[i] = o["qdd"]
         delta[i] = o["delta"]
         F_N[i] = o["F_N"]
 
-    return dict(t=ts, q=Y[:, :9], qdot=Y[:, 9:], slider_acc=slider_acc, delta=delta,
-                F_N=F_N, n_impacts=n_impacts, nfev=nfev, wall_s=wall_s)
+    return dict(t=ts, q=Y[:, :9], qdot=Y[:, 9:], qdd=qdd, slider_acc=qdd[:, 6].copy(), delta=delta,
+                F_N=F_N, deltadot0=DD0, n_impacts=n_impacts, impact_times=np.array(impact_times),
+                nfev=nfev, wall_s=wall_s)
 
 
 def exact_slider(p, t):
