@@ -23,6 +23,12 @@ jaxclear.fitting.targets), several at once with --weight COLUMN=W. Writes:
   fit.json              estimates, std (Gauss-Newton), loss, iterations, wall time, diagnostics
   fit.png               measured vs fitted acceleration and the residuals
   fit_checkpoint.json   the fit's state after every iteration: the same command resumes it
+A fit whose estimates are not a result (a stiffness outside the physical range of the joint's
+materials, a restitution at 0 or 1, a sensor gain outside [0.5, 2], a std larger than the
+estimate, starts that disagree; see jaxclear.fitting.verdict) is reported as FAILED with its
+reasons first, and fit.json says "ok": false with the "failures". Exit status: 0 (also for a
+failed fit, unless --strict), 3 with --strict when the fit failed (after writing fit.json and
+printing the reasons), 2 for bad input, 130 on Ctrl-C.
 With --posterior also the Bayesian posterior of the free parameters and the noise level (NUTS
 chains started from the fit's optimum; see jaxclear.fitting.posterior):
   posterior.nc, posterior.json, posterior_summary.csv, posterior_pair.png,
@@ -114,6 +120,10 @@ def configure(p: argparse.ArgumentParser):
     out.add_argument("--restart", action="store_true", help="ignore a checkpoint in --out instead of resuming")
     out.add_argument("--no-plots", action="store_true", help="write fit.json only (default: off)")
     out.add_argument("--no-progress", action="store_true", help="hide the progress bar (default: shown)")
+    out.add_argument("--strict", action="store_true",
+                     help="exit with status 3 when the fit failed its checks (fit.json written first, with \"ok\": "
+                     "false and the reasons; --posterior is then skipped); without it a failed fit prints FAILED "
+                     "and its reasons and exits with 0 (default: off)")
     return run
 
 
@@ -153,6 +163,10 @@ def run(args) -> int:
         files.append(os.path.join(args.out, "fit.png"))
         res.plot(files[-1])
     _print_result(res, files)
+    if not res.ok and args.strict:
+        print(f"error: the fit failed {len(res.failures)} check(s) (--strict): exit status 3"
+              + ("; the posterior is skipped" if args.posterior else ""), flush=True)
+        return 3
     if args.posterior:
         _posterior(args, mech, free, channels, sensor, res)
     return 0
@@ -208,7 +222,10 @@ def _channels(args) -> dict | None:
 
 
 def _print_result(res, files: list[str]):
-    """Print the fit's outcome, the estimates with their start values and std, and warnings."""
+    """Print the fit's outcome (a failed fit: FAILED and its reasons first, and once more at the
+    end), the estimates with their start values and std, and warnings."""
+    if not res.ok:
+        print(res.format_failures())
     width = max(len(n) for n in res.estimates)
     resumed = " (resumed from the checkpoint)" if res.settings.get("resumed") else ""
     print(f"done in {res.wall_time_s:.1f} s wall{resumed}, {res.iterations} iterations ({res.stop_reason}); "
@@ -223,3 +240,5 @@ def _print_result(res, files: list[str]):
     for w in res.warnings:
         print(f"warning: {w}")
     print("wrote " + ", ".join(files))
+    if not res.ok:
+        print(f"FAILED: {len(res.failures)} reason(s) above; the estimates are not a result", flush=True)

@@ -128,7 +128,8 @@ Modules
 checks, quiet cut), :mod:`.targets` (record columns mapped to named channels), :mod:`.window` (the window model and the record cut into windows),
 :mod:`.plan` (stages and starts), :mod:`.problem` (the checked inputs), :mod:`.state` (the fit
 state and its checkpoint), :mod:`.solver` (optimistix steps of one stage), :mod:`.run` (the
-plan with checkpoints), :mod:`.uncertainty`, :mod:`.result` (:class:`FitResult`),
+plan with checkpoints), :mod:`.uncertainty`, :mod:`.verdict` (:func:`assess`: whether the
+estimates are a result; ``FitResult.failures``, ``FitResult.ok``), :mod:`.result` (:class:`FitResult`),
 :mod:`.driver` (:func:`fit`), :mod:`.priors`, :mod:`.posterior_model`, :mod:`.sampler`,
 :mod:`.posterior` (:func:`posterior`: the Bayesian posterior of the fit), :mod:`.posterior_result`,
 :mod:`.gradients` (:func:`parameter_grad`), :mod:`.legacy`
@@ -150,6 +151,7 @@ from .solver import Optimizer, make_optimizer
 from .state import CHECKPOINT_NAME, Checkpoint, FitState
 from .targets import DEFAULT_COLUMN, FitChannel, read_channels_toml
 from .uncertainty import AUTOCORRELATION_WARNING
+from .verdict import assess, stiffness_range
 from .window import WindowInput, WindowModel, evaluate_window
 
 __all__ = [
@@ -165,6 +167,8 @@ __all__ = [
     "DEFAULT_COLUMN",
     "read_channels_toml",
     "FitResult",
+    "assess",
+    "stiffness_range",
     "FitState",
     "Checkpoint",
     "CHECKPOINT_NAME",

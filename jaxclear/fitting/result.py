@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import InitVar, dataclass, field
 
 import numpy as np
 
 from .. import io
+from ..model import Mechanism
 from ..plot import plot_fit
+from .verdict import assess, fallback_mechanism
 
 
 @dataclass
@@ -33,6 +35,15 @@ class FitResult:
             stacked; ``window_starts`` [s].
         series: every fitted column -> ``{"measured", "fitted", "initial"}`` (same samples as ``t``).
         free, fixed, settings, warnings: inputs and remarks, written to ``fit.json``.
+        failures: why the estimates are not a result (one sentence each: the parameter, its
+            value, the rule broken and what to try; :func:`jaxclear.fitting.verdict.assess`),
+            ``()`` for a fit that passed; computed when the result is made unless given.
+        ok: True when ``failures`` is empty (a property).
+
+    ``mech`` (init only): the fitted mechanism, whose joint geometry and laws give the physical
+    range of a fitted stiffness; without it the preset named ``settings["mechanism"]``, rebuilt
+    with the reported law and clearance, stands in (:func:`~jaxclear.fitting.verdict.fallback_mechanism`),
+    and a mechanism that is no preset's gets no stiffness-range check.
     """
 
     estimates: dict
@@ -64,10 +75,51 @@ class FitResult:
     window_losses: list = field(default_factory=list)
     evaluations: int = 0
     series: dict = field(default_factory=dict)
+    failures: tuple | None = None
+    mech: InitVar[Mechanism | None] = None
+
+    def __post_init__(self, mech: Mechanism | None):
+        """Assess the estimates once (:func:`~jaxclear.fitting.verdict.assess`) unless
+        ``failures`` was given."""
+        if self.failures is None:
+            if mech is None:
+                mech = fallback_mechanism(self.settings, self.fixed)
+            self.failures = assess(self.free, self.estimates, self.std, start=self.start, mech=mech,
+                                   history=self.history, scale=float(self.settings.get("data_rms_m_s2", 1.0)))
+        self.failures = tuple(self.failures)
+
+    @property
+    def ok(self) -> bool:
+        """Whether the estimates passed every check (no ``failures``)."""
+        return not self.failures
+
+    def format_failures(self) -> str:
+        """``FAILED: ...`` with one ``  - reason`` line per failure; '' for a fit that passed."""
+        if self.ok:
+            return ""
+        lines = [f"FAILED: the fit's estimates are not a result ({len(self.failures)} reason"
+                 f"{'s' if len(self.failures) > 1 else ''}; fit.json has \"ok\": false):"]
+        return "\n".join(lines + [f"  - {reason}" for reason in self.failures])
+
+    def summary(self) -> str:
+        """The outcome as text: a failed fit's reasons first, then the loss, the estimates with
+        their start values and std [SI], and the warnings."""
+        lines = [self.format_failures()] if not self.ok else []
+        lines.append(f"{'FAILED' if not self.ok else 'ok'}: {self.iterations} iterations ({self.stop_reason or '-'}); "
+                     f"loss {self.loss:.4g}, residual lag-1 autocorrelation {self.residual_autocorrelation:.2f}")
+        width = max([len(n) for n in self.estimates] + [len("parameter")])
+        lines.append(f"  {'parameter':<{width}}  {'start':>12}  {'estimate':>12}  {'std':>10}")
+        for name, value in self.estimates.items():
+            lines.append(f"  {name:<{width}}  {self.start.get(name, float('nan')):>12.6g}  {value:>12.6g}  "
+                         f"{self.std.get(name, float('nan')):>10.3g}")
+        lines += [f"warning: {w}" for w in self.warnings]
+        return "\n".join(lines)
 
     def to_dict(self) -> dict:
-        """The content of ``fit.json``."""
+        """The content of ``fit.json``: ``ok`` and ``failures`` first, then the estimates."""
         return {
+            "ok": self.ok,
+            "failures": list(self.failures),
             "estimates": self.estimates,
             "std": self.std,
             "loss": self.loss,
@@ -113,7 +165,8 @@ class FitResult:
         df = pd.DataFrame(rows, index=pd.Index(names, name="parameter"))
         df.attrs.update(loss=self.loss, iterations=self.iterations, evaluations=self.evaluations,
                         noise_sigma_m_s2=self.noise_sigma_m_s2, residual_rms_m_s2=self.residual_rms_m_s2,
-                        residual_lag1_autocorrelation=self.residual_autocorrelation, converged=self.converged)
+                        residual_lag1_autocorrelation=self.residual_autocorrelation, converged=self.converged,
+                        ok=self.ok, failures=list(self.failures))
         return df
 
     def signals_frame(self):

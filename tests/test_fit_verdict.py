@@ -1,0 +1,219 @@
+"""Whether a fit's estimates are a result (jaxclear.fitting.verdict): each rule of ``assess`` on
+hand-made estimates (no simulation), the physical stiffness range of the benchmark joint,
+``FitResult.failures``/``ok`` in the result and fit.json, and ``jaxclear fit --strict`` (the
+fit replaced by a failed result: no compilation)."""
+
+import dataclasses
+import json
+import math
+
+import jaxclear as jc
+import pytest
+
+from jaxclear.cli import main
+from jaxclear.contact.base import Material
+from jaxclear.contact.hertz import cylindrical_stiffness
+from jaxclear.fitting import FitResult, assess, stiffness_range, verdict
+
+FREE = ("stiffness", "restitution")
+GOOD = {"stiffness": 6.6e10, "restitution": 0.9}
+GOOD_STD = {"stiffness": 1e8, "restitution": 1e-4}
+START = {"stiffness": 2e10, "restitution": 0.6}
+SETTINGS = {"mechanism": "flores-slider-crank", "law": "lankarani-nikravesh", "data_rms_m_s2": 500.0}
+
+
+@pytest.fixture(scope="module")
+def bench():
+    return jc.preset("flores-slider-crank")
+
+
+def _one(failures, *fragments):
+    """The single failure, holding every fragment."""
+    assert len(failures) == 1, failures
+    assert all(f in failures[0] for f in fragments), failures[0]
+    return failures[0]
+
+
+def test_a_good_fit_passes(bench):
+    assert assess(FREE, GOOD, GOOD_STD, start=START, mech=bench) == ()
+    assert assess(FREE, GOOD, GOOD_STD) == ()  # without the mechanism and the start: the other rules
+
+
+@pytest.mark.parametrize("value,edge", [(0.9995, "bound 1"), (1.0, "bound 1"), (5e-4, "bound 0")])
+def test_restitution_at_a_bound_of_its_logit(value, edge):
+    out = assess(("restitution",), {"restitution": value}, {"restitution": 1e-5})
+    _one(out, "restitution = ", edge, "logit", "try more starts")
+    assert assess(("restitution",), {"restitution": 0.99}, {"restitution": 1e-3}) == ()
+
+
+def test_a_log_parameter_that_ran_from_its_start():
+    """A factor 1e3 from the start: towards 0 or infinity; within it, nothing."""
+    out = assess(("friction",), {"friction": 2e-6}, {"friction": 1e-7}, start={"friction": 0.01})
+    _one(out, "friction = 2e-06", "a factor 5e+03 from its start 0.01", "towards 0")
+    out = assess(("mass:slider",), {"mass:slider": 500.0}, {"mass:slider": 1.0}, start={"mass:slider": 0.14})
+    _one(out, "mass:slider = 500 kg", "towards infinity", "units")
+    assert assess(("mass:slider",), {"mass:slider": 100.0}, {"mass:slider": 1.0}, start={"mass:slider": 0.14}) == ()
+    # a stiffness with a physical range is judged by the range, not by its distance from the start
+    assert assess(("stiffness",), {"stiffness": 6.6e10}, {"stiffness": 1e8}, start={"stiffness": 1e7}) != ()
+    assert assess(("stiffness",), {"stiffness": 6.6e10}, {"stiffness": 1e8}, start={"stiffness": 1e7},
+                  mech=jc.preset("flores-slider-crank")) == ()
+
+
+def test_outside_the_documented_range(bench):
+    """A value that underflowed to the bound 0 of (0, inf); a clearance not below the bearing
+    radius (with the mechanism)."""
+    _one(assess(("mass:slider",), {"mass:slider": 0.0}, {"mass:slider": 0.0}), "outside its range (0, inf)")
+    out = assess(("clearance",), {"clearance": 0.012}, {"clearance": 1e-5}, mech=bench)
+    _one(out, "clearance = 0.012 m", "bearing radius")
+    assert assess(("clearance",), {"clearance": 0.012}, {"clearance": 1e-5}) == ()  # no radius known
+
+
+def test_stiffness_range_of_the_benchmark(bench, monkeypatch):
+    """The range holds the preset's nominal stiffness (steel, 6.61e10) and excludes 1.8e14; it is
+    the law's own formula at the extreme materials. Its floor is a 1 GPa polymer pair: 3.0e8, so
+    1.2e9 (E* about 2 GPa, a polymer joint) lies inside, and outside with a 5 GPa floor."""
+    low, high, unit, what = stiffness_range(bench)
+    nominal = float(jc.params.get(bench, "stiffness"))
+    assert low < nominal < high and not low <= 1.8e14 <= high and not low <= 1.2e8 <= high
+    assert unit == "N/m^1.5" and "bearing radius 10 mm" in what and "journal radius 9.5 mm" in what
+    soft, hard = Material(1e9, 0.2).compliance, Material(1000e9, 0.45).compliance
+    assert math.isclose(low, float(cylindrical_stiffness(0.01, 0.0095, soft, soft)), rel_tol=1e-12)
+    assert math.isclose(high, float(cylindrical_stiffness(0.01, 0.0095, hard, hard)), rel_tol=1e-12)
+    assert low <= 1.2e9 <= high
+    monkeypatch.setattr(verdict, "YOUNG_MIN", 5e9)
+    assert not stiffness_range(bench)[0] <= 1.2e9
+
+
+@pytest.mark.parametrize("value", [1.8e14, 1e8])
+def test_stiffness_outside_the_physical_range(bench, value):
+    out = assess(("stiffness",), {"stiffness": value}, {"stiffness": value / 100}, mech=bench)
+    _one(out, f"stiffness = {value:.6g} N/m^1.5", "outside the physical range 3.03e+08 to 3.64e+11 N/m^1.5",
+         "clearance joint 0", "more starts", "shorter window", "window start states", "sensor gain", "units")
+
+
+def test_stiffness_range_follows_the_fitted_geometry_and_the_law(bench):
+    """A free clearance moves the range (K grows as the clearance shrinks); a law without a
+    formula from materials (Kelvin-Voigt) or another exponent has none."""
+    wide = assess(("stiffness", "clearance"), {"stiffness": 1e12, "clearance": 5e-4},
+                  {"stiffness": 1e9, "clearance": 1e-6}, mech=bench)
+    _one(wide, "physical range 3.03e+08 to 3.64e+11")
+    assert assess(("stiffness", "clearance"), {"stiffness": 1e12, "clearance": 1e-5},
+                  {"stiffness": 1e9, "clearance": 1e-8}, mech=bench) == ()
+    assert stiffness_range(jc.preset("flores-slider-crank", law="kelvin-voigt")) is None
+    assert stiffness_range(jc.params.replace(bench, "exponent", 1.0)) is None
+    assert stiffness_range(jc.preset("slider-crank-guide-clearance")) is None  # no radii
+
+
+@pytest.mark.parametrize("gain", [0.009, 0.4, 2.5])
+def test_sensor_gain_far_from_one(gain):
+    out = assess(("stiffness", "sensor_gain"), {"stiffness": 6.6e10, "sensor_gain": gain},
+                 {"stiffness": 1e8, "sensor_gain": 1e-3}, start={"stiffness": 6e10, "sensor_gain": 1.0})
+    _one(out, f"sensor_gain = {gain:g}", "outside [0.5, 2]", "units")
+
+
+def test_sensor_gain_near_one_passes():
+    assert assess(("sensor_gain",), {"sensor_gain": 1.3}, {"sensor_gain": 1e-3}) == ()
+
+
+def test_std_larger_than_the_estimate_or_not_finite():
+    out = assess(FREE, GOOD, {"stiffness": 6.6e14, "restitution": 1e-4})
+    _one(out, "stiffness = 6.6e+10", "standard deviation 6.6e+14", "1e+04 times the estimate", "free fewer")
+    _one(assess(FREE, GOOD, {"stiffness": 1e8, "restitution": math.nan}), "restitution", "not finite")
+    # a bias may be smaller than its std (it is not a positive quantity), but not without one
+    assert assess(("sensor_bias",), {"sensor_bias": 0.01}, {"sensor_bias": 0.5}) == ()
+    _one(assess(("sensor_bias",), {"sensor_bias": 0.01}, {"sensor_bias": math.inf}), "not finite")
+
+
+def test_a_diverged_estimate():
+    _one(assess(("stiffness",), {"stiffness": math.inf}, {"stiffness": math.nan}), "not finite", "diverged")
+
+
+def _history(*starts):
+    """History records of the start stages: (loss, stiffness, restitution) per start, two records each."""
+    n = len(starts)
+    out = []
+    for j, (loss, k, c) in enumerate(starts):
+        stage = f"start {j + 1}/{n}, window 1, velocity, horizon 0.25"
+        out += [{"stage": stage, "iteration": 2 * j + 1, "loss": 10 * loss,
+                 "values": {"stiffness": 1e10, "restitution": 0.5}},
+                {"stage": stage, "iteration": 2 * j + 2, "loss": loss, "values": {"stiffness": k, "restitution": c}}]
+    out.append({"stage": "window 1, acceleration, horizon 1", "iteration": 99, "loss": 0.001,
+                "values": {"stiffness": 6.6e10, "restitution": 0.9}})
+    return out
+
+
+def test_estimates_that_change_with_the_start():
+    """Two starts equally good (losses within 1 %) but 2e11 against 6.6e10 (130 std): failed;
+    a start with a clearly worse loss, or differences within 10 % of the estimate, are not."""
+    history = _history((0.0100, 6.6e10, 0.90), (0.0101, 2.0e11, 0.90), (0.05, 3e9, 0.3))
+    std = {"stiffness": 1e9, "restitution": 1e-3}
+    out = assess(FREE, GOOD, std, history=history)
+    _one(out, "estimates change with the start", "stiffness = 6.6e+10 from start 1", "2e+11 from start 2",
+         "134 std apart", "more starts")
+    assert assess(FREE, GOOD, std, history=_history((0.0100, 6.6e10, 0.9), (0.0200, 2e11, 0.9))) == ()
+    close = _history((0.0100, 6.6e10, 0.900), (0.0100, 6.9e10, 0.905))  # 30 and 50 std, but 4.4 % and 0.05
+    assert assess(FREE, GOOD, {"stiffness": 1e8, "restitution": 1e-4}, history=close) == ()  # in logit: one minimum
+    assert assess(FREE, GOOD, std, history=_history((0.01, 6.6e10, 0.9))) == ()  # one start
+
+
+def _result(**kw):
+    base = dict(estimates=dict(GOOD), std=dict(GOOD_STD), loss=0.01, iterations=7, wall_time_s=2.0, start=dict(START),
+                free=FREE, settings=dict(SETTINGS), fixed={"clearance": 5e-4}, stop_reason="ftol")
+    base.update(kw)
+    return FitResult(**base)
+
+
+def test_fit_result_carries_the_verdict(tmp_path, bench):
+    good = _result()
+    assert good.ok and good.failures == () and good.format_failures() == ""
+    assert not good.summary().startswith("FAILED")
+    bad = _result(estimates={"stiffness": 1.8e14, "restitution": 0.9})  # the preset's geometry from the settings
+    assert not bad.ok and "physical range" in bad.failures[0]
+    assert bad.summary().startswith("FAILED") and bad.failures[0] in bad.summary()
+    d = bad.to_dict()
+    assert list(d)[:2] == ["ok", "failures"] and d["ok"] is False and d["failures"] == list(bad.failures)
+    written = json.loads(open(bad.write_json(tmp_path / "fit.json"), encoding="utf-8").read())
+    assert written["ok"] is False and written["failures"] == list(bad.failures)
+    assert bad.to_dataframe().attrs["ok"] is False
+    # the mechanism itself when given; a mechanism that is no preset's gets no range check
+    with_mech = _result(estimates={"stiffness": 1.8e14, "restitution": 0.9}, settings={"mechanism": "my-rig"},
+                        mech=bench)
+    assert not with_mech.ok and "mech" not in {f.name for f in dataclasses.fields(FitResult)}  # init only
+    assert _result(estimates={"stiffness": 1.8e14, "restitution": 0.9}, start={"stiffness": 1e12, "restitution": 0.6},
+                   settings={"mechanism": "my-rig"}).ok
+    assert _result(failures=["given"]).failures == ("given",)  # given failures are kept
+
+
+def _failed_result():
+    return _result(estimates={"stiffness": 1.8e14, "restitution": 0.9}, std={"stiffness": 1e12, "restitution": 1e-3})
+
+
+@pytest.mark.parametrize("strict", [True, False])
+def test_cli_strict_exits_3_after_writing_fit_json(tmp_path, capsys, monkeypatch, strict):
+    """``jaxclear fit --strict`` on a failed fit: fit.json written (ok false, the reasons), FAILED
+    and the reasons printed first, exit status 3; without --strict the same printout and 0."""
+    import jaxclear.cli.fit as cli_fit
+
+    seen = {}
+
+    def fake_fit(data, mech, free, start, **kwargs):
+        seen.update(data=data, free=list(free))
+        return _failed_result()
+
+    monkeypatch.setattr(cli_fit, "fit", fake_fit)
+    out = tmp_path / "out"
+    args = ["fit", "rec.csv", "--out", str(out), "--no-plots", "--no-progress"] + (["--strict"] if strict else [])
+    code = main(args)
+    text = capsys.readouterr().out
+    assert code == (3 if strict else 0) and seen == {"data": "rec.csv", "free": ["stiffness", "restitution"]}
+    d = json.loads((out / "fit.json").read_text(encoding="utf-8"))
+    assert d["ok"] is False and "physical range" in d["failures"][0]
+    body = text.split("\n", 1)[1]  # after the command's first line (what is fitted)
+    assert body.startswith("FAILED") and d["failures"][0] in body
+    assert ("exit status 3" in text) == strict
+
+
+def test_cli_help_documents_strict(capsys):
+    assert main(["fit", "--help"]) == 0
+    help_text = " ".join(capsys.readouterr().out.split())
+    assert "--strict" in help_text and "exit with status 3" in help_text and "3 with --strict" in help_text
