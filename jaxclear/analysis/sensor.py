@@ -14,8 +14,12 @@ model is
     a_\text{sensor}(t) = g\, y(t) + b,
 
 a 2nd-order Butterworth low-pass with cut-off :math:`f_c = \omega_c / 2\pi` [Hz] (unit DC gain),
-gain ``g`` [-] and bias ``b`` [m/s^2]. ``cutoff_hz=None`` means an ideal (infinitely fast)
-sensor: :math:`a_\text{sensor} = g a + b`.
+gain ``g`` [-] and bias ``b`` [m/s^2]; ``order=1`` takes the first-order low-pass
+:math:`\dot y = \omega_c (a - y)` instead (an RC stage: many charge amplifiers and DAQ
+anti-alias filters). ``cutoff_hz=None`` means an ideal (infinitely fast) sensor:
+:math:`a_\text{sensor} = g a + b`. A ``delay`` :math:`\tau` [s] (a recorder's clock offset or
+a filter's group delay not modelled) shifts the output: the sample at record time :math:`t` is
+the model's output at :math:`t - \tau`.
 
 The filter is applied to the simulated acceleration in continuous time, not to the record's
 samples: the simulation writes :math:`a` on a grid ``oversample`` times finer than the record,
@@ -58,6 +62,9 @@ class Accelerometer(eqx.Module):
             or ``None`` for no filter (static: it sets the structure of the filter).
         gain: output gain g [-] (array leaf).
         bias: output offset b [m/s^2] (array leaf).
+        order: 1 or 2, the low-pass's order (static; default 2, the Butterworth).
+        delay: the output's delay tau [s] (array leaf; applied where the output is sampled at
+            the record's times, :mod:`jaxclear.fitting.window`).
         oversample: the simulation grid is this many times finer than the record (static,
             >= 1); the default 4 resolves the filter (and a 50-microsecond impact at a
             200 kHz record) with a first-order-hold error far below 20 dB noise.
@@ -67,8 +74,11 @@ class Accelerometer(eqx.Module):
     gain: jax.Array
     bias: jax.Array
     oversample: int = eqx.field(static=True)
+    order: int = eqx.field(static=True)
+    delay: jax.Array
 
-    def __init__(self, cutoff_hz: float | None = None, gain=1.0, bias=0.0, oversample: int = 4):
+    def __init__(self, cutoff_hz: float | None = None, gain=1.0, bias=0.0, oversample: int = 4, order: int = 2,
+                 delay=0.0):
         if cutoff_hz is not None:
             check_range("sensor cutoff_hz", cutoff_hz, low=0.0, low_open=True, unit="Hz")
             cutoff_hz = float(cutoff_hz)
@@ -80,19 +90,26 @@ class Accelerometer(eqx.Module):
         self.gain = jnp.asarray(gain, dtype=float)
         self.bias = jnp.asarray(bias, dtype=float)
         self.oversample = int(oversample)
+        if order not in (1, 2):
+            raise ParameterError(f"sensor order = {order!r} must be 1 (first-order low-pass) or 2 (Butterworth)")
+        self.order = int(order)
+        check_range("sensor delay", delay, unit="s")
+        self.delay = jnp.asarray(delay, dtype=float)
 
     def describe(self) -> str:
-        f = "no low-pass" if self.cutoff_hz is None else f"2nd-order Butterworth low-pass {self.cutoff_hz:g} Hz"
-        return f"{f}, gain {float(self.gain):g}, bias {float(self.bias):g} m/s^2"
+        kind = "2nd-order Butterworth" if self.order == 2 else "1st-order"
+        f = "no low-pass" if self.cutoff_hz is None else f"{kind} low-pass {self.cutoff_hz:g} Hz"
+        delay = f", delay {float(self.delay):g} s" if float(self.delay) != 0.0 else ""
+        return f"{f}, gain {float(self.gain):g}, bias {float(self.bias):g} m/s^2{delay}"
 
     def filter(self, dt: float, u):
         """Low-pass ``u`` sampled every ``dt`` seconds [m/s^2] (exact for piecewise-linear input).
         Without a cut-off, returns ``u``. Gain and bias are not applied here."""
         if self.cutoff_hz is None:
             return u
-        phi, g0, g1 = _foh_matrices(self.cutoff_hz, float(dt))
+        phi, g0, g1 = _foh_matrices(self.cutoff_hz, float(dt), self.order)
         phi, g0, g1 = (jnp.asarray(m, dtype=u.dtype) for m in (phi, g0, g1))
-        x0 = jnp.stack([u[0], jnp.zeros((), u.dtype)])
+        x0 = jnp.stack([u[0], jnp.zeros((), u.dtype)][: self.order])
 
         def step(x, uu):
             u0, u1 = uu
@@ -107,19 +124,24 @@ class Accelerometer(eqx.Module):
         return self.gain * self.filter(dt, u) + self.bias
 
 
-def _foh_matrices(cutoff_hz: float, dt: float):
-    """(Phi, Gamma0, Gamma1) of the Butterworth filter for step ``dt`` (first-order hold)."""
+def _foh_matrices(cutoff_hz: float, dt: float, order: int = 2):
+    """(Phi, Gamma0, Gamma1) of the low-pass of ``order`` (2: Butterworth, 1: first-order) for
+    step ``dt`` (first-order hold)."""
     wc = 2.0 * math.pi * cutoff_hz
-    a = np.array([[0.0, 1.0], [-wc * wc, -math.sqrt(2.0) * wc]])
-    b = np.array([0.0, wc * wc])
-    m = np.zeros((4, 4))
-    m[:2, :2] = a
-    m[:2, 2] = b
-    m[2, 3] = 1.0
+    if order == 2:
+        a = np.array([[0.0, 1.0], [-wc * wc, -math.sqrt(2.0) * wc]])
+        b = np.array([0.0, wc * wc])
+    else:
+        a, b = np.array([[-wc]]), np.array([wc])
+    n = order
+    m = np.zeros((n + 2, n + 2))
+    m[:n, :n] = a
+    m[:n, n] = b
+    m[n, n + 1] = 1.0
     import scipy.linalg  # here, not at module level: it adds ~0.2 s to every `import jaxclear`
 
     e = scipy.linalg.expm(m * dt)
-    return e[:2, :2], e[:2, 2], e[:2, 3] / dt
+    return e[:n, :n], e[:n, n], e[:n, n + 1] / dt
 
 
 # --------------------------------------------------------------------------------------
