@@ -2,7 +2,7 @@
 clearance joint and the impact-memory rule it shares with future elements."""
 
 from .base import AbstractForceElement, ContactOutput, start_states
-from .memory import ContactMemory, contact_switches, onset_update
+from .memory import ContactMemory, contact_switches, ongoing_contact, onset_update
 from .lubricated import FILMS, LubricatedJoint, film_force, film_integrals, gauss_film_force
 from .pin_slot import IDEALS, PinSlotJoint
 from .translational_clearance import CornerMemory, TranslationalClearanceJoint

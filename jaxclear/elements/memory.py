@@ -353,3 +353,24 @@ def penetration_accelerations(rate, q0, qd0, q1, qd1, qdd):
 def with_peak_force(memory: ContactMemory, force: Scalar) -> ContactMemory:
     """``memory`` with its running peak force raised to ``force`` [N]."""
     return eqx.tree_at(lambda m: m.peak_force, memory, jnp.maximum(memory.peak_force, force))
+
+
+def ongoing_contact(state, approach_speed: Scalar, onset_time: Scalar):
+    """An element state (any pytree holding :class:`ContactMemory` nodes) whose contacts are
+    under way: every memory's approach speed :math:`\\dot\\delta^{(-)}` [m/s] set to
+    ``approach_speed`` and its onset time to ``onset_time`` [s] (before the run's start).
+
+    A run that starts inside a contact (a fit window cut from a record taken in steady running)
+    needs the ongoing impact's approach speed, which the dissipative laws divide by; it is history
+    the start state alone does not hold. Out of contact the value is overwritten after the first
+    accepted step (the memory rule tracks :math:`\\dot\\delta` there), so it only matters
+    for contacts that are closed at the start."""
+
+    def ongoing(m):
+        if not isinstance(m, ContactMemory):
+            return m
+        v = jnp.broadcast_to(jnp.asarray(approach_speed, m.impact_velocity.dtype), jnp.shape(m.impact_velocity))
+        t = jnp.broadcast_to(jnp.asarray(onset_time, m.contact_start.dtype), jnp.shape(m.contact_start))
+        return eqx.tree_at(lambda x: (x.impact_velocity, x.contact_start), m, (v, t))
+
+    return jax.tree_util.tree_map(ongoing, state, is_leaf=lambda x: isinstance(x, ContactMemory))
