@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import warnings
 
@@ -33,13 +34,20 @@ With --posterior also the Bayesian posterior of the free parameters and the nois
 chains started from the fit's optimum; see jaxclear.fitting.posterior):
   posterior.nc, posterior.json, posterior_summary.csv, posterior_pair.png,
   posterior_predictive.png/.csv, posterior_checkpoint.npz (the same command resumes it)
-The first sample is the preset's start (crank angle 0, journal centred, velocities from the
-ideal kinematics). The loss is on short windows from that state (see jaxclear.fitting).
+By default the first sample is the preset's start (crank angle 0, journal centred, velocities
+from the ideal kinematics), and the loss is on short windows from that state (see
+jaxclear.fitting). A laboratory record begins mid-run: give --start-state free (every
+window's start state unknown, in contact or not, found by scoring candidate starts and then
+fitted) with the encoder's crank angle at the first sample (--start-angle-deg, or free angle0
+and speed), the sensor's filter (--sensor-cutoff-hz, --sensor-order) and, to fit them, free
+sensor_gain, sensor_bias, sensor_delay.
 Example: jaxclear fit data.csv --free stiffness,restitution --start stiffness=2e11 \\
          --start restitution=0.6 --sensor-cutoff-hz 20000 --out fit-out
          jaxclear fit rec.csv --preset four-bar --channel rocker_acc=body:rocker:phi:acc --window 0.005
          jaxclear fit rec.csv --mechanism my-linkage.toml --channel rocker_acc=body:rocker:phi:acc
-         jaxclear fit data.csv --posterior --chains 4 --draws 500 --prior stiffness=lognormal:1e10:10"""
+         jaxclear fit data.csv --posterior --chains 4 --draws 500 --prior stiffness=lognormal:1e10:10
+         jaxclear fit lab.csv --start-state free --start-angle-deg 37 --windows 4 --window 0.00299 \
+         --free stiffness,restitution,sensor_gain,sensor_bias --sensor-cutoff-hz 10000 --strict"""
 
 
 def configure(p: argparse.ArgumentParser):
@@ -53,7 +61,8 @@ def configure(p: argparse.ArgumentParser):
     f = p.add_argument_group("fit")
     f.add_argument("--free", default="stiffness,restitution", metavar="NAMES",
                    help="comma-separated free parameters: stiffness [N/m^1.5 for the LN family], restitution, "
-                   "friction, clearance [m], mass:BODY, ..., sensor_gain, sensor_bias (default: stiffness,restitution)")
+                   "friction, clearance [m], mass:BODY, angle0 [rad], speed [rad/s], ..., sensor_gain, sensor_bias, "
+                   "sensor_delay [s] (default: stiffness,restitution)")
     f.add_argument("--start", type=name_value, action="append", default=[], metavar="NAME=VALUE",
                    help="start value of a free parameter (SI), repeatable (default: the model's value)")
     f.add_argument("--channel", type=column_channel, action="append", default=[], metavar="COLUMN=CHANNEL",
@@ -71,6 +80,12 @@ def configure(p: argparse.ArgumentParser):
     f.add_argument("--windows", type=number_in(int, 1), default=1, metavar="N",
                    help="back-to-back windows, >= 1; windows after the first estimate their journal state "
                    "(default: 1)")
+    f.add_argument("--start-state", choices=("known", "free"), default="known",
+                   help="known: the record begins at the mechanism's start (start-up); free: it begins mid-run, the "
+                   "state at every window's start is unknown (in contact or not) and fitted (default: known)")
+    f.add_argument("--start-angle-deg", type=number_in(float), metavar="DEG",
+                   help="crank angle at the record's first sample [deg] (an encoder), sets the crank's angle0 "
+                   "(default: the mechanism's, 0 for the presets); free angle0 to fit it")
     f.add_argument("--starts", type=number_in(int, 1), default=None, metavar="N",
                    help="number of starts of the first stage, >= 1 (default: 1, and the whole fit again from "
                    f"{AUTO_STARTS} starts where one start stops on --max-iter or leaves a residual that is not white)")
@@ -83,13 +98,20 @@ def configure(p: argparse.ArgumentParser):
     f.add_argument("--align", choices=("time", "crank"), default="time",
                    help="first sample = simulation start ('time') or simulation time from crank_angle_rad "
                    "('crank') (default: time)")
+    f.add_argument("--time-offset", type=number_in(float), default=0.0, metavar="S",
+                   help="added to the record's times with --align time [s]; a delay to fit is sensor_delay "
+                   "(default: 0)")
     f.add_argument("--rtol", type=number_in(float, 0.0, 1.0, True, True), default=1e-8, metavar="TOL",
                    help="relative tolerance of the model's integration, in (0, 1) (default: 1e-8)")
     f.add_argument("--atol", type=number_in(float, 0.0, low_open=True), default=1e-11, metavar="TOL",
                    help="absolute tolerance of the model's integration [m, rad, m/s], > 0 (default: 1e-11)")
     s = p.add_argument_group("sensor model")
     s.add_argument("--sensor-cutoff-hz", type=number_in(float, 0.0, low_open=True), metavar="HZ",
-                   help="accelerometer low-pass cut-off (2nd-order Butterworth) [Hz], > 0 (default: none)")
+                   help="accelerometer low-pass cut-off [Hz], > 0 (default: none)")
+    s.add_argument("--sensor-order", type=int, choices=(1, 2), default=2,
+                   help="order of the low-pass: 1 (first-order) or 2 (Butterworth) (default: 2)")
+    s.add_argument("--sensor-delay", type=number_in(float), default=0.0, metavar="S",
+                   help="delay of the record behind the model [s] (default: 0; free sensor_delay to fit it)")
     s.add_argument("--sensor-gain", type=number_in(float), default=1.0, metavar="G", help="accelerometer gain [-] (default: 1)")
     s.add_argument("--sensor-bias", type=number_in(float), default=0.0, metavar="B",
                    help="accelerometer bias [m/s^2] (default: 0)")
@@ -133,7 +155,11 @@ def run(args) -> int:
     channels = _channels(args)
     free = [n.strip() for n in args.free.split(",") if n.strip()]
     sensor = Accelerometer(args.sensor_cutoff_hz, gain=args.sensor_gain, bias=args.sensor_bias,
-                           oversample=args.oversample)
+                           oversample=args.oversample, order=args.sensor_order, delay=args.sensor_delay)
+    if args.start_angle_deg is not None:
+        from .. import params
+
+        mech = params.replace(mech, "angle0", math.radians(args.start_angle_deg))
     if args.posterior:  # its inputs checked before the fit
         from ..fitting.posterior import check_priors
 
@@ -155,8 +181,8 @@ def run(args) -> int:
     with warnings.catch_warnings(), on_trace(compiling):  # the fit's warnings are printed below, once
         warnings.simplefilter("ignore", UserWarning)
         res = fit(args.data, mech, free, dict(args.start), channels=channels, sensor=sensor, window=args.window, windows=args.windows,
-                  starts=args.starts, optimizer=args.optimizer, max_iter=args.max_iter, rtol=args.rtol,
-                  atol=args.atol, align=args.align, out=args.out, resume=not args.restart,
+                  start_state=args.start_state, starts=args.starts, optimizer=args.optimizer, max_iter=args.max_iter, rtol=args.rtol,
+                  atol=args.atol, align=args.align, time_offset=args.time_offset, out=args.out, resume=not args.restart,
                   progress=not args.no_progress)
     files = [res.write_json(os.path.join(args.out, "fit.json"))]
     if not args.no_plots:

@@ -62,6 +62,16 @@ the sensor signal on **short windows**:
   reported ``loss`` (its mean square over the fitted samples) is the normalised misfit: about
   ``10**(-SNR/10)`` (0.01 at 20 dB) for an exact model, larger with a model error.
 
+A record that begins mid-run (``start_state="free"``; a laboratory record: crank turning for
+minutes, the journal pressed into its bearing, the contact under way begun before the first
+sample) has no known start: every window's start state, the first included, is an unknown in
+the "anywhere" layout of :mod:`.window_start` (in contact too, with the ongoing contact's
+approach speed), first **found** by scoring candidate starts on the window's first quarter
+(:mod:`.way_in`) and then fitted, window by window at the start values and then jointly with the
+parameters (:func:`.plan.plan_free_starts`). The crank's angle at the first sample is the
+mechanism's ``angle0`` (an encoder), or fitted (``angle0``, ``speed`` free); a clock offset is
+``sensor_delay``.
+
 Per-revolution statistics (peak or RMS acceleration per revolution) were rejected as the
 default: they are robust to chaos but mix stiffness and restitution into a few numbers, are
 biased by the sensor bandwidth, and have no simple noise model for the uncertainty.
@@ -126,6 +136,8 @@ Modules
 -------
 :mod:`.parameters` (names, values, transforms), :mod:`.records` (synthetic records, writing,
 checks, quiet cut), :mod:`.targets` (record columns mapped to named channels), :mod:`.window` (the window model and the record cut into windows),
+:mod:`.window_start` (a window's unknown start), :mod:`.way_in` (candidate starts scored),
+:mod:`.verdict` (whether the estimates are a result),
 :mod:`.plan` (stages and starts), :mod:`.problem` (the checked inputs), :mod:`.state` (the fit
 state and its checkpoint), :mod:`.solver` (optimistix steps of one stage), :mod:`.run` (the
 plan with checkpoints), :mod:`.uncertainty`, :mod:`.verdict` (:func:`assess`: whether the

@@ -15,7 +15,7 @@ from tqdm.auto import tqdm
 
 from .._interrupt import stop_at_safe_points
 from .._numbers import as_typed
-from .._errors import CheckpointError
+from .._errors import CheckpointError, ParameterError
 from .._storage import locked_folder
 from ..integrate.compile import on_trace
 from ..model import Mechanism
@@ -46,6 +46,7 @@ def fit(
     sensor: Accelerometer | None = None,
     window: float | None = None,
     windows: int = 1,
+    start_state: str = "known",
     horizons: Sequence[float] = DEFAULT_HORIZONS,
     coarse: str | None = "velocity",
     starts: int | None = None,
@@ -55,7 +56,7 @@ def fit(
     xtol: float = 1e-5,
     rtol: float = 1e-8,
     atol: float = 1e-11,
-    max_steps: int = 200_000,
+    max_steps: int | None = None,
     align: str = "time",
     time_offset: float = 0.0,
     out=None,
@@ -84,6 +85,15 @@ def fit(
             shortened to the record's span over ``windows`` when the record is shorter).
         windows: number of back-to-back windows; windows after the first have the journal
             state at their start as extra unknowns.
+        start_state: ``"known"`` (default): the record begins where the mechanism starts (crank
+            at its ``angle0``, journal at its initial offset, ideal velocities). ``"free"``: the
+            record begins mid-run (a laboratory record): the force elements' state at every
+            window's start, the first included, is unknown (in contact or not, with the ongoing
+            contact's approach speed); it is found by scoring candidate starts on the window's
+            first part (:mod:`jaxclear.fitting.way_in`) and then fitted with the parameters.
+            The crank's angle at the record's first sample is the mechanism's ``angle0`` (set it
+            from the encoder: ``jc.params.replace(mech, "angle0", angle)``, or free ``angle0``
+            and ``speed`` to fit them). Needs ``starts`` None or 1.
         horizons: fractions of the window fitted in turn (continuation), ending at 1.
         coarse: ``"velocity"`` (default): the first stage (and the first stage of every window's
             state) fits the integrated signal; None: acceleration only.
@@ -95,7 +105,9 @@ def fit(
             ``"adam"``, ``"adam:LR"``, an optax transformation or an optimistix solver
             (:func:`jaxclear.fitting.make_optimizer`).
         max_iter, ftol, xtol: stopping rules per stage (:mod:`jaxclear.fitting.solver`).
-        rtol, atol, max_steps: integration settings of the model (forward-mode Jacobians).
+        rtol, atol, max_steps: integration settings of the model (forward-mode Jacobians);
+            ``max_steps`` None: :data:`~jaxclear.fitting.problem.MAX_STEPS` (200,000), or
+            :data:`~jaxclear.fitting.problem.FREE_START_MAX_STEPS` with ``start_state="free"``.
         align, time_offset: how record times map to simulation time
             (:func:`jaxclear.analysis.sensor.record_times`).
         out: folder for the checkpoint (``fit_checkpoint.json``); None: no checkpoint.
@@ -121,8 +133,13 @@ def fit(
     settings = dict(max_iter=max_iter, ftol=ftol, xtol=xtol, rtol=rtol, atol=atol, max_steps=max_steps, align=align,
                     time_offset=time_offset, optimizer=opt.name)
     auto = starts is None
+    if start_state == "free" and not auto and starts != 1:
+        raise ParameterError(f"starts = {starts!r} with start_state='free': a record that begins mid-run is fitted from "
+                             "one start of the parameters, after the way in has found every window's start state "
+                             "(give starts=None or 1; move the start values with start=... instead)")
     problem = build_problem(data, mech, free, start, sensor, window, windows, horizons, coarse, 1 if auto else starts,
-                            settings, channels)
+                            settings, channels, start_state)
+    auto = auto and not problem.anywhere
     with locked_folder(out, "fit output folder") if out is not None else contextlib.nullcontext():
         if not (auto and opt.least_squares):
             return _fit_locked(problem, opt, out, resume, progress, callback, t_wall)
@@ -268,11 +285,16 @@ def _evaluate_all(problem: FitProblem, theta, states, guesses):
 
 
 def _final_jacobian(problem: FitProblem, evals) -> tuple[np.ndarray, np.ndarray]:
-    """Stacked residual ``(W n_pad,)`` and Jacobian over the parameters and window states 2..W."""
-    stage = final_stage(problem.windows)
+    """Stacked residual ``(W n_pad,)`` and Jacobian over the parameters and the free window
+    states (2..W, or all with a free start); a window-state column that is exactly zero (a
+    coordinate the fit holds: the approach speed of a contact under way, :mod:`.window_start`)
+    is not an unknown and is left out."""
+    stage = final_stage(problem.windows, problem.anywhere)
     r = np.concatenate([e[0] for e in evals])
-    jac = stack_jacobian([e[1] for e in evals], [e[2] for e in evals], True, stage.states)
-    return r, np.asarray(jac)
+    jac = np.asarray(stack_jacobian([e[1] for e in evals], [e[2] for e in evals], True, stage.states))
+    p = len(problem.free)
+    keep = np.concatenate([np.ones(p, dtype=bool), np.any(jac[:, p:] != 0.0, axis=0)])
+    return r, jac[:, keep]
 
 
 def _plot_series(problem: FitProblem, evals, initial, j: int = 0) -> dict:
@@ -325,7 +347,7 @@ def _result(problem: FitProblem, st: FitState, wall: float, resumed: bool) -> Fi
         residual_autocorrelation=unc.autocorrelation, n_samples=unc.n_samples, n_unknowns=unc.n_unknowns,
         converged=converged, stop_reason=st.stop_reason, history=list(st.history),
         **_plot_series(problem, evals, initial), window_starts=[float(t) for t in problem.win.starts],
-        window_length_s=as_typed(problem.win.length), free=problem.free,
+        window_length_s=as_typed(problem.win.length), free=problem.free, mech=problem.mech,
         fixed={name: as_typed(v) for name, v in problem.fixed.items()},
         settings={"window_s": as_typed(problem.win.length), "windows": problem.windows, "horizons": list(problem.horizons),
                   "coarse": s["coarse"], "starts": s["starts"], "max_iter": s["max_iter"], "ftol": s["ftol"],
@@ -334,8 +356,10 @@ def _result(problem: FitProblem, st: FitState, wall: float, resumed: bool) -> Fi
                   "record": problem.meas.path, "record_samples": len(problem.t_rec), "sample_spacing_s": s["dt"],
                   "data_rms_m_s2": problem.win.scale, "mechanism": problem.mech.name,
                   "law": law_name(problem.mech), "resumed": resumed, "optimizer": s["optimizer"],
-                  "skipped_stages": list(st.skipped),
+                  "skipped_stages": list(st.skipped), "start_state": "free" if problem.anywhere else "known",
+                  "way_in": [dict(w) for w in st.way_in],
                   "channels": problem.channel_config()},
         series=_channel_series(problem, evals, initial),
-        warnings=warn, window_states=[list(map(float, v)) for v in states[1:]], window_losses=window_losses)
+        warnings=warn, window_states=[list(map(float, v)) for v in (states if problem.anywhere else states[1:])],
+        window_losses=window_losses)
 

@@ -4,7 +4,7 @@ The fit works in unconstrained coordinates ``z`` (the transforms of :mod:`jaxcle
 ``z = log(theta)`` for positive parameters (stiffness [N/m^n], clearance [m], friction [-],
 masses [kg], ``sensor_gain`` [-]), ``z = logit(theta)`` for restitution [-] in (0, 1), and
 ``z = theta / s`` for ``sensor_bias`` [m/s^2] with ``s`` the RMS of the measured acceleration
-over the fitted windows [m/s^2].
+over the fitted windows [m/s^2], ``z = tau / 10 us`` for ``sensor_delay`` [s].
 """
 
 from __future__ import annotations
@@ -29,7 +29,11 @@ DEFAULT_FREE = ("stiffness", "restitution")
 SENSOR_PARAMETERS = {
     "sensor_gain": ("-", 0.0, None, "log", "accelerometer gain"),
     "sensor_bias": ("m/s^2", None, None, "scaled", "accelerometer bias"),
+    "sensor_delay": ("s", None, None, "delay", "delay of the record behind the model (clock offset)"),
 }
+#: Unit of ``sensor_delay``'s unconstrained coordinate [s]: half a sample at 50 kHz, so that a
+#: step of 1 in ``z`` moves the model by about one sample of a laboratory record.
+DELAY_UNIT = 1e-5
 #: Known values reported in ``FitResult.fixed`` when they are not free.
 REPORTED_FIXED = ("stiffness", "restitution", "clearance", "friction", "speed_rpm")
 
@@ -75,6 +79,8 @@ def current_value(mech: Mechanism, sensor: Accelerometer, name: str) -> float:
         return float(sensor.gain)
     if name == "sensor_bias":
         return float(sensor.bias)
+    if name == "sensor_delay":
+        return float(sensor.delay)
     return float(params.get(mech, name))  # a derived stiffness (leaf None) reads its derived value
 
 
@@ -123,7 +129,7 @@ def fixed_values(mech: Mechanism, sensor: Accelerometer, free: tuple) -> dict:
                 fixed[name] = current_value(mech, sensor, name)
             except ParameterError:
                 pass
-    for name, value in (("sensor_gain", sensor.gain), ("sensor_bias", sensor.bias)):
+    for name, value in (("sensor_gain", sensor.gain), ("sensor_bias", sensor.bias), ("sensor_delay", sensor.delay)):
         if name not in free:
             fixed[name] = float(value)
     return fixed
@@ -134,6 +140,8 @@ def to_z(name: str, value, scale: float = 1.0):
     t = transform(name)
     if t == "scaled":
         return jnp.asarray(value, dtype=float) / scale
+    if t == "delay":
+        return jnp.asarray(value, dtype=float) / DELAY_UNIT
     if name in SENSOR_PARAMETERS:
         return jnp.log(jnp.asarray(value, dtype=float))
     return params.to_unconstrained(name, value)
@@ -144,6 +152,8 @@ def from_z(name: str, z, scale: float = 1.0):
     t = transform(name)
     if t == "scaled":
         return z * scale
+    if t == "delay":
+        return z * DELAY_UNIT
     if name in SENSOR_PARAMETERS:
         return jnp.exp(z)
     return params.from_unconstrained(name, z)

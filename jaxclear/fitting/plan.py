@@ -30,6 +30,7 @@ class Stage(NamedTuple):
     start: int  # index of the start (multi-start stages), -1 else
     final: bool  # the last stage: its stop reason is the fit's
     integrate: bool = False  # residual of the integrated signal (coarse stage)
+    way_in: bool = False  # its window's start is first found by the way in (:mod:`.way_in`)
 
     def max_iter(self, max_iter: int) -> int:
         """Iteration limit: ``max_iter`` for the final stage, ``max(5, max_iter // 2)`` else."""
@@ -54,10 +55,13 @@ def check_plan(windows, horizons: Sequence[float], starts, coarse) -> tuple:
     return horizons
 
 
-def plan_stages(windows: int, horizons: tuple, starts: int, coarse: str | None) -> list[Stage]:
+def plan_stages(windows: int, horizons: tuple, starts: int, coarse: str | None, anywhere: bool = False) -> list[Stage]:
     """The stages: every start on the first horizon of window 1 (in the velocity signal when
     ``coarse="velocity"``); window 1 from the best start through the horizons; the start state
-    of each further window alone through the horizons; all windows and all unknowns at last."""
+    of each further window alone through the horizons; all windows and all unknowns at last.
+    With ``anywhere`` (every window's start unknown: :func:`plan_free_starts`) another plan."""
+    if anywhere:
+        return plan_free_starts(windows, horizons, starts, coarse)
     velocity = coarse == "velocity"
     kind = "velocity" if velocity else "acceleration"
     stages = [Stage(f"start {j + 1}/{starts}, window 1, {kind}, horizon {horizons[0]:g}", (0,), horizons[0], True, (),
@@ -78,9 +82,31 @@ def plan_stages(windows: int, horizons: tuple, starts: int, coarse: str | None) 
     return stages
 
 
-def final_stage(windows: int) -> Stage:
+def plan_free_starts(windows: int, horizons: tuple, starts: int, coarse: str | None) -> list[Stage]:
+    """The plan of a record that begins mid-run (every window's start unknown, the first too):
+
+    1. per window, its start alone at the start parameters on the first horizon, from the best
+       of the way in's candidates (:mod:`.way_in`), in the acceleration: the start state is not
+       a smooth unknown to begin from a guess, and the contact parameters cannot be fitted
+       before it is found (a wrong start sends them to a bound). The velocity signal
+       (``coarse``) is not used here: the way in has placed the start already, and on records
+       of the independent simulator a velocity stage added 15 iterations a window (trials with
+       the journal pushed deep into its bearing cost up to 20,000 solver steps each) for a start
+       the acceleration stage reached as well;
+    2. all windows, the parameters and every start, through the horizons (the last is final)."""
+    first = horizons[0]
+    stages = [Stage(f"window {k + 1} start state (way in), acceleration, horizon {first:g}", (k,), first, False, (k,),
+                    -1, False, False, True) for k in range(windows)]
+    every = tuple(range(windows))
+    for hz in horizons:
+        stages.append(Stage(f"all {windows} windows, parameters and start states, horizon {hz:g}", every, hz, True,
+                            every, -1, hz == 1.0))
+    return stages
+
+
+def final_stage(windows: int, anywhere: bool = False) -> Stage:
     """All windows, all samples, all unknowns: where the uncertainty is evaluated."""
-    return Stage("final", tuple(range(windows)), 1.0, True, tuple(range(1, windows)), -1, True)
+    return Stage("final", tuple(range(windows)), 1.0, True, tuple(range(0 if anywhere else 1, windows)), -1, True)
 
 
 def spread_starts(z0: np.ndarray, free: Sequence[str], n: int) -> list[np.ndarray]:

@@ -22,7 +22,25 @@ from .plan import check_plan, plan_stages, spread_starts
 from .records import read_record
 from .state import checkpoint_key
 from .targets import DEFAULT_COLUMN, resolve_targets
-from .window import WindowInput, WindowModel, WindowSet, cut_windows, state_to_z
+from .window import WindowInput, WindowModel, WindowSet, cut_windows
+from .window_start import crank_guesses, state_size, state_to_z
+
+#: How a fit treats the state at the record's start (``start_state``): ``"known"``, the
+#: mechanism's own start (a record that begins at start-up; windows after the first get
+#: contact-free free starts); ``"free"``, unknown (a record that begins mid-run: every window's
+#: start is found by the way in and fitted, in contact or not; :mod:`.window_start`, :mod:`.way_in`).
+START_STATES = ("known", "free")
+#: Solver steps of one window's run (values and sensitivities) at most: a known start, and a
+#: free one. A free start's trial step can put the journal deep into its bearing, where a
+#: violent impact makes a run take 10-50 times its usual 1,000-10,000 steps; such a trial is
+#: worth no more than a rejected step (its run fails, the step is refused).
+MAX_STEPS = 200_000
+FREE_START_MAX_STEPS = 20_000
+#: Parameters of a force element's start state: a fit window sets them itself (a free one would
+#: be ignored).
+START_PARAMETERS = ("offset_x", "offset_y", "velocity_x", "velocity_y")
+#: Crank parameters whose fit moves every window's crank angle (``angle0 + speed t_k``).
+CRANK_PARAMETERS = ("angle0", "speed", "speed_rpm")
 
 #: Whether the fit's model integrates with exact contact onsets (:class:`~jaxclear.Settings`
 #: ``exact_onsets``), as every other run does. It was off while the forward-mode derivative of
@@ -71,6 +89,8 @@ class FitProblem:
     angle0: float
     speed: float
     settings: dict
+    anywhere: bool = False  # start_state="free": every window's start in the anywhere layout
+    window_guesses: tuple = ()  # per window (q, qdot) of the ideal assembly at its crank angle (anywhere)
 
     @property
     def windows(self) -> int:
@@ -78,7 +98,8 @@ class FitProblem:
 
     def with_starts(self, starts: int) -> "FitProblem":
         """This problem fitted from ``starts`` starts: its plan, its start points, its settings."""
-        return dataclasses.replace(self, stages=plan_stages(self.windows, self.horizons, starts, self.settings["coarse"]),
+        return dataclasses.replace(self, stages=plan_stages(self.windows, self.horizons, starts, self.settings["coarse"],
+                                                            self.anywhere),
                                    z_starts=spread_starts(self.z0, self.free, starts),
                                    settings={**self.settings, "starts": starts})
 
@@ -93,7 +114,8 @@ class FitProblem:
                     ftol=s["ftol"], xtol=s["xtol"], rtol=s["rtol"], atol=s["atol"], align=s["align"],
                     time_offset=s["time_offset"], sensor=self.sensor.describe(), oversample=self.sensor.oversample,
                     optimizer=s["optimizer"], mechanism=str(jax.tree_util.tree_structure(self.mech)),
-                    **({} if self.default_target else {"channels": self.channel_config()}))
+                    **({} if self.default_target else {"channels": self.channel_config()}),
+                    **({"start_state": "free"} if self.anywhere else {}))
 
     @property
     def default_target(self) -> bool:
@@ -190,10 +212,16 @@ def _check_data(y_rec, where: str, column: str = DEFAULT_COLUMN, unit: str = "m/
 
 
 def build_problem(data, mech: Mechanism, free: Sequence[str], start: dict | None, sensor: Accelerometer | None,
-                  window, windows: int, horizons, coarse, starts: int, settings: dict, channels=None) -> FitProblem:
+                  window, windows: int, horizons, coarse, starts: int, settings: dict, channels=None,
+                  start_state: str = "known") -> FitProblem:
     """Check the inputs (ParameterError before any compilation) and build the :class:`FitProblem`.
     ``settings``: max_iter, ftol, xtol, rtol, atol, max_steps, align, time_offset, optimizer;
-    ``channels``: record column -> channel spec (:mod:`.targets`; None: the slider acceleration)."""
+    ``channels``: record column -> channel spec (:mod:`.targets`; None: the slider acceleration);
+    ``start_state``: one of :data:`START_STATES`."""
+    if start_state not in START_STATES:
+        raise ParameterError(f"start_state = {start_state!r}; valid: {', '.join(map(repr, START_STATES))} ('free': "
+                             "a record that begins mid-run, the state at every window's start unknown)")
+    anywhere = start_state == "free"
     sensor = Accelerometer() if sensor is None else sensor
     targets = resolve_targets(mech, channels, sensor)
     columns = tuple(c for c, _ in targets)
@@ -201,6 +229,15 @@ def build_problem(data, mech: Mechanism, free: Sequence[str], start: dict | None
     start = dict(start or {})
     free = check_free(mech, free, start)
     _check_mechanism(mech, windows)
+    starts_free = [n for n in free if n.split("@")[0] in START_PARAMETERS]
+    if starts_free:
+        raise ParameterError(
+            f"free parameter(s) {starts_free} are the force element's start state, which every fit window sets itself "
+            "(the mechanism's start for a record that begins at start-up); a record that begins mid-run: "
+            "start_state='free' (--start-state free) fits the state at every window's start")
+    crank_free = [n for n in free if n in CRANK_PARAMETERS]
+    if crank_free and crank_driver(mech) is None:
+        raise ParameterError(f"free parameter(s) {crank_free} need a crank (an AngleDriver); the mechanism has none")
     horizons = check_plan(windows, horizons, starts, coarse)
     crank = crank_driver(mech)
     speed = float(crank[1].speed) if crank is not None else 0.0
@@ -216,24 +253,33 @@ def build_problem(data, mech: Mechanism, free: Sequence[str], start: dict | None
     window = _window_length(mech, window, windows, float(t_rec[-1]), dt, h, len(t_rec), t_rec, where)
     cutoffs = [fc.sensor.cutoff_hz for _, fc in targets if fc.sensor.cutoff_hz is not None]
     settle = 2.0 / min(cutoffs) if cutoffs else 0.0
-    win = cut_windows(t_rec, y_rec, dt, windows, window, settle, horizons, where, columns)
+    win = cut_windows(t_rec, y_rec, dt, windows, window, settle, horizons, where, columns, settle_first=anywhere)
     values0 = start_values(mech, sensor, free, start)
     z0 = z_vector(free, values0, win.scale)
     velocity_scale = abs(speed) if speed else 1.0 / window
     n_fine = int(round(window / h))
+    max_steps = settings["max_steps"] or (FREE_START_MAX_STEPS if anywhere else MAX_STEPS)
     s = make_settings(n_fine * h, n_out=n_fine + 1, rtol=settings["rtol"], atol=settings["atol"],
-                      throw=False, max_steps=settings["max_steps"], exact_onsets=FIT_EXACT_ONSETS, sampling=FIT_SAMPLING,
+                      throw=False, max_steps=max_steps, exact_onsets=FIT_EXACT_ONSETS, sampling=FIT_SAMPLING,
                       derivative_tolerance=derivative_tolerance(settings["rtol"]))
     model = WindowModel(mech=mech, sensors=tuple(fc.sensor for _, fc in targets),
                         weights=jnp.asarray([fc.weight for _, fc in targets], dtype=float), settings=s,
                         bias_scale=jnp.asarray(win.scale), velocity_scale=jnp.asarray(velocity_scale), free=free,
                         channels=tuple(fc.channel for _, fc in targets),
-                        driver=crank[0] if crank is not None else None, h=h)
+                        driver=crank[0] if crank is not None else None, h=h, anywhere=anywhere,
+                        crank_free=bool(crank_free))
     start_scales = [np.asarray(j.start_scale(), dtype=float) for j in mech.clearance_joints]
-    state0 = state_to_z(np.concatenate([np.concatenate([np.asarray(j.initial_offset), np.asarray(j.initial_velocity)])
-                                        for j in mech.clearance_joints]), start_scales, velocity_scale)
     guess0 = tuple(np.asarray(a) for a in mech.guess())
+    window_guesses = ()
+    if anywhere:  # found by the way in (.way_in); the guesses of the ideal assembly at each window's crank angle
+        state0 = np.zeros(state_size(mech, True))
+        window_guesses = tuple(crank_guesses(mech, crank[0], [angle0 + speed * t for t in win.starts])
+                               if crank is not None else [guess0] * windows)
+    else:
+        state0 = state_to_z(np.concatenate([np.concatenate([np.asarray(j.initial_offset),
+                                                            np.asarray(j.initial_velocity)])
+                                            for j in mech.clearance_joints]), start_scales, velocity_scale)
     settings = dict(settings, coarse=coarse, dt=dt)
     return FitProblem(meas, t_rec, y_rec, mech, sensor, targets, free, values0, fixed_values(mech, sensor, free), z0,
                       [], model, win, [], horizons, state0, guess0, start_scales, velocity_scale, angle0, speed,
-                      json.loads(json.dumps(settings, default=str))).with_starts(starts)
+                      json.loads(json.dumps(settings, default=str)), anywhere, window_guesses).with_starts(starts)

@@ -85,7 +85,8 @@ class FitResult:
             if mech is None:
                 mech = fallback_mechanism(self.settings, self.fixed)
             self.failures = assess(self.free, self.estimates, self.std, start=self.start, mech=mech,
-                                   history=self.history, scale=float(self.settings.get("data_rms_m_s2", 1.0)))
+                                   history=self.history, scale=float(self.settings.get("data_rms_m_s2", 1.0)),
+                                   autocorrelation=self.residual_autocorrelation, loss=self.loss)
         self.failures = tuple(self.failures)
 
     @property

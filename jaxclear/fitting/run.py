@@ -23,14 +23,17 @@ from .solver import (
     stage_arguments,
 )
 from .state import Checkpoint, FitState
-from .window import evaluate_window_jit, state_to_z
+from .way_in import find_start
+from .window import evaluate_window_jit
+from .window_start import state_to_z
 
 
 def fresh_state(problem: FitProblem) -> FitState:
     """The state before the first stage."""
     w = problem.windows
+    guesses = problem.window_guesses if problem.anywhere else [problem.guess0] * w
     return FitState().replace(theta=problem.z0.tolist(), states=[problem.state0.tolist()] * w,
-                              guesses=[[problem.guess0[0].tolist(), problem.guess0[1].tolist()]] * w)
+                              guesses=[[np.asarray(q).tolist(), np.asarray(qd).tolist()] for q, qd in guesses])
 
 
 def split(problem: FitProblem, st: FitState, stage: Stage, x) -> tuple:
@@ -70,7 +73,14 @@ def begin_stage(problem: FitProblem, st: FitState) -> FitState:
         st = st.replace(theta=problem.z_starts[stage.start].tolist())
     elif st.stage > 0 and problem.stages[st.stage - 1].start >= 0:
         st = st.replace(theta=st.best_start()["theta"])
-    if not stage.theta and stage.states:
+    if problem.anywhere and stage.way_in:
+        k = stage.states[0]
+        win = problem.window_input(k, stage.horizon, False, st.guesses)
+        found, report = find_start(problem.model, problem.mech, st.theta, win)
+        states = list(st.states)
+        states[k] = found.tolist()
+        st = st.replace(states=states, way_in=st.way_in + ({"window": k, **report},))
+    elif not stage.theta and stage.states and not problem.anywhere:
         k = stage.states[0]
         q1, qd1, end = window_end(problem, st, k - 1)
         guesses, states = list(st.guesses), list(st.states)
@@ -181,7 +191,8 @@ def run_stage(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoin
         loss, reason = rep.loss, rep.reason
         if rep.counted:
             record = {"stage": stage.name, "iteration": st.total + 1, "loss": loss / n_fit,
-                      "values": dict(zip(problem.free, values_of(problem.free, theta, problem.win.scale)))}
+                      "values": dict(zip(problem.free, values_of(problem.free, theta, problem.win.scale))),
+                      **({"stop": reason} if reason else {})}
             st = st.replace(iteration=st.iteration + 1, total=st.total + 1, history=st.history + (record,))
         ckpt.save(st)
         if rep.counted:

@@ -64,6 +64,8 @@ class FitState(eqx.Module):
         history: one record per iteration ``{"stage", "iteration", "loss", "values"}``.
         skipped: ``"stage name: reason"`` of each stage skipped because no unknown influenced its
             fitted samples (:func:`jaxclear.fitting.run.run_stage`).
+        way_in: per window whose start the way in found (:mod:`jaxclear.fitting.way_in`) its
+            report ``{"window", "candidates", "finite", "best_loss", "median_loss"}``.
         wall: wall time spent so far [s]; stop_reason: why the final stage ended.
     """
 
@@ -80,6 +82,7 @@ class FitState(eqx.Module):
     starts: tuple = ()
     history: tuple = ()
     skipped: tuple = ()
+    way_in: tuple = ()
     wall: float = 0.0
     stop_reason: str = ""
 

@@ -1,18 +1,13 @@
 r"""The model of one fit window and the record cut into windows.
 
-Window ``k`` (length ``T_w`` [s]) is simulated from ``t = 0`` with the crank's start angle
-advanced by ``omega k T_w`` and, for ``k > 0``, a free start state of every force element in
-the element's own layout (:meth:`~jaxclear.elements.AbstractForceElement.start_state`: the
-coordinates ``a`` its initial assembly holds and their rates; a journal's eccentricity, a
-translational joint's lateral offset and tilt). Per element ``2 e`` unconstrained numbers
-``s = (u, w)`` (``e = n_equations``) map to
-
-``a0 = S u / sqrt(1 + |u|^2)``, ``a0dot = v_s S w``,
-
-with ``S`` the element's :meth:`~jaxclear.elements.AbstractForceElement.start_scale` (the
-half-axes of a contact-free ellipse; the radial clearance ``c`` for a journal) and ``v_s`` the
-crank speed [rad/s] (or ``1 / T_w``), so the start is always free of contact. The element's
-memory starts from its :meth:`~jaxclear.elements.AbstractForceElement.state_init`.
+Window ``k`` (length ``T_w`` [s], starting at ``t_k`` on the record's simulation clock) is
+simulated from ``t = 0`` with the crank's start angle ``angle0 + omega t_k`` (``angle0`` and
+``omega`` the crank driver's, fitted where they are free) and, for ``k > 0`` (every window,
+the first included, with ``start_state="free"``), a free start state of every force element
+(:mod:`.window_start`: contact-free for a record that begins at start-up; anywhere, in contact
+too, with the ongoing contact's approach speed, for a record that begins mid-run). The
+element's memory otherwise starts from its
+:meth:`~jaxclear.elements.AbstractForceElement.state_init`.
 
 The residual of channel ``j`` (weight ``w_j``) at the window's ``n_pad`` samples (mask ``m_i``:
 1 fitted, 0 not) is
@@ -22,8 +17,8 @@ The residual of channel ``j`` (weight ``w_j``) at the window's ``n_pad`` samples
 * running integral (coarse stages): ``r_ji = sqrt(w_j) m_i sum_{l<=i} m_l (y_jl - d_jl) dt_l /
   v_j``, ``v_j`` the RMS of the integrated column over window 0,
 
-with ``y_j`` the channel seen through its sensor, ``gain * filter(channel) + bias``
-(:class:`~jaxclear.analysis.sensor.Accelerometer`), and ``d_j`` the record's column; the
+with ``y_j`` the channel seen through its sensor, ``gain * filter(channel) + bias`` at the
+times ``t - delay`` (:class:`~jaxclear.analysis.sensor.Accelerometer`), and ``d_j`` the record's column; the
 channels' residuals are stacked (channel-major, ``(C n_pad,)``).
 """
 
@@ -39,23 +34,22 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import params
-from ..elements import start_states
+from ..elements import ongoing_contact, start_states
 from .._errors import ParameterError
 from ..model import Mechanism
 from ..analysis.channels import channel
 from ..analysis.sensor import Accelerometer
-from ..integrate import Settings, jit, simulate
+from ..integrate import Settings, initial_state, jit, simulate
 from .parameters import SENSOR_PARAMETERS, from_z
 from .records import quiet_cut
-
-#: Offset of a window's start state as a fraction of the element's start scale: the map keeps it inside.
-OFFSET_RADIUS = 1.0
+from .window_start import OFFSET_RADIUS, element_starts, state_to_z  # noqa: F401  (state_to_z: re-exported)
 
 
 class WindowInput(eqx.Module):
     """Arrays describing one window (all leaves, so windows share one compiled function)."""
 
-    angle0: jax.Array  # crank start angle of the window [rad], ()
+    angle0: jax.Array  # crank start angle of the window [rad], () (at the mechanism's angle0 and speed)
+    t_start: jax.Array  # start of the window on the record's simulation clock [s], ()
     guess_q: jax.Array  # position guess of the bodies at the window start, (3 n_b,)
     guess_qd: jax.Array  # velocity guess, (3 n_b,)
     t_rel: jax.Array  # record sample times relative to the window start [s], (n_pad,)
@@ -82,6 +76,8 @@ class WindowModel(eqx.Module):
     channels: tuple = eqx.field(static=True)
     driver: int | None = eqx.field(static=True)
     h: float = eqx.field(static=True)
+    anywhere: bool = eqx.field(static=True, default=False)  # window starts in the anywhere layout (.window_start)
+    crank_free: bool = eqx.field(static=True, default=False)  # the crank's angle0 or speed is fitted
 
     @property
     def sensor(self) -> Accelerometer:
@@ -93,39 +89,47 @@ class WindowModel(eqx.Module):
         return {n: from_z(n, theta_z[i], self.bias_scale) for i, n in enumerate(self.free)}
 
     def mechanism(self, theta_z, state_z, win: WindowInput):
-        """The mechanism of the window: free values, crank angle, guesses and element start states."""
+        """The mechanism of the window (free values, crank angle, guesses and element start
+        states), its values, and the approach speeds of contacts under way at its start (the
+        anywhere layout; else None)."""
         values = self.values(theta_z)
         mech = params.replace_many(self.mech, {n: v for n, v in values.items() if n not in SENSOR_PARAMETERS})
         if self.driver is not None:
-            mech = eqx.tree_at(lambda m: m.drivers[self.driver].angle0, mech, win.angle0)
+            crank = mech.drivers[self.driver]
+            angle = crank.angle0 + crank.speed * win.t_start if self.crank_free else win.angle0
+            mech = eqx.tree_at(lambda m: m.drivers[self.driver].angle0, mech, angle)
         n_b = len(mech.bodies)
         mech = eqx.tree_at(lambda m: [b.position for b in m.bodies], mech,
                            [win.guess_q[3 * i: 3 * i + 3] for i in range(n_b)])
         mech = eqx.tree_at(lambda m: [b.velocity for b in m.bodies], mech,
                            [win.guess_qd[3 * i: 3 * i + 3] for i in range(n_b)])
-        elements, i = [], 0
-        for element in mech.clearance_joints:
-            e = element.n_equations
-            u, w = state_z[i: i + e], state_z[i + e: i + 2 * e]
-            scale = element.start_scale()
-            elements.append(element.with_start(scale * OFFSET_RADIUS * u / jnp.sqrt(1.0 + u @ u),
-                                               self.velocity_scale * scale * w))
-            i += 2 * e
+        elements, speeds = element_starts(mech, state_z, self.velocity_scale, self.anywhere)
         if elements:
             mech = eqx.tree_at(lambda m: list(m.clearance_joints), mech, elements)
-        return mech, values
+        return mech, values, speeds
+
+    def start(self, mech: Mechanism, speeds):
+        """The run's start: assembled (None) or, with contacts under way, the assembled state
+        whose memories hold their approach speeds (the onset placed one window before)."""
+        if speeds is None:
+            return None
+        y0 = initial_state(mech, self.settings)
+        onset = -self.settings.t_end
+        return eqx.tree_at(lambda y: y.elements, y0, tuple(
+            ongoing_contact(state, v, onset) for state, v in zip(y0.elements, speeds)))
 
     def signal(self, theta_z, state_z, win: WindowInput):
         """Sensor outputs ``(C, n_pad)`` at the window's samples and ``(q_end, qdot_end,
         start_states_end, status)`` of the simulation."""
-        mech, values = self.mechanism(theta_z, state_z, win)
-        sol = simulate(mech, self.settings)
+        mech, values, speeds = self.mechanism(theta_z, state_z, win)
+        sol = simulate(mech, self.settings, self.start(mech, speeds))
         ys = []
         for j, (name, sensor) in enumerate(zip(self.channels, self.sensors)):
             gain = values.get("sensor_gain", sensor.gain) if j == 0 else sensor.gain
             bias = values.get("sensor_bias", sensor.bias) if j == 0 else sensor.bias
+            delay = values.get("sensor_delay", sensor.delay) if j == 0 else sensor.delay
             y = gain * sensor.filter(self.h, channel(mech, sol, name)) + bias
-            ys.append(jnp.interp(win.t_rel, sol.ts, y))
+            ys.append(jnp.interp(win.t_rel - delay, sol.ts, y))
         q1, qd1 = sol.q[-1], sol.qdot[-1]
         return jnp.stack(ys), (q1, qd1, start_states(mech, q1, qd1), sol.status)
 
@@ -157,25 +161,6 @@ def evaluate_window(model: WindowModel, theta_z, state_z, win: WindowInput):
 
 #: :func:`evaluate_window` compiled (outside the solver's step: start states, uncertainty, plot).
 evaluate_window_jit = jit(evaluate_window)
-
-
-def state_to_z(state: np.ndarray, scales: Sequence[np.ndarray], velocity_scale: float) -> np.ndarray:
-    """Inverse of the window-state map of :meth:`WindowModel.mechanism`: the elements' start
-    states (:func:`jaxclear.elements.start_states`, ``(S,)``) to ``s`` ``(S,)``, given each
-    element's start scale ``(e,)`` (the offset clipped to 0.999 of its ellipse)."""
-    out, i = [], 0
-    for scale in scales:
-        scale = np.asarray(scale, dtype=float)
-        e = scale.shape[0]
-        w = np.asarray(state[i: i + e]) / (scale * OFFSET_RADIUS)
-        n = float(np.linalg.norm(w))
-        if n >= 0.999:
-            w = w * 0.999 / n
-            n = 0.999
-        out.append(w / math.sqrt(1.0 - n * n))
-        out.append(np.asarray(state[i + e: i + 2 * e]) / (velocity_scale * scale))
-        i += 2 * e
-    return np.concatenate(out) if out else np.zeros(0)
 
 
 @dataclass(frozen=True)
@@ -226,18 +211,21 @@ class WindowSet:
 
     def window_input(self, k: int, horizon: float, integrate: bool, angle0: float, guess) -> WindowInput:
         """The :class:`WindowInput` of window ``k`` (``guess``: ``(q, qdot)`` at its start)."""
-        return WindowInput(jnp.asarray(angle0), jnp.asarray(guess[0]), jnp.asarray(guess[1]),
+        return WindowInput(jnp.asarray(angle0), jnp.asarray(self.starts[k]), jnp.asarray(guess[0]),
+                           jnp.asarray(guess[1]),
                            jnp.asarray(self.t_rel[k]), jnp.asarray(self.data[k]),
                            jnp.asarray(self.mask(k, horizon)), jnp.asarray(self.scales), jnp.asarray(self.dts[k]),
                            jnp.asarray(1.0 if integrate else 0.0), jnp.asarray(self.vscales))
 
 
 def cut_windows(t_rec, y_rec, dt: float, windows: int, window: float, settle: float, horizons: Sequence[float],
-                where: str, columns: Sequence[str] = ("slider_acc_m_s2",)) -> WindowSet:
+                where: str, columns: Sequence[str] = ("slider_acc_m_s2",), settle_first: bool = False) -> WindowSet:
     """Cut the record (``t_rec`` ``(N,)`` on the simulation clock [s], ``y_rec`` ``(C, N)`` the
     fitted ``columns``) into ``windows`` back-to-back windows of ``window`` seconds (``dt``: the
     uniform sample spacing [s]); a partial horizon ends at the quietest sample of the first
-    column within the next 10 % of the window (:func:`quiet_cut`)."""
+    column within the next 10 % of the window (:func:`quiet_cut`). The first ``settle`` seconds
+    of every window after the first (of the first too with ``settle_first``: a record that begins
+    mid-run) are not fitted: the sensor filter's history before the window is unknown."""
     y_rec = np.atleast_2d(np.asarray(y_rec, dtype=float))
     n_c = y_rec.shape[0]
     starts = tuple(k * window for k in range(windows))
@@ -254,7 +242,7 @@ def cut_windows(t_rec, y_rec, dt: float, windows: int, window: float, settle: fl
     for k, i in enumerate(idx):
         t_rel[k, : len(i)] = t_rec[i] - starts[k]
         data[k, :, : len(i)] = y_rec[:, i]
-        valid[k, : len(i)] = 1.0 if k == 0 else (t_rel[k, : len(i)] >= settle)
+        valid[k, : len(i)] = 1.0 if k == 0 and not settle_first else (t_rel[k, : len(i)] >= settle)
         dts[k, 1: len(i)] = np.diff(t_rel[k, : len(i)])
     n0 = len(idx[0])
     vscales = np.sqrt(np.mean(np.cumsum(data[0, :, :n0] * dts[0, :n0], axis=1) ** 2, axis=1))

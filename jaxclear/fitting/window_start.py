@@ -1,0 +1,199 @@
+r"""The unknown start of a fit window: how a window's free start-state numbers ``s`` become the
+force elements' start, in two layouts.
+
+Every force element starts at the coordinates ``a0`` its initial assembly holds and their rates
+(:meth:`~jaxclear.elements.AbstractForceElement.start_state`: a journal's eccentricity and its
+rate; a translational joint's lateral offset and tilt), each scaled by the element's
+:meth:`~jaxclear.elements.AbstractForceElement.start_scale` ``S`` (``(e,)``, ``e =
+n_equations``; the radial clearance ``c`` for a journal) and by a velocity scale ``v_s`` (the
+crank speed [rad/s], or ``1 / T_w``).
+
+* **contact-free** (a record that begins at start-up: windows after the first, whose state
+  follows the previous window): ``2 e`` numbers ``(u, w)`` per element,
+  ``a0 = S u / sqrt(1 + |u|^2)``, ``a0dot = v_s S w``; the start lies inside the ellipse of
+  half-axes ``S`` (the clearance circle of a journal), so it is never in contact.
+* **anywhere** (``start_state="free"``: a record that begins mid-run, every window's start
+  unknown, the first included): ``2 e + 1`` numbers ``(u, w, m)`` per element,
+  ``a0 = S u``, ``a0dot = v_s S w`` (linear: the start may lie on or beyond the clearance,
+  inside a contact) and the ongoing contact's approach speed
+  ``v^- = v_s mean(S) exp(m)`` [m/s], which the dissipative laws divide by
+  (:func:`jaxclear.elements.memory.ongoing_contact`; it acts only where the start is in
+  contact). ``m`` is chosen by the way in (:mod:`jaxclear.fitting.way_in`) and then **held**
+  (its derivative is stopped, its column of the Jacobian is zero): inside a contact that began
+  before the window, the restitution and the approach speed enter the Hertz-family damping only
+  as ``(1 - c_r^2) / v^-``, so freeing both makes the least-squares problem singular. Measured on
+  a record of an independent simulator: the fit drove ``v^-`` to 3800 m/s (no damping at all),
+  where its column is 2e-8 of the others and its Marquardt-scaled step, 7e6, shrank every joint
+  step to nothing. The restitution is identified from the impacts that begin inside a window. A penetration deeper than the element's limit ends the run with
+  ``penetration_too_deep``, so the fit rejects such a step.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+#: Offset of a contact-free window start as a fraction of the element's start scale: the map keeps it inside.
+OFFSET_RADIUS = 1.0
+
+
+def approach_speed(m, unit):
+    """``v^-`` [m/s] of the unconstrained ``m`` (``unit``: ``v_s mean(S)`` [m/s]):
+    ``unit exp(m)``."""
+    return unit * jnp.exp(m)
+
+
+def approach_to_z(v: float, unit: float) -> float:
+    """Inverse of :func:`approach_speed`."""
+    return math.log(max(v, 1e-12) / unit)
+
+
+def state_size(mech, anywhere: bool) -> int:
+    """Numbers of one window's start state: ``sum(2 e (+ 1))`` over the force elements."""
+    return sum(2 * el.n_equations + (1 if anywhere else 0) for el in mech.clearance_joints)
+
+
+def element_starts(mech, state_z, velocity_scale, anywhere: bool):
+    """The force elements with their start set from ``state_z`` ``(S,)`` and, for the anywhere
+    layout, the approach speeds ``(n_elements,)`` [m/s] of their ongoing contacts (else None)."""
+    elements, speeds, i = [], [], 0
+    for element in mech.clearance_joints:
+        e = element.n_equations
+        u, w = state_z[i: i + e], state_z[i + e: i + 2 * e]
+        scale = element.start_scale()
+        if anywhere:
+            offset = scale * u
+            speeds.append(approach_speed(jax.lax.stop_gradient(state_z[i + 2 * e]), velocity_scale * jnp.mean(scale)))
+            i += 2 * e + 1
+        else:
+            offset = scale * OFFSET_RADIUS * u / jnp.sqrt(1.0 + u @ u)
+            i += 2 * e
+        elements.append(element.with_start(offset, velocity_scale * scale * w))
+    return elements, (speeds if anywhere else None)
+
+
+def state_to_z(state: np.ndarray, scales: Sequence[np.ndarray], velocity_scale: float,
+               approach_speeds: Sequence[float] | None = None) -> np.ndarray:
+    """Inverse of :func:`element_starts`: the elements' start states
+    (:func:`jaxclear.elements.start_states`, ``(sum 2 e,)``) to ``s``, given each element's
+    start scale ``(e,)``. Contact-free layout (``approach_speeds`` None): the offset is clipped
+    to 0.999 of its ellipse. Anywhere layout: the approach speeds [m/s] of the ongoing contacts."""
+    out, i = [], 0
+    for j, scale in enumerate(scales):
+        scale = np.asarray(scale, dtype=float)
+        e = scale.shape[0]
+        w = np.asarray(state[i: i + e]) / (scale * OFFSET_RADIUS)
+        if approach_speeds is None:
+            n = float(np.linalg.norm(w))
+            if n >= 0.999:
+                w = w * 0.999 / n
+                n = 0.999
+            out.append(w / math.sqrt(1.0 - n * n))
+        else:
+            out.append(np.asarray(state[i: i + e]) / scale)
+        out.append(np.asarray(state[i + e: i + 2 * e]) / (velocity_scale * scale))
+        if approach_speeds is not None:
+            out.append(np.array([approach_to_z(float(approach_speeds[j]), velocity_scale * float(np.mean(scale)))]))
+        i += 2 * e
+    return np.concatenate(out) if out else np.zeros(0)
+
+
+#: The candidate starts of the anywhere layout (:func:`candidates`), per element: directions
+#: around the start ellipse, radii in units of it (two free, two pressed in: 1.002 and 1.008 of a
+#: 0.5 mm clearance are 1 and 4 micrometres, the static penetrations of 70 and 550 N on the
+#: benchmark's steel journal; 1.015 is 7.5 micrometres, 1300 N), and relative velocities along
+#: the wall in units of ``v_s S`` (``omega c`` is 0.26 m/s on the benchmark, where the journal
+#: slides round its bearing at up to about 0.7 m/s in steady running).
+CANDIDATE_DIRECTIONS = 24
+CANDIDATE_RADII = (0.6, 0.95, 1.004, 1.015)
+CANDIDATE_SLIDING = (-3.0, -1.5, -0.5, 0.0, 0.5, 1.5, 3.0)
+#: Approach speed of the candidates' ongoing contacts, in units of ``v_s mean(S)`` (0.26 m/s on
+#: the benchmark), while their geometry is scored; then the best geometry's approach speed is
+#: scored over :data:`APPROACH_SPAN` (a log grid, 0.005 to 1.3 m/s on the benchmark).
+CANDIDATE_APPROACH = 0.3
+APPROACH_SPAN = (0.02, 5.0)
+
+
+def approach_candidates(best: np.ndarray, mech, count: int) -> np.ndarray:
+    """``count`` copies of the start ``best`` ``(S,)`` whose ongoing contacts' approach speeds
+    (every element's) run over a log grid of :data:`APPROACH_SPAN` (``(count, S)``)."""
+    out = np.repeat(best[None, :], count, axis=0)
+    grid = np.log(np.geomspace(*APPROACH_SPAN, count))
+    i = 0
+    for el in mech.clearance_joints:
+        i += 2 * el.n_equations
+        out[:, i] = grid
+        i += 1
+    return out
+
+
+def candidates(mech) -> np.ndarray:
+    """Candidate window starts ``(M, S)`` of the anywhere layout, in contact or not: for each
+    element a grid of directions x radii x sliding velocities (:data:`CANDIDATE_DIRECTIONS`,
+    :data:`CANDIDATE_RADII`, :data:`CANDIDATE_SLIDING`); with several elements the other
+    elements start centred at rest while one element's grid is scored (their combinations would
+    grow as a product)."""
+    per_element = []
+    for element in mech.clearance_joints:
+        e = element.n_equations
+        rows = []
+        if e == 2:
+            for k in range(CANDIDATE_DIRECTIONS):
+                phi = 2.0 * math.pi * k / CANDIDATE_DIRECTIONS
+                n = np.array([math.cos(phi), math.sin(phi)])
+                t = np.array([-n[1], n[0]])
+                for rho in CANDIDATE_RADII:
+                    for slide in CANDIDATE_SLIDING:
+                        rows.append(np.concatenate([rho * n, slide * t, [approach_to_z(CANDIDATE_APPROACH, 1.0)]]))
+        else:  # other layouts: the corners and axes of the box of half-axes S, at rest
+            grid = np.array(np.meshgrid(*[[-1.0, 0.0, 1.0]] * e)).reshape(e, -1).T
+            for rho in CANDIDATE_RADII:
+                for g in grid:
+                    rows.append(np.concatenate([rho * g, np.zeros(e), [approach_to_z(CANDIDATE_APPROACH, 1.0)]]))
+        per_element.append(np.array(rows))
+    rest = [np.concatenate([np.zeros(2 * el.n_equations), [approach_to_z(CANDIDATE_APPROACH, 1.0)]]) for el in mech.clearance_joints]
+    out = []
+    for j, rows in enumerate(per_element):
+        for row in rows:
+            out.append(np.concatenate([row if i == j else rest[i] for i in range(len(rest))]))
+    return np.array(out)
+
+
+#: Largest crank-angle step [rad] between two assemblies of :func:`crank_guesses` (15 degrees):
+#: Newton's iteration from the last configuration then stays on the same assembly branch.
+GUESS_STEP = math.radians(15.0)
+
+
+def crank_guesses(mech, driver: int, angles: Sequence[float]) -> list:
+    """Position and velocity guesses ``[(q (3 n_b,), qdot (3 n_b,)), ...]`` of the ideal
+    assembly at each crank angle of ``angles`` [rad] (increasing from the driver's ``angle0``),
+    reached by continuation from the mechanism's own guesses in steps of at most
+    :data:`GUESS_STEP`, so that every window's assembly starts on the branch of the first."""
+    import equinox as eqx
+
+    from ..integrate import assemble, jit
+
+    run = jit(assemble)
+    n_b = len(mech.bodies)
+
+    def at(m, angle, q, qd):
+        m = eqx.tree_at(lambda x: x.drivers[driver].angle0, m, jnp.asarray(angle, dtype=float))
+        m = eqx.tree_at(lambda x: [b.position for b in x.bodies], m, [q[3 * i: 3 * i + 3] for i in range(n_b)])
+        m = eqx.tree_at(lambda x: [b.velocity for b in x.bodies], m, [qd[3 * i: 3 * i + 3] for i in range(n_b)])
+        asm = run(m, 0.0)
+        return np.asarray(asm.q), np.asarray(asm.qdot)
+
+    q, qd = (np.asarray(a) for a in mech.guess())
+    current = float(mech.drivers[driver].angle0)
+    out = []
+    for angle in angles:
+        steps = max(int(math.ceil(abs(angle - current) / GUESS_STEP)), 1)
+        for a in np.linspace(current, angle, steps + 1)[1:]:
+            q, qd = at(mech, a, jnp.asarray(q), jnp.asarray(qd))
+        current = angle
+        out.append((q, qd))
+    return out
