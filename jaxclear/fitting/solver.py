@@ -74,7 +74,8 @@ _TAGS = frozenset()
 
 class StageArgs(eqx.Module):
     """Data of a stage: the fixed ``theta`` ``(P,)``, the start states of its windows ``(W_s,
-    4 n_c)`` (fixed rows used, free rows replaced by ``x``) and the windows' inputs."""
+    S)`` (fixed rows used, free rows replaced by ``x``) and the windows' inputs, stacked along a
+    leading window axis (one :class:`WindowInput` whose leaves are ``(W_s, ...)``)."""
 
     theta: jax.Array
     states: jax.Array
@@ -91,23 +92,21 @@ class StageResidual(eqx.Module):
     free_rows: tuple = eqx.field(static=True)  # rows (into the stage's windows) whose state is free
 
     def evaluate(self, x, args: StageArgs):
-        """Residual, Jacobian ``(N, len(x))`` and signals at ``x`` (forward mode)."""
+        """Residual, Jacobian ``(N, len(x))`` and signals at ``x`` (forward mode). The windows
+        are one ``jax.vmap`` of :func:`evaluate_window` (one copy of the model in the program
+        whatever the number of windows: a stage of four 3 ms windows compiled in 137 s as four
+        copies)."""
         p = args.theta.shape[0]
         n_state = args.states.shape[1]
         theta = x[:p] if self.theta_free else args.theta
         offset = p if self.theta_free else 0
-        rs, jts, jss, ys = [], [], [], []
-        for row, win in enumerate(args.windows):
-            state = args.states[row]
-            if row in self.free_rows:
-                i = offset + self.free_rows.index(row) * n_state
-                state = x[i: i + n_state]
-            r, jt, js, y, _ = evaluate_window(self.model, theta, state, win)
-            rs.append(r)
-            jts.append(jt)
-            jss.append(js)
-            ys.append(y)
-        return jnp.concatenate(rs), stack_jacobian(jts, jss, self.theta_free, self.free_rows), jnp.stack(ys)
+        states = args.states
+        for j, row in enumerate(self.free_rows):
+            states = states.at[row].set(x[offset + j * n_state: offset + (j + 1) * n_state])
+        r, jt, js, y, _ = jax.vmap(evaluate_window, in_axes=(None, None, 0, 0))(self.model, theta, states, args.windows)
+        rows = range(r.shape[0])
+        return (jnp.reshape(r, (-1,)), stack_jacobian([jt[k] for k in rows], [js[k] for k in rows], self.theta_free,
+                                                      self.free_rows), y)
 
     def __call__(self, u, args: StageArgs):
         u0 = jax.lax.stop_gradient(u)
@@ -333,6 +332,7 @@ class StageRun:
 
 
 def stage_arguments(theta, states, windows: list[WindowInput]) -> StageArgs:
-    """:class:`StageArgs` from ``theta`` ``(P,)``, the stage windows' states and inputs."""
-    return StageArgs(jnp.asarray(theta, dtype=float), jnp.asarray(np.asarray(states, dtype=float)), tuple(windows))
+    """:class:`StageArgs` from ``theta`` ``(P,)``, the stage windows' states and inputs (stacked)."""
+    stacked = jax.tree_util.tree_map(lambda *leaves: jnp.stack(leaves), *windows)
+    return StageArgs(jnp.asarray(theta, dtype=float), jnp.asarray(np.asarray(states, dtype=float)), stacked)
 
