@@ -90,6 +90,8 @@ def test_free_start_inputs_are_checked_before_any_compilation(tmp_path):
         jc.fit(data, mech, start_state="free", starts=3, progress=False)
     with pytest.raises(jc.ParameterError, match="start state, which every fit window sets itself"):
         jc.fit(data, mech, free=["stiffness", "offset_x"], progress=False)
+    with pytest.raises(jc.FitDataError, match="fits no sample of the record: window 1 spans simulation time 0 to"):
+        jc.fit(data, mech, time_offset=2e-3, progress=False)  # the first quarter window before the first sample
     pendulum = jc.load_mechanism(str(Path(__file__).resolve().parents[1] / "examples" / "pendulum.toml"))
     with pytest.raises(jc.ParameterError):  # no crank: neither angle0 nor speed can be freed
         jc.fit(data, pendulum, free=["angle0"], progress=False)

@@ -280,6 +280,26 @@ def build_problem(data, mech: Mechanism, free: Sequence[str], start: dict | None
                                                             np.asarray(j.initial_velocity)])
                                             for j in mech.clearance_joints]), start_scales, velocity_scale)
     settings = dict(settings, coarse=coarse, dt=dt)
-    return FitProblem(meas, t_rec, y_rec, mech, sensor, targets, free, values0, fixed_values(mech, sensor, free), z0,
-                      [], model, win, [], horizons, state0, guess0, start_scales, velocity_scale, angle0, speed,
-                      json.loads(json.dumps(settings, default=str)), anywhere, window_guesses).with_starts(starts)
+    problem = FitProblem(meas, t_rec, y_rec, mech, sensor, targets, free, values0, fixed_values(mech, sensor, free), z0,
+                         [], model, win, [], horizons, state0, guess0, start_scales, velocity_scale, angle0, speed,
+                         json.loads(json.dumps(settings, default=str)), anywhere, window_guesses).with_starts(starts)
+    _check_stage_samples(problem, where)
+    return problem
+
+
+def _check_stage_samples(problem: FitProblem, where: str):
+    """A :class:`~jaxclear.FitDataError` before any compilation for a stage that would fit no
+    record sample (a partial horizon of a window that the record's samples do not reach, for
+    example with ``align="crank"`` when the record's first sample maps to a late simulation
+    time): it names the stage, the window's span and where the record's samples lie."""
+    win = problem.win
+    for stage in problem.stages:
+        if sum(float(win.mask(k, stage.horizon).sum()) for k in stage.windows) > 0:
+            continue
+        k = stage.windows[0]
+        end = win.cuts.get((k, stage.horizon), stage.horizon * win.length)
+        raise FitDataError(
+            f"{where}: stage {stage.name!r} fits no sample of the record: window {k + 1} spans simulation time "
+            f"{win.starts[k]:.6g} to {win.starts[k] + end:.6g} s there, and the record's samples lie at "
+            f"{problem.t_rec[0]:.6g} to {problem.t_rec[-1]:.6g} s (align={problem.settings['align']!r}); give a longer "
+            "window or horizons (window=..., --window), align='time', or a record that covers the windows")
