@@ -63,6 +63,11 @@ def test_anywhere_start_map_inverts_and_reaches_contact():
     np.testing.assert_allclose(np.asarray(elements[0].initial_velocity), velocity, rtol=1e-14)
     np.testing.assert_allclose(float(speeds[0]), v_minus, rtol=1e-12)
     assert np.linalg.norm(offset) > c  # in contact: 7.6 micrometres deep
+    p = window_start.MAX_START_PENETRATION
+    deep = np.asarray(window_start.pressed(jnp.array([10.0, 0.0])))
+    assert 1.0 + 0.999 * p < deep[0] <= 1.0 + p  # pressed in at most p of the clearance
+    for n in (0.3, 1.0 - 1e-9, 1.0 + 1e-9):  # identity inside, continuous (with its slope) at the clearance
+        np.testing.assert_allclose(np.asarray(window_start.pressed(jnp.array([0.0, n])))[1], n, rtol=1e-12)
     cands = window_start.candidates(mech)
     assert cands.shape == (window_start.CANDIDATE_DIRECTIONS * len(window_start.CANDIDATE_RADII)
                            * len(window_start.CANDIDATE_SLIDING), 5)
