@@ -111,7 +111,7 @@ def configure(p: argparse.ArgumentParser):
     s.add_argument("--sensor-order", type=int, choices=(1, 2), default=2,
                    help="order of the low-pass: 1 (first-order) or 2 (Butterworth) (default: 2)")
     s.add_argument("--sensor-delay", type=number_in(float), default=0.0, metavar="S",
-                   help="delay of the record behind the model [s] (default: 0; free sensor_delay to fit it)")
+                   help="delay of the record behind the model [s]; free sensor_delay to fit it (default: 0)")
     s.add_argument("--sensor-gain", type=number_in(float), default=1.0, metavar="G", help="accelerometer gain [-] (default: 1)")
     s.add_argument("--sensor-bias", type=number_in(float), default=0.0, metavar="B",
                    help="accelerometer bias [m/s^2] (default: 0)")
