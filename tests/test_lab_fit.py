@@ -51,7 +51,7 @@ def test_ongoing_contact_sets_every_memory():
 
 def test_anywhere_start_map_inverts_and_reaches_contact():
     """The anywhere layout is linear in the offset (a start in contact is reachable), its
-    inverse :func:`state_to_z` returns the numbers, and the approach speed stays in its range."""
+    inverse :func:`state_to_z` returns the numbers, and a start pressed in is bounded."""
     mech = jc.preset("flores-slider-crank")
     c = float(mech.clearance_joints[0].clearance)
     omega = float(jc.params.get(mech, "speed"))

@@ -104,8 +104,8 @@ class FitProblem:
                                    settings={**self.settings, "starts": starts})
 
     def window_input(self, k: int, horizon: float, integrate: bool, guesses) -> WindowInput:
-        """Window ``k``'s input; its crank starts at ``angle0 + omega t_k`` [rad]."""
-        return self.win.window_input(k, horizon, integrate, self.angle0 + self.speed * self.win.starts[k], guesses[k])
+        """Window ``k``'s input; its crank starts at ``angle0 + omega t_k`` [rad] (:class:`WindowModel`)."""
+        return self.win.window_input(k, horizon, integrate, guesses[k])
 
     def checkpoint_config(self) -> dict:
         s = dict(self.settings)
@@ -266,8 +266,7 @@ def build_problem(data, mech: Mechanism, free: Sequence[str], start: dict | None
                         weights=jnp.asarray([fc.weight for _, fc in targets], dtype=float), settings=s,
                         bias_scale=jnp.asarray(win.scale), velocity_scale=jnp.asarray(velocity_scale), free=free,
                         channels=tuple(fc.channel for _, fc in targets),
-                        driver=crank[0] if crank is not None else None, h=h, anywhere=anywhere,
-                        crank_free=bool(crank_free))
+                        driver=crank[0] if crank is not None else None, h=h, anywhere=anywhere)
     start_scales = [np.asarray(j.start_scale(), dtype=float) for j in mech.clearance_joints]
     guess0 = tuple(np.asarray(a) for a in mech.guess())
     window_guesses = ()

@@ -80,7 +80,7 @@ def begin_stage(problem: FitProblem, st: FitState) -> FitState:
         states = list(st.states)
         states[k] = found.tolist()
         st = st.replace(states=states, way_in=st.way_in + ({"window": k, **report},))
-    elif not stage.theta and stage.states and not problem.anywhere:
+    elif not stage.theta and stage.states:
         k = stage.states[0]
         q1, qd1, end = window_end(problem, st, k - 1)
         guesses, states = list(st.guesses), list(st.states)

@@ -10,16 +10,17 @@ least-squares fit of the contact parameters from there drives them to a bound (s
 
 What is done (the choice, and why). The window's start is chosen by **scoring an ensemble of
 candidate starts** on the window's first part: a grid over the clearance circle (directions),
-radii inside and just beyond it (free flight, or pressed in by 1-4 micrometres: a continuous
-contact), and sliding velocities along the wall
+radii inside and just beyond it (free flight, or pressed in by 2 and 7 micrometres on the
+benchmark: a continuous contact), and sliding velocities along the wall
 (:func:`jaxclear.fitting.window_start.candidates`, 672 candidates for one journal), each
 simulated at the start parameters and scored by the misfit of its sensor output over the first
 horizon of the window (a quarter of it by default); the best is the start of the window's
 least-squares stages (:func:`jaxclear.fitting.plan.plan_free_starts`), which polish it before
 the parameters are freed. The approach speed of a contact under way at the window's start is
-scored next, over a log grid at the best geometry, and then held (:mod:`.window_start`). The candidates are one ``jax.vmap`` of the window model (one program;
-values only), so the ensemble costs about a second or two where a Jacobian of one window costs
-about as much.
+scored next, over a log grid at the best geometry (as many candidates: the same program), and
+then held (:mod:`.window_start`). The candidates are one ``jax.vmap`` of the window model
+(values only): on the benchmark the two passes and the window's first Jacobian take 5-13 s
+together after compilation.
 
 The alternatives considered: reading impact instants and directions from the record itself
 (the spikes of the acceleration) needs impacts, and a journal in continuous contact makes none
@@ -67,17 +68,16 @@ def find_start(model: WindowModel, mech, theta_z, win: WindowInput) -> tuple[np.
     report: ``{"candidates": M, "best_loss", "median_loss", "finite": number of candidates that
     ran}`` (losses: mean squares of the normalised residual over the fitted samples)."""
     cands = candidates(mech)
-    scores = np.asarray(_scores_jit(model, jnp.asarray(theta_z), jnp.asarray(cands), win))
-    n_fit = max(float(np.sum(np.asarray(win.mask))) * model.weights.shape[0], 1.0)
-    finite = np.isfinite(scores)
-    best = int(np.argmin(np.where(finite, scores, np.inf)))
+    scores = np.asarray(_scores_jit(model, jnp.asarray(theta_z), jnp.asarray(cands), win))  # inf: failed
+    best = int(np.argmin(scores))
     # the approach speed of a contact under way, over as many candidates (the same program)
     speeds = approach_candidates(cands[best], mech, cands.shape[0])
     second = np.asarray(_scores_jit(model, jnp.asarray(theta_z), jnp.asarray(speeds), win))
-    found = cands[best]
-    if np.isfinite(second).any() and np.nanmin(np.where(np.isfinite(second), second, np.inf)) < scores[best]:
-        found = speeds[int(np.argmin(np.where(np.isfinite(second), second, np.inf)))]
+    found, loss = (speeds[int(np.argmin(second))], float(np.min(second))) if np.min(second) < scores[best] else \
+        (cands[best], float(scores[best]))
+    n_fit = max(float(np.sum(np.asarray(win.mask))) * model.weights.shape[0], 1.0)
+    finite = np.isfinite(scores)
     report = {"candidates": int(2 * cands.shape[0]), "finite": int(finite.sum() + np.isfinite(second).sum()),
-              "best_loss": float(min(scores[best], np.min(np.where(np.isfinite(second), second, np.inf))) / n_fit),
+              "best_loss": loss / n_fit,
               "median_loss": float(np.median(scores[finite]) / n_fit) if finite.any() else float("nan")}
     return found, report

@@ -24,7 +24,6 @@ channels' residuals are stacked (channel-major, ``(C n_pad,)``).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -42,13 +41,12 @@ from ..analysis.sensor import Accelerometer
 from ..integrate import Settings, initial_state, jit, simulate
 from .parameters import SENSOR_PARAMETERS, from_z
 from .records import quiet_cut
-from .window_start import OFFSET_RADIUS, element_starts, state_to_z  # noqa: F401  (state_to_z: re-exported)
+from .window_start import element_starts
 
 
 class WindowInput(eqx.Module):
     """Arrays describing one window (all leaves, so windows share one compiled function)."""
 
-    angle0: jax.Array  # crank start angle of the window [rad], () (at the mechanism's angle0 and speed)
     t_start: jax.Array  # start of the window on the record's simulation clock [s], ()
     guess_q: jax.Array  # position guess of the bodies at the window start, (3 n_b,)
     guess_qd: jax.Array  # velocity guess, (3 n_b,)
@@ -77,7 +75,6 @@ class WindowModel(eqx.Module):
     driver: int | None = eqx.field(static=True)
     h: float = eqx.field(static=True)
     anywhere: bool = eqx.field(static=True, default=False)  # window starts in the anywhere layout (.window_start)
-    crank_free: bool = eqx.field(static=True, default=False)  # the crank's angle0 or speed is fitted
 
     @property
     def sensor(self) -> Accelerometer:
@@ -94,10 +91,9 @@ class WindowModel(eqx.Module):
         anywhere layout; else None)."""
         values = self.values(theta_z)
         mech = params.replace_many(self.mech, {n: v for n, v in values.items() if n not in SENSOR_PARAMETERS})
-        if self.driver is not None:
+        if self.driver is not None:  # the crank where the record is at the window's start (fitted angle0, speed too)
             crank = mech.drivers[self.driver]
-            angle = crank.angle0 + crank.speed * win.t_start if self.crank_free else win.angle0
-            mech = eqx.tree_at(lambda m: m.drivers[self.driver].angle0, mech, angle)
+            mech = eqx.tree_at(lambda m: m.drivers[self.driver].angle0, mech, crank.angle0 + crank.speed * win.t_start)
         n_b = len(mech.bodies)
         mech = eqx.tree_at(lambda m: [b.position for b in m.bodies], mech,
                            [win.guess_q[3 * i: 3 * i + 3] for i in range(n_b)])
@@ -209,10 +205,9 @@ class WindowSet:
         """``(C n_pad,)``: :meth:`mask` for every channel, in the residual's order."""
         return np.tile(self.mask(k, horizon), self.n_channels)
 
-    def window_input(self, k: int, horizon: float, integrate: bool, angle0: float, guess) -> WindowInput:
+    def window_input(self, k: int, horizon: float, integrate: bool, guess) -> WindowInput:
         """The :class:`WindowInput` of window ``k`` (``guess``: ``(q, qdot)`` at its start)."""
-        return WindowInput(jnp.asarray(angle0), jnp.asarray(self.starts[k]), jnp.asarray(guess[0]),
-                           jnp.asarray(guess[1]),
+        return WindowInput(jnp.asarray(self.starts[k]), jnp.asarray(guess[0]), jnp.asarray(guess[1]),
                            jnp.asarray(self.t_rel[k]), jnp.asarray(self.data[k]),
                            jnp.asarray(self.mask(k, horizon)), jnp.asarray(self.scales), jnp.asarray(self.dts[k]),
                            jnp.asarray(1.0 if integrate else 0.0), jnp.asarray(self.vscales))

@@ -20,8 +20,9 @@ crank speed [rad/s], or ``1 / T_w``).
   continuously differentiable at 1). The bound matters: the first ``2 / f_c`` of a window are
   not fitted (the sensor filter's history is unknown), and on a record of the independent
   simulator a fit without it moved the first window's journal 0.28 mm into its bearing (truth:
-  7.6 micrometres), a violent start hidden in those unfitted samples and the ongoing contact's approach speed
-  ``v^- = v_s mean(S) exp(m)`` [m/s], which the dissipative laws divide by
+  7.6 micrometres), a violent start hidden in those unfitted samples. The last number gives
+  the ongoing contact's approach speed ``v^- = v_s mean(S) exp(m)`` [m/s], which the
+  dissipative laws divide by
   (:func:`jaxclear.elements.memory.ongoing_contact`; it acts only where the start is in
   contact). ``m`` is chosen by the way in (:mod:`jaxclear.fitting.way_in`) and then **held**
   (its derivative is stopped, its column of the Jacobian is zero): inside a contact that began
@@ -29,8 +30,7 @@ crank speed [rad/s], or ``1 / T_w``).
   as ``(1 - c_r^2) / v^-``, so freeing both makes the least-squares problem singular. Measured on
   a record of an independent simulator: the fit drove ``v^-`` to 3800 m/s (no damping at all),
   where its column is 2e-8 of the others and its Marquardt-scaled step, 7e6, shrank every joint
-  step to nothing. The restitution is identified from the impacts that begin inside a window. A penetration deeper than the element's limit ends the run with
-  ``penetration_too_deep``, so the fit rejects such a step.
+  step to nothing. The restitution is identified from the impacts that begin inside a window.
 """
 
 from __future__ import annotations
