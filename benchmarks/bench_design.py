@@ -46,6 +46,7 @@ from matplotlib.figure import Figure
 
 import jaxclear as jc
 from jaxclear import designing
+from jaxclear._extras import require_extra
 
 #: Each case: the preset, its design variables with their ranges, and the masses held to a fixed
 #: total. The slider-crank (Varedi et al.'s study): the rod's centroid along and across its axis,
@@ -191,6 +192,7 @@ def main():
     ap.add_argument("--json", default=None, help="default benchmarks/results/design[_four_bar][_ensemble].json")
     ap.add_argument("--png", default=None, help="default: the JSON's name with .png")
     args = ap.parse_args()
+    require_extra("bench", "benchmarks/bench_design.py (CMA-ES)")  # before any run
     stem = "benchmarks/results/design" + ("_four_bar" if args.case == "four-bar" else "") + (
         "_ensemble" if args.ensemble > 1 else "")
     args.json = args.json or stem + ".json"

@@ -31,6 +31,7 @@ from ._errors import (  # noqa: E402
     InitialConditionError,
     JaxclearError,
     MechanismError,
+    MissingExtraError,
     OutputLockedError,
     ParameterError,
     SolverError,

@@ -53,6 +53,12 @@ class CheckpointError(JaxclearError):
     """A checkpoint file exists but cannot be read."""
 
 
+class MissingExtraError(JaxclearError, ImportError):
+    """A feature needs an optional extra of ``pyproject.toml`` that is not installed (raised by
+    :func:`jaxclear._extras.require_extra` before any work; the message gives the ``pip install``
+    line). Also an :class:`ImportError`, so ``except ImportError`` catches it."""
+
+
 class RESULTS(eqx.Enumeration):
     """Status of a simulation, as an :class:`equinox.Enumeration` (the pattern of diffrax's
     ``RESULTS``): traceable, batchable, and usable with ``RESULTS.where`` and

@@ -14,7 +14,8 @@ import math
 
 import numpy as np
 
-from .._errors import ParameterError
+from .._errors import MissingExtraError, ParameterError
+from .._extras import extra_message, require_extra
 from ..analysis.channels import channel_with_unit
 from ..analysis.sections import check_channels
 from ..integrate import Solution
@@ -114,12 +115,13 @@ def zero_one_test(values, c=None, n_c: int = 100, n_cut: int | None = None, seed
 
 
 def _nolds():
-    """nolds, imported on first use (a named error where it cannot be imported)."""
+    """nolds (the ``chaos`` extra; :func:`rosenstein` checks that it is there before any work),
+    imported on first use: :class:`~jaxclear.MissingExtraError` where it cannot be imported
+    (nolds 0.6.3 under Python < 3.12, CSchoel/nolds#80, which the extra's pins avoid)."""
     try:
         return importlib.import_module("nolds")
-    except Exception as err:  # nolds 0.6.3 fails on import under Python < 3.12 (CSchoel/nolds#80)
-        raise ParameterError(f"rosenstein needs the package nolds, which cannot be imported here ({err}); "
-                             "Python < 3.12: pip install 'nolds==0.6.2' 'setuptools<81'") from None
+    except Exception as err:
+        raise MissingExtraError(extra_message("chaos", "rosenstein", ["nolds"], f"it fails on import: {err}")) from None
 
 
 def rosenstein(values, dt: float, emb_dim: int = 6, lag: int | None = None, min_tsep: int | None = None,
@@ -141,6 +143,7 @@ def rosenstein(values, dt: float, emb_dim: int = 6, lag: int | None = None, min_
     the Lorenz, Rossler and Henon systems with 1000-5000 points, more with fewer points or
     noise. It estimates the largest exponent only.
     """
+    require_extra("chaos", "rosenstein")  # before any work
     x = np.asarray(values, dtype=float)
     if x.ndim != 1 or x.size < 10 * emb_dim or not np.all(np.isfinite(x)):
         raise ParameterError(f"rosenstein: expected at least {10 * emb_dim} finite samples, got {x.shape}")

@@ -8,6 +8,7 @@ import os
 import warnings
 
 from .._errors import ParameterError
+from .._extras import require_extra
 from ..fitting import fit, read_channels_toml
 from ..fitting.driver import AUTO_STARTS, COMPILING
 from ..analysis.sensor import Accelerometer
@@ -160,8 +161,10 @@ def run(args) -> int:
         from .. import params
 
         mech = params.replace(mech, "angle0", math.radians(args.start_angle_deg))
-    if args.posterior:  # its inputs checked before the fit
+    if args.posterior:  # its inputs and packages checked before the fit
         from ..fitting.posterior import check_priors
+
+        require_extra("uncertainty", "jaxclear fit --posterior")
 
         if args.windows != 1:
             raise ParameterError(f"--posterior models window 0 only (it starts from the known state): use --windows 1, "

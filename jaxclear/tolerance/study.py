@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._errors import ParameterError
+from .._extras import require_extra
 from .._storage import atomic_write_json, atomic_write_text
 from ..model import Mechanism
 from .distributions import Inputs
@@ -190,6 +191,8 @@ def tolerance_study(inputs: Inputs, mech: Mechanism | None = None, *, preset: st
     for name, count, low in (("n", n, 2), ("sobol_n", sobol_n, 0), ("importance_n", importance_n, 0)):
         if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < low:
             raise ParameterError(f"tolerance_study: {name} = {count!r}: expected an integer >= {low}")
+    if sobol_n:  # before any run: the Sobol' indices need SALib
+        require_extra("uncertainty", "tolerance_study with sobol_n > 0 (Sobol' indices)", ["SALib"])
     if derivatives and not linearise:
         raise ParameterError("tolerance_study: derivatives=True adds to the linearised estimate: it needs linearise=True")
     if importance_n and not (limits and linearise):
