@@ -332,3 +332,20 @@ def test_long_intervals_on_the_chaotic_benchmark_do_not_stall():
     assert int(r.status) == 0 and int(r.run_status) == 0
     assert int(r.num_steps) < 90 * 20_000
     assert 200 < float(r.exponents[0]) < 900
+
+
+def test_memory_records_are_dropped_at_renormalisation():
+    """The tangents of the memory's records (work, running peaks: no force reads them) are set to
+    zero at every renormalisation (jaxclear.elements.memory.record_mask): a revolute joint's
+    memory is [impact_velocity, contact_start, impacts, work, peak_force, peak_penetration]; a
+    translational joint holds one memory per corner (4). Without it their tangents grew by the
+    inverse of the contracting directions' growth, e^13 a revolution on the benchmark, and
+    overflowed 1e250 after ~43 intervals (tests/test_cli_chaos.py runs 56)."""
+    from jaxclear.elements.memory import RECORDS, record_mask
+
+    joint = jc.preset("flores-slider-crank").clearance_joints[0]
+    mask = np.asarray(joint.state_to_vector(record_mask(joint.state_init())))
+    np.testing.assert_array_equal(mask, [1, 1, 1, 0, 0, 0])
+    guide = jc.preset("slider-crank-guide-clearance").clearance_joints[0]
+    mask = np.asarray(guide.state_to_vector(record_mask(guide.state_init())))
+    assert mask.shape == (guide.state_size,) and int((mask == 0).sum()) == 4 * len(RECORDS)
