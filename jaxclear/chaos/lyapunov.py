@@ -46,16 +46,34 @@ def _check_interval(interval):
                              "(0, inf) s")
 
 
-def _count(mech: Mechanism, count) -> int:
+def check_count(mech: Mechanism, count, name: str = "count") -> int:
+    """How many exponents: ``count`` checked against :math:`2(n - m)` (``None``: all); the error
+    names the parameter as ``name`` (the command line's ``--count``)."""
     p = manifold.dimension(mech)
     if p < 1:
         raise ParameterError(f"mechanism {mech.name!r} has no free motion (2(n - m) = {p}): no Lyapunov exponent")
     if count is None:
         return p
     if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or not 1 <= count <= p:
-        raise ParameterError(f"count = {count!r} exponents is outside the allowed range [1, {p}] (the dimension "
+        raise ParameterError(f"{name} = {count!r} exponents is outside the allowed range [1, {p}] (the dimension "
                              f"2(n - m) of the phase space of {mech.name!r})")
     return int(count)
+
+
+def interval_count(duration: float, interval: float) -> int:
+    """The renormalisation intervals of a run: the fewest equal intervals no longer than
+    ``interval`` [s] in ``duration`` [s] (at least one)."""
+    return max(1, math.ceil(duration / float(interval) - 1e-9))
+
+
+def check_length(windows: int, discard: int, run: str, remedy: str) -> None:
+    """A :class:`~jaxclear.ParameterError` when ``windows - discard`` counted intervals are fewer
+    than :data:`MIN_INTERVALS`; ``run`` says how the intervals came about and ``remedy`` what to
+    raise, in the caller's names (arguments, or the command line's flags)."""
+    if windows - discard < MIN_INTERVALS:
+        raise ParameterError(f"the run is too short for a converged estimate: {run} leaves {windows - discard} "
+                             f"counted renormalisation interval(s), outside the allowed range [{MIN_INTERVALS}, inf); "
+                             f"{remedy}")
 
 
 def _default_interval(mech: Mechanism) -> float:
@@ -103,7 +121,7 @@ def lyapunov(mech: Mechanism, s: Settings, interval: float | None = None, *, tra
         :class:`LyapunovError`; with ``s.throw=False`` they are the result's ``status``.
     """
     _check_interval(interval)
-    count = _count(mech, count)
+    count = check_count(mech, count)
     interval = _default_interval(mech) if interval is None else interval
     if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 1:
         raise ParameterError(f"samples = {samples!r} per interval is outside the allowed range [1, inf)")
@@ -115,13 +133,10 @@ def lyapunov(mech: Mechanism, s: Settings, interval: float | None = None, *, tra
     if not float(transient) >= 0 or duration <= 0:
         raise ParameterError(f"transient = {float(transient):g} s is outside the allowed range [0, t_end - t_start = "
                              f"{float(s.t_end) - s.t_start:g} s)")
-    windows = max(1, math.ceil(duration / float(interval) - 1e-9))
-    if windows - discard < MIN_INTERVALS:
-        raise ParameterError(
-            f"the run is too short for a converged estimate: {windows} renormalisation interval(s) of "
-            f"{duration / windows:g} s after the transient, {discard} discarded, leaves {windows - discard}, "
-            f"outside the allowed range [{MIN_INTERVALS}, inf); raise t_end (now {float(s.t_end):g} s), or shorten "
-            f"interval (now {float(interval):g} s) or transient")
+    windows = interval_count(duration, interval)
+    check_length(windows, discard, f"{windows} renormalisation interval(s) of {duration / windows:g} s after the "
+                 f"transient, {discard} discarded,", f"raise t_end (now {float(s.t_end):g} s), or shorten interval "
+                 f"(now {float(interval):g} s) or transient")
     scale = manifold.time_scale(mech) if time_scale is None else jnp.asarray(float(time_scale))
     s_run = dataclasses.replace(s, throw=False)
     result = _compiled(mech, s_run, y0, jnp.asarray(float(transient)), jnp.asarray(duration / windows), scale,
@@ -243,17 +258,15 @@ def lyapunov_map(mech: Mechanism, s: Settings, names: Sequence[str], values, *, 
                         ("samples", samples, 1), ("discard", discard, 0)):
         if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < low:
             raise ParameterError(f"{key} = {v!r} is outside the allowed range [{low}, inf)")
-    if revolutions * per_revolution - discard < MIN_INTERVALS:
-        raise ParameterError(f"the runs are too short for a converged estimate: revolutions x per_revolution - discard "
-                             f"= {revolutions * per_revolution - discard} intervals, outside the allowed range "
-                             f"[{MIN_INTERVALS}, inf)")
+    check_length(revolutions * per_revolution, discard, f"revolutions x per_revolution = {revolutions} x "
+                 f"{per_revolution} intervals, {discard} discarded,", "raise revolutions or per_revolution")
     if not transient_revolutions >= 0:
         raise ParameterError(f"transient_revolutions = {transient_revolutions!r} is outside the allowed range [0, inf)")
     if batch_size is not None and (isinstance(batch_size, bool) or not isinstance(batch_size, (int, np.integer))
                                    or batch_size < 1):
         raise ParameterError(f"batch_size = {batch_size!r} is outside the allowed range [1, inf) "
                              "(or None: all rows at once)")
-    count = _count(mech, count)
+    count = check_count(mech, count)
     channels = tuple(str(c) for c in channels)
     for c in channels:
         from ..analysis.channels import unit

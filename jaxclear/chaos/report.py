@@ -25,7 +25,10 @@ from ..integrate import Settings
 from ..model import Mechanism, crank_driver
 from . import figures
 from .lyapunov import lyapunov, trajectory
-from .signals import channel_series, psd, zero_one_test
+from .signals import ZERO_ONE_MIN_SAMPLES, channel_series, psd, zero_one_test
+
+#: Samples a crank revolution that the 0-1 test runs on (the channel thinned; see :func:`characterise`).
+ZERO_ONE_PER_REVOLUTION = 2
 
 
 @dataclass
@@ -72,10 +75,11 @@ def characterise(mech: Mechanism, s: Settings, channels, *, per_revolution: int 
         # at 4 a revolution the crank's harmonic sits at c = pi/2 and the resonance reads as K ~ 0 on a
         # chaotic run (measured); on the section itself a period-1 orbit is a constant plus the
         # integration's noise, whose random walk the test reads as chaos (K = 0.88, measured)
-        series = values[::max(1, stride // 2)]
-        k = zero_one_test(series)[0] if series.size >= 100 else float("nan")
+        series = values[::max(1, stride // ZERO_ONE_PER_REVOLUTION)]
+        enough = series.size >= ZERO_ONE_MIN_SAMPLES
+        k = zero_one_test(series)[0] if enough else float("nan")
         f, p = psd(values, dt)
-        k_on = "2 samples a revolution" if series.size >= 100 else "too few samples"
+        k_on = f"{ZERO_ONE_PER_REVOLUTION} samples a revolution" if enough else "too few samples"
         longest = max(0, min(MAX_PERIOD, (sect.size - 1) // 2))
         period = detect_period(sect, longest, rtol=1e-3, scale=np.max(np.abs(values)))
         reports.append(ChannelReport(name, unit, sect, period, k, k_on, longest, f, p))

@@ -24,6 +24,8 @@ from ..model import Mechanism
 #: The c values of the 0-1 test are drawn from (pi/5, 4 pi/5), away from the resonances at 0 and
 #: pi (Gottwald and Melbourne 2009, sec. 3).
 C_RANGE = (math.pi / 5, 4 * math.pi / 5)
+#: Fewest samples the 0-1 test runs on (its ``n_cut = N/10`` lags need a series this long).
+ZERO_ONE_MIN_SAMPLES = 100
 
 
 def channel_series(mech: Mechanism, sol: Solution, name: str, start: float | None = None):
@@ -91,8 +93,8 @@ def zero_one_test(values, c=None, n_c: int = 100, n_cut: int | None = None, seed
     Returns ``(K, K_c (n_c,), c (n_c,))``.
     """
     phi = np.asarray(values, dtype=float)
-    if phi.ndim != 1 or phi.size < 100 or not np.all(np.isfinite(phi)):
-        raise ParameterError(f"zero_one_test: expected at least 100 finite samples, got {phi.shape}")
+    if phi.ndim != 1 or phi.size < ZERO_ONE_MIN_SAMPLES or not np.all(np.isfinite(phi)):
+        raise ParameterError(f"zero_one_test: expected at least {ZERO_ONE_MIN_SAMPLES} finite samples, got {phi.shape}")
     n = phi.size
     n_cut = n // 10 if n_cut is None else int(n_cut)
     if not 2 <= n_cut <= n // 2:

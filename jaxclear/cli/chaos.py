@@ -4,20 +4,32 @@ dynamics, and on named channels the Poincare section's period, the 0-1 test and 
 from __future__ import annotations
 
 import argparse
+import math
 
-from ..analysis.sections import period_name
-from ..chaos.report import characterise, write_report
+from .._errors import ParameterError
+from ..chaos.lyapunov import MIN_INTERVALS, check_count, check_length, interval_count
+from ..chaos.report import ZERO_ONE_PER_REVOLUTION, characterise, write_report
+from ..chaos.signals import ZERO_ONE_MIN_SAMPLES
+from ..model import crank_driver
 from .common import add_mechanism_file_option, add_mechanism_options, fmt, number_in
 from .simulate import add_integration_options, load, settings_from
 
+#: The defaults of ``jaxclear chaos``: crank revolutions in all, of them without tangents first,
+#: and renormalisation intervals that do not count. 60 - 4 = 56 revolutions after the transient
+#: give the 0-1 test 112 samples (it needs ZERO_ONE_MIN_SAMPLES = 100 at 2 a revolution).
+REVOLUTIONS, TRANSIENT, DISCARD = 60, 4, 4
+
 HELP = "Lyapunov exponents, Poincare section, 0-1 test and spectrum of a mechanism's motion"
-DESCRIPTION = """\
+DESCRIPTION = f"""\
 Characterise the motion of a mechanism (a file or a preset) at one operating point: its Lyapunov
 exponents by Benettin's method on the tangent dynamics (over the tangent space of the constraint
 manifold, renormalised --per-revolution times a crank revolution), and, for each --channel, the
 Poincare section once per revolution and its period (period-n), the 0-1 test for chaos
 (Gottwald and Melbourne) and the Welch power spectral density. The first --transient
 revolutions are integrated without tangents, the next --discard intervals do not count.
+The defaults (--revolutions {REVOLUTIONS}, --transient {TRANSIENT}, --discard {DISCARD}) leave the 0-1 test
+the {ZERO_ONE_MIN_SAMPLES} samples it needs ({ZERO_ONE_PER_REVOLUTION} a revolution after the transient); the
+first run also compiles the tangent program.
 
 Written to the output folder:
   exponents.csv   the exponents [1/s], standard error, spread, e-folding time 1/lambda [s]
@@ -32,14 +44,15 @@ def configure(p: argparse.ArgumentParser):
     add_mechanism_file_option(p)
     add_mechanism_options(p, ideal=False)
     p.set_defaults(ideal=False)
-    add_integration_options(p)
+    add_integration_options(p, revolutions=REVOLUTIONS)
     c = p.add_argument_group("chaos")
     c.add_argument("--per-revolution", type=number_in(int, 1), default=1, metavar="N",
                    help="renormalisations (QR) per crank revolution [-], >= 1 (default: 1)")
-    c.add_argument("--transient", type=number_in(int, 0), default=0, metavar="N",
-                   help="crank revolutions integrated without tangents first [-], >= 0 (default: 0)")
-    c.add_argument("--discard", type=number_in(int, 0), default=0, metavar="N",
-                   help="renormalisation intervals that do not count [-], >= 0 (default: 0)")
+    c.add_argument("--transient", type=number_in(int, 0), default=TRANSIENT, metavar="N",
+                   help="crank revolutions integrated without tangents first, part of --revolutions [-], >= 0 "
+                   f"(default: {TRANSIENT})")
+    c.add_argument("--discard", type=number_in(int, 0), default=DISCARD, metavar="N",
+                   help=f"renormalisation intervals that do not count [-], >= 0 (default: {DISCARD})")
     c.add_argument("--count", type=number_in(int, 1), default=None, metavar="N",
                    help="how many exponents, the largest first [-], >= 1 (default: all, 2(n - m))")
     c.add_argument("--samples", type=number_in(int, 4), default=32, metavar="N",
@@ -66,10 +79,40 @@ def _default_channels(mech) -> list[str]:
     return out or [f"body:{mech.body_names[-1]}:x:pos"]
 
 
+def check_run(args, mech, s) -> int:
+    """The options that depend on the mechanism and on each other, checked under their flags
+    before anything compiles: ``--count`` against the phase space, ``--transient`` against the
+    run, at least :data:`~jaxclear.chaos.lyapunov.MIN_INTERVALS` counted intervals. Returns the
+    revolutions after the transient whose 0-1 test is too short to run (0 when it runs)."""
+    check_count(mech, args.count, "--count")
+    found = crank_driver(mech)
+    if found is None or float(found[1].speed) == 0.0:
+        raise ParameterError(f"jaxclear chaos runs whole crank revolutions: mechanism {mech.name!r} has no turning "
+                             "crank (AngleDriver with a non-zero speed)")
+    span = "--t-end" if args.t_end is not None else "--revolutions"
+    revolutions = float(s.t_end) * abs(float(found[1].speed)) / (2 * math.pi)
+    if not args.transient < revolutions:
+        raise ParameterError(f"--transient = {args.transient} revolution(s) is outside the allowed range [0, "
+                             f"{revolutions:g}) (the run, {span}); raise {span} or lower --transient")
+    after = revolutions - args.transient
+    windows = interval_count(after, 1.0 / args.per_revolution)
+    fewest = args.transient + math.ceil((MIN_INTERVALS + args.discard) / args.per_revolution)
+    given = (f"--t-end {args.t_end:g} s = {revolutions:g} revolutions" if args.t_end is not None
+             else f"--revolutions {revolutions:g}")
+    least = (f"{fewest * float(s.t_end) / revolutions:.6g} s ({fewest} revolutions)" if args.t_end is not None
+             else f"{fewest}")
+    check_length(windows, args.discard, f"({given} - --transient {args.transient}) x --per-revolution "
+                 f"{args.per_revolution} = {windows} interval(s), less --discard {args.discard},",
+                 f"raise {span} to {least} or more, or --per-revolution")
+    return args.transient + math.ceil(ZERO_ONE_MIN_SAMPLES / ZERO_ONE_PER_REVOLUTION) if (
+        after * ZERO_ONE_PER_REVOLUTION < ZERO_ONE_MIN_SAMPLES) else 0
+
+
 def run(args) -> int:
     """Run the operating point and print its spectrum and channels."""
     mech, _, _ = load(args)
     s = settings_from(args, mech)
+    zero_one_needs = check_run(args, mech, s)
     channels = args.channel or _default_channels(mech)
     print(f"jaxclear chaos: {mech.name}, {float(s.t_end):.6g} s; compiling the tangent run (a minute or more)",
           flush=True)
@@ -86,7 +129,8 @@ def run(args) -> int:
     for c in reports:
         print(f"  {c.name}: Poincare section {c.period and f'period-{c.period}' or 'not periodic'}, "
               + (f"0-1 test K = {c.k:.2f} (on {c.k_on})" if c.k == c.k else
-                 "0-1 test not run (fewer than 100 samples: run longer)")
+                 f"0-1 test not run (fewer than {ZERO_ONE_MIN_SAMPLES} samples at {ZERO_ONE_PER_REVOLUTION} a "
+                 f"revolution: --revolutions {zero_one_needs} or more)")
               + f", PSD peak {c.peak_frequency:.4g} Hz")
     print(f"  written to {args.out} (exponents.csv, running.csv, channels.csv, summary.json, running.png, "
           "spectrum.png, poincare.png)")

@@ -54,11 +54,12 @@ def configure(p: argparse.ArgumentParser):
     return run
 
 
-def add_integration_options(p: argparse.ArgumentParser):
-    """The integration options (time span, samples, solver, tolerances) of simulate and animate."""
+def add_integration_options(p: argparse.ArgumentParser, revolutions: float = 3.0):
+    """The integration options (time span, samples, solver, tolerances) of simulate and animate
+    (``revolutions``: the default of ``--revolutions``)."""
     run_ = p.add_argument_group("integration")
-    run_.add_argument("--revolutions", type=number_in(float, 0.0, low_open=True), default=3.0, metavar="N",
-                      help="simulated time in crank revolutions [-], > 0 (default: 3)")
+    run_.add_argument("--revolutions", type=number_in(float, 0.0, low_open=True), default=float(revolutions),
+                      metavar="N", help=f"simulated time in crank revolutions [-], > 0 (default: {revolutions:g})")
     run_.add_argument("--t-end", type=number_in(float, 0.0, low_open=True), metavar="S",
                       help="simulated time [s], > 0; overrides --revolutions (default: unset)")
     run_.add_argument("--n-out", type=number_in(int, 2, MAX_OUT_SAMPLES), metavar="N",
