@@ -30,7 +30,7 @@ import numpy as np
 from . import params
 from ._errors import JaxclearError, ParameterError
 from .integrate import Settings, Solution, simulate
-from .model import Mechanism, crank_driver
+from .model import Mechanism
 
 
 class DerivativeHorizonWarning(UserWarning):
@@ -39,28 +39,9 @@ class DerivativeHorizonWarning(UserWarning):
 
 def differentiable_names(mech: Mechanism) -> list[str]:
     """Every name of :mod:`jaxclear.params` that addresses a number of ``mech`` (suffixed for each
-    body, point and clearance joint): the inputs :func:`sensitivities` differentiates."""
-    out = []
-    for k, joint in enumerate(mech.clearance_joints):
-        suffix = "" if k == 0 else f"@{k}"
-        for base in params.parameter_names():
-            if base in ("mass", "inertia", "centroid_x", "centroid_y", "point_x", "point_y", "speed", "speed_rpm",
-                        "angle0", "load_x", "load_y", "torque"):
-                continue
-            try:
-                params._accessor(mech, base + suffix)
-            except JaxclearError:
-                continue
-            out.append(base + suffix)
-    if crank_driver(mech) is not None:
-        out += ["speed", "speed_rpm", "angle0"]
-    for body in mech.bodies:
-        out += [f"mass:{body.name}", f"inertia:{body.name}", f"centroid_x:{body.name}", f"centroid_y:{body.name}"]
-        out += [f"point_{c}:{body.name}.{p}" for p in body.points for c in "xy"]
-    out += [f"point_{c}:ground.{p}" for p in mech.ground_points for c in "xy"]
-    for i, load in enumerate(mech.loads):
-        out += [f"torque:{i}"] if "torque" in type(load).__dataclass_fields__ else [f"load_x:{i}", f"load_y:{i}"]
-    return out
+    body, point and clearance joint): the inputs :func:`sensitivities` differentiates
+    (:func:`jaxclear.params.names`)."""
+    return params.names(mech)
 
 
 def check_names(mech: Mechanism, names: Sequence[str]) -> tuple:
@@ -75,10 +56,8 @@ def check_names(mech: Mechanism, names: Sequence[str]) -> tuple:
     for name in names:
         try:
             params._accessor(mech, name)
-        except JaxclearError as err:
-            raise ParameterError(
-                f"cannot differentiate with respect to {name!r} ({err}); the differentiable names of mechanism "
-                f"{mech.name!r} are: {', '.join(differentiable_names(mech))}") from None
+        except JaxclearError as err:  # says why, then the closest names (params.closest)
+            raise ParameterError(f"cannot differentiate with respect to {name!r}: {err}") from None
     return names
 
 

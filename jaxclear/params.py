@@ -72,6 +72,7 @@ parameter raises :class:`~jaxclear.ParameterError` naming the laws that have it.
 
 from __future__ import annotations
 
+import difflib
 import warnings
 from dataclasses import dataclass
 from typing import Callable
@@ -80,7 +81,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from ._errors import ParameterError, check_range
+from ._errors import JaxclearError, ParameterError, check_range
 from ._units import rad_s_to_rpm, rpm_to_rad_s
 from .contact.friction import FRICTION_MODELS
 from .elements import LubricatedJoint, TranslationalClearanceJoint
@@ -192,6 +193,45 @@ def parameter_names() -> list[str]:
     return sorted(INFO)
 
 
+def names(mech: Mechanism) -> list[str]:
+    """Every name that addresses a number of ``mech`` (suffixed for each body, point, load and
+    clearance joint ``@J``): what :func:`get`, :func:`replace`, :func:`jaxclear.sensitivities`
+    and a design accept for this mechanism."""
+    out = []
+    for k, _ in enumerate(mech.clearance_joints):
+        suffix = "" if k == 0 else f"@{k}"
+        for base in parameter_names():
+            if base in (*BODY_NAMES, "point_x", "point_y", "speed", "speed_rpm", "angle0", *LOAD_NAMES):
+                continue
+            try:
+                _lookup(mech, base + suffix)
+            except JaxclearError:
+                continue
+            out.append(base + suffix)
+    if crank_driver(mech) is not None:
+        out += ["speed", "speed_rpm", "angle0"]
+    for body in mech.bodies:
+        out += [f"{base}:{body.name}" for base in BODY_NAMES]
+        out += [f"point_{c}:{body.name}.{p}" for p in body.points for c in "xy"]
+    out += [f"point_{c}:{GROUND}.{p}" for p in mech.ground_points for c in "xy"]
+    for i, load in enumerate(mech.loads):
+        out += [f"torque:{i}"] if "torque" in type(load).__dataclass_fields__ else [f"load_x:{i}", f"load_y:{i}"]
+    return out
+
+
+def closest(name: str, candidates, listing: str) -> str:
+    """What follows the message of a name that was not found: the closest of ``candidates``
+    first (:func:`difflib.get_close_matches`), then how many there are and where to list them
+    (``listing``, e.g. ``jc.params.names(mech)``): ``"; did you mean 'clearance'? (40 names:
+    jc.params.names(mech))"``. The one format of an unknown name here."""
+    candidates = list(candidates)
+    near = difflib.get_close_matches(name, candidates, n=3, cutoff=0.6)
+    if not near and ":" in name:  # a misspelt base with a valid suffix: mas:rod -> mass:rod
+        near = difflib.get_close_matches(name.split(":", 1)[0], candidates, n=3, cutoff=0.6)
+    said = ", ".join(repr(n) for n in near[:-1]) + (" or " if len(near) > 1 else "") + (repr(near[-1]) if near else "")
+    return (f"; did you mean {said}?" if near else "") + f" ({len(candidates)} names: {listing})"
+
+
 def _split(name: str):
     base, joint = name, 0
     body = None
@@ -207,10 +247,8 @@ def _split(name: str):
         warnings.warn(f"parameter name {base!r} is deprecated; use {DEPRECATED[base]!r}", DeprecationWarning,
                       stacklevel=3)
         base = DEPRECATED[base]
-    if base not in INFO:
-        raise ParameterError(f"unknown parameter {name!r}; valid names: {parameter_names()} "
-                             "(mass:BODY, inertia:BODY, centroid_x:BODY, centroid_y:BODY, point_x:BODY.POINT, point_y:BODY.POINT, "
-                             "and NAME@J for clearance joint J)")
+    if base not in INFO:  # the closest names follow (closest), from _accessor or info
+        raise ParameterError(f"unknown parameter {name!r}")
     if base in BODY_NAMES and body is None:
         raise ParameterError(f"parameter {name!r} needs a body: {base}:BODY")
     if base in LOAD_NAMES and (body is None or not body.isdigit()):
@@ -223,7 +261,10 @@ def _split(name: str):
 
 def info(name: str) -> ParameterInfo:
     """:class:`ParameterInfo` of a (possibly suffixed) parameter name."""
-    return INFO[_split(name)[0]]
+    try:
+        return INFO[_split(name)[0]]
+    except ParameterError as err:
+        raise ParameterError(f"{err}{closest(name, parameter_names(), 'jc.params.parameter_names()')}") from None
 
 
 def _joint(mech: Mechanism, name: str, k: int):
@@ -242,7 +283,17 @@ def _driver_index(mech: Mechanism, name: str) -> int:
 
 
 def _accessor(mech: Mechanism, name: str) -> tuple[Callable, Callable]:
-    """(get, where) for a name; ``where(m)`` selects the leaf for ``eqx.tree_at``."""
+    """(get, where) for a name; ``where(m)`` selects the leaf for ``eqx.tree_at``. A name that
+    addresses no number of ``mech`` is an error of its kind (:class:`~jaxclear.ParameterError`,
+    :class:`~jaxclear.MechanismError`) saying why, then the closest names (:func:`closest`)."""
+    try:
+        return _lookup(mech, name)
+    except JaxclearError as err:
+        raise type(err)(f"{err}{closest(name, names(mech), 'jc.params.names(mech)')}") from None
+
+
+def _lookup(mech: Mechanism, name: str) -> tuple[Callable, Callable]:
+    """:func:`_accessor` without the closest names (what :func:`names` tries each name with)."""
     base, k, body = _split(name)
     if base in BODY_NAMES:
         i = mech.body_index(body)
@@ -344,8 +395,8 @@ def get(mech: Mechanism, name: str):
 def replace(mech: Mechanism, name: str, value) -> Mechanism:
     """A new mechanism with parameter ``name`` set to ``value`` (a float, array or tracer).
     No validation here (``value`` may be traced): see :func:`validate`."""
-    base, k, _ = _split(name)
     _, where = _accessor(mech, name)
+    base, k, _ = _split(name)
     value = jnp.asarray(value, dtype=float)
     if base == "clearance" and isinstance(mech.clearance_joints[k], TranslationalClearanceJoint):
         value = mech.clearance_joints[k].slider_height + 2.0 * value
@@ -371,8 +422,8 @@ def replace_many(mech: Mechanism, values: dict) -> Mechanism:
 def validate(mech: Mechanism, name: str, values) -> np.ndarray:
     """Check concrete ``values`` of parameter ``name`` against its range (and, for
     ``clearance``, against the bearing radius). Returns them as a float array."""
-    base, k, _ = _split(name)
     _accessor(mech, name)  # name exists on this mechanism
+    base, k, _ = _split(name)
     arr = np.asarray(values, dtype=float)
     p = INFO[base]
     check_range(name, arr, low=p.low, high=p.high, low_open=p.low_open, high_open=p.high_open,
@@ -406,3 +457,8 @@ def from_unconstrained(name: str, z):
     if t == "logit":
         return 1.0 / (1.0 + jnp.exp(-z))
     return z
+
+
+__all__ = ["BODY_NAMES", "COMPONENTS", "DEPRECATED", "DERIVED", "FRICTION_FIELDS", "INFO", "LOAD_NAMES", "ParameterInfo",
+           "closest", "from_unconstrained", "get", "info", "names", "parameter_names", "replace", "replace_many",
+           "to_unconstrained", "validate"]

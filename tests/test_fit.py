@@ -186,7 +186,7 @@ def test_cli_fit_bad_records(tmp_path, capsys, text, match):
 @pytest.mark.parametrize(
     "args,match",
     [
-        (["--free", "stiffness,stifness"], r"free parameter 'stifness' does not exist.*valid names"),
+        (["--free", "stiffness,stifness"], r"free parameter 'stifness' does not exist.*did you mean 'stiffness'\?"),
         (["--free", "mass:piston"], r"free parameter 'mass:piston' does not exist.*piston"),
         (["--start", "restitution=1.5"], r"start value of 'restitution' is outside its bounds: restitution = 1.5 is "
                                          r"outside the allowed range \(0, 1\]"),

@@ -138,3 +138,46 @@ def test_every_unknown_name_is_a_jaxclear_error(what):
     with pytest.raises(jc.JaxclearError) as info:
         UNKNOWN_NAMES[what]()
     assert any(bad in str(info.value) for bad in ("nope", "nobody", "bogus", "@5", "@x", "'x'", "'z'"))
+
+
+# ---- a misspelt parameter: the closest names first, not every name ------------------------------
+
+@pytest.mark.parametrize("call", [
+    lambda: params.get(MECH, "clearence"),
+    lambda: params.replace(MECH, "clearence", 1e-4),
+    lambda: params.validate(MECH, "clearence", [1e-4]),
+    lambda: jc.derivatives.check_names(MECH, ["clearence"]),
+    lambda: jc.designing.check_variables(MECH, {"clearence": (1e-4, 2e-4)}),
+    lambda: jc.sweep.config_from_dict({"grid": {"clearence": [1e-4]}}),
+])
+def test_misspelt_parameter_suggests_the_closest_name(call):
+    """Every API that looks a name up in the registry (one place: params._accessor) answers a
+    misspelling with the closest name and where to list them all, in under 250 characters (it
+    listed every name, about 1,300 characters for the benchmark, more for a larger mechanism)."""
+    with pytest.raises(jc.ParameterError) as info:
+        call()
+    text = str(info.value)
+    n = len(params.names(MECH))
+    assert text.endswith(f"unknown parameter 'clearence'; did you mean 'clearance'? ({n} names: "
+                         "jc.params.names(mech))"), text
+    assert len(text) < 250 and "velocity_x" not in text
+
+
+def test_closest_names_of_a_suffixed_name_and_without_a_mechanism():
+    with pytest.raises(jc.ParameterError, match=r"unknown parameter 'mas:rod'; did you mean 'mass:rod'\?"):
+        params.get(MECH, "mas:rod")
+    with pytest.raises(jc.MechanismError, match=r"unknown body 'rdo'.*; did you mean 'mass:rod'"):
+        params.get(MECH, "mass:rdo")
+    with pytest.raises(jc.ParameterError, match=r"^unknown parameter 'model' \(39 names: jc.params.names\(mech\)\)$"):
+        params.get(MECH, "model")  # nothing close: no guess
+    with pytest.raises(jc.ParameterError, match=r"did you mean 'restitution'\? \(31 names: "
+                                                 r"jc.params.parameter_names\(\)\)$"):
+        params.info("restitutoin")
+    assert params.names(MECH) == jc.differentiable_names(MECH) and len(params.names(MECH)) == 39
+
+
+def test_cli_design_misspelt_variable_is_one_short_line(tmp_path, capsys):
+    assert main(["design", "--vary", "clearence=1e-4:2e-4", "--no-progress", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == ("error: design variable 'clearence' is not a number of mechanism 'flores-slider-crank': unknown "
+                       "parameter 'clearence'; did you mean 'clearance'? (39 names: jc.params.names(mech))"), err

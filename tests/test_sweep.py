@@ -76,7 +76,7 @@ def _doc(**changes):
 @pytest.mark.parametrize("changes,match", [
     (dict(grid={}), r"the grid has no parameters"),
     (dict(grid__clearance=[]), r"parameter 'clearance': empty list of values"),
-    (dict(grid__clearence=[1e-3]), r"unknown parameter 'clearence'; valid names"),
+    (dict(grid__clearence=[1e-3]), r"unknown parameter 'clearence'; did you mean 'clearance'\?"),
     (dict(grid__clearance=[0.25e-3, -1e-3]), r"clearance = -0.001 m is outside the allowed range \(0, inf\) m"),
     (dict(grid__clearance=[0.02]), r"clearance = 0.02 m must be smaller than the bearing radius 0.01 m"),
     (dict(grid__restitution=[0.5, 1.5]), r"restitution = 1.5 is outside the allowed range \(0, 1\]"),

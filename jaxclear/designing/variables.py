@@ -85,10 +85,8 @@ def check_variables(mech: Mechanism, variables: dict, start: dict | None = None)
     for name, bounds in variables.items():
         try:
             params._accessor(mech, name)
-        except JaxclearError as err:
-            raise ParameterError(
-                f"design variable {name!r} is not a number of mechanism {mech.name!r} ({err}); the names that are: "
-                f"{', '.join(design_names(mech))}") from None
+        except JaxclearError as err:  # says why, then the closest names (params.closest)
+            raise ParameterError(f"design variable {name!r} is not a number of mechanism {mech.name!r}: {err}") from None
         low, high = _interval(name, bounds)
         try:
             params.validate(mech, name, [low, high])
