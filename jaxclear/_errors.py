@@ -9,6 +9,8 @@ user reading the message knows what to change. Checks run where objects are buil
 
 from __future__ import annotations
 
+from typing import Any, NamedTuple
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -182,12 +184,81 @@ def in_range(value, *, low=None, high=None, low_open=False, high_open=False):
     return jnp.all(ok)
 
 
-def first_failure(*checks: tuple) -> RESULTS:
-    """Combine ``(ok, RESULTS item)`` pairs (or RESULTS items, successful meaning ok) into one
-    traceable :class:`RESULTS`: the first failing check's item, or ``successful``."""
+class Rule(NamedTuple):
+    """One range rule of a number of a body or force element, written once and read two ways:
+    traceably at run time (:meth:`ok`, combined by :func:`first_failure` into the status
+    ``result``) and, on a concrete object whose run failed that status, eagerly (:meth:`failure`:
+    the rule's own message, naming the number, its value and its range, as :func:`check_range`
+    says it). ``name`` is what the message calls the number (``"clearance c = R_B - R_J"``)."""
+
+    name: str
+    value: Any
+    result: RESULTS
+    low: float | None = None
+    high: float | None = None
+    low_open: bool = False
+    high_open: bool = False
+    unit: str = ""
+
+    def ok(self):
+        """Traceable: True when the value is finite and in range (:func:`in_range`)."""
+        return in_range(self.value, low=self.low, high=self.high, low_open=self.low_open, high_open=self.high_open)
+
+    def failure(self) -> str | None:
+        """For a concrete value: the message of :func:`check_range` when the rule fails, else
+        ``None``."""
+        try:
+            check_range(self.name, self.value, low=self.low, high=self.high, low_open=self.low_open,
+                        high_open=self.high_open, unit=self.unit)
+        except ParameterError as err:
+            return str(err)
+        return None
+
+
+def _is_item(check) -> bool:
+    return isinstance(check, type(RESULTS.successful))
+
+
+def failed_check(checks) -> str | None:
+    """Eagerly, for concrete values: what fails first among ``checks`` (the sequence an object's
+    ``check()`` combines with :func:`first_failure`, in the same order): a :class:`Rule`'s own
+    message; for an object with ``check()`` (a law), what fails first among its ``checks()``,
+    else its status's message; for a failed :class:`RESULTS` item, its message without the
+    ``invalid parameter:`` prefix. ``None`` when all pass."""
+    def said(code):
+        return STATUS[int(code)].removeprefix("invalid parameter: ")
+
+    for check in checks:
+        if isinstance(check, Rule):
+            message = check.failure()
+            if message is not None:
+                return message
+        elif isinstance(check, tuple):
+            ok, item = check
+            if not bool(ok):
+                return said(item._value)
+        elif _is_item(check):
+            if int(check._value) != int(RESULTS.successful._value):
+                return said(check._value)
+        else:  # an object with its own checks (a contact or friction law, a material)
+            message = failed_check(check.checks()) if hasattr(check, "checks") else None
+            code = int(check.check()._value)
+            if message is not None or code != int(RESULTS.successful._value):
+                return message or said(code)
+    return None
+
+
+def first_failure(*checks) -> RESULTS:
+    """Combine :class:`Rule` s, ``(ok, RESULTS item)`` pairs, RESULTS items (successful meaning
+    ok) and objects with a ``check()`` (a law) into one traceable :class:`RESULTS`: the first
+    failing check's item, or ``successful``."""
     result = RESULTS.successful
     for check in reversed(checks):
-        if isinstance(check, tuple):
+        if not (isinstance(check, (Rule, tuple)) or _is_item(check)):
+            check = check.check()
+        if isinstance(check, Rule):
+            result = RESULTS.where(check.ok(), result, check.result)
+        elif isinstance(check, tuple):
             ok, item = check
             result = RESULTS.where(ok, result, item)
         else:

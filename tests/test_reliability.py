@@ -85,6 +85,41 @@ def test_check_names_each_invalid_kind(where, value, entry):
     assert STATUS[CODE[entry]].startswith("invalid parameter")
 
 
+def test_invalid_value_reaching_simulate_names_the_joint_the_value_and_the_one_rule():
+    """A clearance set after construction (params.replace: no eager check) to -0.1 mm: simulate
+    names the joint, the number, its value and the one rule it broke (it listed every rule of
+    invalid_clearance, radii and the slider block in its guide alike)."""
+    with pytest.raises(jc.ParameterError) as info:
+        jc.simulate(params.replace(MECH, "clearance", -1e-4), jc.settings(1e-4, n_out=3))
+    assert str(info.value) == ("jaxclear: invalid parameter: clearance joint rod-slider (clearance_joints[0]): "
+                               "clearance c = R_B - R_J = -0.0001 m is outside the allowed range (0, inf) m")
+
+
+@pytest.mark.parametrize("mech, where, value, told", [
+    (MECH, lambda m: m.clearance_joints[0].journal_radius, 0.011,
+     "clearance joint rod-slider (clearance_joints[0]): clearance c = R_B - R_J = -0.001 m is outside the allowed "
+     "range (0, inf) m"),
+    (MECH, lambda m: m.bodies[1].mass, 0.0, "body 'rod': mass = 0 kg is outside the allowed range (0, inf) kg"),
+    (MECH, lambda m: m.clearance_joints[0].law.restitution, 1.5,
+     "clearance joint rod-slider (clearance_joints[0]): restitution = 1.5 is outside the allowed range (0, 1]"),
+    (MECH, lambda m: m.clearance_joints[0].friction.coefficient, -0.1,
+     "clearance joint rod-slider (clearance_joints[0]): friction coefficient mu = -0.1 is outside the allowed range "
+     "[0, inf)"),
+    (jc.preset("slider-crank-guide-clearance"), lambda m: m.clearance_joints[0].guide_width, 0.029,
+     "translational clearance joint guide (clearance_joints[0]): clearance per side (W - b)/2 (the block must fit "
+     "its guide) = -0.0005 m is outside the allowed range (0, inf) m"),
+    (jc.preset("flores-slider-crank", viscosity=0.4), lambda m: m.clearance_joints[0].blend_end, 1.2,
+     "clearance joint rod-slider (clearance_joints[0]): blend_end = 1.2 is outside the allowed range (0, 1)"),
+])
+def test_failed_check_names_the_one_rule(mech, where, value, told):
+    """Mechanism.failed_check (eager, what simulate's error says) reads the same rules as the
+    traced check(): the first failing one, with its value; None for a valid mechanism."""
+    assert mech.failed_check() is None
+    bad = eqx.tree_at(where, mech, jnp.asarray(value))
+    assert bad.check() != RESULTS.successful
+    assert bad.failed_check() == told
+
+
 def test_constructors_refuse_out_of_range_values():
     with pytest.raises(jc.ParameterError, match=r"restitution = 1.5 .*\(0, 1\]"):
         jc.ContactLaw(restitution=1.5)

@@ -25,7 +25,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from .._errors import RESULTS, ParameterError, check_range, first_failure, in_range
+from .._errors import RESULTS, ParameterError, Rule, check_range, first_failure
 from .._types import Array, ArrayLike, Float, Scalar, Vec2
 
 
@@ -70,13 +70,17 @@ class Material(eqx.Module):
         self.young = jnp.asarray(young, dtype=float)
         self.poisson = jnp.asarray(poisson, dtype=float)
 
+    def checks(self, what: str = "material") -> tuple:
+        """``invalid_stiffness`` for E <= 0, ``invalid_parameter`` for a Poisson ratio outside
+        (-1, 0.5) (:class:`~jaxclear._errors.Rule` s; ``what``: the material's role in the message)."""
+        return (Rule(f"{what} young (Young's modulus)", self.young, RESULTS.invalid_stiffness, low=0.0, low_open=True,
+                     unit="Pa"),
+                Rule(f"{what} poisson (Poisson ratio)", self.poisson, RESULTS.invalid_parameter, low=-1.0, high=0.5,
+                     low_open=True, high_open=True))
+
     def check(self) -> RESULTS:
-        """Traceable range check (run time): ``invalid_stiffness`` for E <= 0,
-        ``invalid_parameter`` for a Poisson ratio outside (-1, 0.5)."""
-        return first_failure(
-            (in_range(self.young, low=0.0, low_open=True), RESULTS.invalid_stiffness),
-            (in_range(self.poisson, low=-1.0, high=0.5, low_open=True, high_open=True), RESULTS.invalid_parameter),
-        )
+        """Traceable range check (run time) of :meth:`checks`."""
+        return first_failure(*self.checks())
 
     @property
     def compliance(self):
@@ -153,9 +157,14 @@ class AbstractNormalLaw(eqx.Module):
     def check(self) -> RESULTS:
         """Traceable range check of the law's numbers, evaluated at run time under ``jit`` and
         ``vmap`` by :func:`~jaxclear.simulate`: the first failing :class:`~jaxclear.RESULTS`
-        ``invalid_*`` entry, or ``successful``. The default checks the restitution in (0, 1];
-        laws with more numbers extend it (one method per class)."""
-        return first_failure((in_range(self.restitution, low=0.0, high=1.0, low_open=True), RESULTS.invalid_restitution))
+        ``invalid_*`` entry of :meth:`checks`, or ``successful``."""
+        return first_failure(*self.checks())
+
+    def checks(self) -> tuple:
+        """The law's range checks in order (:class:`~jaxclear._errors.Rule` s, materials): the
+        default checks the restitution in (0, 1]; laws with more numbers extend it (one method
+        per class). On a concrete law whose check failed, the first failing one says why."""
+        return (Rule("restitution", self.restitution, RESULTS.invalid_restitution, low=0.0, high=1.0, low_open=True),)
 
     def check_geometry(self, radius_bearing: float, radius_journal: float) -> None:
         """Raise :class:`~jaxclear.ParameterError` if the law cannot serve these radii."""
@@ -178,15 +187,12 @@ class AbstractModulusLaw(AbstractNormalLaw):
 
     stiffness_parameter: ClassVar[str] = "modulus"
 
-    def check(self) -> RESULTS:
+    def checks(self) -> tuple:
         """Restitution in (0, 1], E* > 0 (when given), the materials."""
         modulus = 1.0 if self.modulus is None else self.modulus
-        return first_failure(
-            super().check(),
-            (in_range(modulus, low=0.0, low_open=True), RESULTS.invalid_stiffness),
-            self.bearing_material.check(),
-            self.journal_material.check(),
-        )
+        return (*super().checks(), Rule("modulus E*", modulus, RESULTS.invalid_stiffness, low=0.0, low_open=True,
+                                         unit="Pa"),
+                *self.bearing_material.checks("bearing_material"), *self.journal_material.checks("journal_material"))
 
     def modulus_value(self):
         """:math:`E^*` [Pa]: the given one, or from the materials."""
@@ -218,9 +224,13 @@ class AbstractFriction(eqx.Module):
         return self(v_t, normal_force), jnp.zeros_like(state)
 
     def check(self) -> RESULTS:
-        """Traceable range check (run time): ``invalid_friction`` unless the coefficient is
-        finite and >= 0; laws with more numbers extend it."""
-        return first_failure((in_range(self.coefficient, low=0.0), RESULTS.invalid_friction))
+        """Traceable range check (run time) of :meth:`checks`."""
+        return first_failure(*self.checks())
+
+    def checks(self) -> tuple:
+        """``invalid_friction`` unless the coefficient is finite and >= 0; laws with more numbers
+        extend it (:class:`~jaxclear._errors.Rule` s, in order)."""
+        return (Rule("friction coefficient mu", self.coefficient, RESULTS.invalid_friction, low=0.0),)
 
     def kinks(self, v_t: Scalar) -> Float[Array, " k"]:
         """Switch functions of the slip ``v_t`` [m/s] ``(k,)`` whose sign changes mark the slip

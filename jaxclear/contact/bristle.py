@@ -30,11 +30,11 @@ from typing import ClassVar
 
 import jax.numpy as jnp
 
-from .._errors import RESULTS, check_range, first_failure, in_range
+from .._errors import RESULTS, Rule, check_range
 from .._types import ArrayLike, Scalar
 from .base import AbstractFriction
-from .friction_laws import (check_static, kinetic, speed, static_ok, stribeck, stribeck_coefficient,
-                            viscous_coefficient)
+from .friction_laws import (check_static, kinetic, speed, speed_ok, static_ok, stribeck, stribeck_coefficient,
+                            viscous_coefficient, viscous_ok)
 
 
 def _stiffness(value):
@@ -80,10 +80,10 @@ class DahlFriction(AbstractFriction):
         self.coefficient = kinetic(coefficient)
         self.bristle_stiffness = _stiffness(bristle_stiffness)
 
-    def check(self) -> RESULTS:
+    def checks(self) -> tuple:
         """mu >= 0, sigma_0 > 0 (``invalid_friction``)."""
-        return first_failure(super().check(),
-                             (in_range(self.bristle_stiffness, low=0.0, low_open=True), RESULTS.invalid_friction))
+        return (*super().checks(), Rule("bristle_stiffness sigma_0", self.bristle_stiffness, RESULTS.invalid_friction,
+                                        low=0.0, low_open=True, unit="1/m"))
 
     def force_and_rate(self, state, v_t, normal_force):
         z = state[0]
@@ -123,14 +123,14 @@ class LuGreFriction(AbstractFriction):
         self.bristle_damping = jnp.asarray(bristle_damping, dtype=float)
         self.viscous = viscous_coefficient(viscous)
 
-    def check(self) -> RESULTS:
+    def checks(self) -> tuple:
         """mu_s >= mu_k >= 0, sigma_0 > 0, sigma_1 >= 0, mu_v >= 0 (``invalid_friction``);
         v_stribeck > 0."""
-        return first_failure(
-            super().check(), static_ok(self),
-            (in_range(self.bristle_stiffness, low=0.0, low_open=True) & in_range(self.bristle_damping, low=0.0)
-             & in_range(self.viscous, low=0.0), RESULTS.invalid_friction),
-            (in_range(self.v_stribeck, low=0.0, low_open=True), RESULTS.invalid_parameter))
+        return (*super().checks(), static_ok(self),
+                Rule("bristle_stiffness sigma_0", self.bristle_stiffness, RESULTS.invalid_friction, low=0.0,
+                     low_open=True, unit="1/m"),
+                Rule("bristle_damping sigma_1", self.bristle_damping, RESULTS.invalid_friction, low=0.0, unit="s/m"),
+                viscous_ok(self), speed_ok("v_stribeck", self.v_stribeck))
 
     def force_and_rate(self, state, v_t, normal_force):
         z = state[0]
@@ -158,6 +158,9 @@ class FrozenBristles(AbstractFriction):
 
     def check(self) -> RESULTS:
         return self.law.check()
+
+    def checks(self) -> tuple:
+        return self.law.checks()
 
     def __call__(self, v_t, normal_force):
         return self.law.force_and_rate(self.state, v_t, normal_force)[0]

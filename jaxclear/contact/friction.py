@@ -12,7 +12,7 @@ from __future__ import annotations
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._errors import RESULTS, ParameterError, check_range, first_failure, in_range, is_concrete
+from .._errors import RESULTS, ParameterError, Rule, check_range, is_concrete
 from .._types import ArrayLike, Scalar
 from .base import AbstractFriction
 from .bristle import DahlFriction, LuGreFriction
@@ -69,12 +69,11 @@ class AmbrosioFriction(AbstractFriction):
         self.v0 = jnp.asarray(v0, dtype=float)
         self.v1 = jnp.asarray(v1, dtype=float)
 
-    def check(self) -> RESULTS:
+    def checks(self) -> tuple:
         """Coefficient >= 0, 0 <= v0 < v1."""
-        return first_failure(
-            super().check(), (in_range(self.v0, low=0.0) & in_range(self.v1 - self.v0, low=0.0, low_open=True),
-                              RESULTS.invalid_parameter)
-        )
+        return (*super().checks(), Rule("friction v0", self.v0, RESULTS.invalid_parameter, low=0.0, unit="m/s"),
+                Rule("friction v1 - v0", self.v1 - self.v0, RESULTS.invalid_parameter, low=0.0, low_open=True,
+                     unit="m/s"))
 
     def __call__(self, v_t, normal_force):
         return ambrosio(v_t, normal_force, self.coefficient, self.v0, self.v1)
@@ -112,9 +111,10 @@ class SmoothCoulombFriction(AbstractFriction):
         self.coefficient = _coefficient(coefficient)
         self.v_s = jnp.asarray(v_s, dtype=float)
 
-    def check(self) -> RESULTS:
+    def checks(self) -> tuple:
         """Coefficient >= 0, v_s > 0."""
-        return first_failure(super().check(), (in_range(self.v_s, low=0.0, low_open=True), RESULTS.invalid_parameter))
+        return (*super().checks(), Rule("friction v_s", self.v_s, RESULTS.invalid_parameter, low=0.0, low_open=True,
+                                        unit="m/s"))
 
     def __call__(self, v_t, normal_force):
         return smooth_coulomb(v_t, normal_force, self.coefficient, self.v_s)

@@ -17,7 +17,7 @@ from typing import ClassVar
 
 import jax.numpy as jnp
 
-from .._errors import RESULTS, ParameterError, check_range, first_failure, in_range, is_concrete
+from .._errors import RESULTS, ParameterError, Rule, check_range, is_concrete
 from .._types import ArrayLike, Scalar
 from .base import AbstractFriction
 
@@ -107,9 +107,19 @@ def viscous_coefficient(value):
     return jnp.asarray(value, dtype=float)
 
 
-def static_ok(law) -> RESULTS:
-    """Traceable: mu_s >= mu_k >= 0 (``invalid_friction``)."""
-    return first_failure((in_range(law.static - law.coefficient, low=0.0), RESULTS.invalid_friction))
+def static_ok(law) -> Rule:
+    """mu_s >= mu_k >= 0 (``invalid_friction``)."""
+    return Rule("static mu_s - coefficient mu_k", law.static - law.coefficient, RESULTS.invalid_friction, low=0.0)
+
+
+def viscous_ok(law) -> Rule:
+    """mu_v >= 0 (``invalid_friction``)."""
+    return Rule("viscous mu_v", law.viscous, RESULTS.invalid_friction, low=0.0, unit="s/m")
+
+
+def speed_ok(name: str, value) -> Rule:
+    """A characteristic speed of a friction law > 0 [m/s] (``invalid_parameter``)."""
+    return Rule(name, value, RESULTS.invalid_parameter, low=0.0, low_open=True, unit="m/s")
 
 
 def kinetic(coefficient):
@@ -133,9 +143,9 @@ class ViscousFriction(AbstractFriction):
         self.coefficient = kinetic(coefficient)
         self.viscous = viscous_coefficient(viscous)
 
-    def check(self) -> RESULTS:
+    def checks(self) -> tuple:
         """mu >= 0, mu_v >= 0."""
-        return first_failure(super().check(), (in_range(self.viscous, low=0.0), RESULTS.invalid_friction))
+        return (*super().checks(), viscous_ok(self))
 
     def __call__(self, v_t, normal_force):
         return viscous(v_t, normal_force, self.coefficient, self.viscous)
@@ -165,12 +175,10 @@ class StribeckFriction(AbstractFriction):
         self.stribeck_exponent = jnp.asarray(stribeck_exponent, dtype=float)
         self.viscous = viscous_coefficient(viscous)
 
-    def check(self) -> RESULTS:
+    def checks(self) -> tuple:
         """mu_s >= mu_k >= 0, mu_v >= 0 (``invalid_friction``); v_stribeck, exponent > 0."""
-        return first_failure(
-            super().check(), static_ok(self), (in_range(self.viscous, low=0.0), RESULTS.invalid_friction),
-            (in_range(self.v_stribeck, low=0.0, low_open=True) & in_range(self.stribeck_exponent, low=0.0,
-                                                                           low_open=True), RESULTS.invalid_parameter))
+        return (*super().checks(), static_ok(self), viscous_ok(self), speed_ok("v_stribeck", self.v_stribeck),
+                Rule("stribeck_exponent", self.stribeck_exponent, RESULTS.invalid_parameter, low=0.0, low_open=True))
 
     def __call__(self, v_t, normal_force):
         return stribeck(v_t, normal_force, self.coefficient, self.static, self.v_stribeck, self.stribeck_exponent,
@@ -208,11 +216,9 @@ class KarnoppFriction(AbstractFriction):
         self.v_stick = speed("v_stick (Karnopp band half-width)", v_stick)
         self.viscous = viscous_coefficient(viscous)
 
-    def check(self) -> RESULTS:
+    def checks(self) -> tuple:
         """mu_s >= mu_k >= 0, mu_v >= 0 (``invalid_friction``); v_stick > 0."""
-        return first_failure(super().check(), static_ok(self),
-                             (in_range(self.viscous, low=0.0), RESULTS.invalid_friction),
-                             (in_range(self.v_stick, low=0.0, low_open=True), RESULTS.invalid_parameter))
+        return (*super().checks(), static_ok(self), viscous_ok(self), speed_ok("v_stick", self.v_stick))
 
     def __call__(self, v_t, normal_force, applied=0.0):
         return karnopp(v_t, normal_force, applied, self.coefficient, self.static, self.v_stick, self.viscous)
@@ -229,10 +235,9 @@ class ThrelfallFriction(AbstractFriction):
         self.coefficient = kinetic(coefficient)
         self.v_threlfall = speed("v_threlfall (Threlfall speed)", v_threlfall)
 
-    def check(self) -> RESULTS:
+    def checks(self) -> tuple:
         """mu >= 0, v_threlfall > 0."""
-        return first_failure(super().check(),
-                             (in_range(self.v_threlfall, low=0.0, low_open=True), RESULTS.invalid_parameter))
+        return (*super().checks(), speed_ok("v_threlfall", self.v_threlfall))
 
     def __call__(self, v_t, normal_force):
         return threlfall(v_t, normal_force, self.coefficient, self.v_threlfall)
@@ -254,11 +259,9 @@ class BrownMcPheeFriction(AbstractFriction):
         self.v_transition = speed("v_transition (Brown-McPhee transition speed)", v_transition)
         self.viscous = viscous_coefficient(viscous)
 
-    def check(self) -> RESULTS:
+    def checks(self) -> tuple:
         """mu_s >= mu_k >= 0, mu_v >= 0 (``invalid_friction``); v_transition > 0."""
-        return first_failure(super().check(), static_ok(self),
-                             (in_range(self.viscous, low=0.0), RESULTS.invalid_friction),
-                             (in_range(self.v_transition, low=0.0, low_open=True), RESULTS.invalid_parameter))
+        return (*super().checks(), static_ok(self), viscous_ok(self), speed_ok("v_transition", self.v_transition))
 
     def __call__(self, v_t, normal_force):
         return brown_mcphee(v_t, normal_force, self.coefficient, self.static, self.v_transition, self.viscous)

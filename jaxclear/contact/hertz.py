@@ -26,7 +26,7 @@ from typing import Callable, ClassVar
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._errors import RESULTS, ParameterError, check_range, first_failure, in_range
+from .._errors import RESULTS, ParameterError, Rule, check_range
 from .._types import ArrayLike, Scalar
 from .base import STEEL, AbstractNormalLaw, Material
 
@@ -212,16 +212,13 @@ class ContactLaw(AbstractNormalLaw):
     def name(self) -> str:
         return self.model
 
-    def check(self) -> RESULTS:
+    def checks(self) -> tuple:
         """Restitution in (0, 1], stiffness > 0 (when given), exponent > 0, the materials."""
         stiffness = 1.0 if self.stiffness is None else self.stiffness
-        return first_failure(
-            super().check(),
-            (in_range(stiffness, low=0.0, low_open=True), RESULTS.invalid_stiffness),
-            (in_range(self.exponent, low=0.0, low_open=True), RESULTS.invalid_parameter),
-            self.bearing_material.check(),
-            self.journal_material.check(),
-        )
+        return (*super().checks(),
+                Rule("stiffness K", stiffness, RESULTS.invalid_stiffness, low=0.0, low_open=True, unit="N/m^n"),
+                Rule("exponent n", self.exponent, RESULTS.invalid_parameter, low=0.0, low_open=True),
+                *self.bearing_material.checks("bearing_material"), *self.journal_material.checks("journal_material"))
 
     def stiffness_value(self, radius_bearing, radius_journal):
         """K [N/m^n]: the given one, or the cylindrical formula from the materials and radii."""

@@ -45,7 +45,7 @@ import jax.numpy as jnp
 import numpy as np
 from typing import ClassVar
 
-from .._errors import RESULTS, ParameterError, check_range, first_failure, in_range
+from .._errors import RESULTS, ParameterError, Rule, check_range
 from .._types import Array, ArrayLike, Float, Scalar
 from .base import STEEL, AbstractNormalLaw, ContactKinematics, Material
 from .hertz import chi_qin_lu
@@ -227,17 +227,14 @@ class HybridLaw(AbstractNormalLaw):
                            is_leaf=lambda x: x is None)
 
     # ---- parameters -----------------------------------------------------------------
-    def check(self) -> RESULTS:
+    def checks(self) -> tuple:
         """Restitution in (0, 1], foundation modulus > 0 and thickness > 0 (when given), materials."""
         modulus = 1.0 if self.foundation_modulus is None else self.foundation_modulus
         thickness = 1.0 if self.thickness is None else self.thickness
-        return first_failure(
-            super().check(),
-            (in_range(modulus, low=0.0, low_open=True), RESULTS.invalid_stiffness),
-            (in_range(thickness, low=0.0, low_open=True), RESULTS.invalid_parameter),
-            self.journal_material.check(),
-            self.bearing_material.check(),
-        )
+        return (*super().checks(),
+                Rule("foundation_modulus", modulus, RESULTS.invalid_stiffness, low=0.0, low_open=True, unit="Pa"),
+                Rule("thickness", thickness, RESULTS.invalid_parameter, low=0.0, low_open=True, unit="m"),
+                *self.journal_material.checks("journal_material"), *self.bearing_material.checks("bearing_material"))
 
     def modulus(self):
         """Effective pressure-per-overlap modulus [Pa] (two layers in series if ``layers == 2``)."""

@@ -21,7 +21,7 @@ from typing import ClassVar
 
 import jax.numpy as jnp
 
-from .._errors import RESULTS, check_range, first_failure, in_range
+from .._errors import RESULTS, Rule, check_range
 from .._types import ArrayLike, Scalar
 from .base import STEEL, AbstractNormalLaw, Material
 from .hertz import cylindrical_stiffness, positive_power
@@ -91,17 +91,16 @@ class StepDampedImpactLaw(AbstractNormalLaw):
         self.damping_depth = jnp.asarray(damping_depth, dtype=float)
         self.bearing_material, self.journal_material = bearing_material, journal_material
 
-    def check(self) -> RESULTS:
+    def checks(self) -> tuple:
         """Restitution in (0, 1], stiffness > 0 (when given), exponent > 0, c_max >= 0, d_max > 0, the materials."""
         stiffness = 1.0 if self.stiffness is None else self.stiffness
-        return first_failure(
-            super().check(),
-            (in_range(stiffness, low=0.0, low_open=True), RESULTS.invalid_stiffness),
-            (in_range(self.exponent, low=0.0, low_open=True) & in_range(self.max_damping, low=0.0)
-             & in_range(self.damping_depth, low=0.0, low_open=True), RESULTS.invalid_parameter),
-            self.bearing_material.check(),
-            self.journal_material.check(),
-        )
+        return (*super().checks(),
+                Rule("stiffness K", stiffness, RESULTS.invalid_stiffness, low=0.0, low_open=True, unit="N/m^n"),
+                Rule("exponent n", self.exponent, RESULTS.invalid_parameter, low=0.0, low_open=True),
+                Rule("max_damping c_max", self.max_damping, RESULTS.invalid_parameter, low=0.0),
+                Rule("damping_depth d_max", self.damping_depth, RESULTS.invalid_parameter, low=0.0, low_open=True,
+                     unit="m"),
+                *self.bearing_material.checks("bearing_material"), *self.journal_material.checks("journal_material"))
 
     def stiffness_value(self, radius_bearing, radius_journal):
         """K [N/m^n]: the given one, or the cylindrical formula from the materials and radii."""

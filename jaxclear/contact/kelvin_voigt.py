@@ -7,7 +7,7 @@ from typing import ClassVar
 
 import jax.numpy as jnp
 
-from .._errors import RESULTS, check_range, first_failure, in_range
+from .._errors import RESULTS, Rule, check_range
 from .._types import ArrayLike, Scalar
 from .base import AbstractNormalLaw
 
@@ -57,13 +57,12 @@ class KelvinVoigtLaw(AbstractNormalLaw):
         self.restitution = jnp.asarray(restitution, dtype=float)
         self.effective_mass = jnp.asarray(effective_mass, dtype=float)
 
-    def check(self) -> RESULTS:
+    def checks(self) -> tuple:
         """Restitution in (0, 1], stiffness > 0, effective mass > 0."""
-        return first_failure(
-            super().check(),
-            (in_range(self.stiffness, low=0.0, low_open=True), RESULTS.invalid_stiffness),
-            (in_range(self.effective_mass, low=0.0, low_open=True), RESULTS.invalid_parameter),
-        )
+        return (*super().checks(),
+                Rule("stiffness k", self.stiffness, RESULTS.invalid_stiffness, low=0.0, low_open=True, unit="N/m"),
+                Rule("effective_mass", self.effective_mass, RESULTS.invalid_parameter, low=0.0, low_open=True,
+                     unit="kg"))
 
     def stiffness_value(self, radius_bearing, radius_journal):
         return self.stiffness

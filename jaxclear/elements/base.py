@@ -21,7 +21,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from .._errors import RESULTS
+from .._errors import RESULTS, first_failure
 from .._types import Array, BoolScalar, Float, Scalar, Vec2
 from ..model.joints import AbstractConstraint
 from ..model.mechanism import Mechanism
@@ -65,11 +65,17 @@ class AbstractForceElement(eqx.Module):
         return f"{type(self).__name__} {self.name!r}"
 
     # ---- validity (run time) -----------------------------------------------------------
+    def checks(self) -> tuple:
+        """The element's range checks in order: :class:`~jaxclear._errors.Rule` s of its own
+        numbers and its laws' ``check()`` results. :meth:`check` combines them traceably; on a
+        concrete element :func:`~jaxclear._errors.failed_check` says which failed. Default: none."""
+        return ()
+
     def check(self) -> RESULTS:
         """Traceable range check of the element's numbers (its laws included): the first
-        failing :class:`~jaxclear.RESULTS` ``invalid_*`` entry, or ``successful``. Evaluated
-        by :func:`~jaxclear.simulate` under ``jit``/``vmap``. Default: nothing to check."""
-        return RESULTS.successful
+        failing :class:`~jaxclear.RESULTS` ``invalid_*`` entry of :meth:`checks`, or
+        ``successful``. Evaluated by :func:`~jaxclear.simulate` under ``jit``/``vmap``."""
+        return first_failure(*self.checks())
 
     def penetration_limit(self) -> Scalar:
         """Deepest physically meaningful penetration [m]; a run whose penetration exceeds it at

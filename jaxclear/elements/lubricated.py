@@ -131,7 +131,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._errors import RESULTS, ParameterError, check_range, first_failure, in_range, is_concrete
+from .._errors import RESULTS, ParameterError, Rule, check_range, is_concrete
 from .._types import ArrayLike, Scalar, Vec2
 from ..contact.base import AbstractFriction, AbstractNormalLaw, element_friction
 from ..contact.friction import Friction
@@ -382,17 +382,19 @@ class LubricatedJoint(AbstractJournalJoint):
                       stacklevel=2)
         return self.length
 
-    def check(self) -> RESULTS:
+    def checks(self) -> tuple:
         """The journal joint's checks (radii, clearance, length > 0, floor, laws), then
         viscosity > 0 and blend bounds :math:`0 < \\varepsilon_0 < \\varepsilon_1 < 1`
         (``invalid_parameter``)."""
-        film = (
-            in_range(self.viscosity, low=0.0, low_open=True)
-            & in_range(self.blend_start, low=0.0, high=1.0, low_open=True, high_open=True)
-            & in_range(self.blend_end, low=0.0, high=1.0, low_open=True, high_open=True)
-            & in_range(self.blend_end - self.blend_start, low=0.0, low_open=True)
+        unit = dict(low=0.0, high=1.0, low_open=True, high_open=True)
+        return (
+            *super().checks(),
+            Rule("viscosity", self.viscosity, RESULTS.invalid_parameter, low=0.0, low_open=True, unit="Pa s"),
+            Rule("blend_start", self.blend_start, RESULTS.invalid_parameter, **unit),
+            Rule("blend_end", self.blend_end, RESULTS.invalid_parameter, **unit),
+            Rule("blend_end - blend_start", self.blend_end - self.blend_start, RESULTS.invalid_parameter, low=0.0,
+                 low_open=True),
         )
-        return first_failure(super().check(), (film, RESULTS.invalid_parameter))
 
     def kinematics(self, mech: Mechanism, q, qdot):
         return kinematics(mech, self, q, qdot)

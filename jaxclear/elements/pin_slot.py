@@ -27,7 +27,7 @@ from __future__ import annotations
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._errors import RESULTS, ParameterError, check_range, first_failure, in_range, is_concrete
+from .._errors import RESULTS, ParameterError, Rule, check_range, is_concrete
 from .._types import ArrayLike, Scalar, Vec2
 from ..contact.base import AbstractFriction, AbstractNormalLaw, ContactKinematics, element_friction
 from ..contact.friction import Friction
@@ -135,11 +135,14 @@ class PinSlotJoint(AbstractJournalJoint):
         self.ideal = ideal
         self.name = name
 
-    def check(self) -> RESULTS:
+    def checks(self) -> tuple:
         """The journal joint's checks (radii, clearance, length, floor, laws), then
         slot_length >= 0 and a non-zero finite axis (``invalid_parameter``)."""
-        slot = in_range(self.slot_length, low=0.0) & in_range(jnp.sum(self.axis * self.axis), low=0.0, low_open=True)
-        return first_failure(super().check(), (slot, RESULTS.invalid_parameter))
+        return (
+            *super().checks(),
+            Rule("slot_length", self.slot_length, RESULTS.invalid_parameter, low=0.0, unit="m"),
+            Rule("|axis|^2", jnp.sum(self.axis * self.axis), RESULTS.invalid_parameter, low=0.0, low_open=True),
+        )
 
     def clearance_region(self, n: int = 361):
         r"""The stadium the pin centre may roam without contact, around the slot centre with the

@@ -34,7 +34,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from .._errors import RESULTS, ParameterError, check_range, first_failure, in_range
+from .._errors import RESULTS, ParameterError, Rule, check_range
 from .._types import Array, ArrayLike, Float, Scalar, Vec2
 from ..contact.base import AbstractFriction, AbstractNormalLaw, ContactKinematics, element_friction
 from ..contact.bristle import FrozenBristles
@@ -113,23 +113,21 @@ class AbstractJournalJoint(AbstractForceElement):
     #: steel contacts in real bearings penetrate microns (R/1000 or less).
     MAX_PENETRATION_FRACTION: ClassVar[float] = 0.1
 
-    def check(self) -> RESULTS:
-        """Radii > 0 with R_J < R_B (clearance in (0, R_B)); length and impact_velocity_floor
-        > 0; then the normal law's and the friction law's own checks."""
+    def checks(self) -> tuple:
+        """Radii > 0 with R_J < R_B (clearance in (0, R_B): ``invalid_clearance``); length and
+        impact_velocity_floor > 0 (``invalid_parameter``); then the normal law's and the
+        friction law's own checks."""
         element_friction(self.friction, type(self).__name__, self.friction)  # a law set after __init__
-        radii = (
-            in_range(self.bearing_radius, low=0.0, low_open=True)
-            & in_range(self.journal_radius, low=0.0, low_open=True)
-            & in_range(self.clearance, low=0.0, low_open=True)
-        )
-        others = in_range(self.length, low=0.0, low_open=True) & in_range(
-            self.impact_velocity_floor, low=0.0, low_open=True
-        )
-        return first_failure(
-            (radii, RESULTS.invalid_clearance),
-            (others, RESULTS.invalid_parameter),
-            self.law.check(),
-            self.friction.check(),
+        positive = dict(low=0.0, low_open=True)
+        return (
+            Rule("bearing_radius R_B", self.bearing_radius, RESULTS.invalid_clearance, unit="m", **positive),
+            Rule("journal_radius R_J", self.journal_radius, RESULTS.invalid_clearance, unit="m", **positive),
+            Rule("clearance c = R_B - R_J", self.clearance, RESULTS.invalid_clearance, unit="m", **positive),
+            Rule("length", self.length, RESULTS.invalid_parameter, unit="m", **positive),
+            Rule("impact_velocity_floor", self.impact_velocity_floor, RESULTS.invalid_parameter, unit="m/s",
+                 **positive),
+            self.law,  # the laws' own checks (first_failure calls check(); failed_check reads their checks())
+            self.friction,
         )
 
     def penetration_limit(self):

@@ -48,7 +48,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._errors import RESULTS, ParameterError, check_range, first_failure, in_range, is_concrete
+from .._errors import RESULTS, ParameterError, Rule, check_range, is_concrete
 from .._types import Array, ArrayLike, Float, Scalar, Vec2
 from ..contact.base import AbstractFriction, AbstractNormalLaw, ContactKinematics, element_friction
 from ..contact.friction import Friction
@@ -225,29 +225,26 @@ class TranslationalClearanceJoint(AbstractForceElement):
     #: as the journal joints' (a tenth of the journal radius).
     MAX_PENETRATION_FRACTION: ClassVar[float] = 0.1
 
-    def check(self) -> RESULTS:
-        """Traceable range check: block length, height and guide width > 0 with the block
-        fitting its guide (clearance per side :math:`(W - b)/2 > 0`) -> ``invalid_clearance``;
-        corner radius and impact_velocity_floor > 0, a non-zero finite axis and a finite angle
-        -> ``invalid_parameter``; then the corner law's and the friction law's own checks."""
+    def checks(self) -> tuple:
+        """Block length, height and guide width > 0 with the block fitting its guide (clearance
+        per side :math:`(W - b)/2 > 0`) -> ``invalid_clearance``; corner radius and
+        impact_velocity_floor > 0, a non-zero finite axis and a finite angle ->
+        ``invalid_parameter``; then the corner law's and the friction law's own checks."""
         element_friction(self.friction, type(self).__name__, self.friction)  # a law set after __init__
-        fits = (
-            in_range(self.slider_length, low=0.0, low_open=True)
-            & in_range(self.slider_height, low=0.0, low_open=True)
-            & in_range(self.guide_width, low=0.0, low_open=True)
-            & in_range(self.clearance, low=0.0, low_open=True)
-        )
-        others = (
-            in_range(self.corner_radius, low=0.0, low_open=True)
-            & in_range(self.impact_velocity_floor, low=0.0, low_open=True)
-            & in_range(jnp.sum(self.axis * self.axis), low=0.0, low_open=True)
-            & in_range(self.angle)
-        )
-        return first_failure(
-            (fits, RESULTS.invalid_clearance),
-            (others, RESULTS.invalid_parameter),
-            self.law.check(),
-            self.friction.check(),
+        positive = dict(low=0.0, low_open=True)
+        fits, other = RESULTS.invalid_clearance, RESULTS.invalid_parameter
+        return (
+            Rule("slider_length", self.slider_length, fits, unit="m", **positive),
+            Rule("slider_height b", self.slider_height, fits, unit="m", **positive),
+            Rule("guide_width W", self.guide_width, fits, unit="m", **positive),
+            Rule("clearance per side (W - b)/2 (the block must fit its guide)", self.clearance, fits, unit="m",
+                 **positive),
+            Rule("corner_radius", self.corner_radius, other, unit="m", **positive),
+            Rule("impact_velocity_floor", self.impact_velocity_floor, other, unit="m/s", **positive),
+            Rule("|axis|^2", jnp.sum(self.axis * self.axis), other, **positive),
+            Rule("angle", self.angle, other, unit="rad"),
+            self.law,  # the laws' own checks (first_failure calls check(); failed_check reads their checks())
+            self.friction,
         )
 
     def penetration_limit(self):

@@ -99,7 +99,7 @@ def kinematic_solution(mech: Mechanism, s: Settings) -> Solution:
                          "simulate it instead")
     sol = _kinematic_run.stored("kinematics", lambda: solution_structure(mech), mech, s)
     if s.throw and is_concrete(sol.status):
-        raise_for_status(sol, s, f" (kinematic analysis of {mech.name!r})")
+        raise_for_status(sol, s, f" (kinematic analysis of {mech.name!r})", mech=mech)
     return sol
 
 

@@ -126,17 +126,21 @@ def simulate(mech: Mechanism, s: Settings, y0: State | None = None) -> Solution:
     else:
         s = dataclasses.replace(s, throw=False)
         sol = _simulate.stored("simulate-from-state", lambda: solution_structure(mech), mech, s, y0)
-    raise_for_status(sol, s)
+    raise_for_status(sol, s, mech=mech)
     return sol
 
 
-def raise_for_status(sol: Solution, s: Settings, what: str = "") -> None:
+def raise_for_status(sol: Solution, s: Settings, what: str = "", mech: Mechanism | None = None) -> None:
     """Raise for a concrete solution whose status is not successful: a
     :class:`~jaxclear.ParameterError` for an ``invalid_*`` status (a parameter outside its
     range), else a :class:`~jaxclear.SolverError`; the message is the status's text
-    (``what`` appended)."""
+    (``what`` appended). Given the concrete ``mech`` of the run, an ``invalid_*`` status is
+    told by the check that failed (:meth:`~jaxclear.Mechanism.failed_check`: the body or element,
+    the number, its value, the rule) instead of the status's list of rules."""
     code = int(sol.status)
     if code in invalid_codes():
-        raise ParameterError(f"jaxclear: {status_message(code)}{what}")
+        failed = mech.failed_check() if mech is not None and is_concrete(mech) else None
+        told = f"invalid parameter: {failed}" if failed is not None else status_message(code)
+        raise ParameterError(f"jaxclear: {told}{what}")
     if code != int(RESULTS.successful._value):
         raise SolverError(f"jaxclear: {status_message(code, max_steps=s.max_steps)}{what}")

@@ -10,7 +10,7 @@ from __future__ import annotations
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._errors import RESULTS, MechanismError, check_finite, check_range, first_failure, in_range
+from .._errors import RESULTS, MechanismError, Rule, check_finite, check_range, first_failure
 from .._types import Array, ArrayLike, Float, Scalar, Vec2
 
 GROUND = "ground"
@@ -69,5 +69,10 @@ class Body(eqx.Module):
     def check(self) -> RESULTS:
         """Traceable range check (run time): ``invalid_mass`` unless mass and inertia are
         finite and > 0."""
-        ok = in_range(self.mass, low=0.0, low_open=True) & in_range(self.inertia, low=0.0, low_open=True)
-        return first_failure((ok, RESULTS.invalid_mass))
+        return first_failure(*self.checks())
+
+    def checks(self) -> tuple:
+        """Mass [kg] and inertia [kg m^2] finite and > 0 (:class:`~jaxclear._errors.Rule` s,
+        ``invalid_mass``)."""
+        return (Rule("mass", self.mass, RESULTS.invalid_mass, low=0.0, low_open=True, unit="kg"),
+                Rule("inertia", self.inertia, RESULTS.invalid_mass, low=0.0, low_open=True, unit="kg m^2"))

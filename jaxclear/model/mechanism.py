@@ -18,7 +18,7 @@ from typing import Sequence
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._errors import RESULTS, MechanismError, first_failure
+from .._errors import RESULTS, MechanismError, failed_check, first_failure
 from .._types import Array, ArrayLike, Float, Vec2
 from .bodies import GROUND, Body, vec2
 from .geometry import cross2, perp, rotate
@@ -115,6 +115,22 @@ class Mechanism(eqx.Module):
         evaluates it at run time, so it holds under ``jit`` and ``vmap`` where the constructors'
         checks see only tracers."""
         return first_failure(*(b.check() for b in self.bodies), *(e.check() for e in self.elements))
+
+    def failed_check(self) -> str | None:
+        """Eagerly, on concrete numbers: the first of :meth:`check`'s checks that fails, in one
+        line naming the body or force element, the number, its value and the rule it broke
+        (``"clearance joint rod-slider (clearance_joints[0]): clearance c = R_B - R_J = -0.0001 m
+        is outside the allowed range (0, inf) m"``; a law's check: its status message); ``None``
+        when every check passes."""
+        for body in self.bodies:
+            message = failed_check(body.checks())
+            if message is not None:
+                return f"body {body.name!r}: {message}"
+        for k, element in enumerate(self.elements):
+            message = failed_check(element.checks())
+            if message is not None:
+                return f"{element.label} (clearance_joints[{k}]): {message}"
+        return None
 
     def body_index(self, name: str) -> int:
         """Index of a body, ``-1`` for the ground; :class:`MechanismError` for unknown names."""
