@@ -45,10 +45,8 @@ def check_name(mech: Mechanism, name: str):
     try:
         params._accessor(mech, name)
     except JaxclearError as err:
-        raise ParameterError(
-            f"free parameter {name!r} does not exist: {err}; fit parameters are the names of "
-            f"jaxclear.params ({', '.join(params.parameter_names())}) and {', '.join(SENSOR_PARAMETERS)}"
-        ) from None
+        raise ParameterError(f"free parameter {name!r} does not exist: {err}; besides the mechanism's names a fit "
+                             f"frees the sensor's {', '.join(SENSOR_PARAMETERS)}") from None
 
 
 def check_free(mech: Mechanism, free: Sequence[str], start: dict) -> tuple:

@@ -37,6 +37,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .._errors import CheckpointError, ParameterError
+from .._extras import require_extra
 from .._interrupt import stop_at_safe_points
 from .._storage import atomic_write_npz, fingerprint, locked_folder
 from ..analysis.sensor import Accelerometer
@@ -101,7 +102,7 @@ def posterior(data, mech: Mechanism, free: Sequence[str] = DEFAULT_FREE, start: 
             :func:`~jaxclear.fit` error.
     """
     t_wall = time.perf_counter()
-    require_uncertainty_extra("posterior")
+    require_extra("uncertainty", "posterior")
     _check_counts(chains=chains, draws=draws, warmup=warmup, chunk=chunk, max_tree_depth=max_tree_depth,
                   predictive_draws=predictive_draws)
     if windows != 1:
@@ -131,16 +132,6 @@ def posterior(data, mech: Mechanism, free: Sequence[str] = DEFAULT_FREE, start: 
         if out is not None:
             res.write(out)
     return res
-
-
-def require_uncertainty_extra(what: str):
-    """A :class:`~jaxclear.ParameterError` naming the missing package when the ``uncertainty`` extra
-    (BlackJAX, ArviZ, h5netcdf, SALib) is not installed."""
-    import importlib.util
-
-    missing = [m for m in ("blackjax", "arviz", "h5netcdf", "SALib") if importlib.util.find_spec(m) is None]
-    if missing:
-        raise ParameterError(f"{what} needs {', '.join(missing)}: pip install 'jaxclear[uncertainty]'")
 
 
 def check_priors(free: tuple, priors: dict) -> dict:
