@@ -140,6 +140,14 @@ class AbstractNormalLaw(eqx.Module):
         """Penetration that decides contact [m]; for a circular pin and hole it is ``e - c``."""
         return kin.delta
 
+    def hysteresis_factor(self) -> Scalar | None:
+        r"""The factor :math:`\hat\chi(c_r)` [-] of laws whose damping is
+        :math:`F_e(\delta)\,\hat\chi\,\dot\delta/\dot\delta^{(-)}` (the dissipative Hertz family and
+        its cylindrical and conformal relatives), else None. Inside a contact that began before a
+        fit window only the ratio :math:`\dot\delta^{(-)}/\hat\chi` acts, which a fit holds
+        (:mod:`jaxclear.fitting.window_start`)."""
+        return None
+
     @property
     def profiles(self) -> tuple:
         """``(journal_profile, bearing_profile)``: the radial deviations the law contacts on

@@ -296,7 +296,11 @@ class ConformalLaw(AbstractModulusLaw):
         kappa, b, c = log_law_scale(self.model, radius_bearing, radius_journal, length, modulus)
         return log_law_force(delta, kappa, b, c, length, modulus)
 
+    def hysteresis_factor(self):
+        """:math:`\\hat\\chi(c_r)` of the law's hysteresis model (:meth:`AbstractNormalLaw.hysteresis_factor`)."""
+        return HYSTERESIS_FACTORS[self.hysteresis](self.restitution)
+
     def normal_force(self, kin, deltadot0):
-        chi = HYSTERESIS_FACTORS[self.hysteresis](self.restitution)
+        chi = self.hysteresis_factor()
         elastic = self.elastic_force(kin.delta, kin.radius_bearing, kin.radius_journal, kin.length)
         return jnp.maximum(elastic * (1.0 + chi * kin.deltadot / deltadot0), 0.0)

@@ -82,9 +82,13 @@ class CylindricalLaw(AbstractModulusLaw):
         self.hysteresis = hysteresis_model(default if hysteresis is None else hysteresis)
         self.bearing_material, self.journal_material = bearing_material, journal_material
 
+    def hysteresis_factor(self):
+        """:math:`\\hat\\chi(c_r)` of the law's hysteresis model (:meth:`AbstractNormalLaw.hysteresis_factor`)."""
+        return HYSTERESIS_FACTORS[self.hysteresis](self.restitution)
+
     def normal_force(self, kin, deltadot0):
         c = kin.radius_bearing - kin.radius_journal
-        chi = HYSTERESIS_FACTORS[self.hysteresis](self.restitution)
+        chi = self.hysteresis_factor()
         if self.model == "liu":
             elastic = liu_force(kin.delta, c, self.modulus_value(), kin.length)
             return jnp.maximum(elastic * (1.0 + chi * kin.deltadot / deltadot0), 0.0)

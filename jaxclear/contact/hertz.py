@@ -236,6 +236,10 @@ class ContactLaw(AbstractNormalLaw):
         """:math:`\\hat\\chi(c_r)` of this law."""
         return HYSTERESIS_FACTORS[self.model](self.restitution)
 
+    def hysteresis_factor(self):
+        """:math:`\\hat\\chi(c_r)` (:meth:`AbstractNormalLaw.hysteresis_factor`)."""
+        return self.hysteresis
+
     def normal_force(self, kin, deltadot0):
         """Normal force [N] for the joint kinematics ``kin`` and the (floored) impact speed."""
         stiffness = self.stiffness_value(kin.radius_bearing, kin.radius_journal)

@@ -76,7 +76,7 @@ def begin_stage(problem: FitProblem, st: FitState) -> FitState:
     if problem.anywhere and stage.way_in:
         k = stage.states[0]
         win = problem.window_input(k, stage.horizon, False, st.guesses)
-        found, report = find_start(problem.model, problem.mech, st.theta, win)
+        found, report = find_start(problem.model, problem.mech, st.theta, win, stage.horizon)
         states = list(st.states)
         states[k] = found.tolist()
         st = st.replace(states=states, way_in=st.way_in + ({"window": k, **report},))
