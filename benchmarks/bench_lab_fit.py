@@ -1,16 +1,18 @@
 """Fits of records that begin mid-run: the acceptance of ``jc.fit(..., start_state="free")`` on
 records made by the independent SciPy simulator (``lab_record.py``, no code shared with jaxclear).
 
-Each record: the Flores benchmark slider-crank 5 revolutions after start-up, from a crank angle of
-37 degrees, one revolution (12 ms) at 50 kHz through a 10 kHz second-order accelerometer with
-gain 1.03, bias 0.5 m/s^2 and 20 dB noise; truths (stiffness factor, restitution) (0.8, 0.75),
-(1.25, 0.85), (1.0, 0.9). The fit: free stiffness, restitution, sensor gain and bias, start values
-the preset's (restitution 0.9), 4 windows of 2.99 ms, every window's start state unknown.
+Each record: the Flores benchmark slider-crank some revolutions after start-up
+(``lab_record.CASES``: "acceptance", the first revolution from the 5th on whose journal is 80-97 %
+in contact, or "one-impact", the 5th, 99 % in one contact), from a crank angle of 37 degrees, one
+revolution (12 ms) at 50 kHz through a 10 kHz second-order accelerometer with gain 1.03, bias
+0.5 m/s^2 and 20 dB noise; truths (stiffness factor, restitution) (0.8, 0.75), (1.25, 0.85),
+(1.0, 0.9). The fit: free stiffness, restitution, sensor gain and bias, start values the preset's
+(restitution 0.9), 4 windows of 2.99 ms, every window's start state unknown.
 
 Targets: stiffness within 5 %, restitution within 0.02, every error within 3 reported std, under
 5 minutes a record on 2 cores.
 
-``python benchmarks/bench_lab_fit.py [--cases 0,1,2] [--windows 4] [--json PATH]`` prints a table
+``python benchmarks/bench_lab_fit.py [--set acceptance] [--cases 0,1,2] [--windows 4] [--json PATH]`` prints a table
 and writes the JSON after every record (a killed run resumes: the records done are kept; the
 output is locked while it runs).
 """
@@ -32,10 +34,12 @@ DEFAULT_JSON = os.path.join(HERE, "results", "lab_fit.json")
 FREE = ["stiffness", "restitution", "sensor_gain", "sensor_bias"]
 
 
-def fit_case(factor: float, c_r: float, seed: int, windows: int, window: float) -> dict:
-    """One record made and fitted: the truth, the estimates, std, errors, verdict and times."""
+def fit_case(case: dict, windows: int, window: float) -> dict:
+    """One record (``make_record``'s arguments ``case``) made and fitted: the truth, the
+    estimates, std, errors, verdict and times."""
+    factor, c_r, seed = case["stiffness_factor"], case["c_r"], case["seed"]
     t0 = time.perf_counter()
-    rec = lab_record.make_record(stiffness_factor=factor, c_r=c_r, seed=seed)
+    rec = lab_record.make_record(**case)
     made = time.perf_counter() - t0
     truth = rec["truth"]
     mech = jc.params.replace(jc.preset("flores-slider-crank"), "angle0", truth["start_angle"])
@@ -45,7 +49,8 @@ def fit_case(factor: float, c_r: float, seed: int, windows: int, window: float) 
                  start_state="free", windows=windows, window=window, progress=False)
     wall = time.perf_counter() - t1
     k, c = res.estimates["stiffness"], res.estimates["restitution"]
-    return {"stiffness_factor": factor, "c_r": c_r, "seed": seed, "true_stiffness": truth["stiffness"],
+    return {"stiffness_factor": factor, "c_r": c_r, "seed": seed, "revolutions_before": case["revolutions_before"],
+            "true_stiffness": truth["stiffness"],
             "contact_fraction": truth["contact_fraction"], "impacts": truth["n_impacts"],
             "in_contact_at_start": truth["in_contact_at_start"], "estimates": res.estimates, "std": res.std,
             "stiffness_error": k / truth["stiffness"] - 1.0, "restitution_error": c - c_r,
@@ -57,26 +62,28 @@ def fit_case(factor: float, c_r: float, seed: int, windows: int, window: float) 
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--cases", default="0,1,2", help="indices into lab_record.CASES['default'] (default: all three)")
+    p.add_argument("--set", default="acceptance", choices=sorted(lab_record.CASES), help="the record set (default: acceptance)")
+    p.add_argument("--cases", default="0,1,2", help="indices into the set (default: all three)")
     p.add_argument("--windows", type=int, default=4)
     p.add_argument("--window", type=float, default=2.99e-3)
     p.add_argument("--json", default=DEFAULT_JSON)
     args = p.parse_args(argv)
-    cases = [lab_record.CASES["default"][int(i)] for i in args.cases.split(",")]
+    cases = [lab_record.CASES[args.set][int(i)] for i in args.cases.split(",")]
     os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
     with locked_folder(os.path.dirname(os.path.abspath(args.json)), "benchmark results folder"):
         done = json.load(open(args.json))["records"] if os.path.isfile(args.json) else []
-        for factor, c_r, seed in cases:
-            if any(r["stiffness_factor"] == factor and r["c_r"] == c_r and r["seed"] == seed for r in done):
+        for case in cases:
+            if any(all(r.get(k) == v for k, v in case.items()) for r in done):
                 continue
-            done.append(fit_case(factor, c_r, seed, args.windows, args.window))
+            done.append(fit_case(case, args.windows, args.window))
             atomic_write_json(args.json, {"meta": {"date": time.strftime("%Y-%m-%d"), "windows": args.windows,
                                                    "window_s": args.window, "free": FREE}, "records": done},
                               indent=1, sort_keys=False)
-    print(f"{'K/K_H':>6} {'c_r':>5} {'contact':>8} {'K err %':>8} {'K err/std':>9} {'c_r err':>8} {'c_r err/std':>11} "
+    print(f"{'K/K_H':>6} {'c_r':>5} {'revs':>4} {'contact':>8} {'K err %':>8} {'K err/std':>9} {'c_r err':>8} {'c_r err/std':>11} "
           f"{'gain':>6} {'ok':>5} {'iters':>5} {'fit s':>6}")
     for r in done:
-        print(f"{r['stiffness_factor']:6.2f} {r['c_r']:5.2f} {100 * r['contact_fraction']:7.1f}% "
+        print(f"{r['stiffness_factor']:6.2f} {r['c_r']:5.2f} {r.get('revolutions_before', 5):4d} "
+              f"{100 * r['contact_fraction']:7.1f}% "
               f"{100 * r['stiffness_error']:8.2f} {r['stiffness_error_std']:9.2f} {r['restitution_error']:8.3f} "
               f"{r['restitution_error_std']:11.2f} {r['estimates']['sensor_gain']:6.3f} {str(r['ok']):>5} "
               f"{r['iterations']:5d} {r['fit_wall_s']:6.0f}")
