@@ -27,18 +27,19 @@ COLORS = ("tab:blue", "tab:red", "tab:green", "tab:purple")
 
 
 @jit
-def _clearance_region(joint):
+def clearance_region(joint):
     """``joint.clearance_region()`` as one compiled program (op by op, several small ones)."""
     return joint.clearance_region()
 
 
-def _save(fig: Figure, path) -> Figure:
+def save_figure(fig: Figure, path) -> Figure:
+    """Write ``fig`` to ``path`` (a PNG at :data:`DPI`) unless ``path`` is None; returns ``fig``."""
     if path is not None:
         fig.savefig(os.fspath(path), dpi=DPI)
     return fig
 
 
-def _abscissa(mech: Mechanism, sol: Solution):
+def abscissa(mech: Mechanism, sol: Solution):
     """(values, label, is_angle): crank angle [deg] if the mechanism has a crank, else time [ms]."""
     crank = mech.role("crank")
     if crank is not None:
@@ -46,7 +47,8 @@ def _abscissa(mech: Mechanism, sol: Solution):
     return 1e3 * np.asarray(sol.ts, dtype=float), "time [ms]", False
 
 
-def _angle_ticks(ax, x):
+def angle_ticks(ax, x):
+    """Crank-angle ticks [deg] on ``ax`` every 30, 90 or 360 degrees as the span ``x`` grows."""
     span = float(np.max(x) - np.min(x)) if x.size else 0.0
     step = 360.0 if span > 1440.5 else 90.0 if span > 270.5 else 30.0
     ax.xaxis.set_major_locator(MultipleLocator(step))
@@ -79,17 +81,17 @@ def plot_slider_acceleration(path, mech: Mechanism, sol: Solution, ideal_sol: So
         raise ValueError(f"mechanism {mech.name!r} has no 'slider' role: nothing to plot")
     fig = Figure(figsize=FIGSIZE)
     ax = fig.add_subplot()
-    x, xlabel, is_angle = _abscissa(mech, sol)
+    x, xlabel, is_angle = abscissa(mech, sol)
     acc = np.asarray(sol.coordinate(mech, slider, "x", derivative=2), dtype=float)
     label = "clearance joint" if mech.clearance_joints else "ideal joint"
     ax.plot(x, acc, color=COLORS[0], lw=0.8, label=label)
     if ideal_sol is not None:
         im = mech if ideal_mech is None else ideal_mech
-        xi, _, _ = _abscissa(im, ideal_sol)
+        xi, _, _ = abscissa(im, ideal_sol)
         acc_i = np.asarray(ideal_sol.coordinate(im, im.role("slider") or slider, "x", derivative=2), dtype=float)
         ax.plot(xi, acc_i, color="black", lw=1.6, ls="--", label="ideal joint")
     if is_angle:
-        _angle_ticks(ax, x)
+        angle_ticks(ax, x)
     ax.set_xlabel(xlabel)
     ax.set_ylabel("slider acceleration [m/s$^2$]")
     ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4))
@@ -97,7 +99,7 @@ def plot_slider_acceleration(path, mech: Mechanism, sol: Solution, ideal_sol: So
     ax.grid(True, alpha=0.3)
     ax.legend(loc="upper right" if mech.clearance_joints else "best")
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_channel(path, mech: Mechanism, sol: Solution, name: str, values, unit: str, ideal_values=None) -> Figure:
@@ -105,13 +107,13 @@ def plot_channel(path, mech: Mechanism, sol: Solution, name: str, values, unit: 
     time), with its ideal-joint counterpart ``ideal_values`` (same output grid) overlaid."""
     fig = Figure(figsize=FIGSIZE)
     ax = fig.add_subplot()
-    x, xlabel, is_angle = _abscissa(mech, sol)
+    x, xlabel, is_angle = abscissa(mech, sol)
     ax.plot(x, np.asarray(values, dtype=float), color=COLORS[0], lw=0.8,
             label="clearance joint" if mech.clearance_joints else "ideal joint")
     if ideal_values is not None:
         ax.plot(x, np.asarray(ideal_values, dtype=float), color="black", lw=1.6, ls="--", label="ideal joint")
     if is_angle:
-        _angle_ticks(ax, x)
+        angle_ticks(ax, x)
     ax.set_xlabel(xlabel)
     ax.set_ylabel(f"{name} [{unit}]")
     ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4))
@@ -119,7 +121,7 @@ def plot_channel(path, mech: Mechanism, sol: Solution, name: str, values, unit: 
     ax.grid(True, alpha=0.3)
     ax.legend(loc="upper right")
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_orbit(path, mech: Mechanism, sol: Solution) -> Figure:
@@ -135,7 +137,7 @@ def plot_orbit(path, mech: Mechanism, sol: Solution) -> Figure:
     for j, joint in enumerate(mech.clearance_joints):
         ax = fig.add_subplot(1, k, j + 1)
         c = 1e3 * float(joint.clearance)
-        region = 1e3 * np.asarray(_clearance_region(joint), dtype=float)
+        region = 1e3 * np.asarray(clearance_region(joint), dtype=float)
         ax.plot(region[:, 0], region[:, 1], color="black", lw=1.2, label=f"clearance region, c = {c:g} mm")
         ax.plot(ecc[:, j, 0], ecc[:, j, 1], color=COLORS[0], lw=0.7, label="orbit")
         ax.plot(ecc[0, j, 0], ecc[0, j, 1], "o", color="tab:green", ms=5, label="start")
@@ -152,7 +154,7 @@ def plot_orbit(path, mech: Mechanism, sol: Solution) -> Figure:
         ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, fontsize=8, frameon=False)
         ax.grid(True, alpha=0.3)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_contact_force(path, mech: Mechanism, sol: Solution) -> Figure:
@@ -162,7 +164,7 @@ def plot_contact_force(path, mech: Mechanism, sol: Solution) -> Figure:
         raise ValueError(f"mechanism {mech.name!r} has no clearance joint: no contact force to plot")
     fig = Figure(figsize=FIGSIZE)
     ax = fig.add_subplot()
-    x, xlabel, is_angle = _abscissa(mech, sol)
+    x, xlabel, is_angle = abscissa(mech, sol)
     fn = np.asarray(sol.normal_force, dtype=float)
     ft = np.asarray(sol.friction_force, dtype=float)
     for j, joint in enumerate(mech.clearance_joints):
@@ -171,7 +173,7 @@ def plot_contact_force(path, mech: Mechanism, sol: Solution) -> Figure:
         if np.any(ft[:, j] != 0.0):
             ax.plot(x, np.abs(ft[:, j]), color=color, lw=0.8, ls=":", label=f"|friction force|, {joint.name}")
     if is_angle:
-        _angle_ticks(ax, x)
+        angle_ticks(ax, x)
     ax.set_xlabel(xlabel)
     ax.set_ylabel("contact force [N]")
     ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4))
@@ -179,7 +181,7 @@ def plot_contact_force(path, mech: Mechanism, sol: Solution) -> Figure:
     ax.grid(True, alpha=0.3)
     ax.legend(loc="upper right")
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_simulation(folder, mech: Mechanism, sol: Solution, ideal_sol: Solution | None = None,
@@ -271,7 +273,7 @@ def plot_heatmap(path, x, y, z, xlabel: str = "x", ylabel: str = "y", zlabel: st
     ax.set_ylabel(ylabel)
     ax.set_title(title, fontsize=10)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_bifurcation(path, parameter, points, xlabel: str = "parameter", ylabel: str = "Poincare coordinate",
@@ -289,7 +291,7 @@ def plot_bifurcation(path, parameter, points, xlabel: str = "parameter", ylabel:
     ax.set_title(title, fontsize=10)
     ax.grid(True, alpha=0.3)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_poincare(path, points, colors=None, color_label: str = "", clearance=None, labels=None,
@@ -349,7 +351,7 @@ def plot_poincare(path, points, colors=None, color_label: str = "", clearance=No
         cb.set_label(color_label)
     if title:
         fig.suptitle(title, fontsize=10)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_fit(path, result) -> Figure:
@@ -394,7 +396,7 @@ def plot_fit(path, result) -> Figure:
     for ax in (ax1, ax2):
         ax.grid(True, alpha=0.3)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 __all__ = ["plot_slider_acceleration", "plot_orbit", "plot_contact_force", "plot_simulation", "plot_heatmap",

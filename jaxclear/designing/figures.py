@@ -8,20 +8,20 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ..analysis import channels
-from ..plot import COLORS, _abscissa, _angle_ticks, _clearance_region, _save
+from ..plot import COLORS, abscissa, angle_ticks, clearance_region, save_figure
 
 
 def _signal_panel(ax, name: str, runs: dict):
     for (label, (mech, sol, ideal_mech, ideal_sol)), color in zip(runs.items(), COLORS):
-        x, xlabel, is_angle = _abscissa(mech, sol)
+        x, xlabel, is_angle = abscissa(mech, sol)
         values, unit = channels.channel_with_unit(mech, sol, name)
         ax.plot(x, np.asarray(values, dtype=float), color=color, lw=0.7, label=label)
     if ideal_sol is not None and channels.parse(name).kind in channels.OVERLAY_KINDS:
-        xi, _, _ = _abscissa(ideal_mech, ideal_sol)
+        xi, _, _ = abscissa(ideal_mech, ideal_sol)
         ax.plot(xi, np.asarray(channels.channel(ideal_mech, ideal_sol, name), dtype=float), color="black", lw=1.4,
                 ls="--", label="ideal joint (optimum)")
     if is_angle:
-        _angle_ticks(ax, x)
+        angle_ticks(ax, x)
     ax.set_xlabel(xlabel)
     ax.set_ylabel(f"{name} [{unit}]")
     ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4))
@@ -35,7 +35,7 @@ def _orbit_panel(ax, runs: dict):
         ecc = 1e3 * np.asarray(sol.ecc, dtype=float)[:, 0]
         ax.plot(ecc[:, 0], ecc[:, 1], color=color, lw=0.6, label=label)
     joint = mech.clearance_joints[0]
-    region = 1e3 * np.asarray(_clearance_region(joint), dtype=float)
+    region = 1e3 * np.asarray(clearance_region(joint), dtype=float)
     ax.plot(region[:, 0], region[:, 1], color="black", lw=1.0, label="clearance (optimum)")
     ax.set_aspect("equal")
     ax.set_xlabel(f"{joint.orbit_labels[0]} [mm]")
@@ -47,10 +47,10 @@ def _orbit_panel(ax, runs: dict):
 
 def _force_panel(ax, runs: dict):
     for (label, (mech, sol, _, _)), color in zip(runs.items(), COLORS):
-        x, xlabel, is_angle = _abscissa(mech, sol)
+        x, xlabel, is_angle = abscissa(mech, sol)
         ax.plot(x, np.asarray(sol.normal_force, dtype=float).max(axis=1), color=color, lw=0.7, label=label)
     if is_angle:
-        _angle_ticks(ax, x)
+        angle_ticks(ax, x)
     ax.set_xlabel(xlabel)
     ax.set_ylabel("normal contact force [N]")
     ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 4))
@@ -99,7 +99,7 @@ def plot_comparison(path, channel: str, start: tuple, optimum: tuple, history: l
         axes[1, 1].set_axis_off()
     fig.suptitle(title or f"{start[0].name}: start design against the optimum", fontsize=11)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 __all__ = ["plot_comparison"]
