@@ -134,6 +134,7 @@ from .io import Measurements, read_measurements, timeseries_frame  # noqa: E402
 from .analysis import Accelerometer  # noqa: E402
 from .fitting import FitChannel, FitResult, fit, levenberg_marquardt, parameter_grad, synthetic_record  # noqa: E402
 from .fitting import PosteriorResult, posterior  # noqa: E402
+from .fitting import StatisticsFitResult, fit_statistics  # noqa: E402
 from .tolerance import Inputs, ToleranceResult, inputs_from_dict, tolerance_study  # noqa: E402
 from .wearing import WearHistory, WearOptions, plot_wear, wear  # noqa: E402
 from .designing import DesignResult, Ensemble, OperatingPoint, RuggedObjectiveWarning, design  # noqa: E402

@@ -146,6 +146,9 @@ estimates are a result; ``FitResult.failures``, ``FitResult.ok``), :mod:`.result
 :mod:`.posterior` (:func:`posterior`: the Bayesian posterior of the fit), :mod:`.posterior_result`,
 :mod:`.gradients` (:func:`parameter_grad`), :mod:`.legacy`
 (the deprecated NumPy Levenberg-Marquardt).
+Statistics fit (records longer than the motion's predictability): :mod:`.statistics` (per-revolution
+statistics, synthetic likelihood), :mod:`.statistics_model` (the grid's runs), :mod:`.statistics_surrogate`
+(between the nodes, the noise profiled), :mod:`.statistics_result`, :mod:`.statistics_fit` (:func:`fit_statistics`).
 """
 
 
@@ -160,6 +163,8 @@ from .priors import HalfNormal, LogNormal, Normal, Uniform
 from .records import check_record, quiet_cut, sensor_signal, synthetic_record, write_measurements
 from .result import FitResult
 from .solver import Optimizer, make_optimizer
+from .statistics_fit import fit_statistics
+from .statistics_result import StatisticsFitResult
 from .state import CHECKPOINT_NAME, Checkpoint, FitState
 from .targets import DEFAULT_COLUMN, FitChannel, read_channels_toml
 from .uncertainty import AUTOCORRELATION_WARNING
@@ -168,6 +173,8 @@ from .window import WindowInput, WindowModel, evaluate_window
 
 __all__ = [
     "fit",
+    "fit_statistics",
+    "StatisticsFitResult",
     "posterior",
     "PosteriorResult",
     "POSTERIOR_CHECKPOINT",
