@@ -211,6 +211,8 @@ def test_inputs_are_checked_before_any_run():
         jc.fit_statistics(data, mech, revolutions=10, progress=False)
     with pytest.raises(jc.ParameterError, match="grid\\['restitution'\\] = '0.5:1.2:5': needs 0 < LOW < HIGH < 1"):
         jc.fit_statistics(data, mech, grid={"restitution": "0.5:1.2:5"}, progress=False)
+    with pytest.raises(jc.ParameterError, match="priors given for \\['sensor_gain'\\], which are not free"):
+        jc.fit_statistics(data, mech, priors={"sensor_gain": "lognormal:1:2"}, progress=False)
     with pytest.raises(jc.ParameterError, match="statistics = \\['peak'\\]"):
         jc.fit_statistics(data, mech, statistics=("peak",), progress=False)
     fast = {**data, "crank_angle_rad": 1.01 * 523.5987755982989 * t}
@@ -287,3 +289,14 @@ def test_statistics_fit_of_a_long_laboratory_record(factor, c_r, seed):
         assert abs(z) < 3.0, (name, res.summary())
     print("\n  ".join(line))
     assert res.ok, res.summary()
+
+
+def test_a_prior_of_the_value_becomes_a_density_of_the_grid_coordinate():
+    """A uniform prior on restitution in (0, 1) is, in u = logit(c), the logistic density c (1 - c);
+    a log-normal on stiffness is, in u = log K, normal in u (closed forms; rounding 1e-12)."""
+    c = np.array([0.3, 0.6, 0.9])
+    np.testing.assert_allclose(sf._log_prior("restitution", c, "uniform:0:1", "logit"), np.log(c * (1 - c)), atol=1e-12)
+    k = np.array([1e10, 5e10, 2e11])
+    s = math.log(3.0)
+    expect = -0.5 * ((np.log(k) - math.log(5e10)) / s) ** 2 - math.log(s) - 0.5 * math.log(2 * math.pi)
+    np.testing.assert_allclose(sf._log_prior("stiffness", k, "lognormal:5e10:3", "log"), expect, atol=1e-12)

@@ -43,7 +43,7 @@ The synthetic likelihood
 (divisor :math:`n_m - 1`). The record's statistic :math:`s` is the mean over its :math:`n_r`
 revolutions, taken to be normal about :math:`\mu` with covariance
 :math:`C = \Sigma\,(1/n_r + 1/n_m)` (the revolutions as independent draws: the e-folding time
-:math:`1/\lambda_1` of the benchmark is a sixth of a revolution; the model's own Monte-Carlo
+:math:`1/\lambda_1` of the benchmark is a fifth of a revolution; the model's own Monte-Carlo
 error is the :math:`1/n_m`). With :math:`r = s - \mu - w \log g`,
 
 .. math::

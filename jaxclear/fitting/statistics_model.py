@@ -15,7 +15,7 @@ Returned: ``(runs, blocks, n_b)`` samples [m/s^2] and each run's status.
 
 Several runs per grid point (``replicates``) start from journal offsets ``offset_x`` that differ
 by :data:`REPLICATE_OFFSET` of the clearance (a few tens of nanometres): the start-up is
-chaotic (largest Lyapunov exponent about 450 1/s on the Flores benchmark at 5000 rpm), so after
+chaotic (largest Lyapunov exponent 444 1/s on the Flores benchmark at 5000 rpm), so after
 the transient revolutions they are independent draws of the same motion; shorter runs keep one
 run's output (about 1 kB per sample) small.
 
