@@ -75,6 +75,8 @@ mechanism's ``angle0`` (an encoder), or fitted (``angle0``, ``speed`` free); a c
 Per-revolution statistics (peak or RMS acceleration per revolution) were rejected as the
 default: they are robust to chaos but mix stiffness and restitution into a few numbers, are
 biased by the sensor bandwidth, and have no simple noise model for the uncertainty.
+Where a record is longer than the motion's predictability and the trajectory cannot be followed,
+they are the method: :func:`fit_statistics` (Wood's synthetic likelihood, docs/theory/statistics_fit.md).
 
 The optimiser
 -------------
