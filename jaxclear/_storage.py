@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import json
+import math
 import os
 import socket
 import time
@@ -95,6 +96,21 @@ def atomic_write_by(path, write, suffix: str = ".tmp") -> str:
 def atomic_write_text(path, text: str) -> str:
     """:func:`atomic_write_bytes` of UTF-8 text."""
     return atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def jsonable(obj):
+    """``obj`` as plain JSON values: dicts (keys as strings), lists, numbers; numpy and jax arrays
+    and scalars become lists and Python numbers, NaN and inf become None (JSON has neither)."""
+    if isinstance(obj, dict):
+        return {str(k): jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [jsonable(v) for v in obj]
+    if hasattr(obj, "shape") and hasattr(obj, "dtype"):  # numpy / jax arrays and scalars
+        arr = np.asarray(obj)
+        return jsonable(arr.tolist()) if arr.ndim else jsonable(arr.item())
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
 
 
 def atomic_write_json(path, obj, **dump_kwargs) -> str:

@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._storage import MAX_RECORD_BYTES, atomic_write_json, atomic_write_netcdf, read_text
+from ._storage import MAX_RECORD_BYTES, atomic_write_json, atomic_write_netcdf, jsonable, read_text
 from ._errors import ParameterError
 from .model import Mechanism
 from .integrate import Solution
@@ -193,23 +193,10 @@ def write_table_csv(path, cols: dict) -> str:
     return path
 
 
-def _jsonable(obj):
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if hasattr(obj, "shape") and hasattr(obj, "dtype"):  # numpy / jax arrays and scalars
-        arr = np.asarray(obj)
-        return _jsonable(arr.tolist()) if arr.ndim else _jsonable(arr.item())
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None  # JSON has no NaN/inf
-    return obj
-
-
 def write_json(path, obj) -> str:
     """Write ``obj`` as indented JSON (arrays become lists, NaN/inf become null; keys in their
     order), atomically: a reader sees the old file or the new one, never a part. Returns the path."""
-    return atomic_write_json(path, _jsonable(obj), indent=2, sort_keys=False)
+    return atomic_write_json(path, jsonable(obj), indent=2, sort_keys=False)
 
 
 # --------------------------------------------------------------------------------------

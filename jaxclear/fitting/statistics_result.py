@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._storage import atomic_write_json
+from .._storage import atomic_write_json, jsonable
 
 #: Largest posterior mass in an outer grid cell before the grid is called too narrow.
 EDGE_MASS = 0.05
@@ -184,26 +184,13 @@ class StatisticsFitResult:
 
     def to_dict(self) -> dict:
         """Everything as JSON-ready numbers and lists."""
-        def plain(x):
-            if isinstance(x, dict):
-                return {k: plain(v) for k, v in x.items()}
-            if isinstance(x, np.ndarray):
-                return plain(x.tolist())
-            if isinstance(x, (list, tuple)):
-                return [plain(v) for v in x]
-            if isinstance(x, (float, np.floating)):
-                return float(x) if math.isfinite(x) else None
-            if isinstance(x, np.integer):
-                return int(x)
-            return x
-
         d = {k: getattr(self, k) for k in ("free", "estimates", "map", "std", "intervals", "grid", "nodes", "posterior",
                                            "log_likelihood", "marginals", "noise", "noise_profile", "statistics",
                                            "observed",
                                            "model_mean", "chi2", "record_revolutions", "model_revolutions",
                                            "failed_points", "failures", "notes", "settings", "wall_time_s")}
         d["ok"] = self.ok
-        return plain(d)
+        return jsonable(d)
 
     def write(self, path) -> str:
         """:meth:`to_dict` as JSON at ``path``, atomically. Returns the path."""
