@@ -64,7 +64,7 @@ def check_names(mech: Mechanism, names: Sequence[str]) -> tuple:
 @eqx.filter_jit
 def _linearized(mech, s, names, x, output):
     def f(v):
-        m = params.replace_many(mech, dict(zip(names, v)))
+        m = params.replace_following(mech, dict(zip(names, v)), dict(zip(names, x)))
         sol = simulate(m, s)
         return sol if output is None else output(sol, m)
 
@@ -85,7 +85,15 @@ def sensitivities(mech: Mechanism, s: Settings, names: Sequence[str], output: Ca
         s: the settings; with ``adjoint="sensitivity"`` (the default) the derivatives are the
             error-controlled forward sensitivities (their steps are sized for the derivatives
             too); the other adjoints differentiate through the solver's loop.
-        names: names of :mod:`jaxclear.params` (:func:`differentiable_names`).
+        names: names of :mod:`jaxclear.params` (:func:`differentiable_names`). Each derivative
+            is the change of the output as that one number changes, the other named numbers
+            held and the derived values following their sources
+            (:func:`jaxclear.params.replace_following`): its meaning does not depend on which
+            other names are asked. A stiffness left to the preset (derived from the materials
+            and the radii, :func:`jaxclear.params.is_derived`) follows ``clearance``, asked
+            with ``stiffness`` or not; ``d["stiffness"]`` is the change of the stiffness alone.
+            For the derivative at a fixed stiffness, set it first:
+            ``params.replace(mech, "stiffness", params.get(mech, "stiffness"))``.
         output: ``output(solution, mechanism) -> array`` to differentiate; ``None``: the whole
             :class:`~jaxclear.Solution`.
         warn: issue :class:`DerivativeHorizonWarning` when a derivative is past the run's horizon

@@ -64,8 +64,12 @@ rod's centroid 10 mm towards its point of larger x. This is the one place that s
 ``width`` is an old name of ``length`` for the lubricated joint: still accepted, with a
 :class:`DeprecationWarning`.
 
-``stiffness`` of a law whose stiffness is derived from materials (``None``) reads the derived
-value and, when set, becomes explicit. The friction names address the joint's friction law
+``stiffness`` of a law whose stiffness is derived (its leaf ``None``: from the materials and,
+for the Hertz-type laws, from the joint's radii) reads the derived value and, when set, becomes
+explicit. Derived values follow their sources (:func:`is_derived`), also in a derivative
+whatever else is asked with it (:func:`replace_following`); to hold the stiffness while the
+clearance changes, set it: ``replace(mech, "stiffness", get(mech, "stiffness"))``.
+The friction names address the joint's friction law
 (:mod:`jaxclear.contact.friction_laws`, :mod:`jaxclear.contact.bristle`); a law without that
 parameter raises :class:`~jaxclear.ParameterError` naming the laws that have it.
 """
@@ -419,6 +423,36 @@ def replace_many(mech: Mechanism, values: dict) -> Mechanism:
     return mech
 
 
+def is_derived(mech: Mechanism, name: str) -> bool:
+    """Whether the value of ``name`` in ``mech`` is derived from other numbers rather than set: a
+    ``stiffness`` whose law leaf (``law.stiffness_parameter``) is ``None``, computed by
+    ``law.stiffness_value(R_B, R_J)`` from the materials (and, for the Hertz-type laws, the
+    radii, so it follows ``clearance``). Setting it (:func:`replace`) makes it explicit. (Not to
+    be confused with the derived *names* ``centroid_x``/``centroid_y``, one value setting
+    several leaves.)"""
+    _accessor(mech, name)
+    base, k, _ = _split(name)
+    if base != "stiffness":
+        return False
+    law = mech.clearance_joints[k].law
+    return getattr(law, law.stiffness_parameter, 0.0) is None
+
+
+def replace_following(mech: Mechanism, values: dict, base: dict) -> Mechanism:
+    """``mech`` with each ``name`` moved from ``base[name]`` (its value in ``mech``) to
+    ``values[name]``, derived values still following their sources: the names set in ``mech``
+    are replaced (:func:`replace`); each derived one (:func:`is_derived`) is then set to its
+    value derived from the new mechanism plus ``values[name] - base[name]``. At
+    ``values == base`` the mechanism runs as ``mech``; the derivative with respect to a derived
+    name is the change of its value alone (its sources held), and the one with respect to a
+    source (``clearance``) carries the derived value along, as when it is asked alone. The rule
+    of :func:`jaxclear.sensitivities`: a derivative's meaning does not depend on which other
+    names are asked."""
+    derived = [n for n in values if is_derived(mech, n)]
+    out = replace_many(mech, {n: v for n, v in values.items() if n not in derived})
+    return replace_many(out, {n: get(out, n) + (jnp.asarray(values[n], dtype=float) - base[n]) for n in derived})
+
+
 def validate(mech: Mechanism, name: str, values) -> np.ndarray:
     """Check concrete ``values`` of parameter ``name`` against its range (and, for
     ``clearance``, against the bearing radius). Returns them as a float array."""
@@ -460,5 +494,5 @@ def from_unconstrained(name: str, z):
 
 
 __all__ = ["BODY_NAMES", "COMPONENTS", "DEPRECATED", "DERIVED", "FRICTION_FIELDS", "INFO", "LOAD_NAMES", "ParameterInfo",
-           "closest", "from_unconstrained", "get", "info", "names", "parameter_names", "replace", "replace_many",
-           "to_unconstrained", "validate"]
+           "closest", "from_unconstrained", "get", "info", "is_derived", "names", "parameter_names", "replace", "replace_following",
+           "replace_many", "to_unconstrained", "validate"]
