@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import argparse
 import os
+import warnings
 
 from .._xla_flags import request_host_devices
 from ..tolerance.config import load_study
+from ..tolerance.estimators import UnresolvedEstimateWarning
 from ..tolerance.study import tolerance_study
 
 HELP = "tolerance study: distributions of parameters -> distributions of metrics, exceedance, sensitivity"
@@ -15,7 +17,9 @@ Sample the distributions of named parameters (normal, uniform, truncated normal;
 correlations) given in a TOML file, run the mechanism for every sample on the sweep's machinery
 (every device, chunk by chunk, resumed by the same command), and report the metrics'
 distributions, the probability that a metric exceeds its limit (95 % interval) beside the
-linearised estimate, Sobol' first and total indices ([study] sobol_n) and importance sampling
+linearised estimate (flagged where it leaves the metric's range), Sobol' first and total
+indices with their 95 % intervals, flagged where the runs do not resolve them ([study] sobol_n)
+and importance sampling
 for small probabilities ([study] importance_n). File format: python -c "import
 jaxclear.tolerance.config as c; print(c.__doc__)". Writes into the output folder:
   tolerance.json       summary, exceedance, linearised, Sobol' indices, importance sampling
@@ -41,7 +45,9 @@ def run(args) -> int:
         kwargs["out"] = args.out
     if args.no_progress:
         kwargs["progress"] = False
-    res = tolerance_study(**kwargs, restart=args.restart)
+    with warnings.catch_warnings():  # printed in the summary below, once
+        warnings.simplefilter("ignore", UnresolvedEstimateWarning)
+        res = tolerance_study(**kwargs, restart=args.restart)
     print(f"jaxclear tolerance: {len(res.values)} runs of {', '.join(res.names)}")
     for m, s in res.summary.items():
         if "mean" in s:
@@ -50,6 +56,7 @@ def run(args) -> int:
         lin = res.linearised.get(m)
         if lin:
             print(f"    linearised: mean {lin['mean']:.5g}, sd {lin['sd']:.3g}"
+                  + (" (leaves the metric's range: see the warning below)" if lin.get("outside_range") else "")
                   + (f"; from derivatives sd {lin['derivatives']['sd']:.3g} (gradient "
                      f"{100 * lin['derivatives']['distance_to_differences']:.3g} % from the differences)"
                      if "derivatives" in lin else ""))
@@ -62,7 +69,10 @@ def run(args) -> int:
         if imp:
             print(f"    importance sampling ({imp['runs']} runs): {imp['probability']:.3g} +- {imp['std_error']:.2g}")
         for name, si in res.sobol.get(m, {}).items():
-            print(f"    Sobol' {name}: first {si['S1']:.3f} +- {si['S1_conf']:.3f}, total {si['ST']:.3f} +- "
-                  f"{si['ST_conf']:.3f}")
+            print(f"    Sobol' {name}: first {si['S1']:.3f} +- {si['S1_conf']:.3f}"
+                  + ("" if si["S1_resolved"] else " (not resolved)") + f", total {si['ST']:.3f} +- "
+                  f"{si['ST_conf']:.3f}" + ("" if si["ST_resolved"] else " (not resolved)"))
+    for said in res.warnings:
+        print(f"warning: {said}")
     print(f"wrote {os.path.join(kwargs['out'], 'tolerance.json')}, tolerance_runs.csv, tolerance.png")
     return 0

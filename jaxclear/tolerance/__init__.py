@@ -11,17 +11,21 @@ resumable, on every device). Theory: docs/theory/uncertainty.md.
 from .distributions import Inputs, Marginal, correlation_matrix, inputs_from_dict, marginal
 from .estimators import (
     METRIC_RANGES,
+    SOBOL_NEGLIGIBLE,
+    UnresolvedEstimateWarning,
     check_limit,
     exceedance,
     importance_exceedance,
+    index_verdict,
     linearised,
     score_gradient,
     sobol_design,
     sobol_indices,
+    sobol_warning,
     wilson_interval,
 )
 from .study import DEFAULT_METRICS, ToleranceResult, tolerance_study
 
 __all__ = ["tolerance_study", "ToleranceResult", "DEFAULT_METRICS", "Inputs", "Marginal", "marginal", "inputs_from_dict", "correlation_matrix", "METRIC_RANGES",
            "check_limit", "exceedance", "wilson_interval", "sobol_design", "sobol_indices", "linearised", "score_gradient",
-           "importance_exceedance"]
+           "importance_exceedance", "index_verdict", "sobol_warning", "SOBOL_NEGLIGIBLE", "UnresolvedEstimateWarning"]

@@ -30,6 +30,7 @@ metric.
 from __future__ import annotations
 
 import os
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -39,8 +40,8 @@ from .._extras import require_extra
 from .._storage import atomic_write_json, atomic_write_text
 from ..model import Mechanism
 from .distributions import Inputs
-from .estimators import (check_limit, exceedance, importance_exceedance, linearised, score_gradient, sobol_design,
-                         sobol_indices)
+from .estimators import (UnresolvedEstimateWarning, check_limit, exceedance, importance_exceedance, linearised,
+                         score_gradient, sobol_design, sobol_indices, sobol_warning)
 
 #: Metrics of a study by default.
 DEFAULT_METRICS = ("peak_contact_force_n", "rms_acc_deviation_m_s2", "fraction_free_flight")
@@ -58,8 +59,10 @@ class ToleranceResult:
     Attributes: ``names``, ``values`` ``(n, P)`` the sampled inputs, ``metrics`` name -> ``(n,)``,
     ``summary`` metric -> mean, sd, quantiles, failed runs; ``exceedance`` metric -> sampled
     probability with its 95 % interval, the linearised one beside it (and importance sampling's
-    for the first limit); ``sobol`` metric -> name -> S1, ST and their 95 % half-widths;
-    ``linearised`` metric -> mean, sd, gradient over the scores; ``settings``."""
+    for the first limit); ``sobol`` metric -> name -> S1, ST, their 95 % half-widths and whether
+    each is resolved; ``linearised`` metric -> mean, sd, gradient over the scores, whether its
+    95 % interval leaves the metric's range; ``warnings``: the estimates the runs do not resolve
+    (each also issued as :class:`~.estimators.UnresolvedEstimateWarning`); ``settings``."""
 
     names: list
     values: np.ndarray
@@ -70,11 +73,12 @@ class ToleranceResult:
     linearised: dict = field(default_factory=dict)
     importance: dict = field(default_factory=dict)
     settings: dict = field(default_factory=dict)
+    warnings: list = field(default_factory=list)
 
     def to_dict(self) -> dict:
         return {"parameters": self.names, "summary": self.summary, "exceedance": self.exceedance,
                 "sobol": self.sobol, "linearised": self.linearised, "importance": self.importance,
-                "settings": self.settings}
+                "warnings": self.warnings, "settings": self.settings}
 
     def write(self, out) -> list:
         import pandas as pd
@@ -99,7 +103,8 @@ class ToleranceResult:
             if lin and lin["sd"] > 0:
                 lo, hi = lin["mean"] - 3 * lin["sd"], lin["mean"] + 3 * lin["sd"]
                 g = np.linspace(min(lo, y.min()) if y.size else lo, max(hi, y.max()) if y.size else hi, 200)
-                ax.plot(g, stats.norm.pdf(g, lin["mean"], lin["sd"]), "C1", label="linearised")
+                ax.plot(g, stats.norm.pdf(g, lin["mean"], lin["sd"]), "C1", ls=":" if lin.get("outside_range") else "-",
+                        label="linearised" + (" (leaves the range)" if lin.get("outside_range") else ""))
             ex = self.exceedance.get(m)
             if ex:
                 ax.axvline(ex["limit"], color="C3", ls="--",
@@ -214,7 +219,9 @@ def tolerance_study(inputs: Inputs, mech: Mechanism | None = None, *, preset: st
         yl = evaluate("linearised", inputs.scores_to_values(z))
         for m, v in yl.items():
             g = (v[1: p + 1] - v[p + 1:]) / (2 * SCORE_STEP)
-            res.linearised[m] = linearised(v[0], g, limits.get(m))
+            res.linearised[m] = linearised(v[0], g, limits.get(m), metric=m)
+            if res.linearised[m]["outside_range"]:
+                res.warnings.append(res.linearised[m]["warning"])
             if m in res.exceedance:
                 res.exceedance[m]["linearised_probability"] = res.linearised[m]["probability"]
         if derivatives:
@@ -238,6 +245,10 @@ def tolerance_study(inputs: Inputs, mech: Mechanism | None = None, *, preset: st
         problem, xs = sobol_design(inputs, sobol_n, seed)
         ys = evaluate("sobol", xs)
         res.sobol = {m: sobol_indices(problem, v, seed) for m, v in ys.items()}
+        for m, idx in res.sobol.items():
+            if said := sobol_warning(m, idx, sobol_n):
+                res.warnings.append(said)
+                warnings.warn(said, UnresolvedEstimateWarning, stacklevel=2)
     res.write(os.fspath(out))
     return res
 
