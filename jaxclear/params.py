@@ -494,5 +494,5 @@ def from_unconstrained(name: str, z):
 
 
 __all__ = ["BODY_NAMES", "COMPONENTS", "DEPRECATED", "DERIVED", "FRICTION_FIELDS", "INFO", "LOAD_NAMES", "ParameterInfo",
-           "closest", "from_unconstrained", "get", "info", "is_derived", "names", "parameter_names", "replace", "replace_following",
-           "replace_many", "to_unconstrained", "validate"]
+           "closest", "from_unconstrained", "get", "info", "is_derived", "names", "parameter_names", "replace",
+           "replace_following", "replace_many", "to_unconstrained", "validate"]

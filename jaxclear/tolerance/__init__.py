@@ -28,4 +28,5 @@ from .study import DEFAULT_METRICS, ToleranceResult, tolerance_study
 
 __all__ = ["tolerance_study", "ToleranceResult", "DEFAULT_METRICS", "Inputs", "Marginal", "marginal", "inputs_from_dict", "correlation_matrix", "METRIC_RANGES",
            "check_limit", "exceedance", "wilson_interval", "sobol_design", "sobol_indices", "linearised", "score_gradient",
-           "importance_exceedance", "index_verdict", "sobol_warning", "SOBOL_NEGLIGIBLE", "UnresolvedEstimateWarning"]
+           "importance_exceedance", "index_verdict", "sobol_warning", "SOBOL_NEGLIGIBLE",
+           "UnresolvedEstimateWarning"]
