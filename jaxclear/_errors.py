@@ -118,6 +118,20 @@ def status_message(code: int, **context) -> str:
     return f"{message}; {remedy.format_map(dict({'max_steps': '?'}, **context))}"
 
 
+def function_name(fn) -> str:
+    """``'name' (file.py:line)`` of a user's Python function (through :func:`functools.partial`)
+    for a message that names it; the name alone where its source is not found."""
+    import inspect
+    import os
+
+    fn = getattr(fn, "func", fn)
+    name = repr(getattr(fn, "__qualname__", None) or type(fn).__name__)
+    try:
+        return f"{name} ({os.path.basename(inspect.getsourcefile(fn))}:{inspect.getsourcelines(fn)[1]})"
+    except (TypeError, OSError):
+        return name
+
+
 def is_concrete(value) -> bool:
     """True if no leaf of ``value`` is a JAX tracer (so it can be checked eagerly)."""
     leaves = jax.tree_util.tree_leaves(value)

@@ -8,8 +8,9 @@ and roles. :func:`load_mechanism` reads one (the standard ``tomllib``) and valid
 every error names the file, the key and the allowed values. :func:`save_mechanism` writes one
 (``tomli-w``); a mechanism written and read back is equal leaf by leaf (``eqx.tree_equal``).
 
-Python functions (:class:`~jaxclear.FunctionDriver`, ``function=`` of a load) cannot be written
-to a file; saving such a mechanism raises :class:`~jaxclear.MechanismError`.
+Python functions (:class:`~jaxclear.FunctionDriver`, ``function=`` of a load: a spring or damper
+between two points) cannot be written to a file; saving one raises :class:`~jaxclear.MechanismError`
+naming the function and what to do instead.
 
 This module sits beside :mod:`jaxclear.presets` (it builds laws and force elements, so it is
 above ``contact/`` and ``elements/`` in the layers).
@@ -18,6 +19,7 @@ above ``contact/`` and ``elements/`` in the layers).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import inspect
 import os
 import re
@@ -27,7 +29,7 @@ import warnings
 import numpy as np
 import tomli_w
 
-from ._errors import JaxclearError, MechanismError, ParameterError
+from ._errors import JaxclearError, MechanismError, ParameterError, function_name
 from ._storage import atomic_write_text, read_text
 from ._units import rpm_to_rad_s
 from .contact import FourierProfile, Friction, Material, make_law
@@ -110,10 +112,13 @@ def _fields(module, keys) -> dict:
 
 
 def _no_function(item, where: str):
+    """A :class:`~jaxclear.MechanismError` naming a load's Python function and what to do instead."""
     if getattr(item, "function", None) is not None:
-        raise MechanismError(f"{where} ({item.label}) has a Python function: it cannot be written to a mechanism "
-                             "file (only forces and torques with a time profile or none, AngleDriver speeds and "
-                             "ProfileDriver profiles can)")
+        raise MechanismError(
+            f"{where} ({item.label}) is given by the Python function {function_name(item.function)}: a mechanism file "
+            "holds numbers, not code, and no spring or damper element a file holds exists yet (only a PointForce's "
+            "force and a Torque's torque, with optional time profiles); save the mechanism without this load and add "
+            "it again in Python after loading: m = eqx.tree_at(lambda m: m.loads, m, (*m.loads, load))")
 
 
 def _typed(table: dict, item, where: str, skip=()) -> dict:
@@ -350,10 +355,7 @@ def _law(r: _Reader, key: str, table) -> object:
             r.fail(f"{key}.{k}", f"a table is allowed only for keys ending in {list(TABLE_PARAMETERS)}")
         else:
             kwargs[k] = _law_value(r, f"{key}.{k}", LAWS[name][0], k, v)
-    try:
-        return make_law(name, **kwargs)
-    except JaxclearError as err:
-        raise type(err)(f"{r.source}: {key}: {err}") from None
+    return r.build(key, functools.partial(make_law, name), kwargs)
 
 
 def _friction(r: _Reader, key: str, table) -> object:
