@@ -21,7 +21,8 @@ from .._storage import fingerprint, locked_folder
 from ..derivatives import DerivativeHorizonWarning
 from ..integrate import Settings
 from ..model import Mechanism, crank_driver
-from .chaos import RuggedObjectiveWarning, horizon_report, roughness_report, rugged_message
+from .chaos import (RuggedObjectiveWarning, horizon_report, roughness_report, rugged_message, scale_message,
+                    scale_report)
 from .constraints import constraint as make_constraint
 from .journal import Journal
 from .objectives import objective as make_objective
@@ -119,7 +120,10 @@ def design(mech: Mechanism, variables: dict, objective="rms-deviation", constrai
         check_chaos: measure the derivative horizon at the start (one sensitivity solve) and
             warn with :class:`jaxclear.DerivativeHorizonWarning` where a run is past it; and
             the objective's roughness (6 evaluations per variable, at +- 1e-10, 1e-8 and 1e-6 of
-            its range, against the gradient's prediction), warning with :class:`jaxclear.RuggedObjectiveWarning`.
+            its range, against the gradient's prediction), warning with :class:`jaxclear.RuggedObjectiveWarning`;
+            and at the optimiser's steps (+-1 %, +-5 % of each range, at the start and at the
+            optimum: :func:`~jaxclear.designing.chaos.scale_report`), warning and saying so in
+            the summary where the objective departs from a smooth curve.
         report_sensitivity: simulate the objective at +-1 % of each range around the optimum.
         plots: the comparison runs and ``design.png`` (with ``out``).
         callback: ``callback(record)`` after every iteration (the history's record).
@@ -193,8 +197,12 @@ def _design_locked(problem, variables, u0, start_mech, key, config, out, resume,
         # (6 P plain evaluations, journaled like the optimiser's so a resumed design replays them)
         chaos["roughness"] = roughness_report(lambda u: ev.value(u)["values"][0], u0, f0,
                                               np.asarray(start_grad["jacobian"][0]), [v.name for v in variables])
+        chaos["warnings"] = []
         if chaos["roughness"]["rugged"]:
-            warnings.warn(rugged_message(problem.mech.name, chaos["roughness"]), RuggedObjectiveWarning, stacklevel=3)
+            chaos["warnings"].append(rugged_message(problem.mech.name, chaos["roughness"]))
+            warnings.warn(chaos["warnings"][-1], RuggedObjectiveWarning, stacklevel=3)
+        # and at the optimiser's own steps (+-1 %, +-5 % of each range: 4 P evaluations)
+        chaos["scale"] = _scale_check(ev, problem, u0, f0, start_grad["jacobian"][0], "start", chaos["warnings"])
         why = []
         if chaos["past_horizon"]:
             why.append(f"a run of {chaos['run_s']:.3g} s is past the derivative horizon of "
@@ -203,10 +211,10 @@ def _design_locked(problem, variables, u0, start_mech, key, config, out, resume,
             why.append(f"the objective of the plain run and of the sensitivity solve differ by "
                        f"{100 * chaos['objective_spread']:.2g} % (the solver's error dominates it)")
         if why:
-            warnings.warn(f"design of {problem.mech.name!r}: {'; '.join(why)}: the motion is chaotic there and "
-                          "gradients describe changes below the tolerance; use shorter runs over an ensemble of "
-                          "starts (Ensemble(starts=...)) or a gradient-free search", DerivativeHorizonWarning,
-                          stacklevel=3)
+            chaos["warnings"].append(f"design of {problem.mech.name!r}: {'; '.join(why)}: the motion is chaotic there "
+                                     "and gradients describe changes below the tolerance; use shorter runs over an "
+                                     "ensemble of starts (Ensemble(starts=...)) or a gradient-free search")
+            warnings.warn(chaos["warnings"][-1], DerivativeHorizonWarning, stacklevel=3)
     history, bars = [], []
 
     def record(u, interrupt):
@@ -246,6 +254,8 @@ def _design_locked(problem, variables, u0, start_mech, key, config, out, resume,
     status = status_of(res, bool(feasible), config["max_iter"])
     grad, sens = sensitivity(ev, u, values, jac) if report_sensitivity else (
         {v.name: float(jac[0][i]) / v.span for i, v in enumerate(variables)}, {})
+    if chaos is not None and np.all(np.isfinite(values)):  # the same check where the design ends
+        chaos["scale_optimum"] = _scale_check(ev, problem, u, float(values[0]), jac[0], "optimum", chaos["warnings"])
     start_eval = first
     x = [float(v.from_unit(ui)) for v, ui in zip(variables, u)]
     opt_mech = apply(problem.mech, variables, np.asarray(x))
@@ -264,11 +274,22 @@ def _design_locked(problem, variables, u0, start_mech, key, config, out, resume,
         wall_time_s=time.perf_counter() - t0, history=history, chaos=chaos, settings=config,
         least_violation=None if feasible else least_violation(ev), mechanism=opt_mech, start_mechanism=start_mech)
     if plots:
-        result.comparison = comparison_runs(problem, start_mech, opt_mech, max(config["revolutions"], 1.0),
+        result.comparison = comparison_runs(problem, start_mech, opt_mech, config["revolutions"],
                                             config["samples_per_revolution"])
     if out is not None:
         _write(result, out)
     return result
+
+
+def _scale_check(ev, problem, u, f: float, gradient, where: str, said: list) -> dict:
+    """:func:`~.chaos.scale_report` at ``u`` (objective ``f``, its gradient over the unit
+    coordinates); a rugged one is warned of and its line added to ``said`` (the summary's)."""
+    report = scale_report(lambda w: ev.value(w)["values"][0], u, f, np.asarray(gradient),
+                          [v.name for v in problem.variables])
+    if report["rugged"]:
+        said.append(scale_message(problem.mech.name, report, where))
+        warnings.warn(said[-1], RuggedObjectiveWarning, stacklevel=4)
+    return report
 
 
 def _write(result: DesignResult, out) -> None:

@@ -91,7 +91,8 @@ def sensitivity(ev: Evaluator, u, values, jacobian) -> tuple[dict, dict]:
 
 def comparison_runs(problem, start: Mechanism, optimum: Mechanism, revolutions: float, per_revolution: int):
     """``(channel, (mech, sol, ideal_mech, ideal_sol) of the start, the same of the optimum)``:
-    both at the first operating point over ``revolutions`` from the mechanism's own start."""
+    both at the first operating point over ``revolutions`` from the mechanism's own start (the
+    design passes its runs' length: what the objective covered, or its first member's)."""
     values = {n: float(problem.members.values[0, i]) for i, n in enumerate(problem.members.names)}
     channel = problem.objective.channel_name(start) if isinstance(problem.objective, RmsDeviation) else \
         channels.default_channels(start)[2]

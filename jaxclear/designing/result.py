@@ -128,7 +128,7 @@ class DesignResult:
         channel, start, optimum = self.comparison
         return plot_comparison(path, channel, start, optimum, self.history, self.objective["unit"],
                                f"{start[0].name}: {self.objective['description']}, start against optimum "
-                               f"({100 * self.objective['improvement']:.1f} % lower)")
+                               f"({change_words(self.objective['improvement'], 1)})")
 
     def summary(self) -> str:
         """A few lines for a terminal: status, objective, constraints, design, sensitivity."""
@@ -138,7 +138,7 @@ class DesignResult:
                  f"{self.evaluations['values']} evaluations and {self.evaluations['gradients']} gradients, "
                  f"{self.runs} runs, {self.wall_time_s:.1f} s",
                  f"objective ({o['description']}): {o['start']:.6g}{unit} -> {o['optimum']:.6g}{unit} "
-                 f"({100 * o['improvement']:+.2f} % lower); projected gradient norm {self.gradient_norm:.3g}"]
+                 f"({change_words(o['improvement'])}); projected gradient norm {self.gradient_norm:.3g}"]
         for c in self.constraints:
             lines.append(f"constraint {c['name']}: residual {c['optimum']:.3g} ({'met' if c['satisfied'] else 'NOT met'})")
         width = max(len(n) for n in self.design)
@@ -147,10 +147,20 @@ class DesignResult:
             s = self.sensitivity.get(n, {})
             change = f"{100 * s.get('change_minus', float('nan')):+.2f}/{100 * s.get('change_plus', float('nan')):+.2f} %"
             lines.append(f"  {n:<{width}}  {self.start[n]:>12.6g}  {v:>12.6g}  {self.gradient[n]:>11.3g}  {change:>22}")
+        lines += [f"warning: {said}" for said in (self.chaos or {}).get("warnings", [])]
         if self.least_violation:
             lines.append(f"least constraint violation found: {self.least_violation['violation']:.3g} at "
                          f"{self.least_violation['design']}")
         return "\n".join(lines)
+
+
+def change_words(improvement: float, digits: int = 2) -> str:
+    """The optimum's objective against the start's in words: ``improvement = 1 - f_opt/f_start``
+    [-] as ``"2.69 % lower"``, or ``"1.20 % higher"`` where the optimum's is larger (a
+    constraint that the start violated)."""
+    if not np.isfinite(improvement):
+        return "no relative change: the start's objective is 0"
+    return f"{abs(100 * improvement):.{digits}f} % {'lower' if improvement >= 0 else 'higher'}"
 
 
 def write_history_csv(path, history: list, names: list) -> str:
@@ -164,4 +174,4 @@ def write_history_csv(path, history: list, names: list) -> str:
     return atomic_write_text(path, buf.getvalue())
 
 
-__all__ = ["DesignResult", "STATUSES", "write_history_csv"]
+__all__ = ["DesignResult", "STATUSES", "change_words", "write_history_csv"]
