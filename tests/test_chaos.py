@@ -156,17 +156,39 @@ def test_duffing_against_an_independent_scipy_benettin():
     np.testing.assert_allclose(np.asarray(r.exponents), ref, atol=1e-6)
 
 
-def test_tangent_overflow_is_a_status():
+def test_unstable_equilibrium_is_resolved_by_adaptive_renormalisation():
     """An inverted oscillator (k = -100 N/m, no damping, no forcing) resting at its unstable
-    equilibrium: the state stays 0, its tangents grow like e^(10 t), so over a 70 s interval by
-    e^700 > 1e250: status 2 (the tangents overflowed; shorten the interval) and a named
-    LyapunovError, never an exponent reported as ok; the run itself is fine (run_status 0)."""
+    equilibrium: the state stays 0 and the tangent map is exp(t [[0, 1], [100, 0]]), whose
+    exponents are +-sqrt(100) = +-10 1/s. Over a 70 s interval its tangents grow by e^700 > 1e250
+    (a fixed interval overflowed: status 2); the renormalisation steps shorten until the log
+    growths of a step spread by no more than max_growth, and the exponents come out as the closed
+    form over the run's 280 s: the start vector e_x (metric time scale 1 s) grows to
+    (cosh 10t, 10 sinh 10t), of length e^(10t) sqrt(101)/2 (e^(-10t) terms below rounding), so
+    lambda_1 = 10 + ln(sqrt(101)/2)/280, and lambda_2 = -lambda_1 (the map's determinant is 1). To
+    1e-6 of their size: 2.8e-3 in a log growth of 2800, the tangents integrated at rtol 1e-8 over
+    about 600 renormalisation steps."""
     mech = oscillator(m=1.0, c0=0.0, c2=0.0, a=-100.0, b=0.0, f=0.0, x0=0.0)
-    s = jc.settings(280.0, rtol=1e-8, atol=1e-12, throw=False)
-    r = lyapunov(mech, s, interval=70.0)
+    r = lyapunov(mech, jc.settings(280.0, rtol=1e-8, atol=1e-12), interval=70.0)
+    assert int(r.status) == 0 and int(r.run_status) == 0
+    lam = 10.0 + math.log(math.sqrt(101.0) / 2.0) / 280.0
+    np.testing.assert_allclose(np.asarray(r.exponents), [lam, -lam], rtol=1e-6)
+    # the log growths spread at 20 1/s, a step by at most ln(0.01/rtol) = 13.8: at least 102 steps an interval
+    assert np.all(np.asarray(r.renormalisations) >= 70.0 * 20.0 / math.log(0.01 / 1e-8))
+
+
+def test_tangent_overflow_is_a_status():
+    """The same oscillator over intervals of 6.5e7 s: the shortest renormalisation step
+    (benettin.SHORTEST of the interval, 65 s) grows the tangents by e^650 > 1e250 (and below the
+    largest float, so the state stays finite): status 2 (the tangents overflowed within the
+    shortest step) and a named LyapunovError, never an exponent reported as ok; the run itself
+    is fine (run_status 0)."""
+    mech = oscillator(m=1.0, c0=0.0, c2=0.0, a=-100.0, b=0.0, f=0.0, x0=0.0)
+    s = jc.settings(2.6e8, rtol=1e-8, atol=1e-12, throw=False)
+    r = lyapunov(mech, s, interval=6.5e7)
     assert int(r.status) == 2 and int(r.run_status) == 0
-    with pytest.raises(LyapunovError, match=r"tangents overflowed.*shorten the interval"):
-        lyapunov(mech, jc.settings(280.0, rtol=1e-8, atol=1e-12), interval=70.0)
+    assert np.all(np.isnan(np.asarray(r.exponents)))
+    with pytest.raises(LyapunovError, match=r"tangents overflowed within the shortest renormalisation step"):
+        lyapunov(mech, jc.settings(2.6e8, rtol=1e-8, atol=1e-12), interval=6.5e7)
 
 
 @pytest.mark.slow
@@ -334,18 +356,30 @@ def test_long_intervals_on_the_chaotic_benchmark_do_not_stall():
     assert 200 < float(r.exponents[0]) < 900
 
 
-def test_memory_records_are_dropped_at_renormalisation():
-    """The tangents of the memory's records (work, running peaks: no force reads them) are set to
-    zero at every renormalisation (jaxclear.elements.memory.record_mask): a revolute joint's
-    memory is [impact_velocity, contact_start, impacts, work, peak_force, peak_penetration]; a
-    translational joint holds one memory per corner (4). Without it their tangents grew by the
-    inverse of the contracting directions' growth, e^13 a revolution on the benchmark, and
-    overflowed 1e250 after ~43 intervals (tests/test_cli_chaos.py runs 56)."""
-    from jaxclear.elements.memory import RECORDS, record_mask
+def test_only_the_memory_the_motion_reads_is_carried():
+    """A basis vector carries the tangents of the memory entries the vector field reads
+    (chaos.manifold.live_memory), and no others: the revolute joint's memory is
+    [impact_velocity, contact_start, impacts, work, peak_force, peak_penetration]. At the
+    benchmark's periodic point (1000 rpm, friction 0.2, c_r 0.3: the journal in one lasting
+    contact) the Lankarani-Nikravesh law damps with the approach speed, so it is read; the onset
+    time, the count, the work and the peaks are outputs (never read). Under the elastic Hertz law,
+    and out of contact (the journal centred at the start), nothing is read. Carried by the
+    renormalisations' R^-1 without acting back, an unread entry grew like e^(-lambda_min t) and
+    overflowed (the work's tangent: 1e117, then inf, after 20-35 revolutions)."""
+    import jax
 
-    joint = jc.preset("flores-slider-crank").clearance_joints[0]
-    mask = np.asarray(joint.state_to_vector(record_mask(joint.state_init())))
-    np.testing.assert_array_equal(mask, [1, 1, 1, 0, 0, 0])
-    guide = jc.preset("slider-crank-guide-clearance").clearance_joints[0]
-    mask = np.asarray(guide.state_to_vector(record_mask(guide.state_init())))
-    assert mask.shape == (guide.state_size,) and int((mask == 0).sum()) == 4 * len(RECORDS)
+    from jaxclear.chaos import manifold
+    from jaxclear.integrate import State, solve
+
+    for law, expected in (("lankarani-nikravesh", [1, 0, 0, 0, 0, 0]), ("hertz", [0] * 6)):
+        mech = jc.preset("flores-slider-crank", law=law, speed_rpm=1000.0, friction=0.2, restitution=0.3)
+        s = jc.settings(0.12, n_out=1201)
+        begin = solve.start(mech, s, None)
+        np.testing.assert_array_equal(np.asarray(manifold.live_memory(mech, s.baumgarte, 0.0, begin.packed)), [0] * 6)
+        # the deepest sample of the second revolution: inside a contact
+        sol = jc.simulate(mech, s)
+        k = 600 + int(np.argmax(np.asarray(sol.penetration[600:, 0])))
+        assert float(sol.penetration[k, 0]) > 1e-7
+        y = State(sol.q[k], sol.qdot[k], jax.tree_util.tree_map(lambda x: x[k], sol.element_states)).pack()
+        live = manifold.live_memory(mech, s.baumgarte, sol.ts[k], y)
+        np.testing.assert_array_equal(np.asarray(live), expected)

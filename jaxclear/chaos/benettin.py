@@ -1,9 +1,9 @@
 r"""Benettin's method on the tangent dynamics of a mechanism: the traceable core of
 :func:`~jaxclear.chaos.lyapunov` (one compiled program; ``jax.vmap`` applies).
 
-The run is cut into ``windows`` renormalisation intervals of length :math:`\tau`. In each, the
-state and ``count`` tangent vectors (perturbations of the state at the interval's start) are
-integrated together by :class:`~jaxclear.integrate.sensitivity.TangentSystem` with no perturbed
+The run is cut into ``windows`` intervals of length :math:`\tau`, each renormalised at least
+once, at its end (more often where the tangents' growth asks for it, below). The state and
+``count`` tangent vectors (perturbations of the state at a step's start) are integrated together by :class:`~jaxclear.integrate.sensitivity.TangentSystem` with no perturbed
 parameter: the variational equation :math:`\dot S = f_y S` with the same Runge-Kutta steps as the
 state, the tangents in the step-size control (CVODES ``errconS``), steps ending at every contact
 onset and separation and at the friction laws' kinks, and the memory rules' derivatives applied
@@ -12,24 +12,47 @@ penetration), so the positions' and velocities' tangents do not jump there; what
 stored approach speed, whose tangent carries the shift of the onset time (saltation of the memory
 rule, :mod:`jaxclear.integrate.sensitivity`).
 
-At the end of each interval the tangents are projected on the tangent space of the constraint
-manifold (:mod:`.manifold`), weighted, and orthonormalised by a QR factorisation
-:math:`W P S = Q R`; :math:`\ln|R_{ii}|` is the growth of the ``i``-th direction over the
-interval (Benettin, Galgani, Giorgilli, Strelcyn, Meccanica 15 (1980) 9-20 and 21-30; Shimada and
-Nagashima, Prog. Theor. Phys. 61 (1979) 1605). The next interval starts from :math:`W^{-1}Q`,
-the memory's tangents transformed by the same :math:`R^{-1}` (those of the memory's records,
-the work and the running peaks, which no force reads, set to zero:
-:data:`~jaxclear.elements.memory.RECORDS`; a record never refreshed would grow by the inverse of
-the most contracting direction's growth every interval and overflow, at the benchmark's
-:math:`\lambda_4 \approx -1100` 1/s after about 40 one-revolution intervals). The ``i``-th exponent is
-:math:`\lambda_i = \sum_k \ln|R^{(k)}_{ii}| / (K\tau)` over the intervals after ``discard``.
+At the end of each renormalisation step the tangents are projected on the tangent space of the
+constraint manifold (:mod:`.manifold`), weighted, and orthonormalised by a QR factorisation
+:math:`W P S = Q R`; :math:`\ln|R_{ii}|` is the growth of the ``i``-th direction over the step
+(Benettin, Galgani, Giorgilli, Strelcyn, Meccanica 15 (1980) 9-20 and 21-30; Shimada and
+Nagashima, Prog. Theor. Phys. 61 (1979) 1605). The next step starts from :math:`W^{-1}Q`, the
+memory's tangents transformed by the same :math:`R^{-1}`, those of the entries the motion does
+not read set to zero (:func:`~.manifold.live_memory`: outputs such as the contact work are not
+states; carried by :math:`R^{-1}` without acting back they grew like :math:`e^{-\lambda_p t}` and
+overflowed). The ``i``-th exponent is :math:`\lambda_i = \sum_k \ln|R^{(k)}_{ii}| / (K\tau)` over
+the intervals after ``discard``.
 
-The windows are separate solves inside one ``lax.scan`` (each starts at the time it is at: the
-solver takes start and end times as arrays, so nothing is recompiled per window); a member whose
-run failed, or whose tangents overflowed, integrates zero-length windows from then on.
+The steps adapt to the tangents' growth. The information about the ``i``-th direction is what is
+left of a tangent after the larger directions are removed: when the growths within one step
+spread by :math:`e^{G}`, a direction :math:`e^{G}` times smaller than the largest is held only
+to :math:`e^{G}` times the tolerance, and the smallest exponents are lost (undamped Hertz contact,
+a Hamiltonian motion whose exponents sum to zero, renormalised once a revolution: sum +899 1/s;
+every eighth of a revolution, where a contact can still spread the growths by :math:`e^{16}`:
++7.9). So a step of length :math:`h` is accepted only when the spread of its log growths and 0,
+:math:`G = \max(0, \max_i\ln|R_{ii}|) - \min(0, \min_i\ln|R_{ii}|)`, is at most ``max_growth``
+(default :math:`\ln(0.01/\mathrm{rtol})`, :func:`default_max_growth`; with the 0, a single tangent's own growth and decay are bounded too); a step
+that spread them more, or whose tangents overflowed, is retried shorter, and the next step is
+:math:`0.9\,h\,G_{\max}/G`, at most twice the last and never past the interval's end (the rule
+of a step-size controller, with the growth in place of the error: the growth of a linear
+equation's solution is about proportional to the time). Within the interval the steps are the
+iterations of a ``lax.while_loop``; the interval's :math:`\ln|R_{ii}|` is their sum, so the
+running estimate, the batch means and the output samples are per interval as before. A step of
+:data:`SHORTEST` times the interval is accepted whatever its growth, and overflow there is
+status 2. The transfer-matrix method for disordered solids sets the frequency of its
+orthonormalisations the same way, by how much a vector's length changes before and after one
+(A. MacKinnon, notes on the critical indices,
+http://www.cmth.ph.ic.ac.uk/people/a.mackinnon/Research/critind/node3.html); ChaosTools.jl's
+``lyapunovspectrum`` takes a fixed ``Δt``.
+
+The intervals are separate solves inside one ``lax.scan`` (each starts at the time it is at: the
+solver takes start and end times as arrays, so nothing is recompiled per interval); a member
+whose run failed, or whose tangents overflowed, integrates zero-length intervals from then on.
 """
 
 from __future__ import annotations
+
+import math
 
 import equinox as eqx
 import jax
@@ -37,7 +60,6 @@ import jax.numpy as jnp
 from jax.scipy.linalg import solve_triangular
 
 from .._errors import RESULTS
-from ..elements.memory import record_mask
 from ..integrate import Settings, State
 from ..integrate import solve
 from ..integrate.sensitivity import DTMIN_FRACTION, Rebuild, TangentSystem
@@ -45,17 +67,33 @@ from ..integrate.system import MechanismSystem
 from ..model.mechanism import Mechanism
 from . import manifold
 
-#: Largest entry of a tangent at the end of an interval before the run counts as overflowed
-#: (a growth of ``e^575``: within a factor ``1e58`` of the largest float64): status
-#: ``tangent_overflow``.
+#: Largest entry of a tangent at the end of a renormalisation step before the step counts as
+#: overflowed (a growth of ``e^575``: within a factor ``1e58`` of the largest float64): the step
+#: is retried shorter; at :data:`SHORTEST` it is status 2.
 OVERFLOW = 1e250
+
+#: The default bound on the spread of one renormalisation step's log growths is
+#: :math:`\ln(\text{GROWTH\_ACCURACY}/\text{rtol})` (:func:`default_max_growth`): a direction
+#: :math:`e^{G}` times smaller than the largest is held to rtol :math:`e^{G}` of itself, 1 %.
+GROWTH_ACCURACY = 0.01
+
+
+def default_max_growth(rtol: float) -> float:
+    r"""The default ``max_growth``, :math:`\ln(0.01/\mathrm{rtol})` [-] (:data:`GROWTH_ACCURACY`):
+    9.2 at rtol 1e-6, 13.8 at 1e-8 (module docstring; measured: docs/theory/chaos.md)."""
+    return math.log(GROWTH_ACCURACY / rtol)
+
+
+#: The shortest renormalisation step, as a fraction of the interval: a step this short is
+#: accepted whatever its growth.
+SHORTEST = 1e-6
 
 #: Lyapunov status codes (``LyapunovResult.status``) and their messages.
 STATUS = {
     0: "ok",
     1: "the run failed (its status is in run_status)",
-    2: "the tangents overflowed within a renormalisation interval (a growth beyond 1e250 over one interval): "
-       "shorten the interval",
+    2: "the tangents overflowed within the shortest renormalisation step (a growth beyond 1e250 within a "
+       "millionth of the interval): the tangent dynamics is not resolved (check the run's steps and tolerances)",
 }
 
 
@@ -79,6 +117,8 @@ class LyapunovResult(eqx.Module):
         t_end: the time the run reached [s].
         ts: (T,) output times [s] (``samples`` per interval) and
         packed: (T, N) the packed states at them (the trajectory; empty with ``keep=False``).
+        renormalisations: (W,) QR renormalisations in every interval (at least 1; more where the
+            tangents' log growths spread by more than ``max_growth`` within an interval).
         num_steps: accepted and rejected steps of all intervals.
     """
 
@@ -94,6 +134,7 @@ class LyapunovResult(eqx.Module):
     t_end: jax.Array
     ts: jax.Array
     packed: jax.Array
+    renormalisations: jax.Array
     num_steps: jax.Array
 
     @property
@@ -132,7 +173,7 @@ def _batch_stderr(finite_time, counted: int):
 
 
 def benettin(mech: Mechanism, s: Settings, y0: State | None, *, transient, interval, windows: int, discard: int,
-             samples: int, count: int, scale, keep: bool = True) -> LyapunovResult:
+             samples: int, count: int, scale, max_growth=None, keep: bool = True) -> LyapunovResult:
     """The Lyapunov exponents of ``mech`` (see the module docstring): the run starts at
     ``s.t_start`` (assembled, or from ``y0``), runs ``transient`` [s] without tangents, then
     ``windows`` intervals of ``interval`` [s] with ``count`` tangents, ``samples`` output samples
@@ -154,8 +195,6 @@ def benettin(mech: Mechanism, s: Settings, y0: State | None, *, transient, inter
                      jnp.asarray(jnp.where(begin.valid == RESULTS.successful, RESULTS.assembly_failed._value,
                                            begin.valid._value), jnp.int32))
     w = manifold.weights(mech, scale).astype(dtype)
-    carried = jnp.concatenate([jnp.zeros((0,), dtype)] + [
-        e.state_to_vector(record_mask(e.state_init(dtype))).astype(dtype) for e in mech.clearance_joints])
     basis = manifold.tangent_basis(mech, t_a, y[:n], y[n:2 * n], w, count)  # (2n, count), weighted
     tangents = jnp.zeros((count, size), dtype).at[:, :2 * n].set((basis / w[:, None]).T)
 
@@ -167,39 +206,78 @@ def benettin(mech: Mechanism, s: Settings, y0: State | None, *, transient, inter
     system = TangentSystem(mech, s.baumgarte, Rebuild(leaves, treedef, ()), (), (),
                            DTMIN_FRACTION * interval, size, count, reference)
     fractions = jnp.arange(1, samples + 1, dtype=dtype) / samples
+    bound = jnp.asarray(default_max_growth(s.rtol) if max_growth is None else max_growth, dtype)
+    shortest = SHORTEST * interval
+
+    def renormalise(tb, y1, s1):
+        """QR of the projected, weighted tangents; the live memory's tangents by R^-1."""
+        proj = manifold.projector(mech, tb, y1[:n], y1[n:2 * n], w)
+        q, r = jnp.linalg.qr(proj @ (w[:, None] * s1[:, :2 * n].T))
+        diag = jnp.abs(jnp.diagonal(r))
+        ok = jnp.all(jnp.isfinite(s1)) & (jnp.max(jnp.abs(s1)) < OVERFLOW) & jnp.all(diag > 0)
+        safe_r = jnp.where(ok, r, jnp.eye(count, dtype=dtype))
+        live = manifold.live_memory(mech, s.baumgarte, tb, y1)
+        memory = solve_triangular(safe_r.T, s1[:, 2 * n:], lower=True) * live
+        logs = jnp.log(jnp.where(ok, diag, 1.0))
+        return jnp.concatenate([(q / w[:, None]).T, memory], axis=1), logs, ok
+
+    def step(c, ts, tb):
+        """One renormalisation step of the window ending at ``tb``: integrate ``[t, t + h]``,
+        renormalise, accept when the log growths spread no more than ``bound``."""
+        t, y, tangents, h, logs, buf, steps, code, overflow, taken = c
+        t1 = jnp.minimum(t + h, tb)
+        run = solve.integrate(system, s, t, t1, jnp.clip(ts, t, t1), jnp.concatenate([y, tangents.reshape(-1)]))
+        end = run.samples[-1]
+        y1, s1 = end[:size], end[size:].reshape(count, size)
+        finite_state = jnp.all(jnp.isfinite(y1))
+        renormed, lg, ok = renormalise(t1, y1, s1)
+        growth = jnp.maximum(jnp.max(lg), 0.0) - jnp.minimum(jnp.min(lg), 0.0)
+        last = (t1 - t) <= shortest * (1 + 1e-9)
+        # tangents beyond OVERFLOW, or non-finite ones (they stop the solve like a non-finite
+        # state, and the samples past the stop are inf): retried shorter; at the shortest step an
+        # overflow with a finite state is status 2, a non-finite state a failed run
+        raw = _run_status(run.result, finite_state)
+        retry = ~ok & ((raw == 0) | (raw == RESULTS.nonfinite_state._value)) & ~last
+        new_code = jnp.where(retry | (finite_state & ~ok), 0, raw)
+        good = (new_code == 0) & ok & ((growth <= bound) | last)
+        overflow = (new_code == 0) & ~ok & last
+        # the next step: the growth is about proportional to the step's length
+        length = t1 - t
+        target = 0.9 * bound * length / jnp.maximum(growth, 1e-30 * bound)
+        upper = jnp.where(good, 2.0 * jnp.maximum(h, length), 0.9 * length)
+        h_next = jnp.clip(jnp.where(ok, jnp.clip(target, 0.1 * length, upper), 0.1 * length), shortest, interval)
+        inside = (ts > t) & (ts <= t1) & good
+        samples_ = run.samples[:, :size] if keep else buf
+        return (jnp.where(good, t1, t), jnp.where(good, y1, y), jnp.where(good, renormed, tangents), h_next,
+                logs + jnp.where(good, lg, 0.0), jnp.where(inside[:, None], samples_, buf) if keep else buf,
+                steps + run.num_accepted_steps + run.num_rejected_steps, jnp.where(new_code != 0, new_code, code),
+                overflow, taken + good.astype(jnp.int32))
 
     def window(carry, k):
-        y, tangents, code, status = carry
+        y, tangents, h, code, status = carry
         go = (code == 0) & (status == 0)
         ta = t_a + k * interval
         tb = jnp.where(go, ta + interval, ta)
         ts = ta + (tb - ta) * fractions
-        run = solve.integrate(system, s, ta, tb, ts, jnp.concatenate([y, tangents.reshape(-1)]))
-        end = run.samples[-1]
-        y1, s1 = end[:size], end[size:].reshape(count, size)
-        # renormalisation: project on the manifold's tangent space, weight, QR
-        proj = manifold.projector(mech, tb, y1[:n], y1[n:2 * n], w)
-        x = proj @ (w[:, None] * s1[:, :2 * n].T)
-        q, r = jnp.linalg.qr(x)
-        diag = jnp.abs(jnp.diagonal(r))
-        finite = jnp.all(jnp.isfinite(s1)) & (jnp.max(jnp.abs(s1)) < OVERFLOW) & jnp.all(diag > 0)
-        new_code = jnp.where(go, _run_status(run.result, jnp.all(jnp.isfinite(y1))), code)
-        # a non-finite tangent stops the solve like a non-finite state: tell the two apart
-        overflow = go & ~finite & jnp.all(jnp.isfinite(y1))
-        new_status = jnp.where(overflow, 2, jnp.where(go & (new_code != 0), 1, status))
-        new_code = jnp.where(overflow, 0, new_code)
-        good = go & (new_status == 0)
-        safe_r = jnp.where(good, r, jnp.eye(count, dtype=dtype))
-        memory = solve_triangular(safe_r.T, s1[:, 2 * n:], lower=True) * carried  # records' tangents dropped
-        renormed = jnp.concatenate([(q / w[:, None]).T, memory], axis=1)
-        logs = jnp.where(good, jnp.log(jnp.where(good, diag, 1.0)), jnp.nan)
-        carry = (jnp.where(good, y1, y), jnp.where(good, renormed, tangents), new_code, new_status)
-        out = (logs, run.samples[:, :size] if keep else jnp.zeros((0, size), dtype), ts,
-               run.num_accepted_steps + run.num_rejected_steps)
-        return carry, out
+        buf = jnp.zeros((samples if keep else 0, size), dtype)
+        zero = jnp.zeros((), jnp.int32)
+        c0 = (ta, y, tangents, h, jnp.zeros((count,), dtype), buf, zero, zero, jnp.asarray(False), zero)
 
-    (y_end, _, code, status), (logs, packed, ts, steps) = jax.lax.scan(
-        window, (y, tangents, code, jnp.where(code == 0, 0, 1).astype(jnp.int32)), jnp.arange(windows))
+        def more(c):
+            t, code_, overflow = c[0], c[7], c[8]
+            return (t < tb) & (code_ == 0) & ~overflow
+
+        t, y1, renormed, h, lg, buf, steps, new_code, overflow, steps_taken = jax.lax.while_loop(
+            more, lambda c: step(c, ts, tb), c0)
+        new_code = jnp.where(go, new_code, code)
+        new_status = jnp.where(go & overflow, 2, jnp.where(go & (new_code != 0), 1, status))
+        good = go & (new_status == 0)
+        logs = jnp.where(good, lg, jnp.nan)
+        carry = (jnp.where(good, y1, y), jnp.where(good, renormed, tangents), h, new_code, new_status)
+        return carry, (logs, buf, ts, steps, jnp.where(go, steps_taken, 0))
+
+    (y_end, _, _, code, status), (logs, packed, ts, steps, renormalisations) = jax.lax.scan(
+        window, (y, tangents, interval, code, jnp.where(code == 0, 0, 1).astype(jnp.int32)), jnp.arange(windows))
     status = jnp.where((code != 0) & (status == 0), 1, status)
     counted = logs[discard:]
     finite_time = counted / interval
@@ -217,4 +295,4 @@ def benettin(mech: Mechanism, s: Settings, y0: State | None, *, transient, inter
         stderr=_batch_stderr(finite_time, windows - discard), status=status.astype(jnp.int32),
         run_status=code.astype(jnp.int32), t_end=ts[-1, -1] if windows else t_a,
         ts=ts.reshape(-1) if keep else jnp.zeros((0,), dtype),
-        packed=packed.reshape(-1, size), num_steps=jnp.sum(steps) + pre.num_accepted_steps + pre.num_rejected_steps)
+        packed=packed.reshape(-1, size), renormalisations=renormalisations, num_steps=jnp.sum(steps) + pre.num_accepted_steps + pre.num_rejected_steps)

@@ -28,12 +28,19 @@ change over the mechanism's own time scale. Lyapunov exponents do not depend on 
 two norms on a finite-dimensional space are equivalent, so their logarithms differ by a bounded
 amount that vanishes when divided by the time); only how fast the running estimate settles does.
 
-The impact memory (the approach speed and time of the latest onset, counts, peaks, contact work)
-and the bristle states of Dahl and LuGre friction are not coordinates of this space: a memory
-entry is set from the state at each onset, so a perturbation of it alone is forgotten at the next
-onset. Their tangents are carried with every basis vector (the derivative of the stored onset
-data along that perturbation, from the memory rules' derivatives) and transformed with it at each
-renormalisation, but they are not orthonormalised and not measured.
+The impact memory and the bristle states of Dahl and LuGre friction are not coordinates of this
+space: the exponents are the growth rates of perturbations of :math:`(q, \dot q)`, and the
+memory is a function of the perturbed motion's past (the approach speed is set from the state at
+each onset, the records accumulate it). A basis vector's memory part is therefore the derivative
+of the memory along that perturbation (from the memory rules' derivatives); it is carried with the
+vector and transformed with it at each renormalisation, never orthonormalised or measured. Only
+the entries the motion reads are carried (:func:`live_memory`): an entry no force and no rate
+depends on (the work, the running peaks, the onset time, the impact count, and the approach
+speed out of contact or under an elastic law) is an output, not a state, and its tangent is set
+to zero. Carried by the renormalisations' :math:`R^{-1}` it would grow like
+:math:`e^{-\lambda_p t}` (the contracting directions' inverse growth) without ever acting back, and
+overflow; an entry that is read acts back on the positions and velocities and grows no faster
+than they do.
 """
 
 from __future__ import annotations
@@ -42,6 +49,7 @@ import jax
 import jax.numpy as jnp
 
 from ..integrate import spd_solve
+from ..integrate.dynamics import flat_vector_field
 from ..model import constraints
 from ..model.drivers import crank_driver
 from ..model.mechanism import Mechanism
@@ -96,21 +104,47 @@ def projector(mech: Mechanism, t, q, qdot, w) -> jax.Array:
 def tangent_basis(mech: Mechanism, t, q, qdot, w, count: int) -> jax.Array:
     """``count`` orthonormal vectors (2n, count) of :math:`T\\mathcal M` in the weighted
     coordinates: the projections (:func:`projector`) of the coordinate directions
-    :math:`e_1, e_2, \\dots` (positions, then velocities), orthonormalised in that order (Gram-Schmidt,
-    twice for rounding), a direction that adds less than ``1e-6`` of its length skipped. So the
-    basis is the same for the same state (a start basis an independent implementation can repeat:
-    for a body on a slide, its position and velocity along the slide)."""
-    size = 2 * mech.n_coordinates
+    :math:`e_1, e_2, \\dots` (positions, then velocities), orthonormalised by Gram-Schmidt with
+    column pivoting: each vector is the projected direction that keeps the longest part after the
+    vectors before it are removed (the first such on a tie), twice for rounding. So the basis is
+    the same for the same state (a start basis an independent implementation can repeat: for a
+    body on a slide, its position and velocity along the slide), and a direction the constraints
+    nearly remove (a projection of length :math:`10^{-6}`, known only to the projector's rounding,
+    :math:`10^{-11}` on the benchmark) is not taken before a long one: taken in coordinate order, such
+    a remnant became a start vector off the manifold."""
     proj = projector(mech, t, q, qdot, w)
-    basis = jnp.zeros((size, count), q.dtype)
-    kept = jnp.zeros((), jnp.int32)
-    for i in range(size):
+    basis = jnp.zeros((proj.shape[0], count), q.dtype)
+    rest = proj
+    for k in range(count):
+        norms = jnp.sqrt(jnp.sum(rest**2, axis=0))
+        i = jnp.argmax(norms)
         v = proj[:, i]
         for _ in range(2):
             v = v - basis @ (basis.T @ v)
-        norm = jnp.sqrt(jnp.sum(v**2))
-        keep = (norm > 1e-6) & (kept < count)
-        column = jnp.where(keep, v / jnp.where(norm > 0, norm, 1.0), basis[:, jnp.minimum(kept, count - 1)])
-        basis = basis.at[:, jnp.minimum(kept, count - 1)].set(column)
-        kept = kept + keep.astype(jnp.int32)
+        v = v / jnp.maximum(jnp.sqrt(jnp.sum(v**2)), jnp.finfo(q.dtype).tiny)
+        basis = basis.at[:, k].set(v)
+        rest = rest - jnp.outer(v, v @ rest)
     return basis
+
+
+def live_memory(mech: Mechanism, baumgarte, t, y) -> jax.Array:
+    r"""Which entries of the memory part ``y[2n:]`` of the packed state ``y`` the motion reads
+    at ``(t, y)`` (1.0) and which it does not (0.0): entry ``j`` is read when some component of
+    the vector field :math:`f(t, y)` (:func:`~jaxclear.integrate.dynamics.flat_vector_field`:
+    accelerations and memory rates) has a non-zero derivative :math:`\partial f/\partial y_j`
+    (``jax.jacfwd``). Read: the approach speed inside a contact whose law damps with it, the
+    bristle states. Not read: the records (work, peaks, onset time, impact count: outputs) and
+    the approach speed out of contact (the next accepted step overwrites it) or under an elastic
+    law. One exception is not seen: a dissipative force clipped to zero at ``t`` (the journal
+    leaving faster than :math:`\dot\delta^{(-)}/\hat\chi`) reads the approach speed again if it
+    pushes later in the same contact."""
+    size = 2 * mech.n_coordinates
+    if y.shape[0] == size:
+        return jnp.zeros((0,), y.dtype)
+
+    def field(memory):
+        return flat_vector_field(t, jnp.concatenate([y[:size], memory]), (mech, baumgarte))
+
+    jac = jax.jacfwd(field)(y[size:])
+    return jnp.any(jac != 0, axis=0).astype(y.dtype)
+

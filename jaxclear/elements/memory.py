@@ -76,26 +76,6 @@ class ContactMemory(eqx.Module):
 
 N_FIELDS = len(ContactMemory.__dataclass_fields__)
 
-#: The fields that record the run (read by the outputs and the status checks, by no force and no
-#: memory rule): the motion does not depend on them, nor on their derivatives. The tangents of the
-#: Lyapunov exponents drop theirs at every renormalisation (:func:`record_mask`): a record
-#: that is not refreshed (a running peak, the accumulated work) would otherwise be multiplied by
-#: the inverse of the contracting directions' growth every interval, until it overflows.
-RECORDS = ("work", "peak_force", "peak_penetration")
-
-
-def record_mask(state):
-    """``state`` (an element's state pytree) with 0 at every :data:`RECORDS` field of each
-    :class:`ContactMemory` in it and 1 elsewhere (same shapes)."""
-    def mark(x):
-        if isinstance(x, ContactMemory):
-            return ContactMemory(*(jnp.full_like(getattr(x, f), 0.0 if f in RECORDS else 1.0)
-                                   for f in ContactMemory.__dataclass_fields__))
-        return jnp.ones_like(x)
-
-    return jax.tree_util.tree_map(mark, state, is_leaf=lambda x: isinstance(x, ContactMemory))
-
-
 #: Margin of the exact-onset step control, as a fraction of a step: a step whose only contact
 #: switch lies within ``ONSET_MARGIN`` of its start, or within ``2 ONSET_MARGIN`` of its end, is
 #: accepted; otherwise it is retried to end at ``s (1 + ONSET_MARGIN)`` (see :func:`onset_fraction`).
