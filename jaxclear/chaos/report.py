@@ -53,8 +53,9 @@ class ChannelReport:
 def characterise(mech: Mechanism, s: Settings, channels, *, per_revolution: int = 1, transient_revolutions: int = 0,
                  discard: int = 0, count: int | None = None, samples: int = 32, tol: float | None = None):
     """The spectrum and the channels' report of one run of ``s`` (whole crank revolutions,
-    renormalised ``per_revolution`` times a revolution; the section is the last sample of every
-    revolution after the transient). Returns ``(LyapunovResult, [ChannelReport])``."""
+    reported ``per_revolution`` times a revolution and renormalised at least as often,
+    :mod:`.benettin`; the section is the last sample of every revolution after the transient).
+    Returns ``(LyapunovResult, [ChannelReport])``."""
     channels = check_channels(mech, channels)
     found = crank_driver(mech)
     if found is None or float(found[1].speed) == 0.0:

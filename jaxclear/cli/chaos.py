@@ -23,7 +23,8 @@ HELP = "Lyapunov exponents, Poincare section, 0-1 test and spectrum of a mechani
 DESCRIPTION = f"""\
 Characterise the motion of a mechanism (a file or a preset) at one operating point: its Lyapunov
 exponents by Benettin's method on the tangent dynamics (over the tangent space of the constraint
-manifold, renormalised --per-revolution times a crank revolution), and, for each --channel, the
+manifold, reported --per-revolution times a crank revolution and renormalised at least as often,
+more often where the tangents' growth asks for it), and, for each --channel, the
 Poincare section once per revolution and its period (period-n), the 0-1 test for chaos
 (Gottwald and Melbourne) and the Welch power spectral density. The first --transient
 revolutions are integrated without tangents, the next --discard intervals do not count.
@@ -47,7 +48,8 @@ def configure(p: argparse.ArgumentParser):
     add_integration_options(p, revolutions=REVOLUTIONS)
     c = p.add_argument_group("chaos")
     c.add_argument("--per-revolution", type=number_in(int, 1), default=1, metavar="N",
-                   help="renormalisations (QR) per crank revolution [-], >= 1 (default: 1)")
+                   help="reporting intervals per crank revolution, each renormalised at its end and within it as "
+                        "often as the tangents' growth asks [-], >= 1 (default: 1)")
     c.add_argument("--transient", type=number_in(int, 0), default=TRANSIENT, metavar="N",
                    help="crank revolutions integrated without tangents first, part of --revolutions [-], >= 0 "
                    f"(default: {TRANSIENT})")
