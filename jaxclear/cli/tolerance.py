@@ -37,6 +37,11 @@ def configure(p: argparse.ArgumentParser):
     return run
 
 
+def _flags(notes: list) -> str:
+    """`` (note; note: see the warnings below)``, or nothing."""
+    return f" ({'; '.join(notes)}: see the warnings below)" if notes else ""
+
+
 def run(args) -> int:
     """Load the study (every key checked), run it, print the summary."""
     request_host_devices()
@@ -56,7 +61,9 @@ def run(args) -> int:
         lin = res.linearised.get(m)
         if lin:
             print(f"    linearised: mean {lin['mean']:.5g}, sd {lin['sd']:.3g}"
-                  + (" (leaves the metric's range: see the warning below)" if lin.get("outside_range") else "")
+                  + _flags(["leaves the metric's range"] * bool(lin.get("outside_range"))
+                           + [f"{lin.get('sd_ratio_to_sample', 0):.2g} times the sample's sd"]
+                           * bool(lin.get("departs_from_sample")))
                   + (f"; from derivatives sd {lin['derivatives']['sd']:.3g} (gradient "
                      f"{100 * lin['derivatives']['distance_to_differences']:.3g} % from the differences)"
                      if "derivatives" in lin else ""))

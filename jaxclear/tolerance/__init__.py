@@ -10,6 +10,7 @@ resumable, on every device). Theory: docs/theory/uncertainty.md.
 
 from .distributions import Inputs, Marginal, correlation_matrix, inputs_from_dict, marginal
 from .estimators import (
+    LINEAR_SD_FACTOR,
     METRIC_RANGES,
     SOBOL_NEGLIGIBLE,
     UnresolvedEstimateWarning,
@@ -18,6 +19,7 @@ from .estimators import (
     importance_exceedance,
     index_verdict,
     linearised,
+    linearised_against_sample,
     score_gradient,
     sobol_design,
     sobol_indices,
@@ -29,4 +31,4 @@ from .study import DEFAULT_METRICS, ToleranceResult, tolerance_study
 __all__ = ["tolerance_study", "ToleranceResult", "DEFAULT_METRICS", "Inputs", "Marginal", "marginal", "inputs_from_dict", "correlation_matrix", "METRIC_RANGES",
            "check_limit", "exceedance", "wilson_interval", "sobol_design", "sobol_indices", "linearised", "score_gradient",
            "importance_exceedance", "index_verdict", "sobol_warning", "SOBOL_NEGLIGIBLE",
-           "UnresolvedEstimateWarning"]
+           "UnresolvedEstimateWarning", "linearised_against_sample", "LINEAR_SD_FACTOR"]

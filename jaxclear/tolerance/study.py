@@ -41,7 +41,7 @@ from .._storage import atomic_write_json, atomic_write_text
 from ..model import Mechanism
 from .distributions import Inputs
 from .estimators import (UnresolvedEstimateWarning, check_limit, exceedance, importance_exceedance, linearised,
-                         score_gradient, sobol_design, sobol_indices, sobol_warning)
+                         linearised_against_sample, score_gradient, sobol_design, sobol_indices, sobol_warning)
 
 #: Metrics of a study by default.
 DEFAULT_METRICS = ("peak_contact_force_n", "rms_acc_deviation_m_s2", "fraction_free_flight")
@@ -222,6 +222,9 @@ def tolerance_study(inputs: Inputs, mech: Mechanism | None = None, *, preset: st
             res.linearised[m] = linearised(v[0], g, limits.get(m), metric=m)
             if res.linearised[m]["outside_range"]:
                 res.warnings.append(res.linearised[m]["warning"])
+            if (said := linearised_against_sample(m, res.linearised[m], summary[m].get("sd", 0.0), len(x))):
+                res.warnings.append(said)
+                warnings.warn(said, UnresolvedEstimateWarning, stacklevel=2)
             if m in res.exceedance:
                 res.exceedance[m]["linearised_probability"] = res.linearised[m]["probability"]
         if derivatives:
