@@ -260,8 +260,9 @@ def lyapunov_map(mech: Mechanism, s: Settings, names: Sequence[str], values, *, 
     one after another, which is faster on CPU, where the lanes of a batch wait for its slowest).
 
     Every run: ``transient_revolutions`` crank revolutions without tangents, then
-    ``revolutions`` revolutions with ``count`` tangents renormalised ``per_revolution`` times a
-    revolution, ``samples`` output samples per interval; ``channels`` (named channels,
+    ``revolutions`` revolutions with ``count`` tangents in ``per_revolution`` reporting intervals
+    a revolution (each renormalised at its end and, within it, as often as the default
+    ``max_growth`` of :func:`lyapunov` asks), ``samples`` output samples per interval; ``channels`` (named channels,
     :func:`jaxclear.channel`) are sampled once per revolution (a Poincare section each, for a
     bifurcation diagram). ``s`` gives the tolerances and the solver (its ``t_end`` is not used).
     Nothing raises for a failed member: its ``status`` says what happened.
