@@ -1,16 +1,17 @@
 r"""Benettin's method on the tangent dynamics of a mechanism: the traceable core of
 :func:`~jaxclear.chaos.lyapunov` (one compiled program; ``jax.vmap`` applies).
 
-The run is cut into ``windows`` intervals of length :math:`\tau`, each renormalised at least
-once, at its end (more often where the tangents' growth asks for it, below). The state and
-``count`` tangent vectors (perturbations of the state at a step's start) are integrated together by :class:`~jaxclear.integrate.sensitivity.TangentSystem` with no perturbed
-parameter: the variational equation :math:`\dot S = f_y S` with the same Runge-Kutta steps as the
-state, the tangents in the step-size control (CVODES ``errconS``), steps ending at every contact
-onset and separation and at the friction laws' kinks, and the memory rules' derivatives applied
-at every accepted step. A contact force is continuous at an onset and a separation (zero at zero
-penetration), so the positions' and velocities' tangents do not jump there; what does jump is the
-stored approach speed, whose tangent carries the shift of the onset time (saltation of the memory
-rule, :mod:`jaxclear.integrate.sensitivity`).
+The run is cut into ``windows`` intervals of length :math:`\tau`, each renormalised at least once,
+at its end (more often where the tangents' growth asks for it, below). The state and ``count``
+tangent vectors (perturbations of the state at a step's start) are integrated together by
+:class:`~jaxclear.integrate.sensitivity.TangentSystem` with no perturbed parameter: the variational
+equation :math:`\dot S = f_y S` with the same Runge-Kutta steps as the state, the tangents in the
+step-size control (CVODES ``errconS``), steps ending at every contact onset and separation and at
+the friction laws' kinks, and the memory rules' derivatives applied at every accepted step. A
+contact force is continuous at an onset and a separation (zero at zero penetration), so the
+positions' and velocities' tangents do not jump there; what does jump is the stored approach speed,
+whose tangent carries the shift of the onset time (saltation of the memory rule,
+:mod:`jaxclear.integrate.sensitivity`).
 
 At the end of each renormalisation step the tangents are projected on the tangent space of the
 constraint manifold (:mod:`.manifold`), weighted, and orthonormalised by a QR factorisation
@@ -24,24 +25,24 @@ overflowed). The ``i``-th exponent is :math:`\lambda_i = \sum_k \ln|R^{(k)}_{ii}
 the intervals after ``discard``.
 
 The steps adapt to the tangents' growth. The information about the ``i``-th direction is what is
-left of a tangent after the larger directions are removed: when the growths within one step
-spread by :math:`e^{G}`, a direction :math:`e^{G}` times smaller than the largest is held only
-to :math:`e^{G}` times the tolerance, and the smallest exponents are lost (undamped Hertz contact,
-a Hamiltonian motion whose exponents sum to zero, renormalised once a revolution: sum +899 1/s;
-every eighth of a revolution, where a contact can still spread the growths by :math:`e^{16}`:
-+7.9). So a step of length :math:`h` is accepted only when the spread of its log growths and 0,
-:math:`G = \max(0, \max_i\ln|R_{ii}|) - \min(0, \min_i\ln|R_{ii}|)`, is at most ``max_growth``
-(default :math:`\ln(0.01/\mathrm{rtol})`, :func:`default_max_growth`; with the 0, a single tangent's own growth and decay are bounded too); a step
-that spread them more, or whose tangents overflowed, is retried shorter, and the next step is
-:math:`0.9\,h\,G_{\max}/G`, at most twice the last and never past the interval's end (the rule
-of a step-size controller, with the growth in place of the error: the growth of a linear
-equation's solution is about proportional to the time). Within the interval the steps are the
-iterations of a ``lax.while_loop``; the interval's :math:`\ln|R_{ii}|` is their sum, so the
-running estimate, the batch means and the output samples are per interval as before. A step of
-:data:`SHORTEST` times the interval is accepted whatever its growth, and overflow there is
+left of a tangent after the larger directions are removed: when the growths within one step spread
+by :math:`e^{G}`, a direction :math:`e^{G}` times smaller than the largest is held only to
+:math:`e^{G}` times the tolerance, and the smallest exponents are lost (undamped Hertz contact, a
+Hamiltonian motion whose exponents sum to zero, renormalised once a revolution: sum +899 1/s; every
+eighth of a revolution, where a contact can still spread the growths by :math:`e^{16}`: +7.9). So a
+step of length :math:`h` is accepted only when the spread of its log growths and 0, :math:`G =
+\max(0, \max_i\ln|R_{ii}|) - \min(0, \min_i\ln|R_{ii}|)`, is at most ``max_growth`` (default
+:math:`\ln(0.01/\mathrm{rtol})`, :func:`default_max_growth`; with the 0, a single tangent's own
+growth and decay are bounded too); a step that spread them more, or whose tangents overflowed, is
+retried shorter, and the next step is :math:`0.9\,h\,G_{\max}/G`, at most twice the last and never
+past the interval's end (the rule of a step-size controller, with the growth in place of the error:
+the growth of a linear equation's solution is about proportional to the time). Within the interval
+the steps are the iterations of a ``lax.while_loop``; the interval's :math:`\ln|R_{ii}|` is their
+sum, so the running estimate, the batch means and the output samples are per interval. A
+step of :data:`SHORTEST` times the interval is accepted whatever its growth, and overflow there is
 status 2. The transfer-matrix method for disordered solids sets the frequency of its
-orthonormalisations the same way, by how much a vector's length changes before and after one
-(A. MacKinnon, notes on the critical indices,
+orthonormalisations the same way, by how much a vector's length changes before and after one (A.
+MacKinnon, notes on the critical indices,
 http://www.cmth.ph.ic.ac.uk/people/a.mackinnon/Research/critind/node3.html); ChaosTools.jl's
 ``lyapunovspectrum`` takes a fixed ``Δt``.
 
@@ -295,4 +296,5 @@ def benettin(mech: Mechanism, s: Settings, y0: State | None, *, transient, inter
         stderr=_batch_stderr(finite_time, windows - discard), status=status.astype(jnp.int32),
         run_status=code.astype(jnp.int32), t_end=ts[-1, -1] if windows else t_a,
         ts=ts.reshape(-1) if keep else jnp.zeros((0,), dtype),
-        packed=packed.reshape(-1, size), renormalisations=renormalisations, num_steps=jnp.sum(steps) + pre.num_accepted_steps + pre.num_rejected_steps)
+        packed=packed.reshape(-1, size), renormalisations=renormalisations,
+        num_steps=jnp.sum(steps) + pre.num_accepted_steps + pre.num_rejected_steps)

@@ -121,6 +121,7 @@ def write_report(folder: str, mech: Mechanism, result, reports) -> dict:
         "largest": float(ex.max()), "sum": float(ex.sum()),
         "e_folding_time": float(1 / ex.max()) if ex.max() > 0 else None,
         "interval": float(result.interval), "intervals_counted": int(running.shape[0]),
+        "renormalisations": int(np.sum(np.asarray(result.renormalisations))),
         "channels": {c.name: {"period": c.period, "longest_period_tested": c.longest, "zero_one_K": c.k,
                               "zero_one_on": c.k_on,
                               "psd_peak_Hz": c.peak_frequency} for c in reports},
