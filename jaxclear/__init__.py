@@ -96,12 +96,15 @@ from .integrate import (  # noqa: E402
 )
 from .model import (  # noqa: E402
     GROUND,
+    AbstractConnector,
     AbstractConstraint,
+    AbstractCurve,
     AbstractDriver,
     AbstractJoint,
     AbstractLoad,
     AngleDriver,
     Body,
+    Bushing,
     Fixed,
     ConstantProfile,
     FunctionDriver,
@@ -109,12 +112,16 @@ from .model import (  # noqa: E402
     Mechanism,
     PointForce,
     PointOnLine,
+    PolynomialCurve,
     ProfileDriver,
     RampProfile,
     Revolute,
+    RotationalSpringDamper,
+    TableCurve,
     TableProfile,
     Torque,
     Translational,
+    TranslationalSpringDamper,
     crank_period,
 )
 from .presets import preset, preset_file, preset_names  # noqa: E402

@@ -88,7 +88,7 @@ class RESULTS(eqx.Enumeration):
         "invalid parameter: another law or element number outside its range (exponent > 0, "
         "length > 0, impact_velocity_floor > 0, Young's modulus > 0, Poisson ratio in (-1, 0.5), "
         "friction speeds > 0, viscosity > 0, 0 < blend_start < blend_end < 1, slot_length >= 0, "
-        "corner_radius > 0, axis non-zero, all finite)"
+        "corner_radius > 0, axis non-zero, a spring, damper or bushing constant >= 0, all finite)"
     )
     penetration_too_deep = (
         "penetration deeper than a tenth of the journal radius (of the corner radius in a "

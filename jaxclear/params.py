@@ -61,6 +61,9 @@ as given (the assembly places the body). Their value is the shift relative to th
 they are applied to (``get`` reads 0), so ``replace(mech, "centroid_x:rod", 0.01)`` moves the
 rod's centroid 10 mm towards its point of larger x. This is the one place that shift is made.
 
+A force element among the loads names its constants ``BASE:NAME`` (:data:`CONNECTOR_NAMES`; units,
+ranges: its class's ``PARAMETERS``, :mod:`jaxclear.model.connectors`; docs/theory/force-elements.md).
+
 ``width`` is an old name of ``length`` for the lubricated joint: still accepted, with a
 :class:`DeprecationWarning`.
 
@@ -90,6 +93,7 @@ from ._units import rad_s_to_rpm, rpm_to_rad_s
 from .contact.friction import FRICTION_MODELS
 from .elements import LubricatedJoint, TranslationalClearanceJoint
 from .model import GROUND, Mechanism, crank_driver
+from .model.connectors import AbstractConnector, connector_parameters, connector_where
 
 
 @dataclass(frozen=True)
@@ -161,28 +165,23 @@ INFO = {
                                 "initial relative velocity of the clearance joint, second component"),
 }
 
+#: a force element's constants (``BASE:NAME``): base name -> the element's field
+CONNECTOR_NAMES = {b: p.field for b, p in connector_parameters().items()}
+INFO.update({b: ParameterInfo(b, p.unit, p.low, None, p.low_open, False, p.transform, f"{p.doc} ({b}:NAME)")
+             for b, p in connector_parameters().items()})
 #: names of one component of a 2-vector leaf: name -> (leaf kind, component)
 COMPONENTS = {"load_x": ("load", 0), "load_y": ("load", 1), "point_x": ("point", 0), "point_y": ("point", 1), "centroid_x": ("centroid", 0),
               "centroid_y": ("centroid", 1), "offset_x": ("offset", 0), "offset_y": ("offset", 1),
               "velocity_x": ("velocity", 0), "velocity_y": ("velocity", 1)}
 
-
 #: old parameter name -> the name that replaced it (accepted with a DeprecationWarning)
 DEPRECATED = {"width": "length"}
 
-
 #: parameter name -> field of the joint's friction law (the parameters beyond ``friction``)
-FRICTION_FIELDS = {
-    "friction_static": "static",
-    "friction_viscous": "viscous",
-    "v_stribeck": "v_stribeck",
-    "stribeck_exponent": "stribeck_exponent",
-    "v_threlfall": "v_threlfall",
-    "v_transition": "v_transition",
-    "bristle_stiffness": "bristle_stiffness",
-    "bristle_damping": "bristle_damping",
-}
-
+FRICTION_FIELDS = {"friction_static": "static", "friction_viscous": "viscous", "v_stribeck": "v_stribeck",
+                   "stribeck_exponent": "stribeck_exponent", "v_threlfall": "v_threlfall",
+                   "v_transition": "v_transition", "bristle_stiffness": "bristle_stiffness",
+                   "bristle_damping": "bristle_damping"}
 
 #: names that need a body (``NAME:BODY``)
 BODY_NAMES = ("mass", "inertia", "centroid_x", "centroid_y")
@@ -219,7 +218,10 @@ def names(mech: Mechanism) -> list[str]:
         out += [f"point_{c}:{body.name}.{p}" for p in body.points for c in "xy"]
     out += [f"point_{c}:{GROUND}.{p}" for p in mech.ground_points for c in "xy"]
     for i, load in enumerate(mech.loads):
-        out += [f"torque:{i}"] if "torque" in type(load).__dataclass_fields__ else [f"load_x:{i}", f"load_y:{i}"]
+        if isinstance(load, AbstractConnector):
+            out += [f"{base}:{load.name}" for base in load.PARAMETERS]
+        else:
+            out += [f"torque:{i}"] if "torque" in type(load).__dataclass_fields__ else [f"load_x:{i}", f"load_y:{i}"]
     return out
 
 
@@ -326,6 +328,9 @@ def _lookup(mech: Mechanism, name: str) -> tuple[Callable, Callable]:
             return where, where
         k = COMPONENTS[base][1]
         return (lambda m: where(m)[k]), where
+    if base in CONNECTOR_NAMES:
+        w = connector_where(mech.loads, base, body)
+        return w, w
     if base in ("point_x", "point_y"):
         owner, point = body.split(".", 1)
         if owner == GROUND:
@@ -469,9 +474,6 @@ def validate(mech: Mechanism, name: str, values) -> np.ndarray:
     return arr
 
 
-# ---- unconstrained transforms for optimisation --------------------------------------
-
-
 def to_unconstrained(name: str, value):
     """Map a value in the parameter's range to the real line (``log`` or ``logit``)."""
     t = info(name).transform
@@ -493,6 +495,6 @@ def from_unconstrained(name: str, z):
     return z
 
 
-__all__ = ["BODY_NAMES", "COMPONENTS", "DEPRECATED", "DERIVED", "FRICTION_FIELDS", "INFO", "LOAD_NAMES", "ParameterInfo",
-           "closest", "from_unconstrained", "get", "info", "is_derived", "names", "parameter_names", "replace",
-           "replace_following", "replace_many", "to_unconstrained", "validate"]
+__all__ = ["BODY_NAMES", "COMPONENTS", "CONNECTOR_NAMES", "DEPRECATED", "DERIVED", "FRICTION_FIELDS", "INFO",
+           "LOAD_NAMES", "ParameterInfo", "closest", "from_unconstrained", "get", "info", "is_derived", "names",
+           "parameter_names", "replace", "replace_following", "replace_many", "to_unconstrained", "validate"]

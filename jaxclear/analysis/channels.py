@@ -21,6 +21,12 @@ Names are fields separated by ``:``; options ``key=value`` or flags may follow i
 ``J`` is an index into ``mech.constraints`` (joints, then drivers) or a label such as
 ``Revolute(ground-crank)``; ``K`` an index into ``mech.clearance_joints`` or a joint's name.
 
+* ``load:L:NAME``: output ``NAME`` of force element ``L`` among the loads (an index into
+  ``mech.loads`` or its name; ``type(load).OUTPUTS``): ``load:strut:force``,
+  ``load:strut:length``, ``load:strut:rate``, ``load:strut:power`` of a spring-damper;
+  ``moment``, ``angle``, ``rate``, ``power`` of a rotational one; a bushing's ``force_x``, ``dx``,
+  ... in its first body's axes (:mod:`jaxclear.model.connectors`).
+
 Kinematics follow Nikravesh, "Computer-Aided Analysis of Mechanical Systems" (1988): point
 acceleration :math:`\ddot r + \ddot\phi\,\mathrm{perp}(A s') - \dot\phi^2 A s'`
 (:func:`jaxclear.model.point_acceleration`), components in a body frame
@@ -41,7 +47,7 @@ import numpy as np
 
 from .._errors import ParameterError
 from ..integrate import Solution
-from ..model import GROUND, Mechanism, point_acceleration, point_position, point_velocity
+from ..model import GROUND, AbstractConnector, Mechanism, point_acceleration, point_position, point_velocity
 from ..model.drivers import COORDINATES
 from ..model.geometry import rotate
 
@@ -50,7 +56,7 @@ COMPONENTS = ("x", "y", "norm")
 REACTION_COMPONENTS = ("x", "y", "moment", "norm")
 JOINT_SIGNALS = {"ecc_x": "m", "ecc_y": "m", "ecc": "m", "penetration": "m", "normal_force": "N",
                  "friction_force": "N", "mode": "-"}
-KINDS = ("time", "body", "point", "reaction", "joint")
+KINDS = ("time", "body", "point", "reaction", "joint", "load")
 
 
 @dataclass(frozen=True)
@@ -220,13 +226,30 @@ def _joint_channel(mech, sol, spec):
     return series[what](), JOINT_SIGNALS[what]
 
 
+def _load_channel(mech, sol, spec):
+    _option_keys(spec, ())
+    named = {ld.name: i for i, ld in enumerate(mech.loads) if isinstance(ld, AbstractConnector)}
+    if len(spec.fields) != 2:
+        _fail(spec.name, f"expected load:L:OUTPUT, L a force element among the loads: an index or one of {list(named)}")
+    key, what = spec.fields
+    k = int(key) if key.isdigit() and int(key) in named.values() else named.get(key)
+    if k is None:
+        _fail(spec.name, f"{key!r} is no force element among the loads; give one of {list(named)} or its index "
+                         f"{list(named.values())}")
+    load = mech.loads[k]
+    if what not in load.OUTPUTS:
+        _fail(spec.name, f"{what!r} is not an output of {load.label}; allowed: {list(load.OUTPUTS)}")
+    values = jax.vmap(lambda t, q, qd: load.outputs(mech, t, q, qd)[what])(sol.ts, sol.q, sol.qdot)
+    return values, load.OUTPUTS[what]
+
+
 def channel_with_unit(mech: Mechanism, sol: Solution, name: str):
     """``(values (T,), unit)`` of channel ``name`` (see the module docstring)."""
     spec = parse(name)
     if spec.kind == "time":
         return sol.ts, "s"
     return {"body": _body_channel, "point": _point_channel, "reaction": _reaction_channel,
-            "joint": _joint_channel}[spec.kind](mech, sol, spec)
+            "joint": _joint_channel, "load": _load_channel}[spec.kind](mech, sol, spec)
 
 
 def channel(mech: Mechanism, sol: Solution, name: str):

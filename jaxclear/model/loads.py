@@ -17,25 +17,29 @@ from .bodies import vec2
 from .profiles import AbstractProfile
 
 
-
 class AbstractLoad(eqx.Module):
-    """An applied load on ``body``: its generalized force on all coordinates."""
-
-    body: eqx.AbstractVar[str]
+    """An applied load on one or more bodies: its generalized force on all coordinates (the
+    force elements between two bodies: :class:`~jaxclear.model.connectors.AbstractConnector`)."""
 
     @abc.abstractmethod
     def generalized_force(self, mech, t: Scalar, q, qdot) -> Float[Array, " n"]:
         """Generalized force (n,) [N, N, N m per body]."""
 
+    @abc.abstractmethod
     def bodies(self) -> tuple[str, ...]:
-        return (self.body,)
+        """The bodies it acts on (``"ground"`` allowed)."""
 
     def points(self) -> tuple[tuple[str, str], ...]:
         return ()
 
+    def checks(self) -> tuple:
+        """Its range rules (:class:`~jaxclear._errors.Rule`), evaluated at run time by
+        :meth:`Mechanism.check <jaxclear.Mechanism.check>`. Default: none."""
+        return ()
+
     @property
     def label(self) -> str:
-        return f"{type(self).__name__}({self.body})"
+        return f"{type(self).__name__}({', '.join(self.bodies())})"
 
 
 def _factor(profile, t):
@@ -65,6 +69,9 @@ class PointForce(AbstractLoad):
         self.body, self.point, self.function, self.profile = body, point, function, profile
         self.force = vec2("point force", force)
 
+    def bodies(self):
+        return (self.body,)
+
     def points(self):
         return ((self.body, self.point),)
 
@@ -88,6 +95,9 @@ class Torque(AbstractLoad):
         _check_profile(profile)
         self.body, self.function, self.profile = body, function, profile
         self.torque = jnp.asarray(torque, dtype=float)
+
+    def bodies(self):
+        return (self.body,)
 
     def generalized_force(self, mech, t, q, qdot):
         tau = self.torque * _factor(self.profile, t)

@@ -21,6 +21,7 @@ import jax.numpy as jnp
 from .._errors import RESULTS, MechanismError, failed_check, first_failure
 from .._types import Array, ArrayLike, Float, Vec2
 from .bodies import GROUND, Body, vec2
+from .connectors import AbstractConnector
 from .geometry import cross2, perp, rotate
 from .joints import AbstractConstraint
 
@@ -114,7 +115,8 @@ class Mechanism(eqx.Module):
         :class:`~jaxclear.RESULTS` ``invalid_*`` entry, or ``successful``. :func:`~jaxclear.simulate`
         evaluates it at run time, so it holds under ``jit`` and ``vmap`` where the constructors'
         checks see only tracers."""
-        return first_failure(*(b.check() for b in self.bodies), *(e.check() for e in self.elements))
+        return first_failure(*(b.check() for b in self.bodies), *(e.check() for e in self.elements),
+                             *(rule for load in self.loads for rule in load.checks()))
 
     def failed_check(self) -> str | None:
         """Eagerly, on concrete numbers: the first of :meth:`check`'s checks that fails, in one
@@ -130,6 +132,10 @@ class Mechanism(eqx.Module):
             message = failed_check(element.checks())
             if message is not None:
                 return f"{element.label} (clearance_joints[{k}]): {message}"
+        for k, load in enumerate(self.loads):
+            message = failed_check(load.checks())
+            if message is not None:
+                return f"{load.label} (loads[{k}]): {message}"
         return None
 
     def body_index(self, name: str) -> int:
@@ -246,6 +252,11 @@ def _validate_structure(bodies, joints, drivers, elements, loads, ground_points,
     if twice:
         raise MechanismError(f"clearance joint names must be unique (outputs and parameters address a joint by "
                              f"its name), got {twice[0]!r} twice in {[c.name for c in elements]}")
+    named = [ld.name for ld in loads if isinstance(ld, AbstractConnector)]
+    twice = sorted(n for n, k in Counter(named).items() if k > 1)
+    if twice:
+        raise MechanismError(f"force element names (springs, dampers, bushings among the loads) must be unique "
+                             f"(parameters and outputs address one by its name), got {twice[0]!r} twice in {named}")
     points = {b.name: b.points for b in bodies}
     points[GROUND] = ground_points
 

@@ -181,14 +181,11 @@ class TableProfile(AbstractProfile):
         self.coefficients, self.integrals = jnp.asarray(pchip.c), jnp.asarray(pchip.antiderivative().c)
 
     def _piece(self, t):
-        tc = jnp.where(t < self.time[0], self.time[0], jnp.where(t > self.time[-1], self.time[-1], t))  # not clip (1/2)
-        k = jnp.clip(jnp.searchsorted(self.time, tc, side="right") - 1, 0, self.time.shape[0] - 2)
-        return tc, k, tc - self.time[k]
+        return table_piece(self.time, t)
 
     def value(self, t):
         _, k, x = self._piece(t)
-        c = self.coefficients[:, k]
-        return ((c[0] * x + c[1]) * x + c[2]) * x + c[3]
+        return cubic(self.coefficients[:, k], x)
 
     def integral(self, t):
         tc, k, x = self._piece(t)
@@ -198,12 +195,30 @@ class TableProfile(AbstractProfile):
 
     def derivative(self, t):
         _, k, x = self._piece(t)
-        c = self.coefficients[:, k]
-        inside = (3.0 * c[0] * x + 2.0 * c[1]) * x + c[2]
+        inside = cubic_slope(self.coefficients[:, k], x)
         return jnp.where((t < self.time[0]) | (t > self.time[-1]), 0.0, inside)
 
     def end_time(self):
         return float(self.time[-1])
+
+
+def table_piece(knots: Float[Array, " n"], x: Scalar):
+    """``(xc, k, xc - knots[k])``: ``x`` held to ``[knots[0], knots[-1]]`` and the interval ``k``
+    of a piecewise cubic on strictly increasing ``knots`` (the PCHIP tables here and of
+    :class:`~jaxclear.model.curves.TableCurve`)."""
+    xc = jnp.where(x < knots[0], knots[0], jnp.where(x > knots[-1], knots[-1], x))  # not clip (1/2)
+    k = jnp.clip(jnp.searchsorted(knots, xc, side="right") - 1, 0, knots.shape[0] - 2)
+    return xc, k, xc - knots[k]
+
+
+def cubic(c: Float[Array, " 4"], x: Scalar) -> Scalar:
+    """:math:`c_0x^3 + c_1x^2 + c_2x + c_3` (one interval of SciPy's piecewise-polynomial layout)."""
+    return ((c[0] * x + c[1]) * x + c[2]) * x + c[3]
+
+
+def cubic_slope(c: Float[Array, " 4"], x: Scalar) -> Scalar:
+    """The derivative of :func:`cubic`: :math:`3c_0x^2 + 2c_1x + c_2`."""
+    return (3.0 * c[0] * x + 2.0 * c[1]) * x + c[2]
 
 
 PROFILE_KINDS.update(constant=ConstantProfile, ramp=RampProfile, harmonic=HarmonicProfile, table=TableProfile)
