@@ -13,8 +13,10 @@ slider-crank (Flores et al., 0.5 mm clearance; jaxclear's preset ``flores-slider
    Rosenstein's estimate (``nolds.lyap_r``) on each series: wall time of both parts, and the
    estimates beside the tangent exponents.
 
-4. **Convergence** (``--convergence``): the one point again renormalised every half revolution and
-   at rtol 1e-8, each over the same ``--revolutions``: interval and tolerance independence.
+4. **Convergence** (``--convergence``): the one point again reported every half revolution and at
+   rtol 1e-8, each over the same ``--revolutions``: interval and tolerance independence (the
+   tangents are renormalised at the end of every interval and within it as often as their growth
+   asks, ``jaxclear.chaos.benettin``).
 
 Writes ``results/chaos.json``. Small settings (``--quick``) keep it under 10 minutes on 2 shared
 cores; the numbers then are costs, not converged exponents.
@@ -42,8 +44,8 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 
 def one_point(mech, revolutions: int, transient: int, fraction: float = 1.0, rtol: float = 1e-6,
               repeat: bool = True):
-    """The largest exponent over ``revolutions`` after ``transient`` ones, renormalised every
-    ``fraction`` of a revolution, at ``rtol`` (atol = rtol / 1000); timed twice (first call with
+    """The largest exponent over ``revolutions`` after ``transient`` ones, reported every
+    ``fraction`` of a revolution (renormalised at least as often), at ``rtol`` (atol = rtol / 1000); timed twice (first call with
     compilation, then steady) unless ``repeat`` is off (then both times are the one call's)."""
     period = jc.crank_period(mech)
     # max_steps is per renormalisation interval (about 5,000 steps a revolution at rtol 1e-8); the
