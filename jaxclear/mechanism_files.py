@@ -8,9 +8,9 @@ and roles. :func:`load_mechanism` reads one (the standard ``tomllib``) and valid
 every error names the file, the key and the allowed values. :func:`save_mechanism` writes one
 (``tomli-w``); a mechanism written and read back is equal leaf by leaf (``eqx.tree_equal``).
 
-Python functions (:class:`~jaxclear.FunctionDriver`, ``function=`` of a load: a spring or damper
-between two points) cannot be written to a file; saving one raises :class:`~jaxclear.MechanismError`
-naming the function and what to do instead.
+Python functions (:class:`~jaxclear.FunctionDriver`, ``function=`` of a load) cannot be written to a
+file; saving one raises :class:`~jaxclear.MechanismError` naming the function and the force element
+(spring-damper, rotational spring-damper, bushing: ``loads`` of their own ``type``) to use instead.
 
 This module sits beside :mod:`jaxclear.presets` (it builds laws and force elements, so it is
 above ``contact/`` and ``elements/`` in the layers).
@@ -37,8 +37,8 @@ from .contact.friction import FRICTION_MODELS, friction_name
 from .contact.registry import LAWS, law_names
 from .elements import FILMS, IDEALS, ClearanceJoint, LubricatedJoint, PinSlotJoint, TranslationalClearanceJoint
 from .model import AngleDriver, Body, Fixed, Mechanism, PointForce, ProfileDriver, Revolute, Torque, Translational
-from .model.profiles import PROFILE_KINDS
-from .profile_tables import profile_table, read_profile
+from .model.connectors import CONNECTORS
+from .profile_tables import PROFILE_KINDS, load_tables, read_curve, read_profile
 from .model.mechanism import check_sizes
 
 FORMAT_VERSION = 1
@@ -56,8 +56,10 @@ DRIVER_TYPES = {"angle": (AngleDriver, ("body", "speed", "angle0", "relative_to"
                 "speed-profile": (ProfileDriver, ("body", "angle0", "relative_to"))}  # + the profile table
 LOAD_TYPES = {
     "point-force": (PointForce, ("body", "point", "force")),
-    "torque": (Torque, ("body", "torque")),
-}  # + an optional profile table (a time factor)
+    "torque": (Torque, ("body", "torque")),  # + an optional profile table (a time factor)
+    **{kind: (cls, tuple(k for k in inspect.signature(cls).parameters if k != "curve"))
+       for kind, cls in CONNECTORS.items()},  # + a spring's optional curve table
+}
 _JOURNAL = ("name", "bearing_body", "bearing_point", "journal_body", "journal_point", "bearing_radius",
             "journal_radius")
 _TAIL = ("law", "friction", "impact_velocity_floor", "initial_offset", "initial_velocity")
@@ -78,19 +80,17 @@ CHOICES = {"film": FILMS, "ideal": IDEALS}
 #: keys whose value is a string (every other value is a number or an array of numbers)
 STRING_KEYS = {"name", "body", "point", "body_i", "point_i", "body_j", "point_j", "bearing_body", "bearing_point",
                "journal_body", "journal_point", "guide_body", "guide_point", "slider_body", "slider_point",
-               "relative_to", *CHOICES}
+               "relative_to", "body_a", "point_a", "body_b", "point_b", "drawn_at", *CHOICES}
 #: law parameters that are tables, by the suffix of their key
 TABLE_PARAMETERS = {"_material": (Material, ("young", "poisson")), "_profile": (FourierProfile, ("cos", "sin"))}
 #: keys whose value is an integer (counts; a law's integer fields are found from its annotations)
 INTEGER_KEYS = {"n_elements", "n_gauss"}
 REQUIRED = {"body", "body_i", "point_i", "body_j", "point_j", "point", "bearing_body",
             "bearing_point", "journal_body", "journal_point", "bearing_radius", "guide_body", "guide_point",
-            "slider_body", "slider_point"}
+            "slider_body", "slider_point", "body_a", "point_a", "body_b"}
 
 
-# --------------------------------------------------------------------------------------
-# writing
-# --------------------------------------------------------------------------------------
+# ---- writing ------------------------------------------------------------------------------
 
 
 def _number(value):
@@ -102,9 +102,7 @@ def _number(value):
 
 
 def _plain(value):
-    if isinstance(value, (str, bool, int, float)):
-        return value
-    return _number(value)
+    return value if isinstance(value, (str, bool, int, float)) else _number(value)
 
 
 def _fields(module, keys) -> dict:
@@ -116,9 +114,10 @@ def _no_function(item, where: str):
     if getattr(item, "function", None) is not None:
         raise MechanismError(
             f"{where} ({item.label}) is given by the Python function {function_name(item.function)}: a mechanism file "
-            "holds numbers, not code, and no spring or damper element a file holds exists yet (only a PointForce's "
-            "force and a Torque's torque, with optional time profiles); save the mechanism without this load and add "
-            "it again in Python after loading: m = eqx.tree_at(lambda m: m.loads, m, (*m.loads, load))")
+            "holds numbers, not code; a spring or damper between two points is a jaxclear.TranslationalSpringDamper "
+            "(linear, preloaded, or with a PolynomialCurve or TableCurve), between two bodies' angles a "
+            "RotationalSpringDamper, a compliant mount a Bushing, each saved with the file; any other function: save "
+            "without this load and add it again after loading: m = eqx.tree_at(lambda m: m.loads, m, (*m.loads, load))")
 
 
 def _typed(table: dict, item, where: str, skip=()) -> dict:
@@ -173,8 +172,7 @@ def mechanism_dict(mech: Mechanism) -> dict:
         if items:
             doc[key] = [_typed(table, item, f"{key}[{i}]") for i, item in enumerate(items)]
             for row, item in zip(doc[key], items):
-                if getattr(item, "profile", None) is not None:
-                    row["profile"] = profile_table(item.profile)
+                row.update(load_tables(item))  # a time profile, a spring's curve
     elements = []
     for i, el in enumerate(mech.clearance_joints):
         row = _typed(ELEMENT_TYPES, el, f"clearance_joints[{i}]", skip=("law", "friction"))
@@ -207,9 +205,7 @@ def save_mechanism(mech: Mechanism, path, comment: str = "") -> str:
     return atomic_write_text(os.fspath(path), dumps_mechanism(mech, comment))
 
 
-# --------------------------------------------------------------------------------------
-# reading
-# --------------------------------------------------------------------------------------
+# ---- reading ------------------------------------------------------------------------------
 
 
 class _Reader:
@@ -276,6 +272,8 @@ class _Reader:
             return cls(**kwargs)
         except JaxclearError as err:
             raise type(err)(f"{self.source}: {key}: {err}") from None
+        except TypeError as err:  # a key the constructor needs is missing (a force element's name)
+            raise MechanismError(f"{self.source}: {key}: {err}") from None
 
     def points(self, key: str, value) -> dict:
         return {self.string(f"{key}", k): self.vector(f"{key}.{k}", v, 2) for k, v in self.table(key, value).items()}
@@ -434,9 +432,11 @@ def _driver(r: _Reader, key: str, row) -> object:
 
 
 def _load(r: _Reader, key: str, row) -> object:
-    cls, kwargs = r.typed(key, row, LOAD_TYPES, skip=("profile",))
+    cls, kwargs = r.typed(key, row, LOAD_TYPES, skip=("profile", "curve"))
     if "profile" in row:
         kwargs["profile"] = read_profile(r, f"{key}.profile", row["profile"], r.folder)
+    if "curve" in row:
+        kwargs["curve"] = read_curve(r, f"{key}.curve", row["curve"])
     return r.build(key, cls, kwargs)
 
 

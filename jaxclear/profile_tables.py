@@ -1,6 +1,7 @@
 """Time profiles in mechanism files: the ``profile`` table of a ``speed-profile`` driver or of a
 load (docs/mechanism-files.md), read into a :mod:`~jaxclear.model.profiles` profile and written
-back. Only numbers, arrays of numbers and a CSV file of numbers are read: no text is evaluated.
+back; and the ``curve`` table of a nonlinear spring (:mod:`~jaxclear.model.curves`). Only numbers,
+arrays of numbers and a CSV file of numbers are read: no text is evaluated.
 
 A table's values may come inline (``time = [...]``, ``values = [...]``) or from ``file``, a CSV
 of two columns (time [s], value; an optional header row), relative to the mechanism file's
@@ -16,6 +17,7 @@ import numpy as np
 
 from ._errors import JaxclearError, MechanismError, ParameterError
 from ._units import rpm_to_rad_s
+from .model.curves import PolynomialCurve, TableCurve
 from .model.profiles import PROFILE_KINDS, ConstantProfile, HarmonicProfile, RampProfile, TableProfile
 
 #: kind -> (keys with numbers, keys scaled by a speed unit)
@@ -25,6 +27,8 @@ PROFILE_KEYS = {
     "harmonic": (("value", "amplitude", "frequency", "phase"), ("value", "amplitude")),
     "table": (("time", "values", "file"), ("values",)),
 }
+#: a spring's ``curve`` table: kind -> (class, its array keys in constructor order)
+CURVE_KINDS = {"polynomial": (PolynomialCurve, ("coefficients",)), "table": (TableCurve, ("deflection", "forces"))}
 #: speed units of a driver's profile -> factor to rad/s
 SPEED_UNITS = {"rad/s": 1.0, "rpm": rpm_to_rad_s(1.0)}
 
@@ -111,3 +115,33 @@ def read_profile(reader, key: str, table, base_dir: str, speed: bool = False):
         return PROFILE_KINDS[kind](**args)
     except JaxclearError as err:
         raise type(err)(f"{reader.source}: {key}: {err}") from None
+
+
+def load_tables(item) -> dict:
+    """The tables of a load in a mechanism file: its time ``profile`` and a spring's ``curve``
+    (``{kind, coefficients}`` or ``{kind, deflection, forces}``), those it has."""
+    out = {}
+    if getattr(item, "profile", None) is not None:
+        out["profile"] = profile_table(item.profile)
+    curve = getattr(item, "curve", None)
+    if curve is not None:
+        keys = CURVE_KINDS[curve.kind][1]
+        out["curve"] = {"kind": curve.kind, **{k: np.asarray(getattr(curve, k)).tolist() for k in keys}}
+    return out
+
+
+def read_curve(reader, key: str, table):
+    """A spring's force-deflection curve from its ``curve`` table (``reader``: the mechanism file's
+    validation context)."""
+    table = dict(reader.table(key, table))
+    kind = table.pop("kind", None)
+    if kind not in CURVE_KINDS:
+        got = "missing" if kind is None else f"{kind!r} is not a curve kind"
+        reader.fail(f"{key}.kind", f"{got}; allowed: {sorted(CURVE_KINDS)}", ParameterError)
+    cls, keys = CURVE_KINDS[kind]
+    reader.keys(key, table, keys, keys)
+    for name, value in table.items():
+        if not isinstance(value, list) or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                                  for v in value):
+            reader.fail(f"{key}.{name}", f"must be an array of numbers, got {value!r}", ParameterError)
+    return reader.build(key, cls, {k: np.asarray(table[k], dtype=float) for k in keys})

@@ -258,11 +258,12 @@ def test_python_functions_cannot_be_saved():
 
 
 def test_a_damper_given_as_a_function_names_it_when_saved_and_is_added_again_after_loading(tmp_path):
-    """A damper between two points (Andrews' mechanism needs a spring-damper) can only be a
-    point-force function today: saving names the function, its file and line, says no element a
-    file holds replaces it and how to add it again after loading; done so, the loaded mechanism
-    runs as the original, bit for bit (the same equations in the same order), and the damper
-    matters (the slider moves by millimetres without it)."""
+    """A damper given as a point-force function cannot be saved: the message names the function,
+    its file and line, the force elements a file holds that replace it (a spring-damper between
+    two points: tests/test_force_elements.py saves one) and how to add any other function again
+    after loading; done so, the loaded mechanism runs as the original, bit for bit (the same
+    equations in the same order), and the damper matters (the slider moves by millimetres
+    without it)."""
     base = jc.preset("flores-slider-crank")
     i = base.body_index("slider")
 
@@ -276,7 +277,8 @@ def test_a_damper_given_as_a_function_names_it_when_saved_and_is_added_again_aft
     said = str(err.value)
     assert f"loads[{len(base.loads)}] (PointForce(slider)) is given by the Python function" in said
     assert "<locals>.slider_damper' (test_mechanism_files.py:" in said
-    assert "no spring or damper element a file holds exists yet" in said and "add it again in Python" in said
+    assert "a spring or damper between two points is a jaxclear.TranslationalSpringDamper" in said
+    assert "RotationalSpringDamper" in said and "Bushing" in said and "add it again after loading" in said
     m = jc.load_mechanism(jc.save_mechanism(base, tmp_path / "m.toml"))
     m = eqx.tree_at(lambda m: m.loads, m, (*m.loads, damper))  # what the message says
     s = jc.settings(1e-3, n_out=5)

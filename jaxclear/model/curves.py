@@ -8,7 +8,7 @@ class                  :math:`g(x)`                                            m
 ``PolynomialCurve``    :math:`\sum_{i=1}^m a_i x^i` (smooth: a hardening        ``kind = "polynomial"``,
                        Duffing spring is :math:`a_3 > 0`)                      ``coefficients``
 ``TableCurve``         the monotone piecewise-cubic (PCHIP) interpolant of      ``kind = "table"``,
-                       :math:`(x_k, g_k)`; beyond the table the tangent line   ``deflection``, ``force``
+                       :math:`(x_k, g_k)`; beyond the table the tangent line   ``deflection``, ``forces``
                        at its end (a spring keeps its end stiffness)
 =====================  ======================================================  ==========================
 
@@ -64,7 +64,7 @@ class PolynomialCurve(AbstractCurve):
 
 
 class TableCurve(AbstractCurve):
-    """The PCHIP interpolant of ``(deflection [m], force [N])``: at least 2 points, deflections
+    """The PCHIP interpolant of ``(deflection [m], forces [N])``: at least 2 points, deflections
     strictly increasing, all finite; linear beyond the ends with the end slopes."""
 
     kind: ClassVar[str] = "table"
@@ -72,15 +72,15 @@ class TableCurve(AbstractCurve):
     forces: Float[Array, " n"]
     coefficients: Float[Array, "4 m"]  # the cubic of each interval in powers of x - x_k
 
-    def __init__(self, deflection, force):
+    def __init__(self, deflection, forces):
         from scipy.interpolate import PchipInterpolator
 
-        x, g = np.asarray(deflection, dtype=float).ravel(), np.asarray(force, dtype=float).ravel()
+        x, g = np.asarray(deflection, dtype=float).ravel(), np.asarray(forces, dtype=float).ravel()
         if x.size < 2 or x.size != g.size:
-            raise ParameterError(f"table curve: deflection and force must have the same length >= 2, got {x.size} "
+            raise ParameterError(f"table curve: deflection and forces must have the same length >= 2, got {x.size} "
                                  f"and {g.size}")
         if not (np.all(np.isfinite(x)) and np.all(np.isfinite(g))):
-            raise ParameterError("table curve: deflection [m] and force [N] must be finite numbers")
+            raise ParameterError("table curve: deflection [m] and forces [N] must be finite numbers")
         if not np.all(np.diff(x) > 0.0):
             raise ParameterError(f"table curve: deflection must increase strictly, got {x[:4].tolist()}...")
         self.deflection, self.forces = jnp.asarray(x), jnp.asarray(g)

@@ -36,8 +36,8 @@ class RotationalSpringDamper(AbstractConnector):
         damping: c [N m s/rad], >= 0 (``torsion_damping``).
         rest_angle: theta_0 [rad] (``torsion_angle``).
         preload: M_0 [N m], the moment at the rest angle (``torsion_preload``).
-        point: where a drawing puts it: a point of ``body_b`` (the joint it acts across), or None
-            (body b's centroid); no effect on the motion.
+        drawn_at: where a drawing puts it: a point of ``body_b`` (the joint it acts across), or
+            None (body b's centroid); no effect on the motion.
 
     Outputs: ``moment`` (M [N m]), ``angle`` (theta [rad]), ``rate`` (dtheta/dt [rad/s]),
     ``power`` (of its moments on the mechanism [W])."""
@@ -49,7 +49,7 @@ class RotationalSpringDamper(AbstractConnector):
     damping: Scalar
     rest_angle: Scalar
     preload: Scalar
-    point: str | None = eqx.field(static=True, default=None)
+    drawn_at: str | None = eqx.field(static=True, default=None)
 
     OUTPUTS: ClassVar[dict[str, str]] = {"moment": "N m", "angle": "rad", "rate": "rad/s", "power": "W"}
     PARAMETERS: ClassVar[dict[str, Parameter]] = {
@@ -59,8 +59,9 @@ class RotationalSpringDamper(AbstractConnector):
         "torsion_preload": Parameter("preload", "N m", **FREE, doc="moment M_0 of a rotational spring at rest"),
     }
 
-    def __init__(self, name, body_a, body_b, stiffness=0.0, damping=0.0, rest_angle=0.0, preload=0.0, point=None):
-        self.name, self.body_a, self.body_b, self.point = name, body_a, body_b, point
+    def __init__(self, name, body_a, body_b, stiffness=0.0, damping=0.0, rest_angle=0.0, preload=0.0,
+                 drawn_at=None):
+        self.name, self.body_a, self.body_b, self.drawn_at = name, body_a, body_b, drawn_at
         for field, value in (("stiffness", stiffness), ("damping", damping), ("rest_angle", rest_angle),
                              ("preload", preload)):
             setattr(self, field, scalar(f"RotationalSpringDamper {name!r}", field, value))
@@ -70,7 +71,7 @@ class RotationalSpringDamper(AbstractConnector):
         return (self.body_a, self.body_b)
 
     def points(self):
-        return () if self.point is None else ((self.body_b, self.point),)
+        return () if self.drawn_at is None else ((self.body_b, self.drawn_at),)
 
     def coordinates(self, mech, q) -> Float[Array, "1"]:
         return jnp.stack([mech.angle(q, self.body_b) - mech.angle(q, self.body_a)])
