@@ -244,3 +244,18 @@ def test_force_elements_saved_to_a_file_and_loaded_back_run_bit_for_bit_the_same
         loads_mechanism(text.replace("damping_y = 3.0", "damping_y = -3.0"))
     with pytest.raises(jc.ParameterError, match=r"loads\[0\].curve.kind: 'spline' is not a curve kind"):
         loads_mechanism(text.replace('kind = "polynomial"', 'kind = "spline"'))
+
+
+def test_check_draws_each_force_element(tmp_path):
+    """jaxclear check's drawing: a zigzag between a spring's points, a line to a bushing's square,
+    a spiral of two turns at a rotational spring's drawn_at point."""
+    mech = three_elements()
+    q, _ = mech.guess()
+    fig = jc.plot_mechanism(tmp_path / "m.png", mech, q)
+    lines = {line.get_label(): np.asarray(line.get_xydata()) for line in fig.axes[0].get_lines()}
+    spring, coil, bushing = (lines[load.label] for load in mech.loads)
+    ends = [np.asarray(mech.point_position(q, b, p)) for b, p in mech.loads[0].points()]
+    np.testing.assert_allclose(spring[[0, -1]], ends, atol=1e-12)
+    assert len(spring) == 17 and len(bushing) == 2 and len(coil) == 60
+    np.testing.assert_allclose(coil.mean(0), np.asarray(mech.point_position(q, "b", "Q")), atol=0.02)
+    assert (tmp_path / "m.png").stat().st_size > 10_000
