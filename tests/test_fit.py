@@ -421,10 +421,89 @@ def check_one_start_that_stops_on_max_iter_is_fitted_again_from_several(small_re
     resumed = []
     res = jc.fit(path, mech, out=out, callback=lambda r: resumed.append(r["stage"]), **kwargs)
     assert not any(s.startswith("start 1/1") for s in resumed) and resumed[0].startswith(f"start 2/{AUTO_STARTS}")
-    assert res.settings["starts"] == AUTO_STARTS and "auto_starts" in res.settings
+    assert res.settings["starts"] == AUTO_STARTS and res.settings["resumed"]
     whole = jc.fit(path, mech, **kwargs)  # uninterrupted: the same refit, bit for bit
     assert whole.settings["auto_starts"] == f"{AUTO_STARTS} starts: one start stopped on max_iter = 1"
+    assert res.settings["auto_starts"] == whole.settings["auto_starts"]
     assert whole.estimates == res.estimates and whole.iterations == res.iterations
+
+
+def check_every_phase_of_the_automatic_refit_resumes(small_record, monkeypatch):
+    """A noise-free record (its residual is not white, lag-1 autocorrelation 0.93: the single start
+    is followed by AUTO_STARTS starts) fitted with starts=None and stopped, as a kill would stop it
+    (every iteration is checkpointed before the callback sees it), in the single start, at the
+    switch to the refit and in the refit: the same call resumes there, says so ("resuming" in
+    the progress output, settings["resumed"]), fits no checkpointed iteration again and ends on
+    the uninterrupted fit's numbers and notes (issue 42, item 8: a fit killed in the single start
+    ran it on, then the refit, and said resumed false; a resumed refit forgot why it ran)."""
+    from jaxclear.fitting import driver
+    from jaxclear.fitting.driver import AUTO_STARTS
+
+    mech, _, folder = small_record
+    path = folder / "noise-free.csv"
+    jc.synthetic_record(mech, 1.2e-3, 200e3, SENSOR, snr_db=None, path=path)
+    kwargs = dict(start={"stiffness": 1.3e11, "restitution": 0.75}, sensor=SENSOR, window=1e-3)
+    monkeypatch.setattr(driver, "tqdm", _Bar)
+    seen = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # not white, by construction
+        whole = jc.fit(path, mech, progress=False, callback=seen.append, **kwargs)
+    n_one = [r["iteration"] for r in seen].index(1, 1)  # the refit counts its iterations from 1 again
+    assert whole.settings["auto_starts"].startswith(f"{AUTO_STARTS} starts: one start left a residual that is not")
+    assert n_one > 3 and len(seen) == n_one + whole.iterations and not whole.settings["resumed"]
+
+    def stopped_then_resumed(name: str, stop_at=None, first_only=False):
+        """Stop after call ``stop_at`` of the callback (or run the single start alone), then resume."""
+        out = folder / f"auto-{name.replace(' ', '-')}"
+        calls = []
+
+        def stop(record):
+            calls.append(record)
+            if len(calls) == stop_at:
+                raise _Stop
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)
+            if first_only:  # the single start's checkpoint, finished: a kill at the switch before the refit's
+                jc.fit(path, mech, starts=1, out=out, progress=False, **kwargs)
+            else:
+                with pytest.raises(_Stop):
+                    jc.fit(path, mech, out=out, progress=False, callback=stop, **kwargs)
+            _Bar.written.clear()
+            again = []
+            res = jc.fit(path, mech, out=out, callback=again.append, **kwargs)
+        assert res.settings["resumed"] and any("resuming" in w for w in _Bar.written), (name, _Bar.written)
+        assert res.estimates == whole.estimates and res.iterations == whole.iterations, name
+        assert res.settings["auto_starts"] == whole.settings["auto_starts"], name
+        assert [h["values"] for h in res.history] == [h["values"] for h in whole.history], name
+        return len(again)
+
+    assert stopped_then_resumed("single start", stop_at=3) == len(seen) - 3
+    assert stopped_then_resumed("switch", first_only=True) == whole.iterations
+    assert stopped_then_resumed("refit", stop_at=n_one + 3) == whole.iterations - 3
+    # killed at the switch, the refit's state checkpointed and none of its iterations: the refit resumes
+    plan = driver.run_plan
+
+    def killed_in_the_refit(problem, *args):
+        if problem.settings["starts"] == AUTO_STARTS:
+            raise _Stop
+        return plan(problem, *args)
+
+    monkeypatch.setattr(driver, "run_plan", killed_in_the_refit)
+    out = folder / "auto-switched"
+    with pytest.raises(_Stop), warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        jc.fit(path, mech, out=out, progress=False, **kwargs)
+    monkeypatch.setattr(driver, "run_plan", plan)
+    saved = json.loads((out / fitting.CHECKPOINT_NAME).read_text())
+    assert saved["config"]["starts"] == AUTO_STARTS and saved["state"]["total"] == 0
+    assert whole.settings["auto_starts"].endswith(saved["state"]["refit"])
+    again = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        res = jc.fit(path, mech, out=out, progress=False, callback=again.append, **kwargs)
+    assert len(again) == whole.iterations and res.settings["resumed"] and res.estimates == whole.estimates
+    assert res.settings["auto_starts"] == whole.settings["auto_starts"]
 
 
 def test_small_fit_api_and_cli(small_record, capsys, monkeypatch):
@@ -434,6 +513,7 @@ def test_small_fit_api_and_cli(small_record, capsys, monkeypatch):
     check_ctrl_c_stops_the_fit_after_a_checkpointed_iteration(small_record)
     check_progress_bar_totals(small_record, monkeypatch)
     check_one_start_that_stops_on_max_iter_is_fitted_again_from_several(small_record)
+    check_every_phase_of_the_automatic_refit_resumes(small_record, monkeypatch)
 
 
 @pytest.mark.slow  # a fresh process compiles the fit's model (about a minute on 2 shared cores)

@@ -116,7 +116,9 @@ parameters and +-1 in logit restitution around it) and continues from the best. 
 residual that is not white (lag-1 autocorrelation above 0.3), fits again from
 :data:`~jaxclear.fitting.driver.AUTO_STARTS` starts (4), whose result it returns
 (``FitResult.settings["auto_starts"]`` says why); a fit that still ends so warns and names
-``starts`` and ``start``. A fit interrupted during the refit resumes the refit.
+``starts`` and ``start``. Both fits checkpoint into ``out``, the refit from the switch on with
+the single start's reason: a fit killed in the single start, at the switch or in the refit
+resumes where it stopped and says so (``settings["resumed"]``).
 
 Uncertainty
 -----------

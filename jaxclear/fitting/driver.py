@@ -100,7 +100,10 @@ def fit(
         starts: number of starts for the first stage. None (default): one start and, where the
             fit stops on ``max_iter`` or leaves a residual that is not white (lag-1
             autocorrelation above 0.3), the whole fit again from :data:`AUTO_STARTS` starts
-            (Levenberg-Marquardt only; ``FitResult.settings["auto_starts"]`` says why).
+            (Levenberg-Marquardt only; ``FitResult.settings["auto_starts"]`` says why). Both
+            checkpoint into ``out``: a fit killed in the single start, at the switch or in the
+            refit resumes where it stopped (``settings["resumed"]``); no checkpointed iteration
+            is fitted again.
         optimizer: None / ``"levenberg-marquardt"`` (default: :class:`optimistix.LevenbergMarquardt`),
             ``"adam"``, ``"adam:LR"``, an optax transformation or an optimistix solver
             (:func:`jaxclear.fitting.make_optimizer`).
@@ -144,21 +147,19 @@ def fit(
         if not (auto and opt.least_squares):
             return _fit_locked(problem, opt, out, resume, progress, callback, t_wall)
         several = problem.with_starts(AUTO_STARTS)
-        why = "resumed: a single start had not converged to a white residual"
-        if not (resume and _checkpoint(several, out).load() is not None):  # else: the refit was under way
-            with warnings.catch_warnings(record=True) as first_warnings:
-                warnings.simplefilter("always")
-                first = _fit_locked(problem, opt, out, resume, progress, callback, t_wall)
-            why = _not_converged(first)
-            if not why:
-                for w in first_warnings:
-                    warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-                return first
-            if progress:
-                tqdm.write(f"jaxclear fit: one start {why}; fitting again from {AUTO_STARTS} starts")
-        res = _fit_locked(several, opt, out, resume, progress, callback, t_wall)
-        res.settings["auto_starts"] = f"{AUTO_STARTS} starts: one start {why}"
-        return res
+        if resume and _checkpoint(several, out).load() is not None:  # killed in the refit (or at the switch to it)
+            return _fit_locked(several, opt, out, resume, progress, callback, t_wall)
+        with warnings.catch_warnings(record=True) as first_warnings:
+            warnings.simplefilter("always")
+            first = _fit_locked(problem, opt, out, resume, progress, callback, t_wall)
+        why = _not_converged(first)
+        if not why:
+            for w in first_warnings:
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+            return first
+        if progress:
+            tqdm.write(f"jaxclear fit: one start {why}; fitting again from {AUTO_STARTS} starts")
+        return _fit_locked(several, opt, out, False, progress, callback, time.perf_counter(), after=first)
 
 
 #: Starts of the refit of a fit with ``starts=None`` (the default) whose single start stops on
@@ -184,16 +185,25 @@ def _checkpoint(problem: FitProblem, out, clock=None) -> Checkpoint:
     return Checkpoint(out, problem.checkpoint_key(), problem.checkpoint_config(), clock=clock)
 
 
-def _fit_locked(problem: FitProblem, opt, out, resume: bool, progress: bool, callback, t_wall: float):
-    """:func:`fit` inside the output folder's lock."""
+def _fit_locked(problem: FitProblem, opt, out, resume: bool, progress: bool, callback, t_wall: float,
+                after: FitResult | None = None):
+    """:func:`fit` inside the output folder's lock, its wall time counted from ``t_wall``
+    (:func:`time.perf_counter`). ``after``: the single start that this automatic refit follows
+    (a fresh refit: its state starts from that fit's wall time and reason, and is checkpointed at
+    once, so that a kill from here on resumes the refit; the result is resumed if that fit was)."""
     ckpt = _checkpoint(problem, out, clock=lambda: wall_before + time.perf_counter() - t_wall)
     saved = ckpt.load() if resume else None
     if saved is not None:
         _check_resumed(problem, saved, ckpt.path)
     if saved is not None and progress:
-        tqdm.write(f"jaxclear fit: resuming from {ckpt.path} after {saved.total} iteration(s)")
+        what = f" the {problem.settings['starts']}-start refit" if saved.refit else ""
+        tqdm.write(f"jaxclear fit: resuming{what} from {ckpt.path} after {saved.total} iteration(s)")
     st = saved if saved is not None else fresh_state(problem)
+    if after is not None and saved is None:
+        st = st.replace(refit=_not_converged(after), wall=after.wall_time_s)
     wall_before = st.wall
+    if after is not None and saved is None:
+        ckpt.save(st)
     bars = []  # the bar starts after the first iteration, which includes any compilation
 
     def report(record: dict, now: FitState):
@@ -222,7 +232,8 @@ def _fit_locked(problem: FitProblem, opt, out, resume: bool, progress: bool, cal
             bar.total = bar.n
             bar.refresh()
             bar.close()
-    return _result(problem, st, wall_before + time.perf_counter() - t_wall, saved is not None)
+    resumed = saved is not None or (after is not None and after.settings["resumed"])
+    return _result(problem, st, wall_before + time.perf_counter() - t_wall, resumed)
 
 
 def iterations_left(problem: FitProblem, st: FitState) -> int:
@@ -358,7 +369,8 @@ def _result(problem: FitProblem, st: FitState, wall: float, resumed: bool) -> Fi
                   "law": law_name(problem.mech), "resumed": resumed, "optimizer": s["optimizer"],
                   "skipped_stages": list(st.skipped), "start_state": "free" if problem.anywhere else "known",
                   "way_in": [dict(w) for w in st.way_in],
-                  "channels": problem.channel_config()},
+                  "channels": problem.channel_config(),
+                  **({"auto_starts": f"{s['starts']} starts: one start {st.refit}"} if st.refit else {})},
         series=_channel_series(problem, evals, initial),
         warnings=warn, window_states=[list(map(float, v)) for v in (states if problem.anywhere else states[1:])],
         window_losses=window_losses)

@@ -2,7 +2,8 @@
 
 :class:`FitState` is everything a fit needs to continue after a kill: the stage and iteration,
 the accepted unknowns and the optimistix solver state of the current stage (its array leaves),
-the parameters and window states reached so far, the results of the starts and the history.
+the parameters and window states reached so far, the results of the starts and the history
+(and, in the automatic refit from several starts, why it runs).
 It is immutable (an ``equinox.Module``): every iteration makes a new one with :meth:`replace`.
 
 The checkpoint ``out/fit_checkpoint.json`` holds ``{"key", "config", "state"}``: ``key`` is a
@@ -67,6 +68,10 @@ class FitState(eqx.Module):
         way_in: per window whose start the way in found (:mod:`jaxclear.fitting.way_in`) its
             report ``{"window", "candidates", "finite", "best_loss", "median_loss"}``.
         wall: wall time spent so far [s]; stop_reason: why the final stage ended.
+        refit: in the automatic refit from several starts (``fit(starts=None)``), why the
+            single start before it was not enough (``FitResult.settings["auto_starts"]``);
+            "" otherwise. Kept in the refit's state, which is checkpointed from the switch on,
+            so that a resumed refit neither fits the single start again nor forgets why it runs.
     """
 
     stage: int = 0
@@ -85,6 +90,7 @@ class FitState(eqx.Module):
     way_in: tuple = ()
     wall: float = 0.0
     stop_reason: str = ""
+    refit: str = ""
 
     def replace(self, **changes) -> "FitState":
         """A copy with ``changes`` (sequences frozen to tuples)."""
