@@ -549,6 +549,57 @@ def test_ctrl_c_stops_jaxclear_fit_with_exit_130(small_record, tmp_path):
     assert 1 <= state["total"] and state["stop_reason"] == ""
 
 
+@pytest.mark.slow  # two fresh processes compile the fit's model (about a minute each on 2 shared cores)
+def test_jaxclear_fit_killed_in_either_fit_of_the_automatic_refit_resumes(small_record, tmp_path, capsys):
+    """``jaxclear fit`` on a noise-free record (the single start is followed by AUTO_STARTS starts)
+    killed with SIGKILL after 3 checkpointed iterations of the single start, and of the refit:
+    the same command resumes ("resuming" in its output, "(resumed from the checkpoint)" in the
+    summary, fit.json's settings.resumed) and ends on the uninterrupted fit's estimates (issue
+    42, item 8: killed in the single start, it said resumed false)."""
+    import subprocess
+    import sys
+    import time
+
+    mech, _, _ = small_record
+    path = str(tmp_path / "noise-free.csv")
+    jc.synthetic_record(mech, 1.2e-3, 200e3, SENSOR, snr_db=None, path=path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        whole = jc.fit(path, mech, start={"stiffness": 1.3e11, "restitution": 0.75}, sensor=SENSOR, window=1e-3,
+                       progress=False)
+    for starts in (1, 4):
+        out = tmp_path / f"fit-{starts}"
+        ckpt = out / fitting.CHECKPOINT_NAME
+        args = ["fit", path, "--window", "1e-3", "--sensor-cutoff-hz", "20000", "--start", "stiffness=1.3e11",
+                "--start", "restitution=0.75", "--out", str(out), "--no-plots"]
+        proc = subprocess.Popen([sys.executable, "-m", "jaxclear", *args], stdout=subprocess.DEVNULL,
+                                stderr=subprocess.DEVNULL)
+        try:
+            deadline = time.time() + 600
+            while True:
+                assert proc.poll() is None and time.time() < deadline, starts
+                try:
+                    saved = json.loads(ckpt.read_text())
+                except (OSError, ValueError):
+                    saved = None
+                if saved and saved["config"]["starts"] == starts and saved["state"]["total"] >= 3:
+                    break
+                time.sleep(0.05)
+            proc.send_signal(signal.SIGKILL)
+        finally:
+            proc.kill()
+            proc.wait()
+        capsys.readouterr()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)
+            assert main(args) == 0
+        text = "".join(capsys.readouterr())
+        assert "jaxclear fit: resuming" in text and "(resumed from the checkpoint)" in text, text
+        d = json.loads((out / "fit.json").read_text())
+        assert d["settings"]["resumed"] and d["estimates"] == whole.estimates, (starts, d["estimates"])
+        assert d["settings"]["auto_starts"] == whole.settings["auto_starts"]
+
+
 # --------------------------------------------------------------------------------------
 # acceptance (slow)
 # --------------------------------------------------------------------------------------
