@@ -20,7 +20,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from ..sweep.batch import lanes_one_by_one
+from ..sweep.batch import over_lanes
 
 #: Acceptance rate the warm-up's dual averaging aims at (Stan's and BlackJAX's default).
 TARGET_ACCEPT = 0.8
@@ -34,11 +34,6 @@ class ChainState(NamedTuple):
     grad: jax.Array
 
 
-def _over_chains(f, *args):
-    """``f`` mapped over the leading (chain) axis: one after another on CPU, else side by side."""
-    if lanes_one_by_one():
-        return jax.lax.map(lambda a: f(*a), args)
-    return jax.vmap(f)(*args)
 
 
 @eqx.filter_jit
@@ -47,7 +42,7 @@ def init_states(logdensity, positions) -> ChainState:
     def one(u):
         v, g = jax.value_and_grad(logdensity)(u)
         return ChainState(u, v, g)
-    return _over_chains(one, positions)
+    return over_lanes(one, positions)
 
 
 def _blackjax():
@@ -110,7 +105,7 @@ def nuts_chunk(logdensity, states: ChainState, step: StepSize, keys, adapt, n_dr
         (st, da), out = jax.lax.scan(body, (state, da), jax.random.split(key, n_draws))
         return st, da, out
 
-    return _over_chains(chain, states, step, keys)
+    return over_lanes(chain, states, step, keys)
 
 
 @eqx.filter_jit
@@ -133,4 +128,4 @@ def random_walk_chunk(logdensity, states: ChainState, keys, scale, n_draws: int)
             return st, (st.position, info.is_accepted)
         return jax.lax.scan(body, state, jax.random.split(key, n_draws))
 
-    return _over_chains(chain, states, keys)
+    return over_lanes(chain, states, keys)

@@ -40,7 +40,7 @@ from .. import params
 from ..analysis.sensor import Accelerometer
 from ..integrate import Settings, simulate
 from ..model import Mechanism
-from ..sweep.batch import lanes_one_by_one
+from ..sweep.batch import lanes_one_by_one, over_lanes
 from .records import slider_role
 from .statistics import block_starts
 
@@ -117,7 +117,7 @@ def _run(mech: Mechanism, sensor: Accelerometer, plan: SignalPlan, row):
 def _chunk(mech: Mechanism, sensor: Accelerometer, plan: SignalPlan, rows):
     """The runs of ``rows`` ``(B, P + 1)``: ``((B, blocks, nb), (B,))``."""
     one = lambda r: _run(mech, sensor, plan, r)  # noqa: E731
-    return jax.lax.map(one, rows) if lanes_one_by_one() else jax.vmap(one)(rows)
+    return over_lanes(one, rows)
 
 
 def default_chunk() -> int:

@@ -176,6 +176,16 @@ def lanes_one_by_one(platform: str | None = None) -> bool:
     return (platform or jax.default_backend()) == "cpu" and loop_kernels_active()
 
 
+def over_lanes(f, *args):
+    """``f`` mapped over the leading axis of ``args``: one lane after another (``jax.lax.map``)
+    where :func:`lanes_one_by_one`, else side by side (``jax.vmap``). One after another, each
+    lane takes its own number of solver steps; side by side on a CPU, every lane waits for the
+    batch's slowest."""
+    if lanes_one_by_one():
+        return jax.lax.map(lambda a: f(*a), args)
+    return jax.vmap(f)(*args)
+
+
 def _runs(plan: Plan, mech: Mechanism, ideal: Mechanism | None, rows):
     """A batch of runs (B, P) -> dict of (B, ...). The clearance runs go one after another or
     side by side (:func:`one_by_one`); the ideal runs and the metrics are vmapped over the batch
