@@ -76,10 +76,11 @@ def begin_stage(problem: FitProblem, st: FitState) -> FitState:
     if problem.anywhere and stage.way_in:
         k = stage.states[0]
         win = problem.window_input(k, stage.horizon, False, st.guesses)
-        found, report = find_start(problem.model, problem.mech, st.theta, win, stage.horizon)
+        ranked, report = find_start(problem.model, problem.mech, st.theta, win, stage.horizon)
+        rank = _first_that_runs(problem, st.theta, ranked, win)
         states = list(st.states)
-        states[k] = found.tolist()
-        st = st.replace(states=states, way_in=st.way_in + ({"window": k, **report},))
+        states[k] = ranked[rank].tolist()
+        st = st.replace(states=states, way_in=st.way_in + ({"window": k, **report, "rank": rank},))
     elif not stage.theta and stage.states:
         k = stage.states[0]
         q1, qd1, end = window_end(problem, st, k - 1)
@@ -88,6 +89,18 @@ def begin_stage(problem: FitProblem, st: FitState) -> FitState:
         states[k] = state_to_z(end, problem.start_scales, problem.velocity_scale).tolist()
         st = st.replace(guesses=guesses, states=states)
     return st
+
+
+def _first_that_runs(problem: FitProblem, theta, ranked: np.ndarray, win) -> int:
+    """Index of the first of the way in's starts ``ranked`` ``(k, S)`` whose window runs with its
+    Jacobian (the way in scores values over the window's first part only: a start can run there
+    and fail later in the window, or in the derivative's tighter solve); 0 when none does (the
+    stage then reports the loss that is not finite)."""
+    for i, z in enumerate(ranked):
+        r = evaluate_window_jit(problem.model, jnp.asarray(theta), jnp.asarray(z), win)[0]
+        if np.all(np.isfinite(np.asarray(r))):
+            return i
+    return 0
 
 
 def stage_jacobian(problem: FitProblem, st: FitState, stage: Stage) -> tuple[float, np.ndarray]:
