@@ -12,7 +12,7 @@ What is done (the choice, and why). The window's start is chosen by **scoring an
 candidate starts** on the window's first part: a grid over the clearance circle (directions),
 radii inside and just beyond it (free flight, or pressed in by 2, 7.5 and 19 micrometres on the
 benchmark: a continuous contact), and sliding velocities along the wall
-(:func:`jaxclear.fitting.window_start.candidates`, 840 candidates for one journal), each
+(:func:`jaxclear.fitting.window_start.candidates`, 1560 candidates for one journal), each
 simulated at the start parameters and scored by the misfit of its sensor output over the first
 horizon of the window (a quarter of it by default); the best is the start of the window's
 least-squares stages (:func:`jaxclear.fitting.plan.plan_free_starts`), which polish it before
@@ -24,8 +24,8 @@ free-flight candidates move along the wall only, and a journal in flight towards
 (window 2 of an acceptance record of the independent simulator: 28 micrometres off the wall,
 closing at 4.4 omega c, striking it 0.02 ms into the window) is reached only so (best misfit
 0.21 of the data's mean square after the grid, 0.0143 after the search, 0.0115 from the true
-start). The candidates are one ``jax.vmap`` of the window model (values only), four passes of
-840; a window's start is the best of them whose whole window runs with its Jacobian
+start). The candidates are runs of the window model (values only; one after another on a CPU,
+:func:`jaxclear.sweep.batch.over_lanes`), four passes of 1560; a window's start is the best of them whose whole window runs with its Jacobian
 (:func:`jaxclear.fitting.run.begin_stage`).
 
 The alternatives considered: reading impact instants and directions from the record itself
