@@ -31,13 +31,13 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from .._types import Array, Float, Scalar
-from .connectors import CONNECTORS, NONNEGATIVE, AbstractConnector, Parameter, scalar
+from .connectors import CONNECTORS, NONNEGATIVE, AbstractPointPair, Parameter, scalar
 from .geometry import rotate
 
 _FIELDS = ("stiffness_x", "stiffness_y", "stiffness_angle", "damping_x", "damping_y", "damping_angle")
 
 
-class Bushing(AbstractConnector):
+class Bushing(AbstractPointPair):
     """A planar bushing between point ``point_a`` of ``body_a`` and ``point_b`` of ``body_b``, at
     rest where the points coincide and the bodies' angles are equal (module docstring:
     :math:`f = K d + C\\dot d` in ``body_a``'s frame).
@@ -84,14 +84,8 @@ class Bushing(AbstractConnector):
             setattr(self, field, scalar(f"Bushing {name!r}", field, value))
         self._validate()
 
-    def bodies(self):
-        return (self.body_a, self.body_b)
-
-    def points(self):
-        return ((self.body_a, self.point_a), (self.body_b, self.point_b))
-
     def coordinates(self, mech, q) -> Float[Array, "3"]:
-        gap = mech.point_position(q, self.body_b, self.point_b) - mech.point_position(q, self.body_a, self.point_a)
+        gap = self.gap(mech, q)
         phi_a = mech.angle(q, self.body_a)
         local = rotate(-phi_a, gap)
         return jnp.stack([local[0], local[1], mech.angle(q, self.body_b) - phi_a])

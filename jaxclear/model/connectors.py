@@ -65,10 +65,12 @@ class AbstractConnector(AbstractLoad):
     """A stateless force element between two bodies, named (``name``, unique among the loads).
 
     Subclasses set ``OUTPUTS`` (name -> unit, what :meth:`outputs` returns), ``PARAMETERS``
-    (parameter base name -> :class:`Parameter`) and implement :meth:`bodies`,
-    :meth:`coordinates` and :meth:`law`."""
+    (parameter base name -> :class:`Parameter`) and implement :meth:`coordinates` and
+    :meth:`law`; the two bodies are ``body_a`` and ``body_b``."""
 
     name: eqx.AbstractVar[str]
+    body_a: eqx.AbstractVar[str]
+    body_b: eqx.AbstractVar[str]
     OUTPUTS: ClassVar[dict[str, str]]
     PARAMETERS: ClassVar[dict[str, Parameter]]
 
@@ -79,6 +81,9 @@ class AbstractConnector(AbstractLoad):
     @abc.abstractmethod
     def law(self, d: Float[Array, " k"], ddot: Float[Array, " k"]) -> Float[Array, " k"]:
         """The generalized tension :math:`f(d, \\dot d)` (``(k,)``, SI) conjugate to :math:`d`."""
+
+    def bodies(self):
+        return (self.body_a, self.body_b)
 
     @property
     def label(self) -> str:
@@ -121,6 +126,20 @@ class AbstractConnector(AbstractLoad):
         """Default, for one coordinate: the :data:`OUTPUTS` names in the order tension (:math:`f`),
         coordinate (:math:`d`), rate (:math:`\\dot d`), power; others override it."""
         return dict(zip(self.OUTPUTS, (f[0], d[0], ddot[0], power)))
+
+
+class AbstractPointPair(AbstractConnector):
+    """A force element between point ``point_a`` of ``body_a`` and ``point_b`` of ``body_b``."""
+
+    point_a: eqx.AbstractVar[str]
+    point_b: eqx.AbstractVar[str]
+
+    def points(self):
+        return ((self.body_a, self.point_a), (self.body_b, self.point_b))
+
+    def gap(self, mech, q) -> Float[Array, "2"]:
+        """:math:`p_b - p_a` [m], global axes."""
+        return mech.point_position(q, self.body_b, self.point_b) - mech.point_position(q, self.body_a, self.point_a)
 
 
 def connector_parameters() -> dict[str, Parameter]:

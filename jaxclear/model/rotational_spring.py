@@ -67,9 +67,6 @@ class RotationalSpringDamper(AbstractConnector):
             setattr(self, field, scalar(f"RotationalSpringDamper {name!r}", field, value))
         self._validate()
 
-    def bodies(self):
-        return (self.body_a, self.body_b)
-
     def points(self):
         return () if self.drawn_at is None else ((self.body_b, self.drawn_at),)
 

@@ -28,12 +28,12 @@ import equinox as eqx
 
 from .._errors import ParameterError
 from .._types import Array, Float, Scalar
-from .connectors import CONNECTORS, FREE, NONNEGATIVE, AbstractConnector, Parameter, scalar
+from .connectors import CONNECTORS, FREE, NONNEGATIVE, AbstractPointPair, Parameter, scalar
 from .curves import AbstractCurve
 from .geometry import safe_normal
 
 
-class TranslationalSpringDamper(AbstractConnector):
+class TranslationalSpringDamper(AbstractPointPair):
     """A spring-damper between point ``point_a`` of ``body_a`` and ``point_b`` of ``body_b``
     (module docstring: tension :math:`T = F_0 + k(L - L_0) + c\\dot L + g(L - L_0)`).
 
@@ -81,14 +81,8 @@ class TranslationalSpringDamper(AbstractConnector):
         self.curve = curve
         self._validate()
 
-    def bodies(self):
-        return (self.body_a, self.body_b)
-
-    def points(self):
-        return ((self.body_a, self.point_a), (self.body_b, self.point_b))
-
     def coordinates(self, mech, q) -> Float[Array, "1"]:
-        gap = mech.point_position(q, self.body_b, self.point_b) - mech.point_position(q, self.body_a, self.point_a)
+        gap = self.gap(mech, q)
         return safe_normal(gap)[0][None]
 
     def law(self, d, ddot):
