@@ -1,6 +1,8 @@
 """Crash-safe files and content fingerprints: the one place for atomic writes, fsync-ed
-appends, hashing, and reading the text files a user gives (:func:`read_text`: a binary or
-oversized file is a named error, not a decoding traceback).
+appends, hashing, reading the text files a user gives (:func:`read_text`: a binary or
+oversized file is a named error, not a decoding traceback; :func:`read_toml`, the one TOML
+reader) and writing JSON (:func:`json_text`, the one JSON writer: strict JSON, NaN and
+infinities as ``null``).
 
 Long work (sweeps, fits, wear) writes as it goes and resumes after a kill: a file is either
 its old content or its new content, never a mix (write to a temporary file beside it, fsync,
@@ -16,6 +18,7 @@ import math
 import os
 import socket
 import time
+import tomllib
 
 import filelock
 import numpy as np
@@ -51,6 +54,23 @@ def read_text(path, what: str, error=ParameterError, max_bytes: int = MAX_TEXT_B
     except UnicodeDecodeError as err:
         raise error(f"{what} {path!r} is not UTF-8 text (byte 0x{data[err.start]:02x} at offset {err.start}: a binary "
                     f"file?); allowed: a UTF-8 text file") from None
+
+
+def parse_toml(text: str, source: str, error=ParameterError) -> dict:
+    """The TOML document ``text`` (from ``source``, a file name or ``"<string>"``) as a dict; a
+    syntax error is one :class:`~jaxclear.JaxclearError` (class ``error``) naming the source, the
+    line and the column."""
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        raise error(f"{source}: not valid TOML: {err}") from None
+
+
+def read_toml(path, what: str, error=ParameterError) -> dict:
+    """The one TOML reader: :func:`parse_toml` of :func:`read_text` of the file ``path`` that a
+    user gave as ``what`` (e.g. ``"sweep configuration"``)."""
+    path = os.fspath(path)
+    return parse_toml(read_text(path, what, error), path, error)
 
 
 def fsync_append(path, text: str, mode: str = "a") -> str:
@@ -113,11 +133,18 @@ def jsonable(obj):
     return obj
 
 
-def atomic_write_json(path, obj, **dump_kwargs) -> str:
-    """:func:`atomic_write_text` of ``json.dumps(obj)`` (indented, sorted keys by default)."""
-    dump_kwargs.setdefault("indent", 2)
-    dump_kwargs.setdefault("sort_keys", True)
-    return atomic_write_text(path, json.dumps(obj, **dump_kwargs) + "\n")
+def json_text(obj, *, indent: int | None = 2, sort_keys: bool = True, separators=None, default=None) -> str:
+    """The one JSON writer: :func:`jsonable` of ``obj`` as strict JSON text (NaN and infinities
+    as ``null``, never the bare ``NaN``/``Infinity`` that strict parsers refuse). Indented and
+    with sorted keys by default; ``default`` (e.g. ``str``) turns what is not JSON into JSON,
+    else that is a ``TypeError``. Readers of files written before take ``null`` for NaN."""
+    return json.dumps(jsonable(obj), indent=indent, sort_keys=sort_keys, separators=separators, default=default,
+                      allow_nan=False)
+
+
+def atomic_write_json(path, obj, *, indent: int | None = 2, sort_keys: bool = True) -> str:
+    """:func:`atomic_write_text` of :func:`json_text` (indented, sorted keys by default)."""
+    return atomic_write_text(path, json_text(obj, indent=indent, sort_keys=sort_keys) + "\n")
 
 
 def atomic_write_npz(path, arrays: dict) -> str:

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import csv
 import importlib
-import json
 import math
 import os
 import warnings
@@ -28,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._storage import MAX_RECORD_BYTES, atomic_write_json, atomic_write_netcdf, jsonable, read_text
+from ._storage import MAX_RECORD_BYTES, atomic_write_json, atomic_write_netcdf, json_text, read_text
 from ._errors import ParameterError
 from .model import Mechanism
 from .integrate import Solution
@@ -157,7 +156,7 @@ def _attribute(value):
     if isinstance(value, (list, tuple)) and all(isinstance(v, (int, float)) and not isinstance(v, bool)
                                                 for v in value):
         return np.asarray(value, dtype=float)
-    return json.dumps(value, default=str)
+    return json_text(value, indent=None, sort_keys=False, default=str)
 
 
 def timeseries_dataset(cols: dict, attrs: dict | None = None):
@@ -196,7 +195,7 @@ def write_table_csv(path, cols: dict) -> str:
 def write_json(path, obj) -> str:
     """Write ``obj`` as indented JSON (arrays become lists, NaN/inf become null; keys in their
     order), atomically: a reader sees the old file or the new one, never a part. Returns the path."""
-    return atomic_write_json(path, jsonable(obj), indent=2, sort_keys=False)
+    return atomic_write_json(path, obj, sort_keys=False)
 
 
 # --------------------------------------------------------------------------------------

@@ -4,8 +4,9 @@ A file holds what :class:`~jaxclear.Mechanism` holds, in SI units: bodies (mass,
 points, initial guesses of position and velocity), ideal joints, drivers, force elements (revolute
 clearance, lubricated, pin-in-slot and translational clearance joints: geometry, law by name with
 its parameters and profiles, friction, film, initial offset), applied loads, gravity, ground points
-and roles. :func:`load_mechanism` reads one (the standard ``tomllib``) and validates it:
-every error names the file, the key and the allowed values. :func:`save_mechanism` writes one
+and roles. :func:`load_mechanism` reads one (the standard ``tomllib``, through the one TOML
+reader :func:`jaxclear._storage.parse_toml`) and validates it: every error names the file, the
+key and the allowed values. :func:`save_mechanism` writes one
 (``tomli-w``); a mechanism written and read back is equal leaf by leaf (``eqx.tree_equal``).
 
 Python functions (:class:`~jaxclear.FunctionDriver`, ``function=`` of a load) cannot be written to a
@@ -23,14 +24,13 @@ import functools
 import inspect
 import os
 import re
-import tomllib
 import warnings
 
 import numpy as np
 import tomli_w
 
 from ._errors import JaxclearError, MechanismError, ParameterError, function_name
-from ._storage import atomic_write_text, read_text
+from ._storage import atomic_write_text, parse_toml, read_text
 from ._units import rpm_to_rad_s
 from .contact import FourierProfile, Friction, Material, make_law
 from .contact.friction import FRICTION_MODELS, friction_name
@@ -480,11 +480,7 @@ def mechanism_from_dict(doc: dict, source: str = "<mechanism>") -> Mechanism:
 
 def loads_mechanism(text: str, source: str = "<string>") -> Mechanism:
     """Parse TOML text into a mechanism."""
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as err:
-        raise MechanismError(f"{source}: not valid TOML: {err}") from None
-    return mechanism_from_dict(doc, source)
+    return mechanism_from_dict(parse_toml(text, source, MechanismError), source)
 
 
 def load_mechanism(path) -> Mechanism:

@@ -59,3 +59,34 @@ def slider_crank_exact(phi, omega, r=0.05, l=0.12):
     dx = -r * s - r**2 * s * c / root
     ddx = -r * c - r**2 * (c**2 - s**2) / root - r**4 * s**2 * c**2 / root**3
     return x, dx * omega, ddx * omega**2
+
+
+def _refuse_constant(name):
+    raise ValueError(f"{name} is not JSON (a strict parser refuses it; write null)")
+
+
+def strict_json(text: str):
+    """``text`` parsed as strict JSON: the bare ``NaN``, ``Infinity`` and ``-Infinity`` that
+    Python's json module writes and reads by default are errors, as in every other parser."""
+    import json
+
+    return json.loads(text, parse_constant=_refuse_constant)
+
+
+def assert_strict_json(folder) -> list[str]:
+    """Every ``*.json`` file under ``folder`` parses as strict JSON (:func:`strict_json`), and every
+    line of every ``*.jsonl`` file; returns the names checked (relative to ``folder``)."""
+    folder = Path(folder)
+    checked, bad = [], []
+    for path in sorted([*folder.rglob("*.json"), *folder.rglob("*.jsonl")]):
+        text = path.read_text(encoding="utf-8")
+        pieces = [line for line in text.splitlines() if line.strip()] if path.suffix == ".jsonl" else [text]
+        for piece in pieces:
+            try:
+                strict_json(piece)
+            except ValueError as err:
+                bad.append(f"{path.relative_to(folder)}: {err}")
+                break
+        checked.append(str(path.relative_to(folder)))
+    assert not bad, "files that are not strict JSON:\n" + "\n".join(bad)
+    return checked

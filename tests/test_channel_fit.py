@@ -25,6 +25,7 @@ import jaxclear as jc
 from jaxclear import params
 from jaxclear.analysis.sensor import Accelerometer
 from jaxclear.cli import main
+from conftest import assert_strict_json
 from jaxclear.fitting import FitChannel
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -151,6 +152,7 @@ def test_cli_fit_on_a_mechanism_file(tmp_path, capsys):
     out, err = capsys.readouterr()
     assert code == 0, err
     d = json.loads((tmp_path / "o" / "fit.json").read_text())
+    assert "fit.json" in assert_strict_json(tmp_path / "o")
     assert abs(d["estimates"]["stiffness"] / k0 - 1) < 0.05, d["estimates"]
     assert [s.split(":")[0] for s in d["settings"]["skipped_stages"]] == [
         "start 1/1, window 1, velocity, horizon 0.25", "window 1, acceleration, horizon 0.25",

@@ -18,6 +18,7 @@ from jaxclear.integrate import runs
 from jaxclear.integrate.state import element_states
 from jaxclear.cli import build_parser, main
 from jaxclear.cli.common import mechanism_overrides
+from conftest import assert_strict_json, strict_json
 from jaxclear import ParameterError
 
 HEADER = [
@@ -42,6 +43,7 @@ def test_simulate_writes_files(simulated):
         assert (out / name).is_file() and (out / name).stat().st_size > 0, name
     for name in ("slider_acceleration.png", "orbit.png", "contact_force.png"):
         assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert assert_strict_json(out) == ["summary.json"]
 
 
 def test_timeseries_csv(simulated):
@@ -354,8 +356,15 @@ def test_write_timeseries_matches_columns(tmp_path):
 
 
 def test_write_json_nonfinite(tmp_path):
-    io.write_json(tmp_path / "a.json", {"a": float("nan"), "b": np.arange(3), "c": np.float64(2.5)})
-    assert json.loads((tmp_path / "a.json").read_text()) == {"a": None, "b": [0, 1, 2], "c": 2.5}
+    """NaN and infinities of every kind (float, NumPy and JAX scalars and arrays) are written as
+    null: strict JSON, not the bare NaN of Python's json module."""
+    import jax.numpy as jnp
+
+    io.write_json(tmp_path / "a.json", {"a": float("nan"), "b": np.arange(3), "c": np.float64(2.5),
+                                        "d": -math.inf, "e": np.float32("inf"), "f": jnp.asarray([1.0, jnp.nan]),
+                                        "g": jnp.float64(jnp.inf), "h": (np.int64(2), np.bool_(True))})
+    assert strict_json((tmp_path / "a.json").read_text()) == {
+        "a": None, "b": [0, 1, 2], "c": 2.5, "d": None, "e": None, "f": [1.0, None], "g": None, "h": [2, True]}
 
 
 # --------------------------------------------------------------------------------------

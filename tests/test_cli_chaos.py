@@ -11,6 +11,7 @@ import pytest
 
 import jaxclear  # noqa: F401  (switches on float64 first)
 from jaxclear.cli import main
+from conftest import assert_strict_json
 
 
 @pytest.mark.parametrize("args, message", [
@@ -77,6 +78,7 @@ def test_chaos_writes_tables_and_figures(tmp_path, capsys):
     assert main(["chaos", "--revolutions", "8", "--transient", "1", "--discard", "1", "--out", str(out)]) == 0
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == 0 and len(summary["exponents"]) == 4 and summary["sum"] < 0
+    assert assert_strict_json(out) == ["summary.json"]
     rows = list(csv.DictReader((out / "exponents.csv").open()))
     assert [int(r["index"]) for r in rows] == [1, 2, 3, 4]
     channels = list(csv.DictReader((out / "channels.csv").open()))

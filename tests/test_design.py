@@ -14,6 +14,7 @@ import pytest
 import jaxclear as jc
 from jaxclear.designing import Ensemble, OperatingPoint, objectives as objs
 from jaxclear.designing.constraints import PeakForce, PeakPenetration
+from conftest import assert_strict_json
 
 
 # ---- a known optimum: the force-balanced four-bar ------------------------------------------------
@@ -65,6 +66,7 @@ def test_balanced_four_bar_closed_form(balanced):
     assert set(res.sensitivity) == set(VARIABLES)
     for f in ("design.json", "design_history.csv", "design.toml", jc.designing.JOURNAL_NAME):
         assert os.path.isfile(out / f), f
+    assert {"design.json", jc.designing.JOURNAL_NAME} <= set(assert_strict_json(out))
     saved = json.loads((out / "design.json").read_text())
     assert saved["status"] == "converged" and saved["design"]["centroid_x:crank"] == res.design["centroid_x:crank"]
     again = jc.load_mechanism(out / "design.toml")  # the optimum as a mechanism file: its crank's points moved
@@ -288,6 +290,7 @@ def test_cli_design_file(tmp_path, capsys):
     assert 0.1e-3 <= saved["design"]["clearance"] <= 0.6e-3
     assert main(argv) == 0  # resumed from the journal: the same design
     assert json.loads((out / "design.json").read_text())["design"] == saved["design"]
+    assert {"design.json", jc.designing.JOURNAL_NAME} <= set(assert_strict_json(out))
 
 
 def test_operating_points_weighted_mean(four_bar):

@@ -27,6 +27,7 @@ import jaxclear as jc
 from jaxclear import fitting
 from jaxclear import params
 from jaxclear.cli import main
+from conftest import assert_strict_json
 from jaxclear.analysis.sensor import Accelerometer, record_times
 
 PNG = b"\x89PNG\r\n\x1a\n"
@@ -306,6 +307,7 @@ def check_cli_fit_writes_json_and_plot(small_record, capsys):
     assert main(args) == 0
     d2 = json.loads((out / "fit.json").read_text())
     assert d2["iterations"] == d["iterations"] and d2["settings"]["resumed"]
+    assert "fit.json" in assert_strict_json(out)  # and fit_checkpoint.json where it is kept
     assert "(resumed from the checkpoint)" in capsys.readouterr().out  # the summary says it resumed
 
 

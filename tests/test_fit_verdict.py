@@ -11,6 +11,7 @@ import jaxclear as jc
 import pytest
 
 from jaxclear.cli import main
+from conftest import assert_strict_json
 from jaxclear.contact.base import Material
 from jaxclear.contact.hertz import cylindrical_stiffness
 from jaxclear.fitting import FitResult, assess, stiffness_range, verdict
@@ -207,7 +208,7 @@ def test_cli_strict_exits_3_after_writing_fit_json(tmp_path, capsys, monkeypatch
     text = capsys.readouterr().out
     assert code == (3 if strict else 0) and seen == {"data": "rec.csv", "free": ["stiffness", "restitution"]}
     d = json.loads((out / "fit.json").read_text(encoding="utf-8"))
-    assert d["ok"] is False and "physical range" in d["failures"][0]
+    assert d["ok"] is False and "physical range" in d["failures"][0] and assert_strict_json(out) == ["fit.json"]
     body = text.split("\n", 1)[1]  # after the command's first line (what is fitted)
     assert body.startswith("FAILED") and d["failures"][0] in body
     assert ("exit status 3" in text) == strict

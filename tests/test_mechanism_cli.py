@@ -10,6 +10,7 @@ import pytest
 import jaxclear as jc
 from jaxclear.cli import main
 from jaxclear.sweep.config import config_from_dict
+from conftest import assert_strict_json
 
 ROOT = Path(__file__).resolve().parents[1]
 FOUR_BAR = ROOT / "examples" / "four-bar-rocker-pivot.toml"
@@ -28,6 +29,7 @@ def test_check_reports_dof_and_draws(tmp_path, capsys, path, dof, mobility, driv
     assert main(["check", str(path), "--out", str(tmp_path)]) == 0
     text = capsys.readouterr().out
     report = json.loads((tmp_path / "check.json").read_text())
+    assert "check.json" in assert_strict_json(tmp_path)
     assert (report["dof"], report["mobility"], report["driven_mobility"]) == (dof, mobility, driven)
     assert f"degrees of freedom         {dof}" in text
     assert "clearance joint" in text and "c = 500 um" in text
@@ -103,6 +105,7 @@ def test_simulate_a_file_with_each_new_element(tmp_path, kind):
                  "--no-progress", "--out", str(out)]) == 0
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] in (0, "ok"), summary
+    assert_strict_json(out)
     assert len((out / "timeseries.csv").read_text().strip().splitlines()) == 1 + 5
 
 
@@ -131,6 +134,7 @@ def test_sweep_over_a_guide_clearance_file(tmp_path):
                  "--channel", "joint:0:rear_lower_normal_force"]) == 0
     rows = (out / "runs.csv").read_text().strip().splitlines()
     assert len(rows) == 1 + 2
+    assert "manifest.json" in assert_strict_json(out)
     header = rows[0].split(",")
     status = [r.split(",")[header.index("status")] for r in rows[1:]]
     assert status == ["0", "0"], rows

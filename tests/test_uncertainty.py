@@ -22,6 +22,7 @@ from jaxclear.fitting import posterior
 from jaxclear.fitting.posterior_result import RHAT_LIMIT, build_result
 from jaxclear.fitting.priors import HalfNormal, LogNormal, Normal, Uniform, make_prior, parse_prior
 from jaxclear.fitting.records import sensor_signal
+from conftest import assert_strict_json
 
 SENSOR = Accelerometer(20e3)
 # a short record of the benchmark: 0.6 ms, two impacts, 200 kHz
@@ -203,6 +204,7 @@ def test_linear_gaussian_posterior_small(linear_case):
     assert {"posterior.nc", "posterior.json", "posterior_summary.csv", "posterior_pair.png",
             "posterior_predictive.png", "posterior_checkpoint.npz"} <= files
     doc = json.loads((folder / "small" / "posterior.json").read_text())
+    assert "posterior.json" in assert_strict_json(folder / "small")
     assert doc["converged"] is True and doc["priors"]["sensor_gain"] == "normal(mean=1, sd=0.5)"
     import arviz as az
 
@@ -546,6 +548,7 @@ def test_cli_tolerance_study_runs_and_resumes(tmp_path, capsys):
     assert "P(peak_contact_force_n > 66000)" in text and "Sobol' clearance" in text
     assert "(not resolved)" in text and "warning: Sobol' indices of" in text  # 4 base points: noise
     d = json.loads((out / "tolerance.json").read_text())
+    assert "tolerance.json" in assert_strict_json(out)
     assert any(w.startswith("Sobol' indices of") for w in d["warnings"])
     s, lin = d["summary"]["peak_contact_force_n"], d["linearised"]["peak_contact_force_n"]
     assert s["failed_runs"] == 0 and s["min"] <= lin["mean"] <= s["max"] or abs(lin["mean"] / s["mean"] - 1) < 0.05

@@ -19,6 +19,7 @@ import pytest
 import jaxclear as jc
 from jaxclear import wearing
 from jaxclear.cli import main
+from conftest import assert_strict_json
 
 M, G, RB, RJ, L = 10.0, 9.81, 0.010, 0.0095, 0.010
 C = RB - RJ
@@ -154,7 +155,7 @@ def test_worn_profile_changes_the_next_window(tmp_path, monkeypatch):
     np.testing.assert_array_equal(h2.depth[:1], h.depth)
     assert np.all(h2.depth[1] >= h2.depth[0]) and np.all(np.diff(h2.service_time) > 0)
     state = json.loads((out / "wear.json").read_text())
-    assert len(state["updates"]) == 2
+    assert len(state["updates"]) == 2 and "wear.json" in assert_strict_json(out)
     assert [r.split(",")[0] for r in (out / "updates.csv").read_text().splitlines()[1:]] == ["0", "1"]
     # a damaged state (a record without a key, a NaN depth, no 'updates') is an error naming the
     # file, the record and the way out, before anything is computed

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import argparse
-import json
 
+from .._storage import json_text
 from ..contact.friction import FRICTION_MODELS
 from ..contact.registry import describe_laws
 
@@ -23,7 +23,7 @@ def run(args) -> int:
     """Print the laws of :func:`jaxclear.contact.registry.describe_laws` as text or JSON."""
     laws = describe_laws()
     if args.json:
-        print(json.dumps({"laws": laws, "friction": list(FRICTION_MODELS)}, indent=2))
+        print(json_text({"laws": laws, "friction": list(FRICTION_MODELS)}, sort_keys=False))
         return 0
     for law in laws:
         print(f"{law['name']}")

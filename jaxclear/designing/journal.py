@@ -7,7 +7,10 @@ journal and runs the same optimiser from the same start: SciPy's methods are det
 it asks for the same points in the same order, and every point the journal holds is answered
 from it (floats are written with Python's shortest round-trip repr, so the answers are the same
 bits); the first point it does not hold is where the work continues. So the optimiser's own
-state never needs saving, whatever the method.
+state never needs saving, whatever the method. A value that is not finite (a failed run) is
+written as ``null`` (:func:`jaxclear._storage.json_text`, strict JSON) and read back as NaN, as
+are the strings ``"nan"``, ``"inf"`` and ``"-inf"`` of journals written before; the optimiser
+takes any value that is not finite for a failed evaluation.
 
 The first line holds the design's key (:func:`jaxclear._storage.fingerprint` of the mechanism,
 the variables, objective, constraints, members and settings): a journal of other inputs is
@@ -24,20 +27,16 @@ import os
 import numpy as np
 
 from .._errors import CheckpointError
-from .._storage import atomic_write_text, fsync_append
+from .._storage import atomic_write_text, fsync_append, json_text
 
 JOURNAL_NAME = "design_evaluations.jsonl"
 FORMAT = 1
 
 
-def _number(v):
-    """A float for JSON (NaN and infinities as the strings JSON has no literal for)."""
-    v = float(v)
-    return v if math.isfinite(v) else repr(v)
-
-
 def _float(v) -> float:
-    return float(v)
+    """A number of the journal: ``null`` (a value that was not finite) is NaN; the strings
+    ``"nan"``, ``"inf"``, ``"-inf"`` of journals written before read as those floats."""
+    return math.nan if v is None else float(v)
 
 
 class Journal:
@@ -54,7 +53,7 @@ class Journal:
         if resume and os.path.isfile(self.path):
             self._load()
         if not self.loaded:
-            atomic_write_text(self.path, json.dumps({"key": key, "format": FORMAT}) + "\n")
+            atomic_write_text(self.path, json_text({"key": key, "format": FORMAT}, indent=None, sort_keys=False) + "\n")
 
     @staticmethod
     def point_key(u) -> bytes:
@@ -114,10 +113,8 @@ class Journal:
         if jacobian is not None:
             entry["jacobian"] = [[float(v) for v in row] for row in np.asarray(jacobian)]
         if self.path is not None:
-            disk = dict(entry, values=[_number(v) for v in entry["values"]])
-            if jacobian is not None:
-                disk["jacobian"] = [[_number(v) for v in row] for row in entry["jacobian"]]
-            fsync_append(self.path, json.dumps(disk, separators=(",", ":")) + "\n")
+            line = json_text(entry, indent=None, sort_keys=False, separators=(",", ":"))
+            fsync_append(self.path, line + "\n")
         self._remember(entry)
         return entry
 

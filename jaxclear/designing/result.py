@@ -5,13 +5,12 @@ from __future__ import annotations
 
 import csv
 import io
-import math
 import os
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._storage import atomic_write_json, atomic_write_text
+from .._storage import atomic_write_json, atomic_write_text, jsonable
 from ..mechanism_files import save_mechanism
 from .figures import plot_comparison
 
@@ -20,19 +19,6 @@ from .figures import plot_comparison
 #: found that meets the constraints: ``least_violation`` says how close one came), ``stopped``
 #: (the method ended otherwise, e.g. a line search that found no decrease: ``message``).
 STATUSES = ("converged", "max_iter", "infeasible", "stopped")
-
-
-def _clean(value):
-    """JSON-ready: NaN and infinities as None, NumPy scalars as Python numbers."""
-    if isinstance(value, dict):
-        return {k: _clean(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_clean(v) for v in value]
-    if isinstance(value, (np.floating, float)):
-        return float(value) if math.isfinite(float(value)) else None
-    if isinstance(value, np.integer):
-        return int(value)
-    return value
 
 
 @dataclass
@@ -105,7 +91,7 @@ class DesignResult:
         skip = {"mechanism", "start_mechanism", "comparison"}
         out = {k: v for k, v in self.__dict__.items() if k not in skip}
         out["success"] = self.success
-        return _clean(out)
+        return jsonable(out)
 
     def write_json(self, path) -> str:
         """``design.json``: every field but the mechanisms. Returns the path."""

@@ -9,10 +9,8 @@ grids, values outside their physical range, bad run and output settings; every e
 from __future__ import annotations
 
 import inspect
-import json
 import math
 import os
-import tomllib
 from dataclasses import dataclass, field
 
 import equinox as eqx
@@ -21,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import params
-from .._storage import fingerprint, read_text
+from .._storage import fingerprint, json_text, jsonable, read_toml
 from .._errors import JaxclearError, ParameterError
 from ..model import Mechanism
 from ..mechanism_files import load_mechanism
@@ -338,7 +336,7 @@ class SweepConfig:
     def describe(self) -> dict:
         """JSON-able definition (what the manifest stores and hashes)."""
         if self.mechanism is None:
-            mech = {"preset": self.preset, **{k: _jsonable(v) for k, v in sorted(self.preset_options.items())}}
+            mech = {"preset": self.preset, **{k: jsonable(v) for k, v in sorted(self.preset_options.items())}}
         else:
             mech = {"mechanism": self._mech.name, "leaves_sha256": _tree_hash(self._mech),
                     "ideal_leaves_sha256": None if self._ideal is None else _tree_hash(self._ideal)}
@@ -358,7 +356,7 @@ class SweepConfig:
     def sweep_hash(self) -> str:
         """sha256 of the definition (:meth:`describe`, as sorted JSON) and of every run's
         parameter values (float64 bytes, bit-exact), via :func:`jaxclear._storage.fingerprint`."""
-        return fingerprint(json.dumps(self.describe(), sort_keys=True), np.asarray(self._values, dtype=float))
+        return fingerprint(json_text(self.describe(), indent=None), np.asarray(self._values, dtype=float))
 
 
 def _applies(mech: Mechanism, name: str) -> bool:
@@ -367,16 +365,6 @@ def _applies(mech: Mechanism, name: str) -> bool:
         return True
     except JaxclearError:
         return False
-
-
-def _jsonable(v):
-    if isinstance(v, dict):
-        return {str(k): _jsonable(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [_jsonable(x) for x in v]
-    if isinstance(v, (np.ndarray, jax.Array)):
-        return np.asarray(v).tolist()
-    return v
 
 
 def _tree_hash(tree) -> str:
@@ -394,12 +382,7 @@ def load_config(path, **overrides) -> SweepConfig:
     (the command-line options). Relative ``output.dir`` is relative to the current folder.
     """
     path = os.fspath(path)
-    text = read_text(path, "sweep configuration")
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as err:
-        raise ParameterError(f"{path}: not valid TOML: {err}") from None
-    return config_from_dict(doc, source=path, **overrides)
+    return config_from_dict(read_toml(path, "sweep configuration"), source=path, **overrides)
 
 
 def config_from_dict(doc: dict, source: str = "<dict>", **overrides) -> SweepConfig:

@@ -21,14 +21,13 @@ Layout of the dataset (CF-style attributes ``units`` and ``long_name`` on every 
 
 from __future__ import annotations
 
-import json
 import os
 
 import numpy as np
 import pandas as pd
 import xarray as xr
 
-from .._storage import atomic_write_netcdf
+from .._storage import atomic_write_netcdf, json_text
 from .labels import column_unit, long_name
 from .store import NETCDF_NAME, POINCARE_COORDS
 
@@ -60,8 +59,8 @@ def _manifest_attrs(manifest: dict) -> dict:
     """Flat, NetCDF-safe dataset attributes (str and numbers only) from the manifest."""
     cfg = manifest.get("config", {})
     attrs = {"title": "jaxclear sweep", "sweep_mode": cfg.get("mode", ""), "sweep_hash": manifest.get("sweep_hash", ""),
-             "mechanism": json.dumps(cfg.get("mechanism", {}), sort_keys=True),
-             "status_codes": json.dumps(manifest.get("status_codes", {}), sort_keys=True)}
+             "mechanism": json_text(cfg.get("mechanism", {}), indent=None),
+             "status_codes": json_text(manifest.get("status_codes", {}), indent=None)}
     for key, value in cfg.get("run", {}).items():
         attrs[key] = int(value) if isinstance(value, bool) else value
     return attrs

@@ -5,11 +5,10 @@ sections themselves. Axis labels and units come from the labelled dataset
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 
 from .._errors import ParameterError
+from .._storage import json_text
 from ..plot import plot_bifurcation, plot_heatmap, plot_poincare
 from .labels import column_unit, long_name
 from .results import SweepResult
@@ -44,7 +43,7 @@ def _fixed(res: SweepResult) -> str:
     mech = dict(res.manifest.get("config", {}).get("mechanism", {}))
     preset = mech.pop("preset", mech.pop("mechanism", ""))
     mech.pop("leaves_sha256", None), mech.pop("ideal_leaves_sha256", None)
-    parts = [f"{k} {json.dumps(v) if isinstance(v, (dict, list)) else v}" for k, v in sorted(mech.items())]
+    parts = [f"{k} {json_text(v, indent=None, sort_keys=False) if isinstance(v, (dict, list)) else v}" for k, v in sorted(mech.items())]
     return "; ".join([p for p in [str(preset), ", ".join(parts)] if p])
 
 

@@ -29,10 +29,9 @@ Every key is checked before anything runs; an unknown one is an error naming the
 from __future__ import annotations
 
 import os
-import tomllib
 
 from .._errors import ParameterError
-from .._storage import read_text
+from .._storage import read_toml
 from .distributions import inputs_from_dict
 from .study import RUN_OPTIONS
 
@@ -80,8 +79,4 @@ def study_from_dict(doc: dict, source: str = "<dict>") -> dict:
 
 def load_study(path: str) -> dict:
     """:func:`study_from_dict` of a TOML file (a syntax error names the file and line)."""
-    try:
-        doc = tomllib.loads(read_text(path, "tolerance study file"))
-    except tomllib.TOMLDecodeError as exc:
-        raise ParameterError(f"{path}: not valid TOML ({exc})") from None
-    return study_from_dict(doc, path)
+    return study_from_dict(read_toml(path, "tolerance study file"), path)
