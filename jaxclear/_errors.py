@@ -9,6 +9,7 @@ user reading the message knows what to change. Checks run where objects are buil
 
 from __future__ import annotations
 
+import difflib
 from typing import Any, NamedTuple
 
 import equinox as eqx
@@ -130,6 +131,19 @@ def function_name(fn) -> str:
         return f"{name} ({os.path.basename(inspect.getsourcefile(fn))}:{inspect.getsourcelines(fn)[1]})"
     except (TypeError, OSError):
         return name
+
+
+def closest(name: str, candidates, listing: str) -> str:
+    """What follows the message of a name that was not found: the closest of ``candidates``
+    first (:func:`difflib.get_close_matches`), then how many there are and where to list them
+    (``listing``, e.g. ``jc.params.names(mech)``): ``"; did you mean 'clearance'? (40 names:
+    jc.params.names(mech))"``. The one format of an unknown name here."""
+    candidates = list(candidates)
+    near = difflib.get_close_matches(name, candidates, n=3, cutoff=0.6)
+    if not near and ":" in name:  # a misspelt base with a valid suffix: mas:rod -> mass:rod
+        near = difflib.get_close_matches(name.split(":", 1)[0], candidates, n=3, cutoff=0.6)
+    said = ", ".join(repr(n) for n in near[:-1]) + (" or " if len(near) > 1 else "") + (repr(near[-1]) if near else "")
+    return (f"; did you mean {said}?" if near else "") + f" ({len(candidates)} names: {listing})"
 
 
 def is_concrete(value) -> bool:

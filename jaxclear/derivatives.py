@@ -55,7 +55,7 @@ def check_names(mech: Mechanism, names: Sequence[str]) -> tuple:
         raise ParameterError(f"parameters listed twice: {list(names)}")
     for name in names:
         try:
-            params._accessor(mech, name)
+            params.check_name(mech, name)
         except JaxclearError as err:  # says why, then the closest names (params.closest)
             raise ParameterError(f"cannot differentiate with respect to {name!r}: {err}") from None
     return names

@@ -79,7 +79,6 @@ parameter raises :class:`~jaxclear.ParameterError` naming the laws that have it.
 
 from __future__ import annotations
 
-import difflib
 import warnings
 from dataclasses import dataclass
 from typing import Callable
@@ -88,7 +87,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from ._errors import JaxclearError, ParameterError, check_range
+from ._errors import JaxclearError, ParameterError, check_range, closest
 from ._units import rad_s_to_rpm, rpm_to_rad_s
 from .contact.friction import FRICTION_MODELS
 from .elements import LubricatedJoint, TranslationalClearanceJoint
@@ -225,20 +224,10 @@ def names(mech: Mechanism) -> list[str]:
     return out
 
 
-def closest(name: str, candidates, listing: str) -> str:
-    """What follows the message of a name that was not found: the closest of ``candidates``
-    first (:func:`difflib.get_close_matches`), then how many there are and where to list them
-    (``listing``, e.g. ``jc.params.names(mech)``): ``"; did you mean 'clearance'? (40 names:
-    jc.params.names(mech))"``. The one format of an unknown name here."""
-    candidates = list(candidates)
-    near = difflib.get_close_matches(name, candidates, n=3, cutoff=0.6)
-    if not near and ":" in name:  # a misspelt base with a valid suffix: mas:rod -> mass:rod
-        near = difflib.get_close_matches(name.split(":", 1)[0], candidates, n=3, cutoff=0.6)
-    said = ", ".join(repr(n) for n in near[:-1]) + (" or " if len(near) > 1 else "") + (repr(near[-1]) if near else "")
-    return (f"; did you mean {said}?" if near else "") + f" ({len(candidates)} names: {listing})"
-
-
-def _split(name: str):
+def split_name(name: str) -> tuple[str, int, str | None]:
+    """``(base, joint, suffix)`` of a parameter name: ``"mass:rod"`` -> ``("mass", 0, "rod")``,
+    ``"clearance@1"`` -> ``("clearance", 1, None)`` (a deprecated base replaced, with its
+    warning); a malformed or unknown name is a :class:`~jaxclear.ParameterError`."""
     base, joint = name, 0
     body = None
     if "@" in base:
@@ -253,7 +242,7 @@ def _split(name: str):
         warnings.warn(f"parameter name {base!r} is deprecated; use {DEPRECATED[base]!r}", DeprecationWarning,
                       stacklevel=3)
         base = DEPRECATED[base]
-    if base not in INFO:  # the closest names follow (closest), from _accessor or info
+    if base not in INFO:  # the closest names follow (closest), from check_name, get or info
         raise ParameterError(f"unknown parameter {name!r}")
     if base in BODY_NAMES and body is None:
         raise ParameterError(f"parameter {name!r} needs a body: {base}:BODY")
@@ -268,7 +257,7 @@ def _split(name: str):
 def info(name: str) -> ParameterInfo:
     """:class:`ParameterInfo` of a (possibly suffixed) parameter name."""
     try:
-        return INFO[_split(name)[0]]
+        return INFO[split_name(name)[0]]
     except ParameterError as err:
         raise ParameterError(f"{err}{closest(name, parameter_names(), 'jc.params.parameter_names()')}") from None
 
@@ -298,9 +287,15 @@ def _accessor(mech: Mechanism, name: str) -> tuple[Callable, Callable]:
         raise type(err)(f"{err}{closest(name, names(mech), 'jc.params.names(mech)')}") from None
 
 
+def check_name(mech: Mechanism, name: str) -> None:
+    """Raise the error of :func:`get` unless ``name`` addresses a number of ``mech``: why, then
+    the closest names (:func:`closest`)."""
+    _accessor(mech, name)
+
+
 def _lookup(mech: Mechanism, name: str) -> tuple[Callable, Callable]:
     """:func:`_accessor` without the closest names (what :func:`names` tries each name with)."""
-    base, k, body = _split(name)
+    base, k, body = split_name(name)
     if base in BODY_NAMES:
         i = mech.body_index(body)
         if i < 0:
@@ -396,7 +391,7 @@ def get(mech: Mechanism, name: str):
     """Current value of a named parameter (SI; ``speed_rpm`` in rpm)."""
     getter, _ = _accessor(mech, name)
     value = getter(mech)
-    if _split(name)[0] == "speed_rpm":
+    if split_name(name)[0] == "speed_rpm":
         value = rad_s_to_rpm(value)
     return value
 
@@ -405,7 +400,7 @@ def replace(mech: Mechanism, name: str, value) -> Mechanism:
     """A new mechanism with parameter ``name`` set to ``value`` (a float, array or tracer).
     No validation here (``value`` may be traced): see :func:`validate`."""
     _, where = _accessor(mech, name)
-    base, k, _ = _split(name)
+    base, k, _ = split_name(name)
     value = jnp.asarray(value, dtype=float)
     if base == "clearance" and isinstance(mech.clearance_joints[k], TranslationalClearanceJoint):
         value = mech.clearance_joints[k].slider_height + 2.0 * value
@@ -435,8 +430,8 @@ def is_derived(mech: Mechanism, name: str) -> bool:
     radii, so it follows ``clearance``). Setting it (:func:`replace`) makes it explicit. (Not to
     be confused with the derived *names* ``centroid_x``/``centroid_y``, one value setting
     several leaves.)"""
-    _accessor(mech, name)
-    base, k, _ = _split(name)
+    check_name(mech, name)
+    base, k, _ = split_name(name)
     if base != "stiffness":
         return False
     law = mech.clearance_joints[k].law
@@ -461,8 +456,8 @@ def replace_following(mech: Mechanism, values: dict, base: dict) -> Mechanism:
 def validate(mech: Mechanism, name: str, values) -> np.ndarray:
     """Check concrete ``values`` of parameter ``name`` against its range (and, for
     ``clearance``, against the bearing radius). Returns them as a float array."""
-    _accessor(mech, name)  # name exists on this mechanism
-    base, k, _ = _split(name)
+    check_name(mech, name)
+    base, k, _ = split_name(name)
     arr = np.asarray(values, dtype=float)
     p = INFO[base]
     check_range(name, arr, low=p.low, high=p.high, low_open=p.low_open, high_open=p.high_open,
@@ -496,5 +491,6 @@ def from_unconstrained(name: str, z):
 
 
 __all__ = ["BODY_NAMES", "COMPONENTS", "CONNECTOR_NAMES", "DEPRECATED", "DERIVED", "FRICTION_FIELDS", "INFO",
-           "LOAD_NAMES", "ParameterInfo", "closest", "from_unconstrained", "get", "info", "is_derived", "names",
-           "parameter_names", "replace", "replace_following", "replace_many", "to_unconstrained", "validate"]
+           "LOAD_NAMES", "ParameterInfo", "check_name", "closest", "from_unconstrained", "get", "info", "is_derived",
+           "names", "parameter_names", "replace", "replace_following", "replace_many", "split_name", "to_unconstrained",
+           "validate"]

@@ -84,7 +84,7 @@ def check_variables(mech: Mechanism, variables: dict, start: dict | None = None)
     out = []
     for name, bounds in variables.items():
         try:
-            params._accessor(mech, name)
+            params.check_name(mech, name)
         except JaxclearError as err:  # says why, then the closest names (params.closest)
             raise ParameterError(f"design variable {name!r} is not a number of mechanism {mech.name!r}: {err}") from None
         low, high = _interval(name, bounds)

@@ -43,7 +43,7 @@ def check_name(mech: Mechanism, name: str):
     if name in SENSOR_PARAMETERS:
         return
     try:
-        params._accessor(mech, name)
+        params.check_name(mech, name)
     except JaxclearError as err:
         raise ParameterError(f"free parameter {name!r} does not exist: {err}; besides the mechanism's names a fit "
                              f"frees the sensor's {', '.join(SENSOR_PARAMETERS)}") from None

@@ -153,7 +153,7 @@ def stiffness_range(mech: Mechanism, name: str = "stiffness") -> tuple[float, fl
     the bearing and the journal); ``what`` describes the joint. None where the law derives no
     stiffness from materials (Kelvin-Voigt, a translational joint without radii) or its exponent
     is not :data:`HERTZ_EXPONENT` (the formula's unit is N/m^1.5)."""
-    base, k, _ = params._split(name)
+    base, k, _ = params.split_name(name)
     if base != "stiffness" or not 0 <= k < len(mech.clearance_joints):
         return None
     joint = mech.clearance_joints[k]
@@ -210,7 +210,7 @@ def _with_estimates(mech: Mechanism | None, free: Sequence[str], estimates: dict
     if mech is None:
         return None
     for name in free:
-        if name in SENSOR_PARAMETERS or params._split(name)[0] not in ("clearance", "exponent"):
+        if name in SENSOR_PARAMETERS or params.split_name(name)[0] not in ("clearance", "exponent"):
             continue
         value = estimates.get(name, math.nan)
         try:
@@ -291,7 +291,7 @@ def _range_failure(name: str, value: float, shown: str, mech: Mechanism | None) 
         return (f"{shown} is outside its range {interval} (jaxclear.params): the fit ran into the bound of its "
                 "transform; try other start values (--start), more starts (--starts N) or a shorter window (--window), "
                 "and check the units of the start")
-    if mech is not None and params._split(name)[0] == "clearance":
+    if mech is not None and params.split_name(name)[0] == "clearance":
         try:
             params.validate(mech, name, value)
         except JaxclearError as err:
@@ -303,7 +303,7 @@ def _range_failure(name: str, value: float, shown: str, mech: Mechanism | None) 
 def _stiffness_failure(name: str, value: float, shown: str, mech: Mechanism | None) -> str | None:
     """For a contact stiffness with a physical range (:func:`stiffness_range`): the failure when
     outside it, '' inside; None where no range applies."""
-    if mech is None or name in SENSOR_PARAMETERS or params._split(name)[0] != "stiffness":
+    if mech is None or name in SENSOR_PARAMETERS or params.split_name(name)[0] != "stiffness":
         return None
     try:
         found = stiffness_range(mech, name)

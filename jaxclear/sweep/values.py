@@ -73,7 +73,7 @@ def _values(name: str, spec) -> np.ndarray:
 def _canonical(name: str) -> tuple:
     """What a name addresses (so that ``speed``/``speed_rpm`` and ``clearance``/``clearance@0``
     are recognised as the same leaf)."""
-    base, joint, body = params._split(name)
+    base, joint, body = params.split_name(name)
     if base in ("speed", "speed_rpm"):
         return ("speed",)
     if base in ("mass", "inertia", "point_x", "point_y"):  # a body's (and point's) own quantity
