@@ -199,7 +199,7 @@ def test_compiled_chunk_has_no_lapack_call():
                             **FAST_RUN)
     assert cfg.ideal is not None
     plan = sweep.make_plan(cfg, sweep.make_mesh(1))
-    text = sweep.compiled_hlo(sweep._put(cfg.values, plan.mesh), cfg.base_mechanism, cfg.ideal, plan)
+    text = sweep.compiled_hlo(sweep.put_chunk(cfg.values, plan.mesh), cfg.base_mechanism, cfg.ideal, plan)
 
     def lapack_targets(hlo: str) -> list[str]:
         return sorted(t for t in set(re.findall(r'custom_call_target="([^"]+)"', hlo)) if "lapack" in t.lower())
@@ -228,8 +228,8 @@ def test_runs_one_after_another_or_side_by_side():
     side = dataclasses.replace(plan, side_by_side=True)
     assert not sweep.batch.one_by_one(side)
     assert sweep.batch.one_by_one(dataclasses.replace(plan, side_by_side=False))
-    values = sweep._put(cfg.values, plan.mesh)
-    outs = [sweep._fetch(sweep._run_chunk(values, cfg.base_mechanism, None, p)) for p in (plan, side)]
+    values = sweep.put_chunk(cfg.values, plan.mesh)
+    outs = [sweep.fetch_chunk(sweep.run_chunk(values, cfg.base_mechanism, None, p)) for p in (plan, side)]
     single = [jax.jit(lambda r: sweep.run_outputs(plan, cfg.base_mechanism, None, r))(row) for row in cfg.values]
     for k, row in enumerate(cfg.values):
         ref = {key: np.asarray(v) for key, v in single[k].items()}
@@ -466,14 +466,14 @@ def _check_resume_guards(e2e, tmp_path):
     # a partial last line (a kill during a write) is cut off, complete rows are kept
     path = tmp_path / "runs.csv"
     path.write_text("run,a\n0,1.0\n1,2.0\n2,3")
-    assert sweep._repair_csv(str(path), ["run", "a"]) == {0, 1}
+    assert sweep.repair_csv(str(path), ["run", "a"]) == {0, 1}
     assert path.read_text() == "run,a\n0,1.0\n1,2.0\n"
     path.write_text("run,a\n0,1.0\n0,1.0\n")
     with pytest.raises(jc.CheckpointError, match=r"line 3: run 0 appears twice.*--restart"):
-        sweep._repair_csv(str(path), ["run", "a"])
+        sweep.repair_csv(str(path), ["run", "a"])
     path.write_text("run,b\n")
     with pytest.raises(ParameterError, match=r"is not this sweep's"):
-        sweep._repair_csv(str(path), ["run", "a"])
+        sweep.repair_csv(str(path), ["run", "a"])
 
 
 def _check_labelled_results(e2e):
@@ -607,7 +607,7 @@ MULTI_DEVICE_SCRIPT = textwrap.dedent("""
     one = sweep.run_sweep(sweep.SweepConfig(devices=1, chunk_size=2, out=out + "/one", **kw))
     cfg = sweep.SweepConfig(devices=2, chunk_size=4, out=out + "/x", **kw)
     plan_mesh = sweep.make_mesh(2)
-    arr = sweep._put(cfg.values[:4], plan_mesh)
+    arr = sweep.put_chunk(cfg.values[:4], plan_mesh)
     manifest = json.load(open(out + "/two/manifest.json"))
     same = all(np.array_equal(two.table[k], one.table[k]) for k in two.table)
     print(json.dumps({"same": bool(same), "input_devices": len(arr.sharding.device_set),

@@ -72,16 +72,16 @@ from __future__ import annotations
 import importlib
 import warnings
 
-from .batch import TRACES, TraceCounter, _run_chunk, _runs, _settings, compiled_hlo, run_outputs
+from .batch import TRACES, TraceCounter, compiled_hlo, run_chunk, run_outputs
 from .config import CONFIG_KEYS, OUTPUT_KEYS, RUN_KEYS, SweepConfig, config_from_dict, load_config
 from .devices import (
     BYTES_PER_SAMPLE,
     DEFAULT_RUNS_PER_DEVICE,
-    _fetch,
-    _put,
     auto_chunk_size,
     chunk_size,
+    fetch_chunk,
     make_mesh,
+    put_chunk,
 )
 from .driver import run_sweep
 from .plan import Plan, make_plan
@@ -93,8 +93,8 @@ from .store import (
     MANIFEST_NAME,
     NETCDF_NAME,
     POINCARE_COORDS,
-    _repair_csv,
     csv_columns,
+    repair_csv,
 )
 from .labels import column_unit, long_name
 from .values import RANGE_KEYS
@@ -103,6 +103,9 @@ from .values import RANGE_KEYS
 _FIGURES = ("heatmap", "bifurcation", "poincare_plot", "poincare_coordinate", "axis_label", "metric_label")
 #: Names served by :mod:`jaxclear.sweep.dataset`, imported on first access (xarray, pandas).
 _DATASET = ("open_dataset", "write_netcdf")
+#: The old private spellings of the chunk helpers, still served (with a DeprecationWarning) for
+#: code written against them (benchmarks/bench_sweep.py): old name -> public name.
+_RENAMED = {"_run_chunk": "run_chunk", "_put": "put_chunk", "_fetch": "fetch_chunk", "_repair_csv": "repair_csv"}
 
 
 def __getattr__(name):
@@ -114,6 +117,10 @@ def __getattr__(name):
         warnings.warn("jaxclear.sweep.TRACE_COUNT is deprecated; read jaxclear.sweep.TRACES.value",
                       DeprecationWarning, stacklevel=2)
         return TRACES.value
+    if name in _RENAMED:
+        warnings.warn(f"jaxclear.sweep.{name} is deprecated; use jaxclear.sweep.{_RENAMED[name]}", DeprecationWarning,
+                      stacklevel=2)
+        return globals()[_RENAMED[name]]
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
@@ -128,6 +135,12 @@ __all__ = [
     "read_results",
     "read_chunks",
     "make_mesh",
+    "run_chunk",
+    "put_chunk",
+    "fetch_chunk",
+    "compiled_hlo",
+    "run_outputs",
+    "repair_csv",
     "auto_chunk_size",
     "chunk_size",
     "csv_columns",

@@ -200,7 +200,7 @@ def _runs(plan: Plan, mech: Mechanism, ideal: Mechanism | None, rows):
 
 
 @jit
-def _run_chunk(values, mech: Mechanism, ideal: Mechanism | None, plan: Plan):
+def run_chunk(values, mech: Mechanism, ideal: Mechanism | None, plan: Plan):
     """``values`` (B, P) sharded over ``plan.mesh`` -> dict of (B, ...) outputs."""
     m_arr, m_static = eqx.partition(mech, eqx.is_array)
     i_arr, i_static = eqx.partition(ideal, eqx.is_array)
@@ -218,4 +218,4 @@ def _run_chunk(values, mech: Mechanism, ideal: Mechanism | None, plan: Plan):
 def compiled_hlo(values, mech: Mechanism, ideal: Mechanism | None, plan: Plan) -> str:
     """Optimized HLO text of the chunk function compiled for these arguments (what XLA runs;
     e.g. to check which custom calls, such as LAPACK kernels, it contains)."""
-    return _run_chunk.lower(values, mech, ideal, plan).compile().compiled.as_text()
+    return run_chunk.lower(values, mech, ideal, plan).compile().compiled.as_text()

@@ -61,7 +61,7 @@ def _memory_bytes() -> int:
         return 4 << 30
 
 
-def _put(values: np.ndarray, mesh: Mesh):
+def put_chunk(values: np.ndarray, mesh: Mesh):
     """Place a (B, P) host array on the mesh, batch axis split (works across processes)."""
     sharding = NamedSharding(mesh, PartitionSpec("batch"))
     if jax.process_count() == 1:
@@ -69,7 +69,7 @@ def _put(values: np.ndarray, mesh: Mesh):
     return jax.make_array_from_callback(values.shape, sharding, lambda index: values[index])
 
 
-def _fetch(tree) -> dict:
+def fetch_chunk(tree) -> dict:
     """The chunk's outputs as host NumPy arrays (gathered from every process)."""
     if jax.process_count() == 1:
         return jax.tree_util.tree_map(np.asarray, tree)

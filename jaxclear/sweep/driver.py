@@ -19,9 +19,9 @@ from tqdm import tqdm
 
 from .._storage import locked_folder
 
-from .batch import _run_chunk
+from .batch import run_chunk
 from .config import SweepConfig
-from .devices import _fetch, _put, agree_on_done, barrier, chunk_size, make_mesh
+from .devices import agree_on_done, barrier, chunk_size, fetch_chunk, make_mesh, put_chunk
 from .plan import Plan, make_plan
 from .results import SweepResult, read_results
 from .store import prepare_output, write_chunk
@@ -49,7 +49,7 @@ def _compute(cfg: SweepConfig, plan: Plan, c: int, chunk: int) -> tuple[int, dic
     lo, hi = c * chunk, min((c + 1) * chunk, cfg.n_runs)
     rows = cfg.values[lo:hi]
     padded = np.concatenate([rows, np.repeat(rows[-1:], chunk - (hi - lo), axis=0)], axis=0)
-    res = _fetch(_run_chunk(_put(padded, plan.mesh), cfg.base_mechanism, cfg.ideal, plan))
+    res = fetch_chunk(run_chunk(put_chunk(padded, plan.mesh), cfg.base_mechanism, cfg.ideal, plan))
     return lo, {k: v[: hi - lo] for k, v in res.items()}
 
 

@@ -139,7 +139,7 @@ def parse_rows(path: str, data: bytes, columns: list[str] | None = None) -> tupl
     return header, rows[1:]
 
 
-def _repair_csv(path: str, columns: list[str], n_runs: int | None = None) -> set[int]:
+def repair_csv(path: str, columns: list[str], n_runs: int | None = None) -> set[int]:
     """Cut a partial last line (left by a kill), check the header and every row
     (:func:`parse_rows`), return the run indices present. Raises :class:`ParameterError` for a
     header of another sweep, :class:`~jaxclear.CheckpointError` for a damaged row that is not the
@@ -247,7 +247,7 @@ def prepare_output(cfg: SweepConfig, out: str, restart: bool, layout: dict) -> s
     if not os.path.exists(csv_path):
         fsync_append(csv_path, ",".join(csv_columns(cfg)) + "\n", mode="w")
         return set()
-    return _repair_csv(csv_path, csv_columns(cfg), cfg.n_runs)
+    return repair_csv(csv_path, csv_columns(cfg), cfg.n_runs)
 
 
 def write_chunk(cfg: SweepConfig, out: str, c: int, lo: int, res: dict, done: set[int]) -> int:
