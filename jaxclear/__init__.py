@@ -3,10 +3,11 @@
 Importing jaxclear switches JAX to double precision (contact penetrations are micrometres) and,
 before JAX starts its backends, asks XLA:CPU to compile small loops as single kernels
 (``XLA_FLAGS``; see ``jaxclear/_xla_flags.py``).
-This module only re-exports the public API; the implementation lives in subpackages by layer:
-``model`` (what a mechanism is) -> ``contact`` (force laws) -> ``elements`` (force elements
-with state) -> ``integrate`` (equations of motion, solvers, ``simulate``) -> ``analysis``,
-``io``, ``plot`` -> ``sweep``, ``fitting``, ``designing`` -> ``cli``. See docs/architecture.md.
+This module only re-exports the public API (``__all__``, each name documented in the API
+reference); the implementation lives in subpackages by layer: ``model`` (what a mechanism is)
+-> ``contact`` (force laws) -> ``elements`` (force elements with state) -> ``integrate``
+(equations of motion, solvers, ``simulate``) -> ``analysis``, ``io``, ``plot`` -> ``sweep``,
+``fitting``, ``designing`` -> ``cli``. See docs/architecture.md.
 """
 
 from importlib.metadata import PackageNotFoundError as _PackageNotFoundError
@@ -157,6 +158,54 @@ from .chaos import (  # noqa: E402
     rosenstein,
     zero_one_test,
 )
+
+#: The public API: every name here is documented in the API reference (docs/api/index.md lists them by
+#: page; tests/test_docs.py checks both). Grouped by the page that documents them.
+__all__ = [
+    # Model (docs/api/model.md)
+    "Body", "Revolute", "Translational", "Fixed", "PointOnLine", "AngleDriver", "FunctionDriver", "ProfileDriver",
+    "ConstantProfile", "RampProfile", "HarmonicProfile", "TableProfile", "PointForce", "Torque",
+    "TranslationalSpringDamper", "PolynomialCurve", "TableCurve", "RotationalSpringDamper", "Bushing", "Mechanism",
+    "GROUND", "crank_period", "AbstractConstraint", "AbstractJoint", "AbstractDriver", "AbstractLoad",
+    "AbstractConnector", "AbstractCurve",
+    # Contact laws (contact.md)
+    "make_law", "law_names", "describe_laws", "ContactLaw", "KelvinVoigtLaw", "CylindricalLaw", "ConformalLaw",
+    "StepDampedImpactLaw", "HybridLaw", "FourierProfile", "oval", "Material", "STEEL", "ContactKinematics",
+    "AbstractNormalLaw", "Friction", "AmbrosioFriction", "CoulombFriction", "SmoothCoulombFriction", "NoFriction",
+    "ViscousFriction", "StribeckFriction", "ThrelfallFriction", "BrownMcPheeFriction", "KarnoppFriction",
+    "DahlFriction", "LuGreFriction", "AbstractFriction",
+    # Force elements (elements.md)
+    "ClearanceJoint", "LubricatedJoint", "TranslationalClearanceJoint", "PinSlotJoint", "ContactMemory",
+    "CornerMemory", "kinematics", "AbstractForceElement", "AbstractJournalJoint",
+    # Integration (integrate.md)
+    "simulate", "settings", "Settings", "Solution", "State", "SOLVERS", "Baumgarte", "ImpactMemorySolver",
+    "OnsetController", "UnrolledExplicitRK", "initial_state", "assemble", "accelerations", "vector_field", "energy",
+    # Parameters, derivatives, presets, mechanism files (params.md)
+    "preset", "preset_names", "preset_file", "sensitivities", "differentiable_names", "amplification",
+    "derivative_horizon", "DerivativeHorizonWarning", "load_mechanism", "save_mechanism",
+    # Analysis (analysis.md)
+    "Accelerometer", "channel", "check_mechanism",
+    # Input/output and plots (io.md)
+    "timeseries_frame", "read_measurements", "Measurements", "plot_mechanism", "animate",
+    # Sweeps (sweep.md)
+    "SweepConfig", "load_config", "run_sweep", "read_results", "SweepResult",
+    # Fitting (fit.md)
+    "fit", "FitResult", "FitChannel", "synthetic_record", "levenberg_marquardt", "parameter_grad", "fit_statistics",
+    "StatisticsFitResult",
+    # Uncertainty (uncertainty.md)
+    "posterior", "PosteriorResult", "tolerance_study", "ToleranceResult", "Inputs", "inputs_from_dict",
+    # Wear (wear.md)
+    "wear", "WearOptions", "WearHistory", "plot_wear",
+    # Design (design.md)
+    "design", "DesignResult", "OperatingPoint", "Ensemble", "RuggedObjectiveWarning",
+    # Chaos (chaos.md)
+    "lyapunov", "lyapunov_map", "LyapunovResult", "LyapunovMap", "LyapunovError", "psd", "zero_one_test",
+    "rosenstein", "poincare_section", "detect_period", "period_name",
+    # Errors, status codes, host devices (index.md)
+    "JaxclearError", "ParameterError", "FitDataError", "DesignError", "MechanismError", "InitialConditionError",
+    "SolverError", "CheckpointError", "OutputLockedError", "MissingExtraError", "RESULTS", "STATUS",
+    "SlowLoopsWarning", "request_host_devices",
+]
 
 try:
     __version__ = _version("jaxclear")

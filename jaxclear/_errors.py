@@ -98,8 +98,8 @@ class RESULTS(eqx.Enumeration):
     )
 
 
-#: Status code -> message, derived from :class:`RESULTS` (code ``i`` is the ``i``-th entry).
 STATUS = {int(item._value): RESULTS[item] for item in (getattr(RESULTS, n) for n in RESULTS._name_to_item)}
+"""Status code of a run (``Solution.status``) -> its message; code ``i`` is the ``i``-th entry of :class:`RESULTS`."""
 
 #: What a user can do about each failure (appended to the error raised with ``throw=True``).
 REMEDIES = {

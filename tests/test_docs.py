@@ -110,7 +110,8 @@ def test_sources_compile_without_warnings():
 
 def test_site_builds_strict(tmp_path):
     """``mkdocs build --strict`` of the whole site (theory pages, API pages from the docstrings,
-    the executed notebooks, every internal link and anchor) into a scratch folder; about 10 s."""
+    the executed notebooks, every internal link and anchor) into a scratch folder; about 10 s.
+    Every name of ``jaxclear.__all__`` is documented in it."""
     import os
 
     env = dict(os.environ, PYTHONPATH=str(ROOT), NO_MKDOCS_2_WARNING="1")
@@ -127,6 +128,7 @@ def test_site_builds_strict(tmp_path):
     hybrid = (site / "theory/hybrid/index.html").read_text(encoding="utf-8")
     assert "Dynamic analysis of mechanical systems with planar revolute joints with clearance" in hybrid
     check_site_is_offline(site)
+    check_reference_documents_all(site)
 
 
 #: What a page may load from elsewhere: nothing. Script sources, module imports, style sheets.
@@ -200,17 +202,67 @@ def test_docs_index_links_every_notebook_and_page():
     assert not missing, f"docs/index.md does not link {missing}"
 
 
-def test_api_index_names_every_public_name():
-    """docs/api/index.md names every class, function and constant that jaxclear exports (it
-    omitted the three joints, wear and synthetic_record)."""
+def _api_index_exports() -> list[str]:
+    """The names in the "exports" column of docs/api/index.md's table, row after row."""
+    rows = [line for line in _read("docs/api/index.md").splitlines() if line.startswith("| [") or
+            line.startswith("| this page |")]
+    return [n for row in rows for n in re.findall(r"`([A-Za-z_][A-Za-z_0-9]*)`", row.split(" | ")[2])]
+
+
+def test_all_is_the_public_api_and_the_api_index_lists_exactly_it():
+    """``jaxclear.__all__`` holds every public name jaxclear binds (modules aside) and nothing
+    else; the API index's exports column lists exactly it, each name once (it omitted the three
+    joints, wear and synthetic_record once, and jaxclear had no ``__all__``)."""
     import types
 
     import jaxclear as jc
 
-    index = _read("docs/api/index.md")
-    names = [n for n in dir(jc) if not n.startswith("_") and not isinstance(getattr(jc, n), types.ModuleType)]
-    missing = [n for n in names if not re.search(rf"`(jaxclear\.)?{n}[`(.]", index)]
-    assert not missing, f"docs/api/index.md does not name {missing}"
+    public = {n for n in dir(jc) if not n.startswith("_") and not isinstance(getattr(jc, n), types.ModuleType)}
+    assert len(jc.__all__) == len(set(jc.__all__)) and set(jc.__all__) == public
+    listed = _api_index_exports()
+    twice = sorted({n for n in listed if listed.count(n) > 1})
+    assert not twice, f"docs/api/index.md lists {twice} more than once"
+    assert not set(jc.__all__) - set(listed), f"docs/api/index.md does not list {sorted(set(jc.__all__) - set(listed))}"
+    assert not set(listed) - set(jc.__all__), f"docs/api/index.md lists {sorted(set(listed) - set(jc.__all__))}, " \
+                                              "not in jaxclear.__all__"
+
+
+def _resolve(path: str):
+    """The object a dotted path of the API reference names (``jaxclear.model.bodies.GROUND``), or None."""
+    import importlib
+
+    parts = path.split(".")
+    for i in range(len(parts), 0, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:i]))
+        except ImportError:
+            continue
+        try:
+            for part in parts[i:]:
+                obj = getattr(obj, part)
+        except AttributeError:
+            return None
+        return obj
+    return None
+
+
+def check_reference_documents_all(site: Path):
+    """Every name of ``jaxclear.__all__`` has its entry in the built API reference: a heading whose
+    anchor names the same object (``poincare_section`` is ``jaxclear.analysis.sections.section``)."""
+    import jaxclear as jc
+
+    anchors = {a for page in (site / "api").rglob("*.html")
+               for a in re.findall(r'id="(jaxclear\.[A-Za-z_0-9.]+)"', page.read_text(encoding="utf-8"))}
+    by_last = {}
+    for a in anchors:
+        by_last.setdefault(a.rsplit(".", 1)[1], []).append(a)
+    missing = []
+    for name in jc.__all__:
+        obj = getattr(jc, name)
+        candidates = by_last.get(name, []) + by_last.get(getattr(obj, "__name__", name), [])
+        if not any(_resolve(a) is obj for a in candidates):
+            missing.append(name)
+    assert not missing, f"the API reference does not document {missing}"
 
 
 def test_mechanism_file_friction_table_lists_every_friction_law():

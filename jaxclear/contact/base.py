@@ -98,8 +98,8 @@ def _numpy_material(young: float, poisson: float) -> Material:
     return material
 
 
-#: Structural steel as used in the Flores benchmark (E = 207 GPa, nu = 0.3).
 STEEL = _numpy_material(207e9, 0.3)
+"""Structural steel as used in the Flores benchmark: a :class:`Material` with E = 207 GPa, nu = 0.3."""
 
 
 def effective_modulus(bearing: Material, journal: Material):

@@ -10,7 +10,6 @@ from .._errors import ParameterError, is_concrete
 from .._types import Array, Float
 from .dynamics import Baumgarte
 
-#: Solver name -> diffrax solver class.
 SOLVERS = {
     "tsit5": diffrax.Tsit5,
     "dopri5": diffrax.Dopri5,
@@ -18,6 +17,7 @@ SOLVERS = {
     "bosh3": diffrax.Bosh3,
     "kvaerno5": diffrax.Kvaerno5,
 }
+"""Solver name (``Settings.solver``) -> diffrax solver class."""
 
 
 #: Values of ``Settings.adjoint``: the error-controlled sensitivities, then diffrax's adjoints

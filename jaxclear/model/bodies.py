@@ -14,6 +14,8 @@ from .._errors import RESULTS, MechanismError, Rule, check_finite, check_range, 
 from .._types import Array, ArrayLike, Float, Scalar, Vec2
 
 GROUND = "ground"
+"""The name of the frame: ``body_a``/``body_b`` of a joint fixed to it, ``ground.POINT`` of its points
+(``Mechanism.ground_points``)."""
 
 
 def vec2(name: str, value) -> Array:
