@@ -363,7 +363,7 @@ def _f(x, width=8, digits=1):
     return f"{x:>{width}.{digits}f}" if isinstance(x, (int, float)) and math.isfinite(x) else f"{'-':>{width}}"
 
 
-HEADER = (f"{'entry':<17}{'cache':<6}{'process':>8}{'import':>8}{'setup':>8}{'trace':>8}{'lower':>8}{'compile':>8}"
+HEADER = (f"{'entry':<18}{'cache':<6}{'process':>8}{'import':>8}{'setup':>8}{'trace':>8}{'lower':>8}{'compile':>8}"
           f"{'other':>8}{'first':>8}{'steady':>8}  note")
 
 
@@ -381,7 +381,7 @@ def _row(r: dict) -> str:
                f"{'' if r['run_status'] == 0 else ' status ' + str(r['run_status'])}. " + note
     cells = [r.get("process_s"), r.get("import_s"), r.get("setup_s")] + [first.get(f"{k}_s") for k in EVENTS]
     cells = "".join(_f(x) for x in cells + [first.get("other_s"), first.get("wall_s")])
-    return f"{r['entry']:<17}{r['mode']:<6}{cells}{_f(steady.get('wall_s'), digits=2)}  {note[:110]}".rstrip()
+    return f"{r['entry']:<18}{r['mode']:<6}{cells}{_f(steady.get('wall_s'), digits=2)}  {note[:110]}".rstrip()
 
 
 def _clean(x):  # NaN and inf as null
