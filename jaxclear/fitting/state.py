@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import os
 
 import equinox as eqx
@@ -67,6 +68,8 @@ class FitState(eqx.Module):
             fitted samples (:func:`jaxclear.fitting.run.run_stage`).
         way_in: per window whose start the way in found (:mod:`jaxclear.fitting.way_in`) its
             report ``{"window", "candidates", "finite", "best_loss", "median_loss"}``.
+        found: the window start states the way in found (``(W, S)``; every start of the
+            parameters of a record that begins mid-run begins from them), or ``()``.
         wall: wall time spent so far [s]; stop_reason: why the final stage ended.
         refit: in the automatic refit from several starts (``fit(starts=None)``), why the
             single start before it was not enough (``FitResult.settings["auto_starts"]``);
@@ -88,6 +91,7 @@ class FitState(eqx.Module):
     history: tuple = ()
     skipped: tuple = ()
     way_in: tuple = ()
+    found: tuple = ()
     wall: float = 0.0
     stop_reason: str = ""
     refit: str = ""
@@ -100,20 +104,21 @@ class FitState(eqx.Module):
         """``{start index: {"loss", "theta", "reason"}}`` of the starts fitted so far."""
         return {int(k): dict(v) for k, v in self.starts}
 
-    def with_start_result(self, index: int, loss: float, theta, reason: str) -> "FitState":
-        entry = (str(index), (("loss", float(loss)), ("theta", _frozen(np.asarray(theta).tolist())), ("reason", reason)))
+    def with_start_result(self, index: int, loss: float, theta, reason: str, states=None) -> "FitState":
+        """The result of start ``index`` recorded (its window states too where they were fitted)."""
+        entry = (str(index), (("loss", float(loss)), ("theta", _frozen(np.asarray(theta).tolist())), ("reason", reason))
+                 + ((("states", _frozen(np.asarray(states).tolist())),) if states is not None else ()))
         kept = tuple(e for e in self.starts if e[0] != str(index))
         return dataclasses.replace(self, starts=kept + (entry,))
 
     def best_start(self) -> dict:
-        """The start with the lowest loss: ``{"loss", "theta", "reason"}``."""
+        """The start with the lowest loss: ``{"loss", "theta", "reason"}`` (and ``"states"``)."""
         results = self.start_results()
         return results[min(results, key=lambda j: results[j]["loss"])]
 
     def to_json(self) -> dict:
         out = {f.name: _plain(getattr(self, f.name)) for f in dataclasses.fields(self)}
-        out["starts"] = {k: {"loss": dict(v)["loss"], "theta": _plain(dict(v)["theta"]), "reason": dict(v)["reason"]}
-                         for k, v in self.starts}
+        out["starts"] = {k: {name: _plain(value) for name, value in v} for k, v in self.starts}
         out["history"] = list(self.history)
         return out
 
@@ -121,10 +126,19 @@ class FitState(eqx.Module):
     def from_json(cls, data: dict) -> "FitState":
         fields = {f.name for f in dataclasses.fields(cls)}
         values = {k: v for k, v in data.items() if k in fields}
-        values["starts"] = tuple((k, (("loss", v["loss"]), ("theta", _frozen(v["theta"])), ("reason", v["reason"])))
+        values["starts"] = tuple((k, (("loss", _number(v["loss"])), ("theta", _frozen(v["theta"])),
+                                      ("reason", v["reason"]))
+                                  + ((("states", _frozen(v["states"])),) if "states" in v else ()))
                                  for k, v in data.get("starts", {}).items())
-        values["history"] = tuple(data.get("history", ()))
+        values["history"] = tuple(dict(h, loss=_number(h["loss"])) if "loss" in h else h
+                                  for h in data.get("history", ()))
         return cls(**{k: (v if k == "history" else _frozen(v)) for k, v in values.items()})
+
+
+def _number(value) -> float:
+    """A loss read back from the checkpoint: ``null`` (how the one JSON writer,
+    :func:`jaxclear._storage.json_text`, writes NaN) is NaN."""
+    return math.nan if value is None else float(value)
 
 
 def checkpoint_key(t_rec, y_rec, leaves, config: dict) -> str:
