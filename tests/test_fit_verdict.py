@@ -218,3 +218,22 @@ def test_cli_help_documents_strict(capsys):
     assert main(["fit", "--help"]) == 0
     help_text = " ".join(capsys.readouterr().out.split())
     assert "--strict" in help_text and "exit with status 3" in help_text and "3 with --strict" in help_text
+
+
+def test_a_free_start_fit_that_stopped_on_max_iter_fails():
+    """Every window's start free and the last stage on ``max_iter``: not an optimum, a failure;
+    the same stop of a fit from a known start stays a warning (``FitResult.warnings``)."""
+    out = assess(FREE, GOOD, GOOD_STD, stop_reason="max_iter", free_start=True)
+    _one(out, "max_iter", "every window's start free", "--max-iter")
+    assert assess(FREE, GOOD, GOOD_STD, stop_reason="max_iter") == ()
+    assert assess(FREE, GOOD, GOOD_STD, stop_reason="relative loss decrease 1e-7 < ftol 1e-06", free_start=True) == ()
+
+
+def test_a_free_start_fit_needs_a_whiter_residual():
+    """Lag-1 autocorrelation 0.30 and a misfit twice the noise (a fit of a record that begins
+    mid-run with the restitution 108 std off): passed with a known start (rule at 0.5), a failure
+    with every start free (rule at 0.2)."""
+    assert assess(FREE, GOOD, GOOD_STD, autocorrelation=0.2993, loss=0.019) == ()
+    _one(assess(FREE, GOOD, GOOD_STD, autocorrelation=0.2993, loss=0.019, free_start=True),
+         "the residual is not noise", "0.30 > 0.2")
+    assert assess(FREE, GOOD, GOOD_STD, autocorrelation=0.003, loss=0.0103, free_start=True) == ()

@@ -86,7 +86,9 @@ class FitResult:
                 mech = fallback_mechanism(self.settings, self.fixed)
             self.failures = assess(self.free, self.estimates, self.std, start=self.start, mech=mech,
                                    history=self.history, scale=float(self.settings.get("data_rms_m_s2", 1.0)),
-                                   autocorrelation=self.residual_autocorrelation, loss=self.loss)
+                                   autocorrelation=self.residual_autocorrelation, loss=self.loss,
+                                   stop_reason=self.stop_reason,
+                                   free_start=self.settings.get("start_state") == "free")
         self.failures = tuple(self.failures)
 
     @property
