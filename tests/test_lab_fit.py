@@ -84,6 +84,12 @@ def test_free_start_plan_frees_every_window_and_the_parameters_last():
     assert [s.horizon for s in joint] == [0.25, 0.5, 1.0] and all(s.states == (0, 1, 2) for s in joint)
     assert stages[-1].final and sum(s.final for s in stages) == 1
     assert final_stage(3, anywhere=True).states == (0, 1, 2) and final_stage(3).states == (1, 2)
+    # several starts of the parameters: the way in once, the joint stages once per start, each start's last final
+    stages = plan_free_starts(3, (0.5, 1.0), 2, None)
+    assert sum(s.way_in for s in stages) == 3
+    assert [(s.start, s.horizon, s.final) for s in stages if s.theta] == [(0, 0.5, False), (0, 1.0, True),
+                                                                         (1, 0.5, False), (1, 1.0, True)]
+    assert stages[-1].name.startswith("start 2/2, all 3 windows")  # the verdict's "start j/N" records
 
 
 def test_free_start_inputs_are_checked_before_any_compilation(tmp_path):
@@ -92,8 +98,6 @@ def test_free_start_inputs_are_checked_before_any_compilation(tmp_path):
     data = {"time_s": t, "slider_acc_m_s2": np.sin(2 * math.pi * 500 * t)}
     with pytest.raises(jc.ParameterError, match="start_state = 'bogus'"):
         jc.fit(data, mech, start_state="bogus", progress=False)
-    with pytest.raises(jc.ParameterError, match="starts = 3 with start_state='free'"):
-        jc.fit(data, mech, start_state="free", starts=3, progress=False)
     with pytest.raises(jc.ParameterError, match="start state, which every fit window sets itself"):
         jc.fit(data, mech, free=["stiffness", "offset_x"], progress=False)
     with pytest.raises(jc.FitDataError, match="fits no sample of the record: window 1 spans simulation time 0 to"):
@@ -253,3 +257,24 @@ def test_way_in_finds_a_start_in_flight_as_good_as_the_true_one():
     assert report["passes"][-1] <= report["passes"][0]
     assert loss(found, 0.25) < 1.5 * loss(true_z, 0.25), (report, found, true_z)
     assert loss(found, 1.0) < 2.0 * loss(true_z, 1.0), (report, found, true_z)
+
+
+@pytest.mark.slow
+def test_free_start_fit_from_two_starts_keeps_the_best_with_its_window_states(tmp_path):
+    """``starts=2`` with every window's start free: the way in once, the joint stages from each
+    start of the parameters (both in the history as "start j/2"), the result the best start's
+    parameters and window states (its misfit is the lower of the two), checkpointed with them."""
+    rec = _lab_record(stiffness_factor=1.0, c_r=0.9, seed=3, revolutions_before=1, duration=3.2e-3)
+    mech = jc.params.replace(jc.preset("flores-slider-crank"), "angle0", rec["truth"]["start_angle"])
+    data = {"time_s": rec["time_s"], "slider_acc_m_s2": rec["slider_acc_m_s2"]}
+    res = jc.fit(data, mech, free=["stiffness", "restitution"], start={"restitution": 0.9},
+                 sensor=jc.Accelerometer(10e3), start_state="free", windows=1, window=2.99e-3, starts=2,
+                 max_iter=8, progress=False, out=tmp_path)
+    stages = {h["stage"].split(",")[0] for h in res.history}
+    assert {"start 1/2", "start 2/2"} <= stages
+    saved = json.loads((tmp_path / "fit_checkpoint.json").read_text())["state"]
+    losses = {int(k): v["loss"] for k, v in saved["starts"].items()}
+    best = min(losses, key=losses.get)
+    assert saved["theta"] == saved["starts"][str(best)]["theta"]
+    assert saved["states"] == saved["starts"][str(best)]["states"]
+    assert len(saved["found"]) == 1  # the way in's start of the one window, every start began from it

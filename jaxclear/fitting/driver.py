@@ -15,7 +15,7 @@ from tqdm.auto import tqdm
 
 from .._interrupt import stop_at_safe_points
 from .._numbers import as_typed
-from .._errors import CheckpointError, ParameterError
+from .._errors import CheckpointError
 from .._storage import locked_folder
 from ..integrate.compile import on_trace
 from ..model import Mechanism
@@ -93,7 +93,9 @@ def fit(
             first part (:mod:`jaxclear.fitting.way_in`) and then fitted with the parameters.
             The crank's angle at the record's first sample is the mechanism's ``angle0`` (set it
             from the encoder: ``jc.params.replace(mech, "angle0", angle)``, or free ``angle0``
-            and ``speed`` to fit them). Needs ``starts`` None or 1.
+            and ``speed`` to fit them). With ``starts = N > 1`` the way in runs once (at the
+            start values) and the joint stages N times, from N starts of the parameters; the
+            best is the result, and the verdict fails a fit whose equally good starts disagree.
         horizons: fractions of the window fitted in turn (continuation), ending at 1.
         coarse: ``"velocity"`` (default): the first stage (and the first stage of every window's
             state) fits the integrated signal; None: acceleration only.
@@ -136,10 +138,6 @@ def fit(
     settings = dict(max_iter=max_iter, ftol=ftol, xtol=xtol, rtol=rtol, atol=atol, max_steps=max_steps, align=align,
                     time_offset=time_offset, optimizer=opt.name)
     auto = starts is None
-    if start_state == "free" and not auto and starts != 1:
-        raise ParameterError(f"starts = {starts!r} with start_state='free': a record that begins mid-run is fitted from "
-                             "one start of the parameters, after the way in has found every window's start state "
-                             "(give starts=None or 1; move the start values with start=... instead)")
     problem = build_problem(data, mech, free, start, sensor, window, windows, horizons, coarse, 1 if auto else starts,
                             settings, channels, start_state)
     auto = auto and not problem.anywhere

@@ -93,14 +93,19 @@ def plan_free_starts(windows: int, horizons: tuple, starts: int, coarse: str | N
        of the independent simulator a velocity stage added 15 iterations a window (trials with
        the journal pushed deep into its bearing cost up to 20,000 solver steps each) for a start
        the acceleration stage reached as well;
-    2. all windows, the parameters and every start, through the horizons (the last is final)."""
+    2. all windows, the parameters and every start, through the horizons (the last is final);
+       with ``starts > 1`` once from each start of the parameters (:func:`spread_starts`), each
+       from the starts the way in found (at the first start's values), the best of them the
+       result, so that "estimates change with the start" (:mod:`.verdict`) can be checked."""
     first = horizons[0]
     stages = [Stage(f"window {k + 1} start state (way in), acceleration, horizon {first:g}", (k,), first, False, (k,),
                     -1, False, False, True) for k in range(windows)]
     every = tuple(range(windows))
-    for hz in horizons:
-        stages.append(Stage(f"all {windows} windows, parameters and start states, horizon {hz:g}", every, hz, True,
-                            every, -1, hz == 1.0))
+    for j in range(starts):
+        prefix = f"start {j + 1}/{starts}, " if starts > 1 else ""
+        for hz in horizons:
+            stages.append(Stage(f"{prefix}all {windows} windows, parameters and start states, horizon {hz:g}", every,
+                                hz, True, every, j if starts > 1 else -1, hz == 1.0))
     return stages
 
 

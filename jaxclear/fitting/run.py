@@ -69,10 +69,14 @@ def begin_stage(problem: FitProblem, st: FitState) -> FitState:
     """Starting values of a stage not yet begun: its start, the best start after the starts, or
     (window-state stages) the end of the previous window's simulation."""
     stage = problem.stages[st.stage]
-    if stage.start >= 0:
+    before = problem.stages[st.stage - 1] if st.stage > 0 else None
+    if stage.start >= 0 and (before is None or before.start != stage.start):  # a start's first stage
         st = st.replace(theta=problem.z_starts[stage.start].tolist())
-    elif st.stage > 0 and problem.stages[st.stage - 1].start >= 0:
-        st = st.replace(theta=st.best_start()["theta"])
+        if problem.anywhere:  # every start from the window starts the way in found
+            st = st.replace(found=st.states) if not st.found else st.replace(states=st.found)
+    elif stage.start < 0 and before is not None and before.start >= 0:
+        best = st.best_start()
+        st = st.replace(theta=best["theta"], **({"states": best["states"]} if "states" in best else {}))
     if problem.anywhere and stage.way_in:
         k = stage.states[0]
         win = problem.window_input(k, stage.horizon, False, st.guesses)
@@ -187,7 +191,7 @@ def run_stage(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoin
         if not influences(jac):
             reason = _no_influence(problem, stage, st.theta)
             return _end_stage(st.replace(skipped=st.skipped + (f"{stage.name}: {reason}",)), stage, loss0, reason,
-                              ckpt)
+                              ckpt, problem.anywhere)
     run, st = stage_run(problem, opt, st, stage, jac)
     s = problem.settings
     limit, tol_f = stage.max_iter(s["max_iter"]), stage.ftol(s["ftol"])
@@ -210,13 +214,15 @@ def run_stage(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoin
         ckpt.save(st)
         if rep.counted:
             report(record, st)
-    return _end_stage(st, stage, loss, reason, ckpt)
+    return _end_stage(st, stage, loss, reason, ckpt, problem.anywhere)
 
 
-def _end_stage(st: FitState, stage: Stage, loss: float, reason: str, ckpt: Checkpoint) -> FitState:
-    """Record a start's result and the final stop reason, move to the next stage, checkpoint."""
+def _end_stage(st: FitState, stage: Stage, loss: float, reason: str, ckpt: Checkpoint,
+               with_states: bool = False) -> FitState:
+    """Record a start's result (its window states too ``with_states``: every window's start
+    free) and the final stop reason, move to the next stage, checkpoint."""
     if stage.start >= 0:
-        st = st.with_start_result(stage.start, loss, st.theta, reason)
+        st = st.with_start_result(stage.start, loss, st.theta, reason, st.states if with_states else None)
     if stage.final:
         st = st.replace(stop_reason=reason)
     st = st.replace(stage=st.stage + 1, iteration=0, x=None, column_scale=None, solver=None)
@@ -232,5 +238,6 @@ def run_plan(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoint
         st = run_stage(problem, opt, st, ckpt, report)
     if problem.stages[-1].start >= 0:
         best = st.best_start()
-        st = st.replace(theta=best["theta"], stop_reason=best["reason"])
+        st = st.replace(theta=best["theta"], stop_reason=best["reason"],
+                        **({"states": best["states"]} if "states" in best else {}))
     return st
