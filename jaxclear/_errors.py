@@ -63,10 +63,19 @@ class MissingExtraError(JaxclearError, ImportError):
 
 
 class RESULTS(eqx.Enumeration):
-    """Status of a simulation, as an :class:`equinox.Enumeration` (the pattern of diffrax's
-    ``RESULTS``): traceable, batchable, and usable with ``RESULTS.where`` and
-    ``result.error_if``. :attr:`Solution.status <jaxclear.Solution.status>` holds its integer
-    code (0 = ok, in the order below); :data:`STATUS` maps codes to messages."""
+    """Status of a run, as an :class:`equinox.Enumeration` (the pattern of diffrax's and
+    optimistix's ``RESULTS``): traceable, batchable, and usable with ``RESULTS.where`` and
+    ``result.error_if``. The one status family of jaxclear: :attr:`Solution.status
+    <jaxclear.Solution.status>`, a sweep's ``status`` column, a design's journal and
+    :attr:`LyapunovResult.status <jaxclear.chaos.LyapunovResult.status>` hold its integer code
+    (0 = ok, in the order below; new members are only ever appended, so a code written to a file
+    keeps its meaning); :data:`STATUS` maps codes to messages, and
+    :func:`jaxclear.integrate.simulate.raise_for_status` raises for any of them.
+
+    What a driver concludes about its own optimisation or sample (a fit's ``stop_reason``, a
+    design's ``status`` word such as ``converged`` or ``max_iter``, a posterior's ``converged``)
+    is not a status of a run: it is never an array, never traced and never raised, so it is a
+    word of the driver's report, not a member here."""
 
     successful = "ok"
     max_steps_reached = "the solver reached max_steps before t_end"
@@ -95,6 +104,10 @@ class RESULTS(eqx.Enumeration):
         "penetration deeper than a tenth of the journal radius (of the corner radius in a "
         "translational joint): the contact law is outside its "
         "validity (stiffness far too small, or a lock-up)"
+    )
+    tangent_overflow = (
+        "the tangents overflowed within the shortest renormalisation step (a growth beyond 1e250 within a "
+        "millionth of the interval): the tangent dynamics is not resolved (check the run's steps and tolerances)"
     )
 
 

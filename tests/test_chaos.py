@@ -179,13 +179,15 @@ def test_unstable_equilibrium_is_resolved_by_adaptive_renormalisation():
 def test_tangent_overflow_is_a_status():
     """The same oscillator over intervals of 6.5e7 s: the shortest renormalisation step
     (benettin.SHORTEST of the interval, 65 s) grows the tangents by e^650 > 1e250 (and below the
-    largest float, so the state stays finite): status 2 (the tangents overflowed within the
-    shortest step) and a named LyapunovError, never an exponent reported as ok; the run itself
-    is fine (run_status 0)."""
+    largest float, so the state stays finite): the status RESULTS.tangent_overflow (the tangents
+    overflowed within the shortest step; a member of the one status family, jc.STATUS its
+    message) and a named LyapunovError, never an exponent reported as ok; the run itself is fine
+    (run_status 0)."""
     mech = oscillator(m=1.0, c0=0.0, c2=0.0, a=-100.0, b=0.0, f=0.0, x0=0.0)
     s = jc.settings(2.6e8, rtol=1e-8, atol=1e-12, throw=False)
     r = lyapunov(mech, s, interval=6.5e7)
-    assert int(r.status) == 2 and int(r.run_status) == 0
+    assert int(r.status) == int(jc.RESULTS.tangent_overflow._value) and int(r.run_status) == 0
+    assert jc.STATUS[int(r.status)].startswith("the tangents overflowed")
     assert np.all(np.isnan(np.asarray(r.exponents)))
     with pytest.raises(LyapunovError, match=r"tangents overflowed within the shortest renormalisation step"):
         lyapunov(mech, jc.settings(2.6e8, rtol=1e-8, atol=1e-12), interval=6.5e7)

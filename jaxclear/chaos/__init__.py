@@ -15,11 +15,26 @@ tests for chaos.
 Theory: docs/theory/chaos.md.
 """
 
-from .benettin import STATUS, LyapunovResult
-from .lyapunov import MIN_INTERVALS, LyapunovError, LyapunovMap, lyapunov, lyapunov_map, trajectory
+from .benettin import LyapunovResult
+from .lyapunov import MIN_INTERVALS, LyapunovError, LyapunovMap, check_convergence, lyapunov, lyapunov_map, trajectory
 from .signals import channel_series, psd, rosenstein, zero_one_test
 from .report import characterise, write_report
 
-__all__ = ["STATUS", "MIN_INTERVALS", "LyapunovError", "LyapunovMap", "LyapunovResult", "channel_series",
-           "characterise", "lyapunov", "lyapunov_map", "psd", "rosenstein", "trajectory", "write_report",
+__all__ = ["MIN_INTERVALS", "LyapunovError", "LyapunovMap", "LyapunovResult", "channel_series",
+           "characterise", "check_convergence", "lyapunov", "lyapunov_map", "psd", "rosenstein", "trajectory", "write_report",
            "zero_one_test"]
+
+
+def __getattr__(name: str):
+    """``STATUS`` (the old chaos-only codes 0 ok, 1 run failed, 2 overflow), deprecated:
+    :attr:`LyapunovResult.status` holds a :class:`jaxclear.RESULTS` code, whose message is
+    :data:`jaxclear.STATUS`; served here as that map for one release."""
+    if name == "STATUS":
+        import warnings
+
+        from .._errors import STATUS as RUN_STATUS
+        from .benettin import STATUS_DEPRECATED
+
+        warnings.warn(STATUS_DEPRECATED.format("jaxclear.chaos.STATUS"), DeprecationWarning, stacklevel=2)
+        return RUN_STATUS
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -40,7 +40,7 @@ the growth of a linear equation's solution is about proportional to the time). W
 the steps are the iterations of a ``lax.while_loop``; the interval's :math:`\ln|R_{ii}|` is their
 sum, so the running estimate, the batch means and the output samples are per interval. A
 step of :data:`SHORTEST` times the interval is accepted whatever its growth, and overflow there is
-status 2. The transfer-matrix method for disordered solids sets the frequency of its
+the status ``tangent_overflow`` (a :class:`~jaxclear.RESULTS` member). The transfer-matrix method for disordered solids sets the frequency of its
 orthonormalisations the same way, by how much a vector's length changes before and after one (A.
 MacKinnon, notes on the critical indices,
 http://www.cmth.ph.ic.ac.uk/people/a.mackinnon/Research/critind/node3.html); ChaosTools.jl's
@@ -70,7 +70,7 @@ from . import manifold
 
 #: Largest entry of a tangent at the end of a renormalisation step before the step counts as
 #: overflowed (a growth of ``e^575``: within a factor ``1e58`` of the largest float64): the step
-#: is retried shorter; at :data:`SHORTEST` it is status 2.
+#: is retried shorter; at :data:`SHORTEST` it is the status ``tangent_overflow``.
 OVERFLOW = 1e250
 
 #: The default bound on the spread of one renormalisation step's log growths is
@@ -89,13 +89,26 @@ def default_max_growth(rtol: float) -> float:
 #: accepted whatever its growth.
 SHORTEST = 1e-6
 
-#: Lyapunov status codes (``LyapunovResult.status``) and their messages.
-STATUS = {
-    0: "ok",
-    1: "the run failed (its status is in run_status)",
-    2: "the tangents overflowed within the shortest renormalisation step (a growth beyond 1e250 within a "
-       "millionth of the interval): the tangent dynamics is not resolved (check the run's steps and tolerances)",
-}
+#: The status of a run whose tangents overflowed (``LyapunovResult.status``).
+_OVERFLOWED = int(RESULTS.tangent_overflow._value)
+
+
+#: What an old spelling of the chaos-only ``STATUS`` warns (its codes 0/1/2 are now RESULTS codes).
+STATUS_DEPRECATED = ("{} is deprecated: LyapunovResult.status now holds a jaxclear.RESULTS code (the run's own code "
+                     "for a failed run, RESULTS.tangent_overflow for an overflow), whose message is jaxclear.STATUS; "
+                     "it will be removed in the next release")
+
+
+def __getattr__(name: str):
+    """``STATUS`` (the old chaos-only codes), deprecated: :data:`jaxclear.STATUS`."""
+    if name == "STATUS":
+        import warnings
+
+        from .._errors import STATUS as RUN_STATUS
+
+        warnings.warn(STATUS_DEPRECATED.format(f"{__name__}.STATUS"), DeprecationWarning, stacklevel=2)
+        return RUN_STATUS
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 class LyapunovResult(eqx.Module):
@@ -112,9 +125,12 @@ class LyapunovResult(eqx.Module):
             counted intervals [1/s]: how far the estimate still moves.
         stderr: (p,) standard error of the exponents from batch means (8 batches of the counted
             intervals' finite-time exponents) [1/s].
-        status: 0 ok, 1 the run failed (``run_status``), 2 tangents overflowed (:data:`STATUS`);
-            the exponents are then the running estimate up to the last good interval (NaN if none).
-        run_status: the run's :class:`~jaxclear.RESULTS` code.
+        status: a :class:`~jaxclear.RESULTS` code (:data:`jaxclear.STATUS` its message): 0 ok,
+            the run's own code where the run failed, ``tangent_overflow`` where the tangents
+            overflowed within the shortest renormalisation step; the exponents are then the
+            running estimate up to the last good interval (NaN if none).
+        run_status: the run's :class:`~jaxclear.RESULTS` code (0 where only the tangents
+            overflowed).
         t_end: the time the run reached [s].
         ts: (T,) output times [s] (``samples`` per interval) and
         packed: (T, N) the packed states at them (the trajectory; empty with ``keep=False``).
@@ -236,7 +252,7 @@ def benettin(mech: Mechanism, s: Settings, y0: State | None, *, transient, inter
         last = (t1 - t) <= shortest * (1 + 1e-9)
         # tangents beyond OVERFLOW, or non-finite ones (they stop the solve like a non-finite
         # state, and the samples past the stop are inf): retried shorter; at the shortest step an
-        # overflow with a finite state is status 2, a non-finite state a failed run
+        # overflow with a finite state is tangent_overflow, a non-finite state a failed run
         raw = _run_status(run.result, finite_state)
         retry = ~ok & ((raw == 0) | (raw == RESULTS.nonfinite_state._value)) & ~last
         new_code = jnp.where(retry | (finite_state & ~ok), 0, raw)
@@ -271,15 +287,15 @@ def benettin(mech: Mechanism, s: Settings, y0: State | None, *, transient, inter
         t, y1, renormed, h, lg, buf, steps, new_code, overflow, steps_taken = jax.lax.while_loop(
             more, lambda c: step(c, ts, tb), c0)
         new_code = jnp.where(go, new_code, code)
-        new_status = jnp.where(go & overflow, 2, jnp.where(go & (new_code != 0), 1, status))
+        new_status = jnp.where(go & overflow, _OVERFLOWED, jnp.where(go & (new_code != 0), new_code, status))
         good = go & (new_status == 0)
         logs = jnp.where(good, lg, jnp.nan)
         carry = (jnp.where(good, y1, y), jnp.where(good, renormed, tangents), h, new_code, new_status)
         return carry, (logs, buf, ts, steps, jnp.where(go, steps_taken, 0))
 
     (y_end, _, _, code, status), (logs, packed, ts, steps, renormalisations) = jax.lax.scan(
-        window, (y, tangents, interval, code, jnp.where(code == 0, 0, 1).astype(jnp.int32)), jnp.arange(windows))
-    status = jnp.where((code != 0) & (status == 0), 1, status)
+        window, (y, tangents, interval, code, code.astype(jnp.int32)), jnp.arange(windows))
+    status = jnp.where((code != 0) & (status == 0), code, status)
     counted = logs[discard:]
     finite_time = counted / interval
     cumulative = jnp.cumsum(counted, axis=0)

@@ -19,13 +19,14 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import params
-from .._errors import RESULTS, JaxclearError, ParameterError, is_concrete, status_message
+from .._errors import RESULTS, JaxclearError, ParameterError, is_concrete
 from ..analysis.channels import channel
 from ..integrate import Settings, Solution, State
 from ..integrate import solve
+from ..integrate.simulate import raise_for_status as _raise_run_status
 from ..model import Mechanism, crank_driver
 from . import manifold
-from .benettin import STATUS, LyapunovResult, benettin
+from .benettin import LyapunovResult, benettin
 
 #: Fewest renormalisation intervals that count (after ``discard``): a running estimate and its
 #: spread over the last half need at least this many.
@@ -137,8 +138,10 @@ def lyapunov(mech: Mechanism, s: Settings, interval: float | None = None, *, tra
 
     Returns:
         :class:`~jaxclear.chaos.LyapunovResult`. With ``s.throw`` (default) and concrete
-        inputs, a failed run, an overflow (status 2) or a missed ``tol`` raise
-        :class:`LyapunovError`; with ``s.throw=False`` they are the result's ``status``.
+        inputs, a failed run, an overflow (status ``tangent_overflow``) or a missed ``tol`` raise
+        :class:`LyapunovError` (a parameter outside its range :class:`~jaxclear.ParameterError`);
+        with ``s.throw=False`` the first two are the result's ``status``, a
+        :class:`~jaxclear.RESULTS` code.
     """
     _check_interval(interval)
     count = check_count(mech, count)
@@ -162,19 +165,13 @@ def lyapunov(mech: Mechanism, s: Settings, interval: float | None = None, *, tra
     result = _compiled(mech, s_run, y0, jnp.asarray(float(transient)), jnp.asarray(duration / windows), scale,
                        int(windows), int(discard), int(samples), count, _max_growth(max_growth), bool(keep))
     if s.throw:
-        raise_for_status(result, s, tol)
+        _raise_for_status(result, s, tol, mech)
     return result
 
 
-def raise_for_status(result: LyapunovResult, s: Settings, tol: float | None = None) -> None:
-    """:class:`LyapunovError` for a concrete result whose status is not 0, or whose spread
-    exceeds ``tol``."""
-    code = int(result.status)
-    if code == 1:
-        why = status_message(int(result.run_status), max_steps=s.max_steps)
-        raise LyapunovError(f"jaxclear: lyapunov: {STATUS[1]}: {why}")
-    if code != 0:
-        raise LyapunovError(f"jaxclear: lyapunov: {STATUS[code]} (interval {float(result.interval):g} s)")
+def check_convergence(result: LyapunovResult, tol: float | None) -> None:
+    """:class:`LyapunovError` for a concrete result whose spread exceeds ``tol`` (its status is
+    checked first by :func:`~jaxclear.integrate.simulate.raise_for_status`)."""
     if tol is not None:
         spread = float(jnp.max(result.spread))
         if not spread <= tol:
@@ -182,6 +179,30 @@ def raise_for_status(result: LyapunovResult, s: Settings, tol: float | None = No
                 f"jaxclear: lyapunov: the estimate did not converge to tol = {tol:g} 1/s: its running estimate still "
                 f"moves by {spread:.3g} 1/s over the last half of {result.running.shape[0]} intervals "
                 f"(exponents {np.array2string(np.asarray(result.exponents), precision=4)}); run longer (t_end)")
+
+
+def _raise_for_status(result: LyapunovResult, s: Settings, tol: float | None = None,
+                      mech: Mechanism | None = None) -> None:
+    """The one :func:`~jaxclear.integrate.simulate.raise_for_status` (the status, a
+    :class:`~jaxclear.RESULTS` code; :class:`LyapunovError` for a failed run or an overflow),
+    then :func:`check_convergence`."""
+    _raise_run_status(result, s, f" (lyapunov, renormalisation interval {float(result.interval):g} s)", mech=mech,
+                     error=LyapunovError)
+    check_convergence(result, tol)
+
+
+def __getattr__(name: str):
+    """``raise_for_status`` of this module, deprecated: :func:`jaxclear.integrate.simulate.raise_for_status`
+    (any result with a ``status``) and :func:`check_convergence`."""
+    if name == "raise_for_status":
+        import warnings
+
+        warnings.warn("jaxclear.chaos.lyapunov.raise_for_status is deprecated: use "
+                      "jaxclear.integrate.simulate.raise_for_status(result, s, error=LyapunovError) and "
+                      "check_convergence(result, tol); it will be removed in the next release",
+                      DeprecationWarning, stacklevel=2)
+        return _raise_for_status
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def trajectory(mech: Mechanism, s: Settings, result: LyapunovResult) -> Solution:
@@ -208,8 +229,8 @@ class LyapunovMap(eqx.Module):
         values: (B, P) the parameters' values (``names`` order).
         exponents: (B, count) [1/s]; spread, stderr: (B, count) [1/s] (see
             :class:`~jaxclear.chaos.LyapunovResult`).
-        status, run_status: (B,) codes (:data:`~jaxclear.chaos.benettin.STATUS`,
-            :class:`~jaxclear.RESULTS`).
+        status, run_status: (B,) :class:`~jaxclear.RESULTS` codes (see
+            :class:`~jaxclear.chaos.LyapunovResult`).
         sections: (B, K, C) the channels at every whole revolution after the transient (a
             Poincare section per channel; ``K`` = revolutions).
         running: (B, R, count) running estimates after each counted interval.

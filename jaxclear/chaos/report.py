@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._errors import ParameterError
+from .._errors import ParameterError, status_message
 from .._storage import atomic_write_json, atomic_write_text
 from ..analysis.sections import MAX_PERIOD, check_channels, detect_period, period_name, section_indices
 from ..integrate import Settings
@@ -116,7 +116,7 @@ def write_report(folder: str, mech: Mechanism, result, reports) -> dict:
         ["channel", "unit", "Poincare section", "0-1 test K", "0-1 test on", "PSD peak [Hz]"]))
     summary = {
         "mechanism": mech.name,
-        "status": int(result.status),
+        "status": int(result.status), "status_message": status_message(int(result.status)),
         "exponents": [float(v) for v in ex], "stderr": [float(v) for v in se], "spread": [float(v) for v in spread],
         "largest": float(ex.max()), "sum": float(ex.sum()),
         "e_folding_time": float(1 / ex.max()) if ex.max() > 0 else None,

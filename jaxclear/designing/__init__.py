@@ -28,13 +28,22 @@ from .objectives import (OBJECTIVES, AbstractObjective, DissipatedEnergy, FreeFl
                          SmoothPeakForce, UserObjective, objective)
 from .optimize import METHODS
 from .problem import DesignProblem, Ensemble, OperatingPoint, evaluate, evaluate_with_jacobian
-from .result import STATUSES, DesignResult
+from .result import OUTCOMES, DesignResult
 from .variables import Variable, check_variables, design_names
 
 __all__ = [
     "AbstractDesignConstraint", "AbstractObjective", "Assembles", "DesignProblem", "DesignResult", "DissipatedEnergy",
-    "Ensemble", "FreeFlightFraction", "JOURNAL_NAME", "METHODS", "OBJECTIVES", "OperatingPoint", "PeakForce",
-    "PeakPenetration", "RmsDeviation", "RuggedObjectiveWarning", "STATUSES", "SmoothPeakForce", "TotalMass", "UserConstraint", "UserObjective",
+    "Ensemble", "FreeFlightFraction", "JOURNAL_NAME", "METHODS", "OBJECTIVES", "OUTCOMES", "OperatingPoint", "PeakForce",
+    "PeakPenetration", "RmsDeviation", "RuggedObjectiveWarning", "SmoothPeakForce", "TotalMass", "UserConstraint", "UserObjective",
     "Variable", "check_variables", "constraint", "design", "design_names", "evaluate", "evaluate_with_jacobian",
     "objective",
 ]
+
+
+def __getattr__(name: str):
+    """``STATUSES``, deprecated (:data:`~jaxclear.designing.result.OUTCOMES`)."""
+    if name == "STATUSES":
+        from . import result
+
+        return result.__getattr__(name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -15,7 +15,7 @@ from typing import Callable
 import numpy as np
 from tqdm.auto import tqdm
 
-from .._errors import DesignError, ParameterError
+from .._errors import STATUS, DesignError, ParameterError
 from .._interrupt import stop_at_safe_points
 from .._storage import fingerprint, locked_folder
 from ..derivatives import DerivativeHorizonWarning
@@ -77,7 +77,8 @@ def _start_error(problem, values, status) -> DesignError:
     names = [problem.objective.describe(problem.mech)] + [c.describe() for c in problem.constraints]
     bad = [n for n, v in zip(names, values) if not np.isfinite(v)]
     failed = [int(s) for s in np.asarray(status) if int(s) != 0]
-    why = f"; {len(failed)} of {len(status)} runs failed (status {sorted(set(failed))})" if failed else ""
+    told = "; ".join(f"status {code}: {STATUS.get(code, 'unknown status')}" for code in sorted(set(failed)))
+    why = f"; {len(failed)} of {len(status)} runs failed ({told})" if failed else ""
     return DesignError(f"design of {problem.mech.name!r}: not finite at the start design: {', '.join(bad)}{why}; "
                        "change the start, the variables' ranges or the run settings")
 

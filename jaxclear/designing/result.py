@@ -14,11 +14,33 @@ from .._storage import atomic_write_json, atomic_write_text, jsonable
 from ..mechanism_files import save_mechanism
 from .figures import plot_comparison
 
-#: Statuses of a design: ``converged`` (the method's stopping rule met, constraints held),
-#: ``max_iter`` (stopped on the iteration limit, constraints held), ``infeasible`` (no design
-#: found that meets the constraints: ``least_violation`` says how close one came), ``stopped``
-#: (the method ended otherwise, e.g. a line search that found no decrease: ``message``).
-STATUSES = ("converged", "max_iter", "infeasible", "stopped")
+#: Outcomes of a design's optimisation (:attr:`DesignResult.status`): ``converged`` (the method's
+#: stopping rule met, constraints held), ``max_iter`` (stopped on the iteration limit, constraints
+#: held), ``infeasible`` (no design found that meets the constraints: ``least_violation`` says how
+#: close one came), ``stopped`` (the method ended otherwise, e.g. a line search that found no
+#: decrease: ``message``).
+#:
+#: These are not run statuses and not a status system of their own: the status of every run a
+#: design makes is a :class:`~jaxclear.RESULTS` code (the journal's ``status`` lists, the start
+#: design's error), while these words say how SciPy's optimiser ended, once per design, on the
+#: host. Like a fit's ``stop_reason`` and a posterior's ``converged`` they are never an array,
+#: never traced and never raised (an ``infeasible`` design is a result, exit code 3 on the command
+#: line), so they stay words of the report (``design.json``'s ``"status"``, kept under that key
+#: for the files already written) rather than members of :class:`~jaxclear.RESULTS`, whose codes
+#: mean runs.
+OUTCOMES = ("converged", "max_iter", "infeasible", "stopped")
+
+
+def __getattr__(name: str):
+    """``STATUSES``, deprecated: :data:`OUTCOMES` (the optimisation's outcome, not a run status)."""
+    if name == "STATUSES":
+        import warnings
+
+        warnings.warn("jaxclear.designing.STATUSES is deprecated: use jaxclear.designing.OUTCOMES (the optimisation's "
+                      "outcome; run statuses are jaxclear.RESULTS codes); it will be removed in the next release",
+                      DeprecationWarning, stacklevel=2)
+        return OUTCOMES
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 @dataclass
@@ -26,7 +48,8 @@ class DesignResult:
     """The outcome of :func:`jaxclear.design`.
 
     Attributes:
-        status: one of :data:`STATUSES`; ``success`` is True only for ``converged``.
+        status: the optimisation's outcome, one of :data:`OUTCOMES` (not a run status: see
+            there); ``success`` is True only for ``converged``.
         message: the method's own words on why it stopped.
         design: variable name -> value at the optimum [SI].
         start: variable name -> value at the start [SI].
@@ -160,4 +183,4 @@ def write_history_csv(path, history: list, names: list) -> str:
     return atomic_write_text(path, buf.getvalue())
 
 
-__all__ = ["DesignResult", "STATUSES", "change_words", "write_history_csv"]
+__all__ = ["DesignResult", "OUTCOMES", "change_words", "write_history_csv"]

@@ -24,7 +24,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from .._errors import RESULTS, ParameterError, SolverError, invalid_codes, is_concrete, status_message
+from .._errors import RESULTS, JaxclearError, ParameterError, SolverError, invalid_codes, is_concrete, status_message
 from ..model.mechanism import Mechanism
 from . import solve
 from .assembly import ASSEMBLY_TEMPLATE, check_assembly
@@ -130,17 +130,21 @@ def simulate(mech: Mechanism, s: Settings, y0: State | None = None) -> Solution:
     return sol
 
 
-def raise_for_status(sol: Solution, s: Settings, what: str = "", mech: Mechanism | None = None) -> None:
-    """Raise for a concrete solution whose status is not successful: a
+def raise_for_status(result, s: Settings, what: str = "", mech: Mechanism | None = None,
+                     error: type[JaxclearError] = SolverError) -> None:
+    """Raise for a concrete result whose ``status`` (a :class:`~jaxclear.RESULTS` code: a
+    :class:`Solution`'s, a :class:`~jaxclear.chaos.LyapunovResult`'s) is not successful: a
     :class:`~jaxclear.ParameterError` for an ``invalid_*`` status (a parameter outside its
-    range), else a :class:`~jaxclear.SolverError`; the message is the status's text
+    range), else ``error`` (:class:`~jaxclear.SolverError`; the Lyapunov driver's own
+    :class:`~jaxclear.chaos.LyapunovError`); the message is the status's text with its remedy
     (``what`` appended). Given the concrete ``mech`` of the run, an ``invalid_*`` status is
     told by the check that failed (:meth:`~jaxclear.Mechanism.failed_check`: the body or element,
-    the number, its value, the rule) instead of the status's list of rules."""
-    code = int(sol.status)
+    the number, its value, the rule) instead of the status's list of rules. The one
+    ``raise_for_status`` of jaxclear."""
+    code = int(result.status)
     if code in invalid_codes():
         failed = mech.failed_check() if mech is not None and is_concrete(mech) else None
         told = f"invalid parameter: {failed}" if failed is not None else status_message(code)
         raise ParameterError(f"jaxclear: {told}{what}")
     if code != int(RESULTS.successful._value):
-        raise SolverError(f"jaxclear: {status_message(code, max_steps=s.max_steps)}{what}")
+        raise error(f"jaxclear: {status_message(code, max_steps=s.max_steps)}{what}")
