@@ -37,6 +37,7 @@ from ._errors import (  # noqa: E402
     ParameterError,
     SolverError,
 )
+from ._results import AbstractResult  # noqa: E402
 from .contact import (  # noqa: E402
     STEEL,
     AbstractFriction,
@@ -205,6 +206,8 @@ __all__ = [
     "JaxclearError", "ParameterError", "FitDataError", "DesignError", "MechanismError", "InitialConditionError",
     "SolverError", "CheckpointError", "OutputLockedError", "MissingExtraError", "RESULTS", "STATUS",
     "SlowLoopsWarning", "request_host_devices",
+    # The protocol of every driver's result (index.md)
+    "AbstractResult",
 ]
 
 try:

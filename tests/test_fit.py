@@ -625,8 +625,7 @@ def _acceptance(name, seed, tmp_path, law=None):
         warnings.simplefilter("always")
         res = jc.fit(tmp_path / "record.csv", mech, start={"stiffness": 3 * k0, "restitution": e0 - 0.3},
                      sensor=sensor, out=tmp_path, progress=False)
-    res.write_json(tmp_path / "fit.json")
-    res.plot(tmp_path / "fit.png")
+    res.write(tmp_path)  # fit.json, fit.png
     line = (f"{name} seed {seed}: stiffness {res.estimates['stiffness']:.5g} (true {k0:.5g}, error "
             f"{100 * (res.estimates['stiffness'] / k0 - 1):+.3f} %, std {100 * res.std['stiffness'] / k0:.3f} %), "
             f"restitution {res.estimates['restitution']:.5f} (true {e0}, error {res.estimates['restitution'] - e0:+.2e}, "

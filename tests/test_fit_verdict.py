@@ -173,7 +173,7 @@ def test_fit_result_carries_the_verdict(tmp_path, bench):
     assert bad.summary().startswith("FAILED") and bad.failures[0] in bad.summary()
     d = bad.to_dict()
     assert list(d)[:2] == ["ok", "failures"] and d["ok"] is False and d["failures"] == list(bad.failures)
-    written = json.loads(open(bad.write_json(tmp_path / "fit.json"), encoding="utf-8").read())
+    written = json.loads(open(bad.write(tmp_path, plots=False)[0], encoding="utf-8").read())
     assert written["ok"] is False and written["failures"] == list(bad.failures)
     assert bad.to_dataframe().attrs["ok"] is False
     # the mechanism itself when given; a mechanism that is no preset's gets no range check

@@ -142,9 +142,9 @@ def test_chains_that_do_not_mix_are_flagged():
     converged, warn = diagnose(summary, 2)
     assert not converged and summary["stiffness"]["r_hat"] > 1.5
     assert any("did not mix" in w for w in warn) and any("2 divergent" in w for w in warn)
-    res = PosteriorResult(free=("stiffness",), samples={"stiffness": a}, stats={}, summary=summary, divergences=2,
+    res = PosteriorResult(free=("stiffness",), samples={"stiffness": a}, stats={}, statistics=summary, divergences=2,
                           warmup_divergences=0, converged=converged, warnings=warn, priors={}, settings={})
-    assert res.status_line().startswith("NOT CONVERGED") and res.format_summary().startswith("NOT CONVERGED")
+    assert res.status_line().startswith("NOT CONVERGED") and res.summary().startswith("NOT CONVERGED")
     assert RHAT_LIMIT == 1.05
 
 
@@ -198,7 +198,7 @@ def test_linear_gaussian_posterior_small(linear_case):
     # the fit's Gauss-Newton std of a linear model, rescaled from the fit's noise estimate to the
     # known one, is the likelihood's sd (the wide prior changes it by < 1e-3) up to the fit's own
     # noise estimate and unknowns (its window states count in N - P): measured 4.8 % apart
-    gn = res.summary["sensor_gain"]["gn_std"] * sigma / res.gn["noise_sigma"]
+    gn = res.statistics["sensor_gain"]["gn_std"] * sigma / res.gn["noise_sigma"]
     assert abs(gn / np.sqrt(cov[0, 0]) - 1) < 0.1
     files = set(os.listdir(folder / "small"))
     assert {"posterior.nc", "posterior.json", "posterior_summary.csv", "posterior_pair.png",

@@ -18,9 +18,9 @@ Theory: docs/theory/chaos.md.
 from .benettin import LyapunovResult
 from .lyapunov import MIN_INTERVALS, LyapunovError, LyapunovMap, check_convergence, lyapunov, lyapunov_map, trajectory
 from .signals import channel_series, psd, rosenstein, zero_one_test
-from .report import characterise, write_report
+from .report import ChannelReport, ChaosReport, characterise, write_report
 
-__all__ = ["MIN_INTERVALS", "LyapunovError", "LyapunovMap", "LyapunovResult", "channel_series",
+__all__ = ["MIN_INTERVALS", "ChannelReport", "ChaosReport", "LyapunovError", "LyapunovMap", "LyapunovResult", "channel_series",
            "characterise", "check_convergence", "lyapunov", "lyapunov_map", "psd", "rosenstein", "trajectory", "write_report",
            "zero_one_test"]
 

@@ -5,13 +5,14 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 
 from .._errors import ParameterError
 from ..chaos.lyapunov import MIN_INTERVALS, check_count, check_length, interval_count
-from ..chaos.report import ZERO_ONE_PER_REVOLUTION, characterise, write_report
+from ..chaos.report import ZERO_ONE_PER_REVOLUTION, characterise
 from ..chaos.signals import ZERO_ONE_MIN_SAMPLES
 from ..model import crank_driver
-from .common import add_mechanism_file_option, add_mechanism_options, fmt, number_in
+from .common import add_mechanism_file_option, add_mechanism_options, number_in
 from .simulate import add_integration_options, load, settings_from
 
 #: The defaults of ``jaxclear chaos``: crank revolutions in all, of them without tangents first,
@@ -118,22 +119,12 @@ def run(args) -> int:
     channels = args.channel or _default_channels(mech)
     print(f"jaxclear chaos: {mech.name}, {float(s.t_end):.6g} s; compiling the tangent run (a minute or more)",
           flush=True)
-    result, reports = characterise(mech, s, channels, per_revolution=args.per_revolution,
-                                   transient_revolutions=args.transient, discard=args.discard, count=args.count,
-                                   samples=args.samples, tol=args.tol)
-    summary = write_report(args.out, mech, result, reports)
-    for i, (v, se) in enumerate(zip(summary["exponents"], summary["stderr"])):
-        print(f"  lambda_{i + 1:<2d} {fmt(v, '1/s'):>16} +- {se:.2g}")
-    print(f"  sum       {fmt(summary['sum'], '1/s'):>16} (phase-space contraction)")
-    if summary["e_folding_time"] is not None:
-        print(f"  e-folding time 1/lambda_1 = {fmt(summary['e_folding_time'], 's')}: a derivative through the run "
-              "loses its meaning after a few of these")
-    for c in reports:
-        print(f"  {c.name}: Poincare section {c.period and f'period-{c.period}' or 'not periodic'}, "
-              + (f"0-1 test K = {c.k:.2f} (on {c.k_on})" if c.k == c.k else
-                 f"0-1 test not run (fewer than {ZERO_ONE_MIN_SAMPLES} samples at {ZERO_ONE_PER_REVOLUTION} a "
-                 f"revolution: --revolutions {zero_one_needs} or more)")
-              + f", PSD peak {c.peak_frequency:.4g} Hz")
-    print(f"  written to {args.out} (exponents.csv, running.csv, channels.csv, summary.json, running.png, "
-          "spectrum.png, poincare.png)")
+    report = characterise(mech, s, channels, per_revolution=args.per_revolution,
+                          transient_revolutions=args.transient, discard=args.discard, count=args.count,
+                          samples=args.samples, tol=args.tol)
+    files = report.write(args.out)
+    print(report.summary())
+    if any(c.k != c.k for c in report.channels):
+        print(f"  (the 0-1 test needs --revolutions {zero_one_needs} or more)")
+    print(f"  written to {args.out} ({', '.join(os.path.basename(f) for f in files)})")
     return 0

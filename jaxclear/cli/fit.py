@@ -187,10 +187,7 @@ def run(args) -> int:
                   start_state=args.start_state, starts=args.starts, optimizer=args.optimizer, max_iter=args.max_iter, rtol=args.rtol,
                   atol=args.atol, align=args.align, time_offset=args.time_offset, out=args.out, resume=not args.restart,
                   progress=not args.no_progress)
-    files = [res.write_json(os.path.join(args.out, "fit.json"))]
-    if not args.no_plots:
-        files.append(os.path.join(args.out, "fit.png"))
-        res.plot(files[-1])
+    files = res.write(args.out, plots=not args.no_plots)
     _print_result(res, files)
     if not res.ok and args.strict:
         print(f"error: the fit failed {len(res.failures)} check(s) (--strict): exit status 3"
@@ -223,7 +220,7 @@ def _posterior(args, mech, free, channels, sensor, res):
                          rtol=args.rtol, atol=args.atol, align=args.align, out=args.out, resume=not args.restart,
                          progress=not args.no_progress)
     print(f"posterior in {post.wall_time_s:.1f} s wall ({post.gradient_evaluations} gradient evaluations); "
-          + post.format_summary())
+          + post.summary())
     print(f"wrote {os.path.join(args.out, 'posterior.nc')} and posterior.json, posterior_summary.csv, "
           "posterior_pair.png, posterior_predictive.png/.csv")
 

@@ -3,16 +3,13 @@
 from __future__ import annotations
 
 import argparse
-import os
 
 import jax
 
 from .._errors import ParameterError
 from .._xla_flags import request_host_devices
 from .common import number_in
-from ..sweep.labels import channel_column
-from ..sweep import (CSV_NAME, MANIFEST_NAME, NETCDF_NAME, bifurcation, heatmap, load_config, make_mesh, poincare_plot,
-                     run_sweep)
+from ..sweep import load_config, make_mesh, run_sweep
 
 HELP = "run a parameter sweep from a TOML file (CSV, NetCDF, NPZ, PNG)"
 DESCRIPTION = """\
@@ -29,10 +26,6 @@ to the output folder:
   bifurcation_NAME.png    1-parameter sweeps: bifurcation diagram (Poincare e_x per revolution)
   poincare.png            Poincare sections of every run
 Running the same command again after an interruption resumes where it stopped."""
-
-#: Metrics drawn as heat maps for 2-parameter grids.
-PLOT_METRICS = ("peak_contact_force_n", "energy_dissipated_per_rev_j", "rms_acc_deviation_m_s2", "impacts")
-
 
 def configure(p: argparse.ArgumentParser):
     """Add the options of ``jaxclear sweep``; returns its ``run(args) -> exit code``."""
@@ -76,31 +69,10 @@ def run(args) -> int:
     res = run_sweep(cfg, restart=args.restart)
     table = res.table
     failed = int(sum(1 for s in table["status"] if s != 0))
-    files = [os.path.join(cfg.out, n) for n in (CSV_NAME, MANIFEST_NAME, NETCDF_NAME)]
-    if not args.no_plots and len(table["run"]):
-        files += _plots(cfg, res, grid=mode == "grid")
+    files = res.write(cfg.out, plots=not args.no_plots)
     before = len(table["run"]) - res.computed
     resumed = f", resumed with {before} already on disk" if before > 0 else ""
     print(f"done: {len(table['run'])} of {cfg.n_runs} runs on disk ({res.computed} computed now){resumed}, "
           f"{failed} failed")
     print("wrote " + ", ".join(files))
     return 0
-
-
-def _plots(cfg, res, grid: bool) -> list[str]:
-    """Heat maps (2-parameter grids), the bifurcation diagram (1 parameter) and the Poincare
-    sections of a sweep, in its output folder; returns the paths written."""
-    files = []
-    if grid and len(cfg.names) == 2:
-        channels = tuple(channel_column(c, stat) for c in cfg.channel_units for stat in ("min", "max"))
-        for metric in PLOT_METRICS + channels:
-            if metric in res.table:
-                files.append(os.path.join(cfg.out, f"heatmap_{metric}.png"))
-                heatmap(res, metric, x=cfg.names[0], y=cfg.names[1], path=files[-1])
-    if res.poincare.size:
-        if len(cfg.names) == 1:
-            files.append(os.path.join(cfg.out, f"bifurcation_{cfg.names[0].replace(':', '_')}.png"))
-            bifurcation(res, cfg.names[0], path=files[-1])
-        files.append(os.path.join(cfg.out, "poincare.png"))
-        poincare_plot(res, path=files[-1])
-    return files

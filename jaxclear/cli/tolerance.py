@@ -37,11 +37,6 @@ def configure(p: argparse.ArgumentParser):
     return run
 
 
-def _flags(notes: list) -> str:
-    """`` (note; note: see the warnings below)``, or nothing."""
-    return f" ({'; '.join(notes)}: see the warnings below)" if notes else ""
-
-
 def run(args) -> int:
     """Load the study (every key checked), run it, print the summary."""
     request_host_devices()
@@ -53,33 +48,6 @@ def run(args) -> int:
     with warnings.catch_warnings():  # printed in the summary below, once
         warnings.simplefilter("ignore", UnresolvedEstimateWarning)
         res = tolerance_study(**kwargs, restart=args.restart)
-    print(f"jaxclear tolerance: {len(res.values)} runs of {', '.join(res.names)}")
-    for m, s in res.summary.items():
-        if "mean" in s:
-            print(f"  {m}: mean {s['mean']:.5g}, sd {s['sd']:.3g}, 90 % range [{s['q05']:.5g}, {s['q95']:.5g}]"
-                  + (f", {s['failed_runs']} failed run(s)" if s["failed_runs"] else ""))
-        lin = res.linearised.get(m)
-        if lin:
-            print(f"    linearised: mean {lin['mean']:.5g}, sd {lin['sd']:.3g}"
-                  + _flags(["leaves the metric's range"] * bool(lin.get("outside_range"))
-                           + [f"{lin.get('sd_ratio_to_sample', 0):.2g} times the sample's sd"]
-                           * bool(lin.get("departs_from_sample")))
-                  + (f"; from derivatives sd {lin['derivatives']['sd']:.3g} (gradient "
-                     f"{100 * lin['derivatives']['distance_to_differences']:.3g} % from the differences)"
-                     if "derivatives" in lin else ""))
-        ex = res.exceedance.get(m)
-        if ex:
-            print(f"    P({m} > {ex['limit']:g}) = {ex['probability']:.4g}, 95 % interval [{ex['ci95'][0]:.3g}, "
-                  f"{ex['ci95'][1]:.3g}]" + (f"; linearised {ex['linearised_probability']:.3g}"
-                                             if "linearised_probability" in ex else ""))
-        imp = res.importance.get(m)
-        if imp:
-            print(f"    importance sampling ({imp['runs']} runs): {imp['probability']:.3g} +- {imp['std_error']:.2g}")
-        for name, si in res.sobol.get(m, {}).items():
-            print(f"    Sobol' {name}: first {si['S1']:.3f} +- {si['S1_conf']:.3f}"
-                  + ("" if si["S1_resolved"] else " (not resolved)") + f", total {si['ST']:.3f} +- "
-                  f"{si['ST_conf']:.3f}" + ("" if si["ST_resolved"] else " (not resolved)"))
-    for said in res.warnings:
-        print(f"warning: {said}")
+    print(f"jaxclear tolerance: {res.summary()}")
     print(f"wrote {os.path.join(kwargs['out'], 'tolerance.json')}, tolerance_runs.csv, tolerance.png")
     return 0

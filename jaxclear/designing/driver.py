@@ -7,7 +7,6 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import math
-import os
 import time
 import warnings
 from typing import Callable
@@ -278,7 +277,7 @@ def _design_locked(problem, variables, u0, start_mech, key, config, out, resume,
         result.comparison = comparison_runs(problem, start_mech, opt_mech, config["revolutions"],
                                             config["samples_per_revolution"])
     if out is not None:
-        _write(result, out)
+        result.write(out)
     return result
 
 
@@ -291,18 +290,6 @@ def _scale_check(ev, problem, u, f: float, gradient, where: str, said: list) -> 
         said.append(scale_message(problem.mech.name, report, where))
         warnings.warn(said[-1], RuggedObjectiveWarning, stacklevel=4)
     return report
-
-
-def _write(result: DesignResult, out) -> None:
-    """``design.json``, ``design_history.csv``, ``design.toml`` (the optimum) and ``design.png``."""
-    result.write_history_csv(os.path.join(out, "design_history.csv"))
-    try:
-        result.save_mechanism(os.path.join(out, "design.toml"))
-    except Exception as exc:  # noqa: BLE001  (a mechanism the file format cannot hold: say so, keep the rest)
-        result.settings["design_toml"] = f"not written: {exc}"
-    if result.comparison is not None:
-        result.plot(os.path.join(out, "design.png"))
-    result.write_json(os.path.join(out, "design.json"))
 
 
 __all__ = ["design"]

@@ -1,5 +1,5 @@
-"""What a design returns and writes: :class:`DesignResult` (``design.json``, ``design_history.csv``,
-``design.png``, ``design.toml``)."""
+"""What a design returns and writes: :class:`DesignResult` (an :class:`~jaxclear.AbstractResult`:
+``design.json``, ``design_history.csv``, ``design.png``, ``design.toml``)."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._results import AbstractResult, deprecated
 from .._storage import atomic_write_json, atomic_write_text, jsonable
 from ..mechanism_files import save_mechanism
 from .figures import plot_comparison
@@ -44,8 +45,9 @@ def __getattr__(name: str):
 
 
 @dataclass
-class DesignResult:
-    """The outcome of :func:`jaxclear.design`.
+class DesignResult(AbstractResult):
+    """The outcome of :func:`jaxclear.design` (:meth:`to_dict`, :meth:`write`, :meth:`summary`,
+    :meth:`plot`: :class:`~jaxclear.AbstractResult`).
 
     Attributes:
         status: the optimisation's outcome, one of :data:`OUTCOMES` (not a run status: see
@@ -110,15 +112,40 @@ class DesignResult:
     def success(self) -> bool:
         return self.status == "converged"
 
-    def to_json(self) -> dict:
+    def to_dict(self) -> dict:
+        """The content of ``design.json`` (JSON-ready: NaN as None): every field but the
+        mechanisms and the comparison runs, and ``success``."""
         skip = {"mechanism", "start_mechanism", "comparison"}
         out = {k: v for k, v in self.__dict__.items() if k not in skip}
         out["success"] = self.success
         return jsonable(out)
 
+    def to_json(self) -> dict:
+        """Deprecated: :meth:`to_dict`."""
+        deprecated("DesignResult.to_json()", "DesignResult.to_dict()")
+        return self.to_dict()
+
+    def write(self, folder, *, plots: bool = True) -> list[str]:
+        """``design_history.csv``, ``design.toml`` (the optimum as a mechanism file), with
+        ``plots`` and the comparison runs ``design.png``, and ``design.json`` (last: it says
+        whether ``design.toml`` could be written) in ``folder``; returns their paths."""
+        folder = os.fspath(folder)
+        os.makedirs(folder, exist_ok=True)
+        paths = [self.write_history_csv(os.path.join(folder, "design_history.csv"))]
+        try:
+            paths.append(self.save_mechanism(os.path.join(folder, "design.toml")))
+        except Exception as exc:  # noqa: BLE001  (a mechanism the file format cannot hold: say so, keep the rest)
+            self.settings["design_toml"] = f"not written: {exc}"
+        if plots and self.comparison is not None:
+            paths.append(self.plot(os.path.join(folder, "design.png")))
+        paths.append(atomic_write_json(os.path.join(folder, "design.json"), self.to_dict()))
+        return paths
+
     def write_json(self, path) -> str:
-        """``design.json``: every field but the mechanisms. Returns the path."""
-        return atomic_write_json(path, self.to_json())
+        """Deprecated: :meth:`write` (``design.json`` in a folder). Writes :meth:`to_dict` to ``path``."""
+        deprecated("DesignResult.write_json(path)", "DesignResult.write(folder), which writes design.json and the "
+                   "design's other files")
+        return atomic_write_json(path, self.to_dict())
 
     def write_history_csv(self, path) -> str:
         """``design_history.csv``: one row per iteration. Returns the path."""
@@ -131,13 +158,15 @@ class DesignResult:
 
     def plot(self, path=None):
         """The start design against the optimum (:func:`jaxclear.designing.figures.plot_comparison`),
-        from the runs the design made for it (``comparison``)."""
+        from the runs the design made for it (``comparison``): the figure, or ``path`` once saved
+        there."""
         if self.comparison is None:
             raise ValueError("this result holds no comparison runs (design(..., plots=False)?)")
         channel, start, optimum = self.comparison
-        return plot_comparison(path, channel, start, optimum, self.history, self.objective["unit"],
-                               f"{start[0].name}: {self.objective['description']}, start against optimum "
-                               f"({change_words(self.objective['improvement'], 1)})")
+        fig = plot_comparison(path, channel, start, optimum, self.history, self.objective["unit"],
+                              f"{start[0].name}: {self.objective['description']}, start against optimum "
+                              f"({change_words(self.objective['improvement'], 1)})")
+        return fig if path is None else os.fspath(path)
 
     def summary(self) -> str:
         """A few lines for a terminal: status, objective, constraints, design, sensitivity."""

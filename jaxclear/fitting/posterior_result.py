@@ -13,7 +13,8 @@ Intervals: the posterior's 90 % interval is equal-tailed (its 5 % and 95 % quant
 Gauss-Newton one is the fit's ``estimate +- 1.645 std`` (delta method, what ``fit.json``
 reports).
 
-Files (``write``): ``posterior.nc`` (ArviZ ``InferenceData``, NetCDF 4 groups ``posterior`` and
+The result is an :class:`~jaxclear.AbstractResult` (``to_dict``, ``write``, ``summary``,
+``plot``). Files (``write``): ``posterior.nc`` (ArviZ ``InferenceData``, NetCDF 4 groups ``posterior`` and
 ``sample_stats``), ``posterior.json`` (summary, diagnostics, priors, settings),
 ``posterior_summary.csv``, ``posterior_predictive.csv`` and the figures ``posterior_pair.png``,
 ``posterior_predictive.png``.
@@ -30,7 +31,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._storage import atomic_write_by, atomic_write_json, atomic_write_text
+from .._results import AbstractResult, SummaryTable, deprecated
+from .._storage import atomic_write_by, atomic_write_json, atomic_write_text, jsonable
 from .parameters import from_z
 
 #: Largest R-hat of a converged result (the issue's and Vehtari et al.'s 1.01 is for final
@@ -58,16 +60,19 @@ def values_of_draws(free, x: np.ndarray, scale: float) -> dict:
 
 
 @dataclass
-class PosteriorResult:
-    """The posterior sample and its diagnostics.
+class PosteriorResult(AbstractResult):
+    """The posterior sample and its diagnostics (:meth:`to_dict`, :meth:`write`, :meth:`summary`,
+    :meth:`plot`: :class:`~jaxclear.AbstractResult`).
 
     Attributes:
         samples: name -> ``(chains, draws)`` values (SI; ``noise_sigma`` in the unit of the
             first fitted column, absent when the noise was given).
         stats: per draw ``(chains, draws)``: ``lp`` (log density), ``diverging``, ``acceptance_rate``,
             ``n_steps`` (leapfrog steps = gradient evaluations), ``tree_depth``.
-        summary: name -> ``{mean, sd, q05, q50, q95, ess_bulk, ess_tail, r_hat}`` and for the
-            free parameters the Gauss-Newton ``gn_estimate, gn_std, gn_q05, gn_q95``.
+        statistics: name -> ``{mean, sd, q05, q50, q95, ess_bulk, ess_tail, r_hat}`` and for the
+            free parameters the Gauss-Newton ``gn_estimate, gn_std, gn_q05, gn_q95`` (the table
+            once named ``summary``, now the text :meth:`summary`; ``posterior.json`` keeps the
+            key ``"summary"``).
         divergences, warmup_divergences: divergent transitions after / during the warm-up.
         converged: every R-hat <= :data:`RHAT_LIMIT`.
         warnings: what the diagnostics flag (not converged, divergences, small ESS).
@@ -82,7 +87,7 @@ class PosteriorResult:
     free: tuple
     samples: dict
     stats: dict
-    summary: dict
+    statistics: dict
     divergences: int
     warmup_divergences: int
     converged: bool
@@ -101,11 +106,11 @@ class PosteriorResult:
 
     def min_ess(self) -> float:
         """The smallest bulk effective sample size over the sampled quantities."""
-        return float(min(s["ess_bulk"] for s in self.summary.values()))
+        return float(min(s["ess_bulk"] for s in self.statistics.values()))
 
     def interval(self, name: str, gauss_newton: bool = False) -> tuple[float, float]:
         """The 90 % interval of ``name``: the posterior's quantiles, or the Gauss-Newton one."""
-        s = self.summary[name]
+        s = self.statistics[name]
         return (s["gn_q05"], s["gn_q95"]) if gauss_newton else (s["q05"], s["q95"])
 
     def to_inference_data(self):
@@ -119,30 +124,41 @@ class PosteriorResult:
                                    "source": "jaxclear.fitting.posterior (BlackJAX NUTS)"})
 
     def summary_frame(self):
-        """:attr:`summary` as a :class:`pandas.DataFrame` (index: the sampled quantities)."""
+        """:attr:`statistics` as a :class:`pandas.DataFrame` (index: the sampled quantities)."""
         import pandas as pd
 
-        df = pd.DataFrame.from_dict(self.summary, orient="index")
+        df = pd.DataFrame.from_dict(self.statistics, orient="index")
         df.index.name = "parameter"
         df.attrs.update(converged=self.converged, divergences=self.divergences)
         return df
 
     def status_line(self) -> str:
         """One line: converged or NOT CONVERGED, with the numbers that say so."""
-        rhat = max(s["r_hat"] for s in self.summary.values())
+        rhat = max(s["r_hat"] for s in self.statistics.values())
         tail = f"max R-hat {rhat:.3f}, min bulk ESS {self.min_ess():.0f}, {self.divergences} divergent transition(s)"
         if self.converged:
             return f"converged ({tail})"
         return f"NOT CONVERGED: the chains did not mix ({tail}; R-hat limit {RHAT_LIMIT}): these draws are not a " \
                "posterior sample"
 
+    @property
+    def summary(self) -> SummaryTable:
+        """``summary()``: the statistics as text, the status line first (a few lines for a
+        terminal). Read as a table (``res.summary["name"]``, deprecated), :attr:`statistics`."""
+        return SummaryTable(self.statistics, self._summary_text, "PosteriorResult.summary",
+                            "PosteriorResult.statistics")
+
     def format_summary(self) -> str:
-        """The summary table as text, the status line first."""
+        """Deprecated: :meth:`summary`."""
+        deprecated("PosteriorResult.format_summary()", "PosteriorResult.summary()")
+        return self._summary_text()
+
+    def _summary_text(self) -> str:
         lines = [self.status_line()]
-        w = max(len(n) for n in self.summary)
+        w = max(len(n) for n in self.statistics)
         lines.append(f"  {'':<{w}}  {'mean':>11} {'sd':>10} {'90% interval':>25} {'R-hat':>6} {'ESS':>6}"
                      f"   {'Gauss-Newton 90%':>25}")
-        for name, s in self.summary.items():
+        for name, s in self.statistics.items():
             gn = f"[{s['gn_q05']:.5g}, {s['gn_q95']:.5g}]" if "gn_q05" in s else "-"
             lines.append(f"  {name:<{w}}  {s['mean']:>11.5g} {s['sd']:>10.3g} "
                          f"{'[' + format(s['q05'], '.5g') + ', ' + format(s['q95'], '.5g') + ']':>25} "
@@ -151,18 +167,19 @@ class PosteriorResult:
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
-        """The content of ``posterior.json``."""
-        return {"converged": self.converged, "status": self.status_line(), "summary": self.summary,
+        """The content of ``posterior.json`` (JSON-ready: NaN as None)."""
+        return jsonable({"converged": self.converged, "status": self.status_line(), "summary": self.statistics,
                 "divergences": self.divergences, "warmup_divergences": self.warmup_divergences,
                 "gradient_evaluations": self.gradient_evaluations, "warnings": self.warnings, "priors": self.priors,
                 "settings": self.settings, "step_size_whitened": self.step_size, "wall_time_s": self.wall_time_s,
                 "sampling_wall_s": self.sampling_wall_s, "gauss_newton": self.gn,
                 "predictive_coverage_90": self.predictive.get("coverage"),
                 "interval_definition": "posterior: equal-tailed 90 % (5 % and 95 % quantiles); Gauss-Newton: "
-                                       "estimate +- 1.645 std (delta method)"}
+                                       "estimate +- 1.645 std (delta method)"})
 
-    def write(self, out) -> list[str]:
-        """Write the files (module docstring) into ``out``; returns their paths."""
+    def write(self, out, *, plots: bool = True) -> list[str]:
+        """Write the files (module docstring; the figures with ``plots``) into ``out``; returns
+        their paths."""
         out = os.fspath(out)
         os.makedirs(out, exist_ok=True)
         paths = [atomic_write_by(os.path.join(out, "posterior.nc"),
@@ -175,10 +192,15 @@ class PosteriorResult:
             cols = {k: v for k, v in self.predictive.items() if k != "coverage"}
             paths.append(atomic_write_text(os.path.join(out, "posterior_predictive.csv"),
                                            pd.DataFrame(cols).to_csv(index=False)))
-        paths.append(self.plot_pair(os.path.join(out, "posterior_pair.png")))
-        if self.predictive:
-            paths.append(self.plot_predictive(os.path.join(out, "posterior_predictive.png")))
+        if plots:
+            paths.append(self.plot_pair(os.path.join(out, "posterior_pair.png")))
+            if self.predictive:
+                paths.append(self.plot_predictive(os.path.join(out, "posterior_predictive.png")))
         return paths
+
+    def plot(self, path=None):
+        """The main figure: the pair plot of the draws (:meth:`plot_pair`)."""
+        return self.plot_pair(path)
 
     def plot_pair(self, path=None):
         """Pair plot of the draws (ArviZ, with marginals; divergent draws marked; the
@@ -187,6 +209,8 @@ class PosteriorResult:
         import matplotlib.pyplot as plt
 
         ref = {n: v for n, v in self.gn.get("estimates", {}).items()}
+        if len(self.samples) < 2:  # one free parameter with the noise given: its marginal alone
+            return self._plot_marginal(path, ref)
         with warnings.catch_warnings():  # "no reference value for noise_sigma": the fit has none, by design
             warnings.simplefilter("ignore", UserWarning)
             axes = az.plot_pair(self.to_inference_data(), kind="scatter", marginals=True, divergences=True,
@@ -195,6 +219,24 @@ class PosteriorResult:
         fig = np.ravel(axes)[0].figure
         title = "posterior (NUTS)" + ("" if self.converged else " - NOT CONVERGED")
         fig.suptitle(title + "; reference (green): least-squares optimum", fontsize=10, y=1.0)
+        if path is None:
+            return fig
+        fig.savefig(path, dpi=110, bbox_inches="tight")
+        plt.close(fig)
+        return os.fspath(path)
+
+    def _plot_marginal(self, path, ref: dict):
+        """The one sampled quantity's histogram (a pair plot needs two), the least-squares optimum marked."""
+        import matplotlib.pyplot as plt
+
+        (name, draws), = self.samples.items()
+        fig, ax = plt.subplots(figsize=(5.2, 3.6))
+        ax.hist(np.ravel(draws), bins=40, color="C0", alpha=0.7)
+        if name in ref:
+            ax.axvline(ref[name], color="C2", label="least-squares optimum")
+            ax.legend(fontsize=8)
+        ax.set_xlabel(name)
+        ax.set_title("posterior (NUTS)" + ("" if self.converged else " - NOT CONVERGED"), fontsize=10)
         if path is None:
             return fig
         fig.savefig(path, dpi=110, bbox_inches="tight")
@@ -293,20 +335,20 @@ def build_result(lp, run: dict, info: dict, settings: dict, fit_result, predicti
         samples[NOISE] = sigma_r * float(lp.sigma_unit)
     else:
         sigma_r = np.full(x.shape[:-1], float(np.exp(lp.noise_log)))
-    summary = _summaries(samples)
+    table = _summaries(samples)
     for name in free:
         est, std = fit_result.estimates[name], fit_result.std[name]
-        summary[name].update(gn_estimate=est, gn_std=std, gn_q05=est - Z90 * std, gn_q95=est + Z90 * std)
+        table[name].update(gn_estimate=est, gn_std=std, gn_q05=est - Z90 * std, gn_q95=est + Z90 * std)
     stats = {k: np.asarray(run[k], dtype=float) for k in _STATS}
     div = int(stats["diverging"].sum())
     wdiv = int(np.sum(run["warmup_divergences"]))
-    converged, warn = diagnose(summary, div)
+    converged, warn = diagnose(table, div)
     for w_ in warn:
         warnings.warn(w_, stacklevel=3)
     pred = _predictive(lp, x, sigma_r, predictive_draws, seed, info["problem"])
     gn = {"estimates": dict(fit_result.estimates), "std": dict(fit_result.std),
           "noise_sigma": info["gn_sigma"], "fitted_samples": info["n"]}
-    return PosteriorResult(free=tuple(free), samples=samples, stats=stats, summary=summary, divergences=div,
+    return PosteriorResult(free=tuple(free), samples=samples, stats=stats, statistics=table, divergences=div,
                            warmup_divergences=wdiv, converged=converged, warnings=warn, priors=info["priors"],
                            settings={**settings, "column": info["problem"].columns[0],
                                      "resumed": bool(run["resumed"])},

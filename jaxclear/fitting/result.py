@@ -1,20 +1,25 @@
-"""The result of a fit (:class:`FitResult`) and its JSON form (``fit.json``)."""
+"""The result of a fit (:class:`FitResult`, an :class:`~jaxclear.AbstractResult`) and its files
+(``fit.json``, ``fit.png``)."""
 
 from __future__ import annotations
 
 from dataclasses import InitVar, dataclass, field
 
+import os
+
 import numpy as np
 
-from .. import io
+from .._results import AbstractResult, deprecated
+from .._storage import atomic_write_json, jsonable
 from ..model import Mechanism
 from ..plot import plot_fit
 from .verdict import assess, fallback_mechanism
 
 
 @dataclass
-class FitResult:
-    """What :func:`fit` found.
+class FitResult(AbstractResult):
+    """What :func:`fit` found (:meth:`to_dict`, :meth:`write`, :meth:`summary`, :meth:`plot`:
+    the protocol of every driver's result, :class:`~jaxclear.AbstractResult`).
 
     Attributes:
         estimates, std, start: parameter name -> value (SI; std by the delta method,
@@ -119,8 +124,9 @@ class FitResult:
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
-        """The content of ``fit.json``: ``ok`` and ``failures`` first, then the estimates."""
-        return {
+        """The content of ``fit.json`` (JSON-ready: NaN as None): ``ok`` and ``failures`` first,
+        then the estimates."""
+        return jsonable({
             "ok": self.ok,
             "failures": list(self.failures),
             "estimates": self.estimates,
@@ -147,7 +153,7 @@ class FitResult:
             "warnings": self.warnings,
             "loss_definition": "mean over the fitted samples of ((model - measured) / rms(measured))^2",
             "std_definition": "Gauss-Newton: sigma^2 (J^T J)^-1 in the transformed parameters, delta method back",
-        }
+        })
 
     def to_dataframe(self):
         """The estimates as a :class:`pandas.DataFrame`: one row per free parameter (index
@@ -181,9 +187,23 @@ class FitResult:
         cols = {"time_s": self.t, "measured": self.measured, "fitted": self.fitted, "initial": self.initial}
         return pd.DataFrame({k: np.ravel(v) for k, v in cols.items() if v is not None})
 
+    def write(self, folder, *, plots: bool = True) -> list[str]:
+        """``fit.json`` (:meth:`to_dict`, keys in their order) and, with ``plots``, ``fit.png``
+        (:meth:`plot`) in ``folder``; returns their paths."""
+        folder = os.fspath(folder)
+        os.makedirs(folder, exist_ok=True)
+        paths = [atomic_write_json(os.path.join(folder, "fit.json"), self.to_dict(), sort_keys=False)]
+        if plots:
+            paths.append(self.plot(os.path.join(folder, "fit.png")))
+        return paths
+
     def write_json(self, path) -> str:
-        return io.write_json(path, self.to_dict())
+        """Deprecated: :meth:`write` (``fit.json`` in a folder). Writes :meth:`to_dict` to ``path``."""
+        deprecated("FitResult.write_json(path)", "FitResult.write(folder), which writes fit.json (and fit.png)")
+        return atomic_write_json(path, self.to_dict(), sort_keys=False)
 
     def plot(self, path=None):
-        """The fit plot (:func:`jaxclear.plot.plot_fit`)."""
-        return plot_fit(path, self)
+        """The fit plot (:func:`jaxclear.plot.plot_fit`): the figure, or ``path`` once saved there
+        (a :class:`matplotlib.figure.Figure` outside pyplot: nothing to close)."""
+        fig = plot_fit(path, self)
+        return fig if path is None else os.fspath(path)

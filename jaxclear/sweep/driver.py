@@ -10,7 +10,6 @@ every process feeds its own shards and process 0 alone writes the files.
 from __future__ import annotations
 
 import contextlib
-import importlib
 import os
 
 import jax
@@ -106,6 +105,5 @@ def _run_sweep(cfg: SweepConfig, out: str, restart: bool, progress: bool, lead: 
                            computed)
     res = read_results(out)
     res.computed = computed
-    dataset = importlib.import_module(".dataset", __package__)  # xarray: loaded only by a sweep
-    dataset.write_netcdf(res.to_xarray(), os.path.join(out, dataset.NETCDF_NAME))
+    res.write(out, plots=False)  # results.nc (the CSV, manifest and chunks were written as it ran)
     return res

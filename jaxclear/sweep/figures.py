@@ -14,6 +14,9 @@ from .labels import column_unit, long_name
 from .results import SweepResult
 from .store import POINCARE_COORDS
 
+#: Metrics drawn as heat maps over a 2-parameter grid (with the min and max of every named channel).
+PLOT_METRICS = ("peak_contact_force_n", "energy_dissipated_per_rev_j", "rms_acc_deviation_m_s2", "impacts")
+
 #: Shorter axis names than the parameters' descriptions.
 _SHORT = {"clearance": "clearance", "restitution": "restitution c_r", "friction": "friction coefficient",
           "speed_rpm": "crank speed", "speed": "crank speed", "length": "joint length"}
@@ -133,3 +136,29 @@ def poincare_plot(res: SweepResult, runs=None, joint: int = 0, path=None, color_
     return plot_poincare(path, res.poincare[runs, :, joint, :], colors=res.table[color_by][runs] * scale,
                          color_label=label, clearance=clearance, labels=labels, title=_fixed(res),
                          marker_index=marker_index)
+
+
+def write_figures(res: SweepResult, folder) -> list[str]:
+    """The figures of a sweep in ``folder``: heat maps of :data:`PLOT_METRICS` and of the min and
+    max of every named channel (2-parameter grids), the bifurcation diagram (1 parameter) and the
+    Poincare sections; returns the paths written (none for a sweep with no run on disk)."""
+    import os
+
+    folder = os.fspath(folder)
+    files = []
+    if not len(res.table.get("run", ())):
+        return files
+    if res.mode == "grid" and len(res.names) == 2:
+        channels = tuple(column for column, c in res.manifest.get("channel_columns", {}).items()
+                         if c["stat"] in ("min", "max"))
+        for metric in PLOT_METRICS + channels:
+            if metric in res.table:
+                files.append(os.path.join(folder, f"heatmap_{metric}.png"))
+                heatmap(res, metric, x=res.names[0], y=res.names[1], path=files[-1])
+    if res.poincare.size:
+        if len(res.names) == 1:
+            files.append(os.path.join(folder, f"bifurcation_{res.names[0].replace(':', '_')}.png"))
+            bifurcation(res, res.names[0], path=files[-1])
+        files.append(os.path.join(folder, "poincare.png"))
+        poincare_plot(res, path=files[-1])
+    return files

@@ -1,7 +1,7 @@
 """Reading a sweep folder back: :class:`SweepResult` (the CSV table, the Poincare points, the
 grid axes; as labelled data with :meth:`SweepResult.to_xarray` and
-:meth:`SweepResult.to_dataframe`) and :func:`read_chunks` (the NPZ arrays, e.g. the time
-series)."""
+:meth:`SweepResult.to_dataframe`; an :class:`~jaxclear.AbstractResult`: ``to_dict``, ``write``,
+``summary``, ``plot``) and :func:`read_chunks` (the NPZ arrays, e.g. the time series)."""
 
 from __future__ import annotations
 
@@ -12,14 +12,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._errors import CheckpointError, ParameterError
-from .store import _INT_READ, CHUNK_DIR, CSV_NAME, damaged, parse_rows, read_manifest
+from .._errors import STATUS, CheckpointError, ParameterError
+from .._results import AbstractResult
+from .._storage import jsonable
+from .store import _INT_READ, CHUNK_DIR, CSV_NAME, MANIFEST_NAME, NETCDF_NAME, damaged, parse_rows, read_manifest
 
 
 
 @dataclass
-class SweepResult:
-    """A finished sweep read back from its folder (rows sorted by run index).
+class SweepResult(AbstractResult):
+    """A finished sweep read back from its folder (rows sorted by run index); :meth:`to_dict`,
+    :meth:`write`, :meth:`summary`, :meth:`plot` (:class:`~jaxclear.AbstractResult`).
 
     Attributes:
         out: the folder. table: column -> (n_runs,) array (``status_message`` as strings).
@@ -77,6 +80,69 @@ class SweepResult:
         """The stored time series (``trajectories = true``): key -> (n_runs, ...) arrays."""
         return read_chunks(self.out, prefix="traj_")
 
+    def _statuses(self) -> dict:
+        """status code -> runs with it."""
+        codes, counts = np.unique(np.asarray(self.table.get("status", []), dtype=np.int64), return_counts=True)
+        return {int(c): int(n) for c, n in zip(codes, counts)}
+
+    def to_dict(self) -> dict:
+        """JSON-ready (NaN as None): the folder, the swept parameters and their axes, the runs on
+        disk, computed now and failed (per :class:`~jaxclear.RESULTS` code), the table (column ->
+        list, one entry a run) and the manifest (the sweep's definition)."""
+        statuses = self._statuses()
+        return jsonable({"folder": self.out, "mode": self.mode, "names": list(self.names), "axes": self.axes,
+                         "runs_on_disk": len(self.table.get("run", [])), "computed": self.computed,
+                         "failed": sum(n for c, n in statuses.items() if c != 0), "statuses": statuses,
+                         "table": self.table, "manifest": self.manifest})
+
+    def write(self, folder=None, *, plots: bool = True) -> list[str]:
+        """The labelled dataset ``results.nc`` (:meth:`to_xarray`) and, with ``plots``, the
+        figures (:func:`~jaxclear.sweep.figures.write_figures`: heat maps, bifurcation diagram,
+        Poincare sections) in ``folder`` (default: the sweep's own folder); returns their paths,
+        after ``runs.csv`` and ``manifest.json`` where ``folder`` is the sweep's own (those and
+        ``chunks/`` are the sweep's store, written as it ran, and stay there)."""
+        folder = self.out if folder is None else os.fspath(folder)
+        os.makedirs(folder, exist_ok=True)
+        own = os.path.abspath(folder) == os.path.abspath(self.out)
+        paths = [os.path.join(folder, CSV_NAME), os.path.join(folder, MANIFEST_NAME)] if own else []
+        paths.append(_dataset().write_netcdf(self.to_xarray(), os.path.join(folder, NETCDF_NAME)))
+        if plots:
+            paths += _figures().write_figures(self, folder)
+        return paths
+
+    def summary(self) -> str:
+        """The runs on disk and how many failed (each status with its message), the swept
+        parameters' ranges, and the range of the main metrics over the runs that succeeded."""
+        n = len(self.table.get("run", []))
+        total = self.manifest.get("n_runs", n)
+        statuses = self._statuses()
+        failed = sum(k for c, k in statuses.items() if c != 0)
+        lines = [f"{n} of {total} runs on disk ({self.computed} computed now), {failed} failed; {self.mode} over "
+                 + ", ".join(f"{name} [{np.min(self.axes[name]):.4g}, {np.max(self.axes[name]):.4g}]"
+                             if len(self.axes.get(name, ())) else name for name in self.names)]
+        lines += [f"  status {c}: {k} run(s): {STATUS.get(c, 'unknown status')}" for c, k in statuses.items() if c != 0]
+        ok = np.asarray(self.table.get("status", []), dtype=np.int64) == 0
+        for metric in _figures().PLOT_METRICS:
+            values = np.asarray(self.table.get(metric, []), dtype=float)
+            values = values[ok & np.isfinite(values)] if values.size == ok.size else values[:0]
+            if values.size:
+                lines.append(f"  {metric}: {values.min():.4g} .. {values.max():.4g}")
+        return "\n".join(lines)
+
+    def plot(self, path=None):
+        """The main figure: over a 2-parameter grid the heat map of the first metric of
+        :data:`~jaxclear.sweep.figures.PLOT_METRICS` in the table, over one parameter the
+        bifurcation diagram, else the Poincare sections: the figure, or ``path`` once saved there."""
+        figures = _figures()
+        metrics = [m for m in figures.PLOT_METRICS if m in self.table]
+        if self.mode == "grid" and len(self.names) == 2 and metrics:
+            fig = figures.heatmap(self, metrics[0], x=self.names[0], y=self.names[1], path=path)
+        elif len(self.names) == 1 and self.poincare.size:
+            fig = figures.bifurcation(self, self.names[0], path=path)
+        else:
+            fig = figures.poincare_plot(self, path=path)
+        return fig if path is None else os.fspath(path)
+
 
 def _read_table(out: str) -> dict:
     """``runs.csv`` as column -> array, rows sorted by run index (a partial last line ignored;
@@ -132,6 +198,11 @@ def _dataset():
     """:mod:`jaxclear.sweep.dataset`, imported on first use (xarray and pandas add about 1 s to
     ``import jaxclear``)."""
     return importlib.import_module(".dataset", __package__)
+
+
+def _figures():
+    """:mod:`jaxclear.sweep.figures`, imported on first use (matplotlib; it imports this module)."""
+    return importlib.import_module(".figures", __package__)
 
 
 def read_chunks(out, prefix: str = "") -> dict:

@@ -37,7 +37,8 @@ import numpy as np
 
 from .._errors import ParameterError
 from .._extras import require_extra
-from .._storage import atomic_write_json, atomic_write_text
+from .._results import AbstractResult, SummaryTable
+from .._storage import atomic_write_json, atomic_write_text, jsonable
 from ..model import Mechanism
 from .distributions import Inputs
 from .estimators import (UnresolvedEstimateWarning, check_limit, exceedance, importance_exceedance, linearised,
@@ -53,11 +54,14 @@ RUN_OPTIONS = ("revolutions", "transient_revolutions", "samples_per_revolution",
 
 
 @dataclass
-class ToleranceResult:
-    """What :func:`tolerance_study` returns and writes (``tolerance.json``, ``tolerance.png``).
+class ToleranceResult(AbstractResult):
+    """What :func:`tolerance_study` returns and writes (``tolerance.json``, ``tolerance_runs.csv``,
+    ``tolerance.png``): :meth:`to_dict`, :meth:`write`, :meth:`summary`, :meth:`plot`
+    (:class:`~jaxclear.AbstractResult`).
 
     Attributes: ``names``, ``values`` ``(n, P)`` the sampled inputs, ``metrics`` name -> ``(n,)``,
-    ``summary`` metric -> mean, sd, quantiles, failed runs; ``exceedance`` metric -> sampled
+    ``statistics`` metric -> mean, sd, quantiles, failed runs (the table once named ``summary``,
+    now the text :meth:`summary`; ``tolerance.json`` keeps the key ``"summary"``); ``exceedance`` metric -> sampled
     probability with its 95 % interval, the linearised one beside it (and importance sampling's
     for the first limit); ``sobol`` metric -> name -> S1, ST, their 95 % half-widths and whether
     each is resolved; ``linearised`` metric -> mean, sd, gradient over the scores, whether its
@@ -67,7 +71,7 @@ class ToleranceResult:
     names: list
     values: np.ndarray
     metrics: dict
-    summary: dict
+    statistics: dict
     exceedance: dict = field(default_factory=dict)
     sobol: dict = field(default_factory=dict)
     linearised: dict = field(default_factory=dict)
@@ -76,18 +80,64 @@ class ToleranceResult:
     warnings: list = field(default_factory=list)
 
     def to_dict(self) -> dict:
-        return {"parameters": self.names, "summary": self.summary, "exceedance": self.exceedance,
-                "sobol": self.sobol, "linearised": self.linearised, "importance": self.importance,
-                "warnings": self.warnings, "settings": self.settings}
+        """The content of ``tolerance.json`` (JSON-ready: NaN as None)."""
+        return jsonable({"parameters": self.names, "summary": self.statistics, "exceedance": self.exceedance,
+                         "sobol": self.sobol, "linearised": self.linearised, "importance": self.importance,
+                         "warnings": self.warnings, "settings": self.settings})
 
-    def write(self, out) -> list:
+    def write(self, out, *, plots: bool = True) -> list:
+        """``tolerance.json``, ``tolerance_runs.csv`` (the sampled inputs and metrics, one row a
+        run) and, with ``plots``, ``tolerance.png`` in ``out``; returns their paths."""
         import pandas as pd
 
+        out = os.fspath(out)
         os.makedirs(out, exist_ok=True)
         table = pd.DataFrame({**{n: self.values[:, i] for i, n in enumerate(self.names)}, **self.metrics})
-        return [atomic_write_json(os.path.join(out, "tolerance.json"), self.to_dict()),
-                atomic_write_text(os.path.join(out, "tolerance_runs.csv"), table.to_csv(index_label="run")),
-                self.plot(os.path.join(out, "tolerance.png"))]
+        paths = [atomic_write_json(os.path.join(out, "tolerance.json"), self.to_dict()),
+                 atomic_write_text(os.path.join(out, "tolerance_runs.csv"), table.to_csv(index_label="run"))]
+        if plots:
+            paths.append(self.plot(os.path.join(out, "tolerance.png")))
+        return paths
+
+    @property
+    def summary(self) -> SummaryTable:
+        """``summary()``: a few lines per metric (its distribution, the linearised estimate, the
+        exceedance probability, importance sampling, Sobol' indices), then the warnings. Read as
+        a table (``res.summary["metric"]``, deprecated), :attr:`statistics`."""
+        return SummaryTable(self.statistics, self._summary_text, "ToleranceResult.summary",
+                            "ToleranceResult.statistics")
+
+    def _summary_text(self) -> str:
+        lines = [f"{len(self.values)} runs of {', '.join(self.names)}"]
+        for m, s in self.statistics.items():
+            if "mean" in s:
+                lines.append(f"  {m}: mean {s['mean']:.5g}, sd {s['sd']:.3g}, 90 % range [{s['q05']:.5g}, "
+                             f"{s['q95']:.5g}]" + (f", {s['failed_runs']} failed run(s)" if s["failed_runs"] else ""))
+            lin = self.linearised.get(m)
+            if lin:
+                lines.append(f"    linearised: mean {lin['mean']:.5g}, sd {lin['sd']:.3g}"
+                             + _flags(["leaves the metric's range"] * bool(lin.get("outside_range"))
+                                      + [f"{lin.get('sd_ratio_to_sample', 0):.2g} times the sample's sd"]
+                                      * bool(lin.get("departs_from_sample")))
+                             + (f"; from derivatives sd {lin['derivatives']['sd']:.3g} (gradient "
+                                f"{100 * lin['derivatives']['distance_to_differences']:.3g} % from the differences)"
+                                if "derivatives" in lin else ""))
+            ex = self.exceedance.get(m)
+            if ex:
+                lines.append(f"    P({m} > {ex['limit']:g}) = {ex['probability']:.4g}, 95 % interval "
+                             f"[{ex['ci95'][0]:.3g}, {ex['ci95'][1]:.3g}]"
+                             + (f"; linearised {ex['linearised_probability']:.3g}"
+                                if "linearised_probability" in ex else ""))
+            imp = self.importance.get(m)
+            if imp:
+                lines.append(f"    importance sampling ({imp['runs']} runs): {imp['probability']:.3g} +- "
+                             f"{imp['std_error']:.2g}")
+            for name, si in self.sobol.get(m, {}).items():
+                lines.append(f"    Sobol' {name}: first {si['S1']:.3f} +- {si['S1_conf']:.3f}"
+                             + ("" if si["S1_resolved"] else " (not resolved)") + f", total {si['ST']:.3f} +- "
+                             f"{si['ST_conf']:.3f}" + ("" if si["ST_resolved"] else " (not resolved)"))
+        lines += [f"warning: {said}" for said in self.warnings]
+        return "\n".join(lines)
 
     def plot(self, path=None):
         """Histograms of the metrics, the limits and the linearised normal density over them."""
@@ -206,8 +256,8 @@ def tolerance_study(inputs: Inputs, mech: Mechanism | None = None, *, preset: st
     evaluate = _evaluator(mech, preset, dict(run_options), metrics, names, os.fspath(out), restart, progress)
     x = inputs.sample(n, method, seed)
     y = evaluate("runs", x)
-    summary = {m: _describe(v) for m, v in y.items()}
-    res = ToleranceResult(names, x, y, summary, settings=dict(n=int(len(x)), method=method, seed=seed,
+    statistics = {m: _describe(v) for m, v in y.items()}
+    res = ToleranceResult(names, x, y, statistics, settings=dict(n=int(len(x)), method=method, seed=seed,
                                                                inputs={m.name: m.describe() for m in inputs.marginals},
                                                                correlation=None if inputs.correlation is None
                                                                else inputs.correlation.tolist(), **run_options))
@@ -222,7 +272,7 @@ def tolerance_study(inputs: Inputs, mech: Mechanism | None = None, *, preset: st
             res.linearised[m] = linearised(v[0], g, limits.get(m), metric=m)
             if res.linearised[m]["outside_range"]:
                 res.warnings.append(res.linearised[m]["warning"])
-            if (said := linearised_against_sample(m, res.linearised[m], summary[m].get("sd", 0.0), len(x))):
+            if (said := linearised_against_sample(m, res.linearised[m], statistics[m].get("sd", 0.0), len(x))):
                 res.warnings.append(said)
                 warnings.warn(said, UnresolvedEstimateWarning, stacklevel=2)
             if m in res.exceedance:
@@ -254,6 +304,11 @@ def tolerance_study(inputs: Inputs, mech: Mechanism | None = None, *, preset: st
                 warnings.warn(said, UnresolvedEstimateWarning, stacklevel=2)
     res.write(os.fspath(out))
     return res
+
+
+def _flags(notes: list) -> str:
+    """`` (note; note: see the warnings below)``, or nothing."""
+    return f" ({'; '.join(notes)}: see the warnings below)" if notes else ""
 
 
 def _describe(v: np.ndarray) -> dict:
