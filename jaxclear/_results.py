@@ -17,7 +17,8 @@ from collections.abc import Mapping
 
 class AbstractResult(abc.ABC):
     """What every driver's result implements: :meth:`to_dict`, :meth:`write`, :meth:`summary`
-    and :meth:`plot` (the fit's :class:`~jaxclear.FitResult`, :class:`~jaxclear.PosteriorResult`,
+    and :meth:`plot` (the fit's :class:`~jaxclear.FitResult` and :class:`~jaxclear.StatisticsFitResult`,
+    :class:`~jaxclear.PosteriorResult`,
     :class:`~jaxclear.DesignResult`, :class:`~jaxclear.ToleranceResult`, the Lyapunov report
     :class:`~jaxclear.chaos.report.ChaosReport`, :class:`~jaxclear.SweepResult`)."""
 

@@ -163,7 +163,21 @@ def _sweep_result(tmp_path):
                        {"clearance": xs, "restitution": ys}, "grid", manifest={"n_runs": n})
 
 
+def _statistics_fit_result():
+    from jaxclear import StatisticsFitResult
+
+    grid = {"stiffness": np.geomspace(1e10, 1e11, 9)}
+    marg = np.array([0.0, 0.1, 0.3, 0.4, 0.2, 0, 0, 0, 0])
+    return StatisticsFitResult(
+        free=("stiffness",), estimates={"stiffness": 2.5e10}, map={"stiffness": 2.4e10}, std={"stiffness": 5e9},
+        intervals={"stiffness": (1.5e10, 3.6e10)}, grid=grid, nodes=grid, posterior=marg,
+        log_likelihood=np.full(9, -np.inf), marginals={"stiffness": marg}, noise={"estimate": 1.0, "profiled": False},
+        noise_profile=np.zeros(9), statistics=["a"] * 3, observed=np.zeros(3), model_mean=np.zeros(3), chi2=2.0,
+        record_revolutions=3, model_revolutions=40)
+
+
 RESULTS = {"fit": (_fit_result, {"fit.json", "fit.png"}),
+           "statistics fit": (_statistics_fit_result, {"statistics_fit.json", "statistics_fit.png"}),
            "posterior": (_posterior_result, {"posterior.nc", "posterior.json", "posterior_summary.csv",
                                              "posterior_pair.png"}),
            "design": (_design_result, {"design_history.csv", "design.json"}),
@@ -210,7 +224,8 @@ def test_the_results_of_every_driver_are_listed():
     not yet, its module is another change's)."""
     from jaxclear.chaos import ChaosReport
 
-    classes = {jc.FitResult, jc.PosteriorResult, jc.DesignResult, jc.ToleranceResult, jc.SweepResult, ChaosReport}
+    classes = {jc.FitResult, jc.StatisticsFitResult, jc.PosteriorResult, jc.DesignResult, jc.ToleranceResult,
+               jc.SweepResult, ChaosReport}
     assert all(issubclass(c, jc.AbstractResult) for c in classes) and len(RESULTS) == len(classes)
 
 
@@ -232,6 +247,9 @@ def test_old_result_spellings_warn_and_still_work(tmp_path):
     tol = _tolerance_result()
     with pytest.warns(DeprecationWarning, match=r"ToleranceResult.summary as a table is deprecated"):
         assert dict(tol.summary.items()) == tol.statistics
+    stats = _statistics_fit_result()
+    with pytest.warns(DeprecationWarning, match=r"StatisticsFitResult.write\(path.json\) is deprecated"):
+        assert strict_json_file(stats.write(str(tmp_path / "s.json"))) == stats.to_dict()
     report = _chaos_report()
     with pytest.warns(DeprecationWarning, match=r"unpacking characterise"):
         lyap, channels = report

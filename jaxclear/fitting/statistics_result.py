@@ -1,6 +1,7 @@
 r"""What :func:`~jaxclear.fitting.statistics_fit.fit_statistics` returns: the posterior on the
 grid, its marginals, estimates, standard deviations and 90 % intervals, and whether they are a
-result.
+result (:class:`StatisticsFitResult`, an :class:`~jaxclear.AbstractResult`: ``to_dict``,
+``write`` (``statistics_fit.json``, ``statistics_fit.png``), ``summary``, ``plot``).
 
 Grid quadrature
 ---------------
@@ -30,10 +31,12 @@ Verdict (``failures``; ``ok`` when there is none)
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._results import AbstractResult, deprecated
 from .._storage import atomic_write_json, jsonable
 
 #: Largest posterior mass in an outer grid cell before the grid is called too narrow.
@@ -111,8 +114,9 @@ def marginal_summary(values, probs, kind: str, edge_cells: int = 1) -> dict:
 
 
 @dataclass
-class StatisticsFitResult:
-    """The result of a statistics fit (module docstring).
+class StatisticsFitResult(AbstractResult):
+    """The result of a statistics fit (module docstring; :meth:`to_dict`, :meth:`write`,
+    :meth:`summary`, :meth:`plot`: :class:`~jaxclear.AbstractResult`).
 
     Attributes:
         free: the fitted names (mechanism parameters, then ``sensor_gain`` if free).
@@ -192,9 +196,47 @@ class StatisticsFitResult:
         d["ok"] = self.ok
         return jsonable(d)
 
-    def write(self, path) -> str:
-        """:meth:`to_dict` as JSON at ``path``, atomically. Returns the path."""
-        return atomic_write_json(path, self.to_dict())
+    def write(self, folder, *, plots: bool = True) -> list[str]:
+        """``statistics_fit.json`` (:meth:`to_dict`) and, with ``plots``, ``statistics_fit.png``
+        (:meth:`plot`) in ``folder``; returns their paths. A ``folder`` ending in ``.json`` is the
+        old call ``write(path)`` (deprecated): :meth:`to_dict` written there, its path returned."""
+        folder = os.fspath(folder)
+        if folder.endswith(".json"):
+            deprecated("StatisticsFitResult.write(path.json)", "StatisticsFitResult.write(folder), which writes "
+                       "statistics_fit.json (and statistics_fit.png)")
+            return atomic_write_json(folder, self.to_dict())
+        os.makedirs(folder, exist_ok=True)
+        paths = [atomic_write_json(os.path.join(folder, "statistics_fit.json"), self.to_dict())]
+        if plots:
+            paths.append(self.plot(os.path.join(folder, "statistics_fit.png")))
+        return paths
+
+    def plot(self, path=None):
+        """The posterior's marginal of every fitted name on its grid (masses), the estimate and
+        the 90 % interval marked: the figure, or ``path`` once saved there."""
+        from matplotlib.figure import Figure
+
+        names = [n for n in self.free if n in self.marginals] or list(self.marginals)
+        fig = Figure(figsize=(4.2 * max(1, len(names)), 3.4), layout="constrained")
+        for i, n in enumerate(names):
+            ax = fig.add_subplot(1, max(1, len(names)), i + 1)
+            values = np.asarray(self.grid[n], dtype=float)
+            ax.plot(values, np.asarray(self.marginals[n], dtype=float), "o-", ms=3)
+            if values.size and values.min() > 0 and values.max() > 20 * values.min():
+                ax.set_xscale("log")
+            if n in self.estimates:
+                ax.axvline(self.estimates[n], color="C1", label="estimate (posterior mean)")
+            if n in self.intervals:
+                ax.axvspan(*self.intervals[n], color="C1", alpha=0.15, label="90 % interval")
+            ax.set_xlabel(n)
+            ax.set_ylabel("posterior mass")
+            if n in self.estimates or n in self.intervals:
+                ax.legend(fontsize=7)
+        fig.suptitle("statistics fit" + ("" if self.ok else ": FAILED (see the summary)"), fontsize=10)
+        if path is None:
+            return fig
+        fig.savefig(os.fspath(path), dpi=110)
+        return os.fspath(path)
 
 
 def _at_bound(name: str, value: float, which: int) -> bool:
