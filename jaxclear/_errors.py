@@ -209,6 +209,18 @@ def check_finite(name: str, value):
     return value
 
 
+def check_vec2(name: str, value, error: type = ParameterError):
+    """``value`` as a finite float 2-vector ``[x, y]`` [m]; ``error`` (a :class:`ParameterError`
+    by default) naming ``name`` otherwise."""
+    import jax.numpy as jnp
+
+    arr = jnp.asarray(value, dtype=float)
+    if arr.shape != (2,):
+        raise error(f"{name} must be a 2-vector [x, y] in metres, got shape {arr.shape}")
+    check_finite(name, arr)
+    return arr
+
+
 # ---- traceable range checks (run time, under jit/vmap) ------------------------------------
 
 

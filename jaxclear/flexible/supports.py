@@ -25,7 +25,7 @@ from typing import ClassVar
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._errors import MechanismError, ParameterError, check_finite, check_range
+from .._errors import MechanismError, check_finite, check_range, check_vec2
 from .._types import Array, Float, Scalar, Vec2
 from .beam import AncfBeam
 
@@ -77,20 +77,12 @@ class CirclePath(AbstractMotion):
     def __init__(self, centre, radius, omega, phase=0.0):
         check_range("CirclePath radius", radius, low=0.0, low_open=True, unit="m")
         check_finite("CirclePath omega", omega)
-        self.centre = _vec2("CirclePath centre", centre)
+        self.centre = check_vec2("CirclePath centre", centre)
         self.radius, self.omega, self.phase = (jnp.asarray(x, float) for x in (radius, omega, phase))
 
     def __call__(self, t):
         a = self.phase + self.omega * t
         return self.centre + self.radius * jnp.stack([jnp.cos(a), jnp.sin(a)])
-
-
-def _vec2(name: str, value) -> Vec2:
-    arr = jnp.asarray(value, dtype=float)
-    if arr.shape != (2,):
-        raise ParameterError(f"{name} must be a 2-vector [x, y] in metres, got shape {arr.shape}")
-    check_finite(name, arr)
-    return arr
 
 
 def _at(value, t):
@@ -128,7 +120,7 @@ class PinSupport(AbstractSupport):
 
     def __init__(self, point: str, at=(0.0, 0.0)):
         self.point = point
-        self.at = at if isinstance(at, AbstractMotion) else _vec2(f"PinSupport({point}) at", at)
+        self.at = at if isinstance(at, AbstractMotion) else check_vec2(f"PinSupport({point}) at", at)
 
     def equations(self, beam, e, t):
         return beam.position(e, beam.point(self.point)) - _at(self.at, t)
@@ -145,7 +137,7 @@ class ClampSupport(AbstractSupport):
 
     def __init__(self, point: str, at=(0.0, 0.0), angle=0.0):
         self.point = point
-        self.at = at if isinstance(at, AbstractMotion) else _vec2(f"ClampSupport({point}) at", at)
+        self.at = at if isinstance(at, AbstractMotion) else check_vec2(f"ClampSupport({point}) at", at)
         self.angle = angle if isinstance(angle, AbstractMotion) else jnp.asarray(
             check_finite(f"ClampSupport({point}) angle", angle), float)
 
@@ -166,7 +158,7 @@ class LineSupport(AbstractSupport):
 
     def __init__(self, point: str, through=(0.0, 0.0), angle=0.0):
         self.point = point
-        self.through = _vec2(f"LineSupport({point}) through", through)
+        self.through = check_vec2(f"LineSupport({point}) through", through)
         self.angle = jnp.asarray(check_finite(f"LineSupport({point}) angle", angle), float)
 
     def equations(self, beam, e, t):
@@ -183,7 +175,7 @@ class BeamLoad(eqx.Module):
 
     def __init__(self, point: str, force):
         self.point = point
-        self.force = _vec2(f"BeamLoad({point}) force", force)
+        self.force = check_vec2(f"BeamLoad({point}) force", force)
 
     def generalized_force(self, beam: AncfBeam) -> Float[Array, " n"]:
         """:math:`S(s)^T f` (n,): constant, since :math:`r(s)` is linear in the coordinates."""

@@ -10,7 +10,7 @@ from __future__ import annotations
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._errors import RESULTS, MechanismError, Rule, check_finite, check_range, first_failure
+from .._errors import RESULTS, MechanismError, Rule, check_finite, check_range, check_vec2, first_failure
 from .._types import Array, ArrayLike, Float, Scalar, Vec2
 
 GROUND = "ground"
@@ -20,11 +20,7 @@ GROUND = "ground"
 
 def vec2(name: str, value) -> Array:
     """``value`` as a finite float 2-vector; :class:`MechanismError` naming ``name`` otherwise."""
-    arr = jnp.asarray(value, dtype=float)
-    if arr.shape != (2,):
-        raise MechanismError(f"{name} must be a 2-vector [x, y] in metres, got shape {arr.shape}")
-    check_finite(name, arr)
-    return arr
+    return check_vec2(name, value, MechanismError)
 
 
 class Body(eqx.Module):
