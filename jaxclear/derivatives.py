@@ -19,6 +19,7 @@ give the error-controlled sensitivities (``Settings(adjoint="sensitivity")``, th
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from typing import Callable, Sequence
 
@@ -30,6 +31,7 @@ import numpy as np
 from . import params
 from ._errors import JaxclearError, ParameterError
 from .integrate import Settings, Solution, simulate
+from .integrate.simulate import check_status
 from .model import Mechanism
 
 
@@ -63,13 +65,18 @@ def check_names(mech: Mechanism, names: Sequence[str]) -> tuple:
 
 @eqx.filter_jit
 def _linearized(mech, s, names, x, output):
+    """``(value, tangents, status)``: the run's status is returned, not raised here (``s``
+    without ``throw``), so that the program holds no host callback and JAX's persistent
+    compilation cache keeps it; :func:`sensitivities` raises for it after the program returns."""
+    quiet = dataclasses.replace(s, throw=False)
+
     def f(v):
         m = params.replace_following(mech, dict(zip(names, v)), dict(zip(names, x)))
-        sol = simulate(m, s)
-        return sol if output is None else output(sol, m)
+        sol = simulate(m, quiet)
+        return (sol if output is None else output(sol, m)), sol.status
 
-    value, lin = jax.linearize(f, x)
-    return value, jax.vmap(lin)(jnp.eye(x.shape[0], dtype=x.dtype))
+    value, lin, status = jax.linearize(f, x, has_aux=True)
+    return value, jax.vmap(lin)(jnp.eye(x.shape[0], dtype=x.dtype)), status
 
 
 def _is_float(x) -> bool:
@@ -109,7 +116,10 @@ def sensitivities(mech: Mechanism, s: Settings, names: Sequence[str], output: Ca
     """
     names = check_names(mech, names)
     x = jnp.asarray([params.get(mech, n) for n in names], dtype=float)
-    value, tangents = _linearized(mech, s, names, x, output)
+    value, tangents, status = _linearized(mech, s, names, x, output)
+    # a failed run (or sensitivity solve) raises here, after the program (or, inside a user's
+    # jit or vmap, through equinox.error_if in the user's program): never a silent NaN
+    value, tangents = check_status((value, tangents), status, s, " (the run of jaxclear.sensitivities)", mech)
     derivatives = {}
     for i, name in enumerate(names):
         derivatives[name] = jax.tree_util.tree_map(lambda t, v: t[i] if _is_float(v) else v, tangents, value)

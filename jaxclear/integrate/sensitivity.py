@@ -219,8 +219,7 @@ def tangent_run(primals, tangents):
     mech, s, y0 = primals
     begin = solve.start(mech, s, y0)
     if not perturbed:
-        sol, result = solve.run(mech, s, begin)
-        return solve.finish(sol, result, s), None
+        return solve.run(mech, s, begin)[0], None
     rebuild = Rebuild(leaves, treedef, perturbed)
     point = tuple(leaves[i] for i in perturbed)
     dirs, scale = directions(point)
@@ -250,8 +249,8 @@ def tangent_run(primals, tangents):
         m, ss, _ = rebuild(p)
         return solve.solution(m, ss, grid_of(p), packed, run, begin)
 
-    (sol, result), lin = jax.linearize(solution_of, point, samples)
+    (sol, _), lin = jax.linearize(solution_of, point, samples)
     basis = jax.vmap(lambda d, v: lin(d, v)[0])(dirs, tangent_samples)
     coeff = jnp.concatenate([jnp.ravel(tleaves[i]) for i in perturbed]) / scale
     tangent = jax.tree_util.tree_map(lambda b: jnp.tensordot(coeff, b, axes=1) if _is_float(b) else None, basis)
-    return solve.finish(sol, result, s), tangent
+    return sol, tangent

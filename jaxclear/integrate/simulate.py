@@ -19,12 +19,14 @@ measures each part.
 from __future__ import annotations
 
 import dataclasses
+import types
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 
 from .._errors import RESULTS, JaxclearError, ParameterError, SolverError, invalid_codes, is_concrete, status_message
+from .._errors import STATUS
 from ..model.mechanism import Mechanism
 from . import solve
 from .assembly import ASSEMBLY_TEMPLATE, check_assembly
@@ -55,8 +57,7 @@ def _run(mech: Mechanism, s: Settings, y0: State | None):
     """The solution and the assembly at ``s.t_start`` (a member that cannot be assembled is not
     integrated: status ``assembly_failed``, a zero-length run)."""
     begin = solve.start(mech, s, y0)
-    sol, result = solve.run(mech, s, begin)
-    return solve.finish(sol, result, s), begin.assembly
+    return solve.run(mech, s, begin)[0], begin.assembly
 
 
 @eqx.filter_custom_jvp
@@ -101,14 +102,37 @@ def prepare_simulate(mech: Mechanism, s: Settings) -> None:
         program.prepare(name, *args)
 
 
+def check_status(value, status, s: Settings, what: str = "", mech: Mechanism | None = None):
+    """``value``, once the run whose ``Solution.status`` is ``status`` is known to have succeeded
+    (with ``s.throw``; without, ``value`` unchanged and the status left to the caller).
+
+    A concrete status (a plain call; also ``jax.jacfwd``, ``jax.grad`` or ``jax.jvp`` called
+    eagerly, where JAX hands integer outputs back as plain arrays) is checked here, in Python,
+    after the compiled program returned: :func:`raise_for_status`. A traced one (inside a user's
+    ``jax.jit`` or ``jax.vmap``) is guarded with ``equinox.branched_error_if`` and the messages
+    of :class:`~jaxclear.RESULTS`, in the program the user traces: the host callback it compiles
+    to is never part of jaxclear's own compiled run, which JAX's persistent compilation cache
+    would then not keep (it stores no program with a host callback)."""
+    if not s.throw:
+        return value
+    if is_concrete(status):
+        raise_for_status(types.SimpleNamespace(status=status), s, what, mech)
+        return value
+    messages = [STATUS[code] for code in range(len(STATUS))]
+    return eqx.branched_error_if(value, status != int(RESULTS.successful._value), status, messages)
+
+
 def simulate(mech: Mechanism, s: Settings, y0: State | None = None) -> Solution:
     """Integrate ``mech`` with settings ``s``; pure, so ``jax.jit``, ``jax.vmap`` and
     ``jax.grad`` (of a scalar of the result) apply to it.
 
     With ``s.throw`` (default) a failed run raises: with concrete inputs a
     :class:`~jaxclear.SolverError` (after :func:`check_assembly`'s detailed checks) naming the
-    :class:`~jaxclear.RESULTS` entry and what to change; under a transformation the same entry
-    through ``RESULTS.error_if``. With ``s.throw`` False the status is reported in
+    :class:`~jaxclear.RESULTS` entry and what to change; the same under ``jax.jacfwd``,
+    ``jax.grad`` or ``jax.jvp`` called eagerly (the status comes back concrete); inside a user's
+    ``jax.jit`` or ``jax.vmap`` the same entry through ``equinox.error_if`` in the user's program
+    (:func:`check_status`). The compiled run itself never holds that check, so JAX's persistent
+    compilation cache can keep it. With ``s.throw`` False the status is reported in
     ``Solution.status`` and nothing raises (sweeps).
 
     Args:
@@ -118,7 +142,8 @@ def simulate(mech: Mechanism, s: Settings, y0: State | None = None) -> Solution:
             :func:`~jaxclear.assemble`.
     """
     if not (s.throw and is_concrete((mech, s, y0))):
-        return _simulate(mech, s, y0)
+        sol = _simulate(mech, s, y0)
+        return check_status(sol, sol.status, s, mech=mech)
     if y0 is None:
         program, name, structure, args = _concrete_call(mech, s)
         sol, asm = program.stored(name, structure, *args)

@@ -174,8 +174,9 @@ def solution(mech: Mechanism, s: Settings, ts, packed, run: Integration, begin: 
     """The :class:`Solution` of the packed states ``packed`` (T, N) at ``ts`` (T,) of a run
     (statistics and diffrax result from ``run``, the assembly and parameter check from
     ``begin``): accelerations, reactions, drift and contact outputs at the samples, and the
-    status, also as a :class:`~jaxclear.RESULTS` entry. Nothing raises here (see
-    :func:`finish`)."""
+    status, also as a :class:`~jaxclear.RESULTS` entry. Nothing raises here: the compiled
+    program holds no host callback (JAX's persistent compilation cache stores no program that
+    has one); :func:`~jaxclear.integrate.simulate.check_status` raises for the status after it."""
     ys: State = jax.vmap(lambda v: State.unpack(v, mech))(packed)
     qdd, lam, drift, ecc, pen, fn, ft, mode = _postprocess(mech, s, ts, packed, ys)
     finite = jnp.all(jnp.isfinite(ys.q)) & jnp.all(jnp.isfinite(ys.qdot)) & jnp.all(jnp.isfinite(qdd))
@@ -204,14 +205,6 @@ def solution(mech: Mechanism, s: Settings, ts, packed, run: Integration, begin: 
         num_rejected_steps=run.num_rejected_steps,
         status=jnp.asarray(result._value, jnp.int32),
     ), result
-
-
-def finish(out: Solution, result: RESULTS, s: Settings) -> Solution:
-    """``out``, raising its status's error (``result``) under a user's transformation when
-    ``s.throw`` (concrete calls are checked in :func:`~jaxclear.simulate`)."""
-    if s.throw:
-        out = result.error_if(out, result != RESULTS.successful)
-    return out
 
 
 def grid(s: Settings, begin: Start, dtype):

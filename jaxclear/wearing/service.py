@@ -35,7 +35,7 @@ from .._interrupt import stop_at_safe_points
 from .._numbers import as_typed
 from .._storage import atomic_write_json, atomic_write_text, fingerprint, fsync_append, locked_folder
 from ..integrate.settings import Settings
-from ..integrate.simulate import simulate
+from ..integrate.simulate import check_status, simulate
 from ..model.mechanism import Mechanism
 from .figures import plot_wear
 from .archard import WindowWear, wear_element, window_wear
@@ -117,11 +117,14 @@ class WearHistory:
 
 @eqx.filter_jit
 def _window(mech, settings, index, coefficient, n_nodes, t_from):
-    sol = simulate(mech, settings)
+    """One window's wear, peak force and penetration, and the run's status: returned, not
+    raised here (the run without ``throw``), so that the program holds no host callback and
+    JAX's persistent compilation cache keeps it; :func:`wear` raises for it."""
+    sol = simulate(mech, dataclasses.replace(settings, throw=False))
     w: WindowWear = window_wear(mech, sol, index, coefficient, n_nodes, t_from)
     inside = sol.ts >= t_from
     peak = jnp.max(jnp.where(inside, sol.normal_force[:, index], 0.0))
-    return w, peak, jnp.max(jnp.where(inside, sol.penetration[:, index], -jnp.inf))
+    return w, peak, jnp.max(jnp.where(inside, sol.penetration[:, index], -jnp.inf)), sol.status
 
 
 def _row(u: int, record: dict) -> str:
@@ -232,7 +235,8 @@ def wear(mech: Mechanism, settings: Settings, options: WearOptions, out: str | N
         bar = None
         for u in range(done, options.updates):
             current = worn(base, index, depth)
-            w, peak, pen = _window(current, settings, index, options.coefficient, options.n_nodes, t_from)
+            w, peak, pen, status = _window(current, settings, index, options.coefficient, options.n_nodes, t_from)
+            check_status(None, status, settings, f" (the window of wear update {u})", current)
             window_depth = np.asarray(w.depth)
             if not np.all(np.isfinite(window_depth)):
                 raise ParameterError(f"update {u}: the wear depth is not finite (the window's run failed)")
