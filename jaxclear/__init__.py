@@ -1,8 +1,10 @@
 """jaxclear: a differentiable JAX engine for planar mechanisms with clearance joints.
 
-Importing jaxclear switches JAX to double precision (contact penetrations are micrometres) and,
+Importing jaxclear switches JAX to double precision (contact penetrations are micrometres),
 before JAX starts its backends, asks XLA:CPU to compile small loops as single kernels
-(``XLA_FLAGS``; see ``jaxclear/_xla_flags.py``).
+(``XLA_FLAGS``; see ``jaxclear/_xla_flags.py``), and keeps compiled and traced programs in the
+user's cache folder, so that a new process skips tracing and compilation (``jaxclear/caches.py``;
+``JAXCLEAR_CACHE_DIR=off`` switches that off).
 This module only re-exports the public API (``__all__``, each name documented in the API
 reference); the implementation lives in subpackages by layer: ``model`` (what a mechanism is)
 -> ``contact`` (force laws) -> ``elements`` (force elements with state) -> ``integrate``
@@ -127,6 +129,12 @@ from .model import (  # noqa: E402
     crank_period,
 )
 from .presets import preset, preset_file, preset_names  # noqa: E402
+from . import caches  # noqa: E402
+from .caches import cache_folder, clear_cache, disable_cache, enable_cache  # noqa: E402
+
+# compiled and traced programs kept across processes by default (JAXCLEAR_CACHE_DIR=off: not)
+caches.enable_at_import()
+
 from .derivatives import (  # noqa: E402
     DerivativeHorizonWarning,
     amplification,
@@ -181,6 +189,7 @@ __all__ = [
     # Integration (integrate.md)
     "simulate", "settings", "Settings", "Solution", "State", "SOLVERS", "Baumgarte", "ImpactMemorySolver",
     "OnsetController", "UnrolledExplicitRK", "initial_state", "assemble", "accelerations", "vector_field", "energy",
+    "enable_cache", "disable_cache", "clear_cache", "cache_folder",
     # Parameters, derivatives, presets, mechanism files (params.md)
     "preset", "preset_names", "preset_file", "sensitivities", "differentiable_names", "amplification",
     "derivative_horizon", "DerivativeHorizonWarning", "load_mechanism", "save_mechanism",

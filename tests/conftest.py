@@ -1,15 +1,31 @@
 """Shared builders for tests. Importing jaxclear turns on float64."""
 
+import atexit
 import math
 import os
+import shutil
 import sys
+import tempfile
 from pathlib import Path
 
-# the command line's persistent compilation cache stays off in tests (no writes to the user's
-# cache folder); tests/test_cli_cache.py switches it on in a temporary folder
-os.environ.setdefault("JAXCLEAR_CACHE_DIR", "off")
+# Hermetic caches: the compiled and traced programs that jaxclear keeps by default (jaxclear/caches.py)
+# go to a temporary folder of this session, removed at its end, never the user's cache folder
+# (nor a JAX cache the user configured: JAX_COMPILATION_CACHE_DIR is dropped). Child processes
+# (the command line, tests/test_programs.py) inherit the folder. JAXCLEAR_CACHE_DIR=off in the
+# environment runs the suite without caches.
+os.environ.pop("JAX_COMPILATION_CACHE_DIR", None)
+SESSION_CACHE = None
+if os.environ.get("JAXCLEAR_CACHE_DIR", "x").strip().lower() not in {"", "0", "off", "none", "false", "no"}:
+    SESSION_CACHE = tempfile.mkdtemp(prefix="jaxclear-test-cache-")
+    os.environ["JAXCLEAR_CACHE_DIR"] = SESSION_CACHE
+    atexit.register(shutil.rmtree, SESSION_CACHE, ignore_errors=True)
+
+import jax  # noqa: E402
 
 import jaxclear as jc  # noqa: E402
+
+if SESSION_CACHE is not None and jax.config.jax_compilation_cache_dir != SESSION_CACHE:  # a JAX cache set before jaxclear
+    jc.enable_cache(SESSION_CACHE)
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))

@@ -1,10 +1,14 @@
 """Every bad input gives an error that names the cause and the allowed range (issue 2, item 10)."""
 
+import logging
+
+import jax
 import jax.numpy as jnp
 import pytest
 from conftest import free_journal
 
 import jaxclear as jc
+from jaxclear import params
 
 
 @pytest.mark.parametrize(
@@ -111,6 +115,30 @@ def test_newton_not_converging():
 def test_step_limit_is_an_error_naming_max_steps():
     with pytest.raises(jc.SolverError, match=r"max_steps.*raise Settings.max_steps \(now 20, allowed >= 1\)"):
         jc.simulate(jc.preset("flores-slider-crank"), jc.settings(0.01, max_steps=20))
+
+
+def test_failed_run_raises_after_its_program_under_transformations(caplog):
+    """A failed run under ``jax.jacfwd`` (called eagerly) and in ``jc.sensitivities`` is the same
+    named ``SolverError`` as a plain call, raised in Python after the compiled program returns;
+    inside a user's ``jax.jit`` it raises through ``equinox.error_if`` in the user's program.
+    Never a silent NaN, and none of jaxclear's own programs holds a host callback, which JAX's
+    persistent compilation cache would refuse (issue 41: such programs were compiled anew in
+    every process)."""
+    mech = free_journal()
+    bad = jc.settings(5e-3, max_steps=3)
+
+    def loss(c, s):
+        return jc.simulate(params.replace(mech, "restitution", c), s).q[-1, 0]
+
+    with caplog.at_level(logging.DEBUG, logger="jax._src.compiler"):
+        with pytest.raises(jc.SolverError, match=r"max_steps before t_end; raise Settings.max_steps \(now 3"):
+            jax.jacfwd(loss)(0.9, bad)
+        with pytest.raises(jc.SolverError, match=r"max_steps before t_end.*\(the run of jaxclear.sensitivities\)"):
+            jc.sensitivities(mech, bad, ["restitution"])
+    uncacheable = [r.getMessage() for r in caplog.records if "host callbacks" in r.getMessage()]
+    assert not uncacheable, uncacheable
+    with pytest.raises(Exception, match="the solver reached max_steps before t_end"):
+        jax.block_until_ready(jax.jit(lambda c: loss(c, bad))(0.9))
 
 
 def test_step_limit_reported_without_throw():

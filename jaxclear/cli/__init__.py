@@ -53,10 +53,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"jaxclear {__version__}")
     parser.add_argument("--no-cache", action="store_true",
-                        help=f"do not use the persistent compilation cache (also: {cache.ENV}=off)")
+                        help=f"keep no compiled or traced programs for this command (also: {cache.ENV}=off)")
     parser.add_argument("--cache-dir", metavar="DIR",
-                        help=f"folder of the persistent compilation cache (default: ${cache.ENV}, else "
-                        "$XDG_CACHE_HOME/jaxclear/xla or ~/.cache/jaxclear/xla)")
+                        help=f"folder of the compiled and traced programs, shared with the Python API (default: "
+                        f"${cache.ENV}, else the user's cache folder's jaxclear/xla: ~/.cache/jaxclear/xla on Linux)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", title="commands")
     for name, module in COMMANDS.items():
         p = sub.add_parser(name, help=module.HELP, description=module.DESCRIPTION, formatter_class=Formatter)

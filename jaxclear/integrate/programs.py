@@ -10,13 +10,20 @@ key of everything the trace depends on; a later process of the same structure de
 
 The key (SHA-256) covers: the program's name and its function's qualified name; the versions of jax, jaxlib, diffrax, equinox,
 optimistix and lineax; the bytes of every jaxclear source file (any code change is a miss);
-JAX's x64 flag; the structure of the arguments with every non-array value in it (static fields
-of the mechanism and the settings: names, laws, tolerances, sample counts) by its ``repr``; and
-the shape and dtype of every array leaf. Array *values* (masses, clearance, stiffness, end time)
-are the program's inputs and do not enter the key. An argument whose ``repr`` does not show its
-value in full (an object shown by address, ``<... at 0x...>``, or an abbreviated array, ``...``)
-makes the call uncacheable: it is traced as usual, never served a program traced for another
-value.
+JAX's options that change a trace (:data:`KEYED_OPTIONS`: x64, default matmul precision, dtype
+and rank promotion); the structure of the arguments with every non-array value in it (static fields
+of the mechanism and the settings: names, laws, tolerances, sample counts) by its ``repr``, and
+the module and name of every type in it; and the shape and dtype of every array leaf. Array
+*values* (masses, clearance, stiffness, end time) are the program's inputs and do not enter the
+key.
+
+Only what the key can describe is stored; anything else makes the call unkeyable, traced as
+usual and never served a program traced for another value: an argument whose ``repr`` does not
+show its value in full (a Python callable such as a ``FunctionDriver``'s function, or any object
+shown by address, ``<... at 0x...>``; an abbreviated array, ``...``), and any type defined
+outside jaxclear and the libraries above (:data:`TRUSTED_MODULES`: a user's own law or element
+class, whose code the key does not cover). A program that cannot be serialized (one with a host
+callback: a progress bar) is run as usual too.
 
 :mod:`jax.export` does not serialize equinox modules as pytree nodes, so the program takes and
 returns flat lists of arrays; the caller gives the output's structure (``out_structure``), which
@@ -24,10 +31,15 @@ it knows without tracing.
 
 A file holds the serialized program behind its SHA-256: a file whose bytes changed (a bad disk,
 a partial copy) is a miss, traced again and replaced, even where the damaged bytes would still
-deserialize. A folder that cannot be written switches the store off with a warning.
+deserialize. A folder that cannot be written switches the store off with a warning. The store
+keeps under a size limit (:func:`enable`'s ``max_bytes``): after a write, the least recently
+used programs (file modification times, renewed on each load) are removed until it fits.
 
-Off unless :func:`enable` is called (the command line does, in its cache folder); the library
-alone never reads or writes such files. Needs the ``flatbuffers`` package (jax's serializer).
+On by default: :mod:`jaxclear.caches` enables it at import, in the subfolder ``programs`` of
+jaxclear's cache folder, for the Python API and the command line alike (``JAXCLEAR_CACHE_DIR=off``
+or :func:`jaxclear.disable_cache` switches it off). :func:`counts` tells how many programs this
+process loaded, traced, could not key, and removed. Needs the ``flatbuffers`` package (jax's
+serializer).
 """
 
 from __future__ import annotations
@@ -45,6 +57,8 @@ from typing import Callable
 import equinox as eqx
 import jax
 
+from .._errors import JaxclearError
+
 #: Suffix of the stored programs' file names.
 SUFFIX = ".jaxexport"
 #: First bytes of a stored program's file; the SHA-256 of the serialized program follows, then
@@ -52,18 +66,31 @@ SUFFIX = ".jaxexport"
 MAGIC = b"jaxclear-program-1\n"
 #: Libraries whose versions enter the key.
 KEYED_PACKAGES = ("jax", "jaxlib", "diffrax", "equinox", "optimistix", "lineax")
+#: JAX options that change what a trace produces; their values enter the key.
+KEYED_OPTIONS = ("jax_enable_x64", "jax_default_matmul_precision", "jax_numpy_dtype_promotion",
+                 "jax_numpy_rank_promotion")
+#: Top-level modules whose types may appear in a keyed argument: their code is covered by the
+#: key (jaxclear's sources, the versions of :data:`KEYED_PACKAGES`) or is Python's and NumPy's.
+#: A type from anywhere else (a user's law class) makes the call unkeyable.
+TRUSTED_MODULES = frozenset({"jaxclear", "builtins", "numpy", "collections", "jax", "jaxlib", "equinox", "diffrax",
+                             "lineax", "optimistix"})
 
 _FOLDER: list[Path | None] = [None]
+_LIMIT: list[int | None] = [None]
 _RUNNERS: dict[str, Callable] = {}
 _LOCK = threading.Lock()
+_COUNTS = {"loaded": 0, "traced": 0, "unkeyable": 0, "unserializable": 0, "removed": 0}
 
 
-def enable(folder: Path | str | None) -> Path | None:
+def enable(folder: Path | str | None, max_bytes: int | None = None) -> Path | None:
     """Store and reuse traced programs in ``folder`` (created, mode 0700); ``None`` switches the
-    store off. Returns the folder in use (None if off or if it cannot be created). Programs
-    already loaded in this process are forgotten (the next call reads ``folder``)."""
+    store off. ``max_bytes``: the most the store's files may hold together (``None``: no limit);
+    the least recently used are removed after a write that exceeds it. Returns the folder in use
+    (None if off or if it cannot be created). Programs already loaded in this process are
+    forgotten (the next call reads ``folder``)."""
     with _LOCK:
         _RUNNERS.clear()
+    _LIMIT[0] = max_bytes
     if folder is None:
         _FOLDER[0] = None
         return None
@@ -74,6 +101,19 @@ def enable(folder: Path | str | None) -> Path | None:
         folder = None
     _FOLDER[0] = folder
     return folder
+
+
+def counts() -> dict[str, int]:
+    """How many programs this process ``loaded`` from the store, ``traced`` (and wrote) on a
+    miss, ran as usual because their arguments could not be keyed (``unkeyable``) or the program
+    could not be serialized (``unserializable``), and ``removed`` to keep the size limit."""
+    with _LOCK:
+        return dict(_COUNTS)
+
+
+def _count(what: str) -> None:
+    with _LOCK:
+        _COUNTS[what] += 1
 
 
 def folder() -> Path | None:
@@ -110,15 +150,47 @@ def _split(args):
     return leaves, treedef, static
 
 
+def _types(value, found: set) -> None:
+    """Every type in ``value``: its pytree nodes (with their auxiliary data: an equinox module's
+    static fields) and its leaves, into ``found``."""
+    stack = [value]
+    while stack:
+        x = stack.pop()
+        found.add(type(x))
+        if isinstance(x, jax.tree_util.PyTreeDef):
+            data = x.node_data()
+            if data is not None:
+                found.add(data[0])
+                stack.append(data[1])
+            stack.extend(x.children())
+        elif isinstance(x, (tuple, list, set, frozenset)):
+            stack.extend(x)
+        elif isinstance(x, dict):
+            stack.extend(x.keys())
+            stack.extend(x.values())
+
+
+def _trusted(types) -> bool:
+    """Whether every type comes from :data:`TRUSTED_MODULES` (its code is covered by the key)."""
+    return all(str(getattr(t, "__module__", "") or "").split(".")[0] in TRUSTED_MODULES for t in types)
+
+
 def program_key(name: str, args) -> tuple[str, list] | None:
     """``(key, array leaves)`` of a call of program ``name`` on ``args``, or None when the
-    arguments' static part cannot be keyed faithfully."""
+    arguments' static part cannot be keyed faithfully (see the module's docstring)."""
     leaves, treedef, static = _split(args)
-    text = repr(jax.tree_util.tree_flatten(static))
+    flat, static_def = jax.tree_util.tree_flatten(static)
+    text = repr((flat, static_def))
     if not _faithful(text):
         return None
+    found: set = set()
+    _types([flat, static_def, treedef], found)
+    if not _trusted(found):
+        return None
+    options = ";".join(f"{o}={getattr(jax.config, o, None)}" for o in KEYED_OPTIONS)
     h = hashlib.sha256()
-    h.update(f"{name}\n{_environment_digest()}\nx64={jax.config.jax_enable_x64}\n".encode())
+    h.update(f"{name}\n{_environment_digest()}\n{options}\n".encode())
+    h.update(",".join(sorted(f"{t.__module__}.{t.__qualname__}" for t in found)).encode())
     h.update(text.encode())
     h.update(repr(treedef).encode())
     for x in leaves:
@@ -170,8 +242,33 @@ def _unpack(data: bytes) -> bytes | None:
     return blob if hashlib.sha256(blob).digest() == digest else None
 
 
-def _load(key: str, fun: Callable, args) -> jax.export.Exported:
-    """The program ``key`` from its file, or traced, exported and written on a miss."""
+def _evict(folder: Path, limit: int | None) -> None:
+    """Remove the least recently used programs of ``folder`` (oldest modification time first:
+    a load renews it) until the rest hold at most ``limit`` bytes."""
+    if limit is None:
+        return
+    entries = []
+    for path in folder.glob(f"*{SUFFIX}"):
+        try:
+            st = path.stat()
+        except OSError:  # removed meanwhile by another process
+            continue
+        entries.append((st.st_mtime_ns, st.st_size, path))
+    total = sum(size for _, size, _ in entries)
+    for _, size, path in sorted(entries, key=lambda e: e[0]):
+        if total <= limit:
+            break
+        try:
+            path.unlink()
+            _count("removed")
+        except OSError:
+            pass
+        total -= size
+
+
+def _load(key: str, fun: Callable, args) -> jax.export.Exported | None:
+    """The program ``key`` from its file, or traced, exported and written on a miss; None when
+    the program cannot be serialized (a host callback in it: the caller runs it as usual)."""
     exp = None
     path = _FOLDER[0] / f"{key}{SUFFIX}"  # type: ignore[operator]
     blob = None
@@ -181,9 +278,24 @@ def _load(key: str, fun: Callable, args) -> jax.export.Exported:
             exp = None if blob is None else jax.export.deserialize(bytearray(blob))
         except Exception:  # an unreadable, truncated or damaged file: trace again and replace it
             exp = None
+        if exp is not None:
+            _count("loaded")
+            try:
+                os.utime(path)  # recently used: the last to be removed by the size limit
+            except OSError:
+                pass
     if exp is None:
-        blob = _export(fun, args).serialize()
+        try:
+            blob = _export(fun, args).serialize()
+        except JaxclearError:  # the user's error, found while tracing: said as in a plain call
+            raise
+        except Exception:  # a program JAX cannot export (a host callback: a progress bar): run as usual
+            _count("unserializable")
+            return None
         _write(path, blob)
+        _count("traced")
+        if _FOLDER[0] is not None:
+            _evict(_FOLDER[0], _LIMIT[0])
         # the deserialized form, also on this first call: it lowers to the same module as in
         # later processes, so the compilation cache's key matches theirs
         exp = jax.export.deserialize(bytearray(blob))
@@ -230,23 +342,32 @@ def _prepared(name, fun, args, compiler_options):
         return None
     keyed = program_key(f"{name}:{getattr(fun, '__module__', '')}.{getattr(fun, '__qualname__', '')}", args)
     if keyed is None:
+        _count("unkeyable")
         return None
     key, leaves = keyed
-    return _runner(key, fun, args, compiler_options or {}), leaves
+    run = _runner(key, fun, args, compiler_options or {})
+    return None if run is None else (run, leaves)
 
 
-def _runner(key: str, fun: Callable, args, options: dict) -> Callable:
+def _runner(key: str, fun: Callable, args, options: dict) -> Callable | None:
     """The jitted caller of the stored program ``key`` (one per program and process, so its
-    compiled executable is reused by later calls)."""
+    compiled executable is reused by later calls); None when it cannot be stored."""
     with _LOCK:
         run = _RUNNERS.get(key)
     if run is None:
         exp = _load(key, fun, args)
+        if exp is None:
+            return None
         kwargs = {"compiler_options": dict(options)} if options else {}
-        run = jax.jit(lambda xs: exp.call(*xs), **kwargs)
+
+        def stored_program(xs):  # the name JAX's logs and the compilation cache show
+            return exp.call(*xs)
+
+        run = jax.jit(stored_program, **kwargs)
         with _LOCK:
             _RUNNERS[key] = run
     return run
 
 
-__all__ = ["KEYED_PACKAGES", "SUFFIX", "call", "enable", "folder", "prepare", "program_key"]
+__all__ = ["KEYED_OPTIONS", "KEYED_PACKAGES", "SUFFIX", "TRUSTED_MODULES", "call", "counts", "enable", "folder",
+           "prepare", "program_key"]
