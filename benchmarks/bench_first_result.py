@@ -11,11 +11,13 @@ font cache (``MPLCONFIGDIR``) is a temporary one filled once before the first me
 
 * ``api:NAME``: the Python API. The child points JAX's persistent compilation cache at the folder
   (``jax.config.update("jax_compilation_cache_dir", ...)``, JAX's other cache options at their
-  defaults: what docs/getting-started.md tells a Python user to do; jaxclear itself configures no
-  cache). ``--api-programs`` also enables jaxclear's store of traced programs there, as the
-  command line does (``jaxclear.integrate.programs``). The entry is set up (mechanism, record:
-  ``setup``), called once (``first``) and once more (``steady``: the run alone, if nothing is
-  traced again).
+  defaults: what a Python user had to do before jaxclear kept its caches by default), with
+  ``JAXCLEAR_CACHE_DIR=off``. ``--api-programs`` also enables jaxclear's store of traced programs
+  there, as the command line does (``jaxclear.integrate.programs``). ``--api-default`` configures
+  nothing in the child: ``JAXCLEAR_CACHE_DIR`` is the folder, and ``import jaxclear`` enables both
+  caches there (``jaxclear/caches.py``, since issue 41 item 3; a source tree without it runs
+  without caches). The entry is set up (mechanism, record: ``setup``), called once (``first``)
+  and once more (``steady``: the run alone, if nothing is traced again).
 * ``cli:NAME``: ``jaxclear.cli.main(argv)`` in the child (``JAXCLEAR_CACHE_DIR`` = the folder: the
   XLA cache and the traced-program store, ``jaxclear/cli/cache.py``), then ``os._exit``, as ``jaxclear``.
 * ``size:NxK``: ``jc.simulate`` (2 ms) of an open chain of N bars (a driven crank and N-1
@@ -242,7 +244,7 @@ def child(spec: dict) -> None:
         save()
         sys.stdout.flush(), sys.stderr.flush()
         os._exit(0)
-    if spec.get("cache"):
+    if spec.get("cache") and not spec.get("default"):
         jax.config.update("jax_compilation_cache_dir", spec["cache"])
         if spec.get("programs"):
             from jaxclear.integrate import programs
@@ -311,7 +313,8 @@ def run_child(spec: dict, tmp: Path, timeout: float) -> dict:
     spec = dict(spec, result=str(tmp / f"result-{time.monotonic_ns()}.json"))
     cmd = [sys.executable, str(Path(__file__).resolve()), "--child", json.dumps(spec)]
     t = time.perf_counter()
-    proc = subprocess.Popen(cmd, cwd=SRC[0], env=_env(tmp, spec.get("cache") if spec["kind"] == "cli" else None),
+    by_env = spec["kind"] == "cli" or spec.get("default")  # the folder through JAXCLEAR_CACHE_DIR
+    proc = subprocess.Popen(cmd, cwd=SRC[0], env=_env(tmp, spec.get("cache") if by_env else None),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         err, timed_out = proc.communicate(timeout=timeout)[1], False
@@ -341,7 +344,7 @@ def measure(label: str, spec: dict, modes, tmp: Path, timeout: float, opts) -> l
         folder = base / "cache"
         digest_now = _sources_digest()
         full = dict(spec, dir=str(base / f"out-{mode}"), cache=None if mode == "off" else str(folder),
-                    programs=opts.api_programs, steady=not opts.no_steady)
+                    programs=opts.api_programs, default=opts.api_default, steady=not opts.no_steady)
         if "argv" in spec:
             full["argv"] = [a.replace("{out}", full["dir"]) for a in spec["argv"]]
         res = run_child(full, tmp, timeout)
@@ -410,6 +413,9 @@ def parse_args(argv=None):
     ap.add_argument("--timeout", type=float, help="seconds per process (default 600, --quick 240)")
     ap.add_argument("--api-programs", action="store_true",
                     help="API processes also keep traced programs (jaxclear.integrate.programs), as the CLI does")
+    ap.add_argument("--api-default", action="store_true",
+                    help="API processes configure nothing: JAXCLEAR_CACHE_DIR is the folder, and jaxclear's default "
+                    "caches (jaxclear/caches.py) are measured")
     ap.add_argument("--no-steady", action="store_true", help="skip the second call of API entries")
     ap.add_argument("--json", help="output (default benchmarks/results/first_result.json; --quick: _quick)")
     ap.add_argument("--source", type=Path, default=ROOT, help="source tree whose jaxclear is measured, e.g. "
@@ -449,7 +455,7 @@ def main(argv=None) -> dict | None:
                                                                  *(argv if argv is not None else sys.argv[1:])]),
               "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
               "machine": _machine(), "modes": args.modes, "timeout_s": args.timeout, "t_end_s": T_END,
-              "api_programs": args.api_programs, "source": str(SRC[0]), "sources": _sources_digest(), "rows": []}
+              "api_programs": args.api_programs, "api_default": args.api_default, "source": str(SRC[0]), "sources": _sources_digest(), "rows": []}
     rows = result["rows"]
 
     def write():
