@@ -12,7 +12,7 @@ revolution (12 ms) at 50 kHz through a 10 kHz second-order accelerometer with ga
 Targets: stiffness within 5 %, restitution within 0.02, every error within 3 reported std, under
 5 minutes a record on 2 cores.
 
-``python benchmarks/bench_lab_fit.py [--set acceptance] [--cases 0,1,2] [--windows 4] [--json PATH]`` prints a table
+``python benchmarks/bench_lab_fit.py [--set acceptance] [--cases 0,1,2] [--windows 4] [--starts N] [--json PATH]`` prints a table
 and writes the JSON after every record (a killed run resumes: the records done are kept; the
 output is locked while it runs).
 """
@@ -34,7 +34,7 @@ DEFAULT_JSON = os.path.join(HERE, "results", "lab_fit.json")
 FREE = ["stiffness", "restitution", "sensor_gain", "sensor_bias"]
 
 
-def fit_case(case: dict, windows: int, window: float) -> dict:
+def fit_case(case: dict, windows: int, window: float, starts: int = 1) -> dict:
     """One record (``make_record``'s arguments ``case``) made and fitted: the truth, the
     estimates, std, errors, verdict and times."""
     factor, c_r, seed = case["stiffness_factor"], case["c_r"], case["seed"]
@@ -46,7 +46,7 @@ def fit_case(case: dict, windows: int, window: float) -> dict:
     data = {"time_s": rec["time_s"], "slider_acc_m_s2": rec["slider_acc_m_s2"]}
     t1 = time.perf_counter()
     res = jc.fit(data, mech, free=FREE, start={"restitution": 0.9}, sensor=jc.Accelerometer(10e3),
-                 start_state="free", windows=windows, window=window, progress=False)
+                 start_state="free", windows=windows, window=window, starts=starts, progress=False)
     wall = time.perf_counter() - t1
     k, c = res.estimates["stiffness"], res.estimates["restitution"]
     return {"stiffness_factor": factor, "c_r": c_r, "seed": seed, "revolutions_before": case["revolutions_before"],
@@ -57,7 +57,8 @@ def fit_case(case: dict, windows: int, window: float) -> dict:
             "stiffness_error_std": (k - truth["stiffness"]) / res.std["stiffness"],
             "restitution_error_std": (c - c_r) / res.std["restitution"], "ok": res.ok, "failures": list(res.failures),
             "loss": res.loss, "autocorrelation": res.residual_autocorrelation, "iterations": res.iterations,
-            "fit_wall_s": wall, "record_s": made, "way_in": res.settings.get("way_in", [])}
+            "fit_wall_s": wall, "record_s": made, "way_in": res.settings.get("way_in", []), "starts": starts,
+            "stop_reason": res.stop_reason}
 
 
 def main(argv=None) -> int:
@@ -66,6 +67,7 @@ def main(argv=None) -> int:
     p.add_argument("--cases", default="0,1,2", help="indices into the set (default: all three)")
     p.add_argument("--windows", type=int, default=4)
     p.add_argument("--window", type=float, default=2.99e-3)
+    p.add_argument("--starts", type=int, default=1, help="starts of the parameters (default 1)")
     p.add_argument("--json", default=DEFAULT_JSON)
     args = p.parse_args(argv)
     cases = [lab_record.CASES[args.set][int(i)] for i in args.cases.split(",")]
@@ -73,20 +75,20 @@ def main(argv=None) -> int:
     with locked_folder(os.path.dirname(os.path.abspath(args.json)), "benchmark results folder"):
         done = json.load(open(args.json))["records"] if os.path.isfile(args.json) else []
         for case in cases:
-            if any(all(r.get(k) == v for k, v in case.items()) for r in done):
+            if any(all(r.get(k) == v for k, v in case.items()) and r.get("starts", 1) == args.starts for r in done):
                 continue
-            done.append(fit_case(case, args.windows, args.window))
+            done.append(fit_case(case, args.windows, args.window, args.starts))
             atomic_write_json(args.json, {"meta": {"date": time.strftime("%Y-%m-%d"), "windows": args.windows,
                                                    "window_s": args.window, "free": FREE}, "records": done},
                               indent=1, sort_keys=False)
     print(f"{'K/K_H':>6} {'c_r':>5} {'revs':>4} {'contact':>8} {'K err %':>8} {'K err/std':>9} {'c_r err':>8} {'c_r err/std':>11} "
-          f"{'gain':>6} {'ok':>5} {'iters':>5} {'fit s':>6}")
+          f"{'gain':>6} {'ok':>5} {'iters':>5} {'fit s':>6} {'starts':>6}")
     for r in done:
         print(f"{r['stiffness_factor']:6.2f} {r['c_r']:5.2f} {r.get('revolutions_before', 5):4d} "
               f"{100 * r['contact_fraction']:7.1f}% "
               f"{100 * r['stiffness_error']:8.2f} {r['stiffness_error_std']:9.2f} {r['restitution_error']:8.3f} "
               f"{r['restitution_error_std']:11.2f} {r['estimates']['sensor_gain']:6.3f} {str(r['ok']):>5} "
-              f"{r['iterations']:5d} {r['fit_wall_s']:6.0f}")
+              f"{r['iterations']:5d} {r['fit_wall_s']:6.0f} {r.get('starts', 1):6d}")
     return 0
 
 
