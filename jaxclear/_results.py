@@ -20,7 +20,8 @@ class AbstractResult(abc.ABC):
     and :meth:`plot` (the fit's :class:`~jaxclear.FitResult` and :class:`~jaxclear.StatisticsFitResult`,
     :class:`~jaxclear.PosteriorResult`,
     :class:`~jaxclear.DesignResult`, :class:`~jaxclear.ToleranceResult`, the Lyapunov report
-    :class:`~jaxclear.chaos.report.ChaosReport`, :class:`~jaxclear.SweepResult`)."""
+    :class:`~jaxclear.chaos.report.ChaosReport`, :class:`~jaxclear.SweepResult`, the wear
+    history :class:`~jaxclear.WearHistory`)."""
 
     @abc.abstractmethod
     def to_dict(self) -> dict:

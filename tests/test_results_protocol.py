@@ -176,6 +176,17 @@ def _statistics_fit_result():
         record_revolutions=3, model_revolutions=40)
 
 
+def _wear_history():
+    from jaxclear import WearHistory
+    from jaxclear.wearing import node_angles
+
+    angles = node_angles(36)
+    depth = np.stack([1e-7 * (1 + np.cos(angles)), 2.5e-7 * (1 + np.cos(angles))])
+    return WearHistory(jc.preset("flores-slider-crank"), angles, depth, volume=np.array([1e-12, 1.5e-12]),
+                       service_time=np.array([0.5, 1.0]), peak_force=np.array([2e3, 1.9e3]),
+                       max_penetration=np.array([2e-6, 1.9e-6]), cycles_per_update=1e3, clearance=1e-4)
+
+
 RESULTS = {"fit": (_fit_result, {"fit.json", "fit.png"}),
            "statistics fit": (_statistics_fit_result, {"statistics_fit.json", "statistics_fit.png"}),
            "posterior": (_posterior_result, {"posterior.nc", "posterior.json", "posterior_summary.csv",
@@ -184,7 +195,9 @@ RESULTS = {"fit": (_fit_result, {"fit.json", "fit.png"}),
            "tolerance": (_tolerance_result, {"tolerance.json", "tolerance_runs.csv", "tolerance.png"}),
            "chaos": (_chaos_report, {"exponents.csv", "running.csv", "channels.csv", "summary.json", "running.png",
                                      "spectrum.png", "poincare.png"}),
-           "sweep": (_sweep_result, {"results.nc", "heatmap_peak_contact_force_n.png", "poincare.png"})}
+           "sweep": (_sweep_result, {"results.nc", "heatmap_peak_contact_force_n.png", "poincare.png"}),
+           "wear": (_wear_history, {"wear.json", "updates.csv", "profile_0000.csv", "profile_0001.csv",
+                                    "profile.png"})}
 
 
 @pytest.mark.parametrize("kind", sorted(RESULTS))
@@ -220,12 +233,11 @@ def test_every_result_has_the_four_methods(kind, tmp_path):
 
 
 def test_the_results_of_every_driver_are_listed():
-    """Every result class jaxclear exports is an AbstractResult and has a case above (WearHistory:
-    not yet, its module is another change's)."""
+    """Every result class jaxclear exports is an AbstractResult and has a case above."""
     from jaxclear.chaos import ChaosReport
 
     classes = {jc.FitResult, jc.StatisticsFitResult, jc.PosteriorResult, jc.DesignResult, jc.ToleranceResult,
-               jc.SweepResult, ChaosReport}
+               jc.SweepResult, ChaosReport, jc.WearHistory}
     assert all(issubclass(c, jc.AbstractResult) for c in classes) and len(RESULTS) == len(classes)
 
 

@@ -157,6 +157,13 @@ def test_worn_profile_changes_the_next_window(tmp_path, monkeypatch):
     state = json.loads((out / "wear.json").read_text())
     assert len(state["updates"]) == 2 and "wear.json" in assert_strict_json(out)
     assert [r.split(",")[0] for r in (out / "updates.csv").read_text().splitlines()[1:]] == ["0", "1"]
+    # the finished history is the state, and writes the files the run wrote as it went, byte for byte
+    assert h2.to_dict() == state
+    again = tmp_path / "again"
+    written = {p.rsplit("/", 1)[-1] for p in h2.write(again)}
+    assert written == {"wear.json", "updates.csv", "profile_0000.csv", "profile_0001.csv", "profile.png"}
+    for name in written - {"profile.png"}:
+        assert (again / name).read_bytes() == (out / name).read_bytes(), name
     # a damaged state (a record without a key, a NaN depth, no 'updates') is an error naming the
     # file, the record and the way out, before anything is computed
     for damage, words in (
@@ -199,3 +206,16 @@ def test_wear_needs_the_hybrid_law_at_fixed_points(tmp_path, capsys):
     assert "argument --wear-coefficient" in capsys.readouterr().err
     assert main(["wear", "--harmonics", "90", "--out", str(tmp_path)]) == 2
     assert "--harmonics 90 is outside the allowed range" in capsys.readouterr().err
+
+
+def test_the_command_prints_the_history_summary(tmp_path, monkeypatch, capsys):
+    """``jaxclear wear`` prints the result's summary() (the run itself stands in: a hand-made history)."""
+    from test_results_protocol import _wear_history
+
+    import jaxclear.cli.wear as cli_wear
+
+    h = _wear_history()
+    monkeypatch.setattr(cli_wear, "wear", lambda *args, **kwargs: h)
+    assert main(["wear", "--updates", "2", "--out", str(tmp_path / "w")]) == 0
+    out = capsys.readouterr().out
+    assert "\n".join("  " + line for line in h.summary().splitlines()) in out and "written to" in out

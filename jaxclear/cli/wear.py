@@ -4,12 +4,13 @@ the hybrid model's contact pressures), window by window, resumable."""
 from __future__ import annotations
 
 import argparse
+import textwrap
 
 from .._errors import ParameterError, check_range
 from ..integrate import runs
 from ..wearing import WearOptions, wear
 from ..wearing.service import MAX_NODES
-from .common import add_mechanism_file_option, add_mechanism_options, fmt, number_in
+from .common import add_mechanism_file_option, add_mechanism_options, number_in
 from .simulate import add_integration_options, load, settings_from
 
 HELP = "wear a clearance joint's bearing over a long service (Archard), resumable"
@@ -81,9 +82,7 @@ def run(args) -> int:
           + f" x {args.cycles_per_update:g} cycles; k_w = {args.wear_coefficient:g} m^2/N; the first update compiles",
           flush=True)
     h = wear(mech, s, options, args.out, restart=args.restart, progress=not args.no_progress)
-    print(f"  service time       {fmt(h.service_time[-1], 's')}")
-    print(f"  worn volume        {fmt(h.volume.sum(), 'm^3')}")
-    print(f"  largest depth      {fmt(h.depth[-1].max(), 'm')} (mean {fmt(h.depth[-1].mean(), 'm')})")
-    print(f"  peak contact force {fmt(h.peak_force[0], 'N')} (first window) -> {fmt(h.peak_force[-1], 'N')} (last)")
+    print(textwrap.indent(h.summary(), "  "))
+    # the files were written by wear as it went (resumable); a finished history writes the same through h.write
     print(f"  written to {args.out} (profile_NNNN.csv, updates.csv, wear.json, profile.png)")
     return 0

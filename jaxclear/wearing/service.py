@@ -16,6 +16,8 @@ state ``wear.json`` (atomically) and the polar figure ``profile.png``; the folde
 while it runs. ``wear.json`` is what a resume trusts: it rewrites ``updates.csv`` from the
 state's records, so a row appended by a run killed before it replaced the state is never
 listed twice.
+A finished :class:`WearHistory` (an :class:`~jaxclear.AbstractResult`) writes the same files
+into any folder through the same functions (:meth:`WearHistory.write`).
 """
 
 from __future__ import annotations
@@ -33,7 +35,8 @@ from tqdm import tqdm
 from .._errors import CheckpointError, ParameterError, check_range
 from .._interrupt import stop_at_safe_points
 from .._numbers import as_typed
-from .._storage import atomic_write_json, atomic_write_text, fingerprint, fsync_append, locked_folder
+from .._results import AbstractResult
+from .._storage import atomic_write_json, atomic_write_text, fingerprint, fsync_append, jsonable, locked_folder
 from ..integrate.settings import Settings
 from ..integrate.simulate import check_status, simulate
 from ..model.mechanism import Mechanism
@@ -47,6 +50,7 @@ STEP_WARNING = 0.05
 MAX_NODES = 100_000
 STATE_FILE = "wear.json"
 UPDATES_FILE = "updates.csv"
+FIGURE_FILE = "profile.png"
 #: The numbers of an update's record in the state file (besides ``depth_m``, the depth at the nodes).
 RECORD_KEYS = ("service_time_s", "cycles", "worn_volume_m3", "max_depth_m", "mean_depth_m", "peak_force_n",
                "max_penetration_m")
@@ -91,8 +95,10 @@ class WearOptions:
 
 
 @dataclasses.dataclass
-class WearHistory:
-    """Result of :func:`wear`.
+class WearHistory(AbstractResult):
+    """Result of :func:`wear`: :meth:`to_dict`, :meth:`write`, :meth:`summary`, :meth:`plot`
+    (:class:`~jaxclear.AbstractResult`); :meth:`write` writes the files :func:`wear` writes as
+    it goes (``wear.json``, ``updates.csv``, ``profile_NNNN.csv``, ``profile.png``).
 
     Attributes:
         mechanism: the mechanism with the bearing worn by all updates.
@@ -103,6 +109,12 @@ class WearHistory:
         peak_force: largest contact force of each window [N] ``(U,)``.
         max_penetration: largest penetration of each window [m] ``(U,)``.
         resumed_from: updates found done in the output folder (0: a fresh run).
+        cycles_per_update: the extrapolation factor [-] (keyword): update ``u`` stands for
+            ``(u + 1) * cycles_per_update`` cycles.
+        clearance: the unworn radial clearance of the worn joint [m] (keyword; the figure's scale).
+        fingerprint: the key of the mechanism, settings and options that ``wear.json`` holds (a
+            resume checks it); ``None`` for a history not made by :func:`wear` (its ``wear.json``
+            does not resume).
     """
 
     mechanism: Mechanism
@@ -113,6 +125,55 @@ class WearHistory:
     peak_force: np.ndarray
     max_penetration: np.ndarray
     resumed_from: int = 0
+    cycles_per_update: float = dataclasses.field(kw_only=True)
+    clearance: float = dataclasses.field(kw_only=True)
+    fingerprint: str | None = dataclasses.field(default=None, kw_only=True)
+
+    def records(self) -> list[dict]:
+        """The update records of ``wear.json`` (:data:`RECORD_KEYS` and ``depth_m`` per update),
+        the numbers :func:`wear` stored."""
+        depth = np.asarray(self.depth, float)
+        return [_record(service_time=self.service_time[u], cycles=(u + 1) * self.cycles_per_update,
+                        volume=self.volume[u], depth=depth[u], peak=self.peak_force[u],
+                        penetration=self.max_penetration[u]) for u in range(depth.shape[0])]
+
+    def to_dict(self) -> dict:
+        """The content of ``wear.json``: ``fingerprint`` and ``updates`` (:meth:`records`)."""
+        return jsonable(_state(self.fingerprint, self.records()))
+
+    def write(self, folder, *, plots: bool = True) -> list[str]:
+        """The files :func:`wear` writes into its output folder, for all updates:
+        ``profile_NNNN.csv`` each, ``updates.csv``, ``wear.json`` and, with ``plots``,
+        ``profile.png``, into ``folder`` (created if missing); returns their paths."""
+        folder = os.fspath(folder)
+        os.makedirs(folder, exist_ok=True)
+        records = self.records()
+        paths = [_write_profile(folder, u, self.angles, r["depth_m"]) for u, r in enumerate(records)]
+        paths.append(atomic_write_text(os.path.join(folder, UPDATES_FILE), _updates_text(records)))
+        paths.append(_write_state(folder, self.fingerprint, records))
+        if plots:
+            paths.append(self.plot(os.path.join(folder, FIGURE_FILE)))
+        return paths
+
+    def summary(self) -> str:
+        """Updates and service time, worn volume, largest and mean depth (against the
+        clearance), the peak contact force of the first and last windows."""
+        last = np.asarray(self.depth[-1])
+        lines = [f"{len(self.depth)} update(s), service time {float(self.service_time[-1]):.4g} s "
+                 f"({len(self.depth) * self.cycles_per_update:.4g} cycles)"
+                 + (f", resumed after {self.resumed_from} update(s) found done" if self.resumed_from else ""),
+                 f"  worn volume        {float(np.sum(self.volume)):.4g} m^3",
+                 f"  largest depth      {float(last.max()):.4g} m (mean {float(last.mean()):.4g} m; "
+                 f"{float(last.max()) / self.clearance:.2%} of the clearance {self.clearance:.4g} m)",
+                 f"  peak contact force {float(self.peak_force[0]):.4g} N (first window) -> "
+                 f"{float(self.peak_force[-1]):.4g} N (last)"]
+        return "\n".join(lines)
+
+    def plot(self, path=None):
+        """The worn bearing (polar, wear magnified) and the depth after the updates
+        (:func:`~jaxclear.wearing.plot_wear`, ``profile.png``): the figure, or ``path`` once saved."""
+        fig = plot_wear(self.angles, self.depth, self.service_time, self.clearance, path)
+        return fig if path is None else os.fspath(path)
 
 
 @eqx.filter_jit
@@ -187,22 +248,44 @@ def _updates_text(records: list[dict]) -> str:
     return UPDATES_HEADER + "".join(_row(i, r) for i, r in enumerate(records))
 
 
-def _write(out: str, key: str, records: list[dict], options: WearOptions, clearance: float):
-    u = len(records) - 1
-    rec = records[-1]
-    angles = node_angles(options.n_nodes)
+def _record(*, service_time, cycles, volume, depth, peak, penetration) -> dict:
+    """One update's record in the state file: the numbers as Python floats (``depth``, the
+    cumulative depth at the nodes, as a list)."""
+    depth = np.asarray(depth, float)
+    return {"service_time_s": float(service_time), "cycles": cycles, "worn_volume_m3": float(volume),
+            "max_depth_m": float(depth.max()), "mean_depth_m": float(depth.mean()), "peak_force_n": float(peak),
+            "max_penetration_m": float(penetration), "depth_m": depth.tolist()}
+
+
+def _state(key: str | None, records: list[dict]) -> dict:
+    return {"fingerprint": key, "updates": records}
+
+
+def _write_state(out: str, key: str | None, records: list[dict]) -> str:
+    return atomic_write_json(os.path.join(out, STATE_FILE), _state(key, records), indent=1)
+
+
+def _write_profile(out: str, u: int, angles, depth) -> str:
+    """``profile_NNNN.csv`` of update ``u``: node angle [rad], cumulative depth [m]."""
     # repr of a Python float: the shortest text that reads back bit for bit (a NumPy 2 scalar's
     # repr is "np.float64(...)", which a CSV reader takes for text)
-    lines = ["angle_rad,depth_m\n"] + [f"{float(a)!r},{float(d)!r}\n" for a, d in zip(angles, rec["depth_m"])]
-    atomic_write_text(os.path.join(out, f"profile_{u:04d}.csv"), "".join(lines))
+    lines = ["angle_rad,depth_m\n"] + [f"{float(a)!r},{float(d)!r}\n" for a, d in zip(angles, depth)]
+    return atomic_write_text(os.path.join(out, f"profile_{u:04d}.csv"), "".join(lines))
+
+
+def _write(out: str, key: str, records: list[dict], angles, clearance: float):
+    """The files after the last of ``records``: its profile, its row of ``updates.csv``
+    (appended), the state and the figure."""
+    u = len(records) - 1
+    _write_profile(out, u, angles, records[-1]["depth_m"])
     updates = os.path.join(out, UPDATES_FILE)
     if u == 0 or not os.path.exists(updates):
         atomic_write_text(updates, _updates_text(records))
     else:
-        fsync_append(updates, _row(u, rec))
-    atomic_write_json(os.path.join(out, STATE_FILE), {"fingerprint": key, "updates": records}, indent=1)
+        fsync_append(updates, _row(u, records[-1]))
+    _write_state(out, key, records)
     plot_wear(angles, np.asarray([r["depth_m"] for r in records]), np.asarray([r["service_time_s"] for r in records]),
-              clearance, os.path.join(out, "profile.png"))
+              clearance, os.path.join(out, FIGURE_FILE))
 
 
 def wear(mech: Mechanism, settings: Settings, options: WearOptions, out: str | None = None, *,
@@ -226,6 +309,7 @@ def wear(mech: Mechanism, settings: Settings, options: WearOptions, out: str | N
     t_from = settings.t_start + options.settle
     key = fingerprint(base, settings, repr(dataclasses.replace(options, updates=0)))
     clearance = float(mech.elements[index].clearance)
+    angles = node_angles(options.n_nodes)
 
     def run(records: list[dict]) -> list[dict]:
         done = len(records)
@@ -247,14 +331,11 @@ def wear(mech: Mechanism, settings: Settings, options: WearOptions, out: str | N
                               f"(now {options.cycles_per_update:g})", stacklevel=3)
             depth = depth + step
             cycles = (u + 1) * options.cycles_per_update
-            records.append({
-                "service_time_s": as_typed(cycles * window_time), "cycles": cycles,
-                "worn_volume_m3": options.cycles_per_update * float(w.volume), "max_depth_m": float(depth.max()),
-                "mean_depth_m": float(depth.mean()), "peak_force_n": float(peak), "max_penetration_m": float(pen),
-                "depth_m": depth.tolist(),
-            })
+            records.append(_record(service_time=as_typed(cycles * window_time), cycles=cycles,
+                                   volume=options.cycles_per_update * float(w.volume), depth=depth, peak=peak,
+                                   penetration=pen))
             if out is not None:
-                _write(out, key, records, options, clearance)
+                _write(out, key, records, angles, clearance)
             if bar is None:  # the bar starts after the first (compiling) update
                 bar = tqdm(total=options.updates, initial=u + 1, unit="update", desc="wear", disable=not progress)
             else:
@@ -286,11 +367,14 @@ def wear(mech: Mechanism, settings: Settings, options: WearOptions, out: str | N
     depth = np.asarray([r["depth_m"] for r in records], float)
     return WearHistory(
         mechanism=worn(base, index, depth[-1]),
-        angles=node_angles(options.n_nodes),
+        angles=angles,
         depth=depth,
         volume=np.asarray([r["worn_volume_m3"] for r in records]),
         service_time=np.asarray([r["service_time_s"] for r in records]),
         peak_force=np.asarray([r["peak_force_n"] for r in records]),
         max_penetration=np.asarray([r["max_penetration_m"] for r in records]),
         resumed_from=resumed,
+        cycles_per_update=options.cycles_per_update,
+        clearance=clearance,
+        fingerprint=key,
     )
