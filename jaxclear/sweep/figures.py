@@ -5,14 +5,18 @@ sections themselves. Axis labels and units come from the labelled dataset
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from .._errors import ParameterError
 from .._storage import json_text
 from ..plot import plot_bifurcation, plot_heatmap, plot_poincare
 from .labels import column_unit, long_name
-from .results import SweepResult
 from .store import POINCARE_COORDS
+
+if TYPE_CHECKING:  # only the annotations name it: results.py draws through this module
+    from .results import SweepResult
 
 #: Metrics drawn as heat maps over a 2-parameter grid (with the min and max of every named channel).
 PLOT_METRICS = ("peak_contact_force_n", "energy_dissipated_per_rev_j", "rms_acc_deviation_m_s2", "impacts")
