@@ -75,8 +75,7 @@ def begin_stage(problem: FitProblem, st: FitState) -> FitState:
         if problem.anywhere:  # every start from the window starts the way in found
             st = st.replace(found=st.states) if not st.found else st.replace(states=st.found)
     elif stage.start < 0 and before is not None and before.start >= 0:
-        best = st.best_start()
-        st = st.replace(theta=best["theta"], **({"states": best["states"]} if "states" in best else {}))
+        st = st.at_best_start().replace(stop_reason=st.stop_reason)
     if problem.anywhere and stage.way_in:
         k = stage.states[0]
         win = problem.window_input(k, stage.horizon, False, st.guesses)
@@ -237,7 +236,5 @@ def run_plan(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoint
     while st.stage < len(problem.stages):
         st = run_stage(problem, opt, st, ckpt, report)
     if problem.stages[-1].start >= 0:
-        best = st.best_start()
-        st = st.replace(theta=best["theta"], stop_reason=best["reason"],
-                        **({"states": best["states"]} if "states" in best else {}))
+        st = st.at_best_start()
     return st

@@ -116,6 +116,13 @@ class FitState(eqx.Module):
         results = self.start_results()
         return results[min(results, key=lambda j: results[j]["loss"])]
 
+    def at_best_start(self) -> "FitState":
+        """A copy at the best start's parameters (and window states, where they were recorded),
+        its stop reason the fit's."""
+        best = self.best_start()
+        return self.replace(theta=best["theta"], stop_reason=best["reason"],
+                            **({"states": best["states"]} if "states" in best else {}))
+
     def to_json(self) -> dict:
         out = {f.name: _plain(getattr(self, f.name)) for f in dataclasses.fields(self)}
         out["starts"] = {k: {name: _plain(value) for name, value in v} for k, v in self.starts}
