@@ -223,6 +223,9 @@ def test_fit_api_bad_input():
         jc.fit(meas, mech, window=5e-4, horizons=(0.5,))
     with pytest.raises(jc.ParameterError, match="unknown optimizer 'sgd'"):
         jc.fit(meas, mech, window=5e-4, optimizer="sgd")
+    with pytest.raises(jc.ParameterError, match="profile = 'friction' is not a free parameter of this fit; valid: "
+                       "stiffness, restitution"):
+        jc.fit(meas, mech, window=5e-4, profile="friction")
 
 
 # --------------------------------------------------------------------------------------
@@ -309,6 +312,49 @@ def check_cli_fit_writes_json_and_plot(small_record, capsys):
     assert d2["iterations"] == d["iterations"] and d2["settings"]["resumed"]
     assert "fit.json" in assert_strict_json(out)  # and fit_checkpoint.json where it is kept
     assert "(resumed from the checkpoint)" in capsys.readouterr().out  # the summary says it resumed
+
+
+def check_profile_likelihood_of_a_finished_fit(small_record, capsys):
+    """``--profile all`` added to the finished CLI fit (same --out): the fit resumes without
+    iterating and only the profile runs. Each point holds its parameter exactly at its value
+    (the held column of the Levenberg-Marquardt step is zero), the deviance is 0 at the estimate
+    and rises on both sides to past the 90 % threshold; the interval holds the estimate and the
+    reported std is its longer half over 1.645. On this 1 ms engine-made record the loss is
+    nearly quadratic over the interval, so the profile's half-width lies within 25 % of the
+    Gauss-Newton 1.645 std (where they differ is the point of a profile: the coverage on records
+    of an independent simulator is measured in benchmarks/bench_profile.py). Run again, nothing
+    is refitted."""
+    mech, path, folder = small_record
+    out = folder / "cli"
+    args = ["fit", path, "--window", "1e-3", "--sensor-cutoff-hz", "20000", "--start", "stiffness=1.3e11",
+            "--start", "restitution=0.75", "--out", str(out), "--no-progress", "--profile", "all"]
+    before = json.loads((out / "fit.json").read_text())
+    capsys.readouterr()
+    assert main(args) == 0
+    printed = capsys.readouterr().out
+    d = json.loads((out / "fit.json").read_text())
+    assert d["iterations"] == before["iterations"] and d["estimates"] == before["estimates"]
+    assert "profile likelihood of stiffness: 90 % interval [" in printed
+    saved = json.loads((out / fitting.CHECKPOINT_NAME).read_text())["state"]
+    for i, name in enumerate(("stiffness", "restitution")):
+        p = d["profiles"][name]
+        est, lo, hi = d["estimates"][name], *p["interval"]
+        assert lo < est < hi and p["better"] is None and not p["open"], p
+        assert d["std"][name] == pytest.approx(max(est - lo, hi - est) / 1.6448536269514722, rel=1e-12)
+        assert p["std_gauss_newton"] == pytest.approx(before["std"][name], rel=1e-9)
+        assert 0.75 < (hi - lo) / 2 / (1.645 * p["std_gauss_newton"]) < 1.25, (name, p)
+        values, dev = np.array(p["values"]), np.array(p["deviance"])
+        j = int(np.argmin(np.abs(values - est)))
+        assert dev[j] == 0.0 and np.all(np.diff(dev[: j + 1]) < 0) and np.all(np.diff(dev[j:]) > 0), p
+        assert dev[0] > 2.706 and dev[-1] > 2.706
+        points = [q for q in saved["profile"] if q["name"] == name]
+        z_hat = saved["theta"][i]
+        assert points and all(q["theta"][i] == z_hat + q["side"] * q["dz"] for q in points)
+    n_points = len(saved["profile"])
+    assert main(args) == 0
+    again = json.loads((out / "fit.json").read_text())
+    assert len(json.loads((out / fitting.CHECKPOINT_NAME).read_text())["state"]["profile"]) == n_points
+    assert again["profiles"] == d["profiles"]
 
 
 def check_ctrl_c_stops_the_fit_after_a_checkpointed_iteration(small_record):
@@ -512,6 +558,7 @@ def test_small_fit_api_and_cli(small_record, capsys, monkeypatch):
     """The checks above in one test, so that a parallel run (pytest -n) compiles the model once."""
     check_small_fit_resumes_after_an_interruption(small_record)
     check_cli_fit_writes_json_and_plot(small_record, capsys)
+    check_profile_likelihood_of_a_finished_fit(small_record, capsys)
     check_ctrl_c_stops_the_fit_after_a_checkpointed_iteration(small_record)
     check_progress_bar_totals(small_record, monkeypatch)
     check_one_start_that_stops_on_max_iter_is_fitted_again_from_several(small_record)

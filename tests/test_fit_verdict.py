@@ -237,3 +237,23 @@ def test_a_free_start_fit_needs_a_whiter_residual():
     _one(assess(FREE, GOOD, GOOD_STD, autocorrelation=0.2993, loss=0.019, free_start=True),
          "the residual is not noise", "0.30 > 0.2")
     assert assess(FREE, GOOD, GOOD_STD, autocorrelation=0.003, loss=0.0103, free_start=True) == ()
+
+
+def _profile(interval=(0.89, 0.91), better=None, open_=()):
+    return {"values": [0.88, 0.9, 0.92], "deviance": [4.0, 0.0, 4.0], "interval": list(interval), "level": 0.9,
+            "std": 0.01 / 1.645 if None not in interval else math.inf, "std_gauss_newton": 1e-4, "better": better,
+            "open": list(open_)}
+
+
+def test_a_closed_profile_passes_and_an_open_or_better_one_fails():
+    """A closed profile without a better point passes; an open side fails the parameter (and the
+    std rules then judge the Gauss-Newton std, not the infinite profile std: one failure, not
+    two); a point that fits better than the estimate fails the fit with the value to start from."""
+    closed = _profile()
+    assert assess(FREE, GOOD, {**GOOD_STD, "restitution": closed["std"]}, profiles={"restitution": closed}) == ()
+    opened = _profile((0.89, None), open_=["the deviance stays below 2.71 out to restitution = 0.9994"])
+    _one(assess(FREE, GOOD, {**GOOD_STD, "restitution": math.inf}, profiles={"restitution": opened}),
+         "restitution = 0.9", "profile likelihood does not close", "stays below 2.71", "does not determine it")
+    better = _profile(better={"value": 0.75, "deviance": -12.0})
+    _one(assess(FREE, GOOD, {**GOOD_STD, "restitution": better["std"]}, profiles={"restitution": better}),
+         "found a better fit at 0.75", "12 noise variances below", "local minimum", "--start restitution=0.75")

@@ -8,7 +8,6 @@ import time
 import warnings
 from typing import Callable, Sequence
 
-import jax.numpy as jnp
 import numpy as np
 import optax
 from tqdm.auto import tqdm
@@ -21,14 +20,14 @@ from ..integrate.compile import on_trace
 from ..model import Mechanism
 from ..analysis.sensor import Accelerometer
 from .parameters import DEFAULT_FREE, law_name, values_of
-from .plan import DEFAULT_HORIZONS, final_stage
+from .plan import DEFAULT_HORIZONS
 from .problem import FitProblem, build_problem
 from .result import FitResult
-from .run import fresh_state, run_plan
-from .solver import make_optimizer, stack_jacobian
+from .profile import check_profile, run_profiles, summarize
+from .run import evaluate_all, final_jacobian, fresh_state, run_plan
+from .solver import make_optimizer
 from .state import Checkpoint, FitState
 from .uncertainty import AUTOCORRELATION_WARNING, Uncertainty, estimate_uncertainty
-from .window import evaluate_window_jit
 
 
 #: What a fit says when its programs are not compiled yet (:func:`~jaxclear.integrate.compile.on_trace`).
@@ -63,6 +62,7 @@ def fit(
     resume: bool = True,
     progress: bool = True,
     callback: Callable | None = None,
+    profile: Sequence[str] | str | bool | None = None,
 ) -> FitResult:
     """Fit the ``free`` parameters of ``mech`` to measured channels, by default the slider
     acceleration (method: :mod:`jaxclear.fitting`).
@@ -120,6 +120,14 @@ def fit(
         progress: show a tqdm progress bar.
         callback: called as ``callback(record)`` after every iteration (record: dict with
             ``stage``, ``iteration``, ``loss``, ``values``).
+        profile: free parameter name(s), or True for all, whose profile likelihood is walked
+            after the fit (:mod:`jaxclear.fitting.profile`: each held at up to 12 values while
+            every other unknown is fitted again): their 90 % interval is
+            ``FitResult.profiles[name]["interval"]`` and their ``std`` the interval's longer half
+            over 1.645 (the Gauss-Newton std beside it), infinite where the record does not bound
+            them; a profile that finds a better fit than the estimate fails the fit. Costs up to
+            12 warm-started final stages per name. Not part of the checkpoint's key: the same
+            call with ``out`` and a profile added to a finished fit runs only the profile.
 
     Raises:
         ParameterError: unknown free parameter, start value outside its bounds, record shorter
@@ -140,16 +148,18 @@ def fit(
     auto = starts is None
     problem = build_problem(data, mech, free, start, sensor, window, windows, horizons, coarse, 1 if auto else starts,
                             settings, channels, start_state)
+    names = check_profile(profile, problem.free)
     auto = auto and not problem.anywhere
     with locked_folder(out, "fit output folder") if out is not None else contextlib.nullcontext():
         if not (auto and opt.least_squares):
-            return _fit_locked(problem, opt, out, resume, progress, callback, t_wall)
+            return _fit_locked(problem, opt, out, resume, progress, callback, t_wall, profile=names)
         several = problem.with_starts(AUTO_STARTS)
         if resume and _checkpoint(several, out).load() is not None:  # killed in the refit (or at the switch to it)
-            return _fit_locked(several, opt, out, resume, progress, callback, t_wall)
+            return _fit_locked(several, opt, out, resume, progress, callback, t_wall, profile=names)
         with warnings.catch_warnings(record=True) as first_warnings:
             warnings.simplefilter("always")
-            first = _fit_locked(problem, opt, out, resume, progress, callback, t_wall)
+            first = _fit_locked(problem, opt, out, resume, progress, callback, t_wall, profile=names,
+                                unless=_not_converged)
         why = _not_converged(first)
         if not why:
             for w in first_warnings:
@@ -157,7 +167,7 @@ def fit(
             return first
         if progress:
             tqdm.write(f"jaxclear fit: one start {why}; fitting again from {AUTO_STARTS} starts")
-        return _fit_locked(several, opt, out, False, progress, callback, time.perf_counter(), after=first)
+        return _fit_locked(several, opt, out, False, progress, callback, time.perf_counter(), after=first, profile=names)
 
 
 #: Starts of the refit of a fit with ``starts=None`` (the default) whose single start stops on
@@ -184,11 +194,14 @@ def _checkpoint(problem: FitProblem, out, clock=None) -> Checkpoint:
 
 
 def _fit_locked(problem: FitProblem, opt, out, resume: bool, progress: bool, callback, t_wall: float,
-                after: FitResult | None = None):
+                after: FitResult | None = None, profile: tuple = (), unless: Callable | None = None):
     """:func:`fit` inside the output folder's lock, its wall time counted from ``t_wall``
     (:func:`time.perf_counter`). ``after``: the single start that this automatic refit follows
     (a fresh refit: its state starts from that fit's wall time and reason, and is checkpointed at
-    once, so that a kill from here on resumes the refit; the result is resumed if that fit was)."""
+    once, so that a kill from here on resumes the refit; the result is resumed if that fit was).
+    ``profile``: the names whose profile likelihood is walked after the plan, unless
+    ``unless(result)`` says the result will be fitted again (the single start of the automatic
+    refit)."""
     ckpt = _checkpoint(problem, out, clock=lambda: wall_before + time.perf_counter() - t_wall)
     saved = ckpt.load() if resume else None
     if saved is not None:
@@ -225,13 +238,16 @@ def _fit_locked(problem: FitProblem, opt, out, resume: bool, progress: bool, cal
     try:
         with stop_at_safe_points("the current iteration") as interrupt, on_trace(compiling):
             st = run_plan(problem, opt, st, ckpt, report)
+            if profile and not (unless is not None and unless(_result(problem, st, 0.0, False, quiet=True))):
+                st = run_profiles(problem, opt, st, ckpt, profile, lambda record, now: interrupt.check(),
+                                  tqdm.write if progress else (lambda text: None))
     finally:
         for bar in bars:
             bar.total = bar.n
             bar.refresh()
             bar.close()
     resumed = saved is not None or (after is not None and after.settings["resumed"])
-    return _result(problem, st, wall_before + time.perf_counter() - t_wall, resumed)
+    return _result(problem, st, wall_before + time.perf_counter() - t_wall, resumed, profile=profile)
 
 
 def iterations_left(problem: FitProblem, st: FitState) -> int:
@@ -283,29 +299,6 @@ def _progress_bar(problem: FitProblem, done: int):
     return tqdm(total=total, initial=min(done, total), desc="fit", unit="it", leave=True)
 
 
-def _evaluate_all(problem: FitProblem, theta, states, guesses):
-    """Per window at horizon 1: residual, Jacobians and signal (the compiled window function)."""
-    out = []
-    for k in range(problem.windows):
-        win = problem.window_input(k, 1.0, False, guesses)
-        r, jt, js, y, _ = evaluate_window_jit(problem.model, jnp.asarray(theta), jnp.asarray(states[k]), win)
-        out.append((np.asarray(r), np.asarray(jt), np.asarray(js), np.asarray(y)))
-    return out
-
-
-def _final_jacobian(problem: FitProblem, evals) -> tuple[np.ndarray, np.ndarray]:
-    """Stacked residual ``(W n_pad,)`` and Jacobian over the parameters and the free window
-    states (2..W, or all with a free start); a window-state column that is exactly zero (a
-    coordinate the fit holds: the approach speed of a contact under way, :mod:`.window_start`)
-    is not an unknown and is left out."""
-    stage = final_stage(problem.windows, problem.anywhere)
-    r = np.concatenate([e[0] for e in evals])
-    jac = np.asarray(stack_jacobian([e[1] for e in evals], [e[2] for e in evals], True, stage.states))
-    p = len(problem.free)
-    keep = np.concatenate([np.ones(p, dtype=bool), np.any(jac[:, p:] != 0.0, axis=0)])
-    return r, jac[:, keep]
-
-
 def _plot_series(problem: FitProblem, evals, initial, j: int = 0) -> dict:
     """Fitted samples of every window of channel ``j`` for the plot: t (simulation time),
     measured, fitted, initial."""
@@ -326,11 +319,13 @@ def _channel_series(problem: FitProblem, evals, initial) -> dict:
             for j, c in enumerate(problem.columns)}
 
 
-def _result(problem: FitProblem, st: FitState, wall: float, resumed: bool) -> FitResult:
-    """The :class:`FitResult` at the state's optimum (uncertainty on all windows, all samples)."""
+def _result(problem: FitProblem, st: FitState, wall: float, resumed: bool, profile: tuple = (),
+            quiet: bool = False) -> FitResult:
+    """The :class:`FitResult` at the state's optimum (uncertainty on all windows, all samples;
+    the std of the ``profile`` names from their profile likelihood); ``quiet``: no warnings."""
     theta, states = np.asarray(st.theta, dtype=float), np.asarray(st.states, dtype=float)
-    evals = _evaluate_all(problem, theta, states, st.guesses)
-    r, jac = _final_jacobian(problem, evals)
+    evals = evaluate_all(problem, theta, states, st.guesses)
+    r, jac = final_jacobian(problem, evals)
     mask = np.concatenate([problem.win.residual_mask(k, 1.0) for k in range(problem.windows)])
     unc: Uncertainty = estimate_uncertainty(r, jac, mask, problem.win.scale, theta, problem.free)
     converged = st.stop_reason not in ("", "max_iter")
@@ -341,15 +336,17 @@ def _result(problem: FitProblem, st: FitState, wall: float, resumed: bool) -> Fi
         warn.append(f"the fit may sit in a local minimum: try more starts (--starts N, starts=N; this fit had "
                     f"{problem.settings['starts']}), other start values (--start NAME=VALUE, start=...) or a larger "
                     "max_iter")
-    for w in warn:
+    profiles = summarize(problem, st, profile, unc.std)
+    std = {**unc.std, **{name: p["std"] for name, p in profiles.items()}}
+    for w in warn if not quiet else ():
         warnings.warn(w, stacklevel=3)
     n_pad = problem.win.n_pad * problem.win.n_channels
     window_losses = [float(np.mean(r[k * n_pad:(k + 1) * n_pad][problem.win.residual_mask(k, 1.0) > 0] ** 2))
                      for k in range(problem.windows)]
-    initial = _evaluate_all(problem, problem.z_starts[0], states, st.guesses)
+    initial = evaluate_all(problem, problem.z_starts[0], states, st.guesses)
     s = problem.settings
     return FitResult(
-        estimates=unc.estimates, std=unc.std, loss=float(np.mean(r[mask > 0] ** 2)), iterations=int(st.total),
+        estimates=unc.estimates, std=std, profiles=profiles, loss=float(np.mean(r[mask > 0] ** 2)), iterations=int(st.total),
         evaluations=int(st.evaluations), wall_time_s=wall,
         start={name: as_typed(v) for name, v in zip(problem.free, values_of(problem.free, problem.z0, problem.win.scale))},
         correlation=unc.correlation, noise_sigma_m_s2=unc.sigma, residual_rms_m_s2=unc.rms,

@@ -31,6 +31,7 @@ class Stage(NamedTuple):
     final: bool  # the last stage: its stop reason is the fit's
     integrate: bool = False  # residual of the integrated signal (coarse stage)
     way_in: bool = False  # its window's start is first found by the way in (:mod:`.way_in`)
+    held: tuple = ()  # parameters (indices into theta) held at their values: a profile point (:mod:`.profile`)
 
     def max_iter(self, max_iter: int) -> int:
         """Iteration limit: ``max_iter`` for the final stage, ``max(5, max_iter // 2)`` else."""

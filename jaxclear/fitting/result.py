@@ -23,7 +23,11 @@ class FitResult(AbstractResult):
 
     Attributes:
         estimates, std, start: parameter name -> value (SI; std by the delta method,
-            :mod:`jaxclear.fitting`), and the start of the best run.
+            :mod:`jaxclear.fitting`, or from the profile likelihood for the names in
+            ``profiles``), and the start of the best run.
+        profiles: name -> its profile likelihood (``fit(profile=...)``;
+            :func:`jaxclear.fitting.profile.summarize`: ``values``, ``deviance``, the 90 %
+            ``interval``, ``std``, ``std_gauss_newton``, ``better``, ``open``); ``{}`` without.
         loss: mean square of the normalised residual over the fitted samples (see :mod:`jaxclear.fitting`).
         iterations: optimiser iterations over all stages and starts (Levenberg-Marquardt: accepted
             steps, plus the last update of a stage that finds no decreasing step).
@@ -80,6 +84,7 @@ class FitResult(AbstractResult):
     window_losses: list = field(default_factory=list)
     evaluations: int = 0
     series: dict = field(default_factory=dict)
+    profiles: dict = field(default_factory=dict)
     failures: tuple | None = None
     mech: InitVar[Mechanism | None] = None
 
@@ -93,7 +98,7 @@ class FitResult(AbstractResult):
                                    history=self.history, scale=float(self.settings.get("data_rms_m_s2", 1.0)),
                                    autocorrelation=self.residual_autocorrelation, loss=self.loss,
                                    stop_reason=self.stop_reason,
-                                   free_start=self.settings.get("start_state") == "free")
+                                   free_start=self.settings.get("start_state") == "free", profiles=self.profiles)
         self.failures = tuple(self.failures)
 
     @property
@@ -120,8 +125,19 @@ class FitResult(AbstractResult):
         for name, value in self.estimates.items():
             lines.append(f"  {name:<{width}}  {self.start.get(name, float('nan')):>12.6g}  {value:>12.6g}  "
                          f"{self.std.get(name, float('nan')):>10.3g}")
+        lines += self.profile_lines()
         lines += [f"warning: {w}" for w in self.warnings]
         return "\n".join(lines)
+
+    def profile_lines(self) -> list[str]:
+        """One line per profiled parameter: its 90 % interval ("open" on a side the record does
+        not bound), the Gauss-Newton std beside it and the points walked."""
+        lines = []
+        for name, p in self.profiles.items():
+            lo, hi = (f"{v:.6g}" if v is not None else "open" for v in p["interval"])
+            lines.append(f"  profile likelihood of {name}: 90 % interval [{lo}, {hi}] (Gauss-Newton std "
+                         f"{p['std_gauss_newton']:.3g}; {len(p['values']) - 1} points)")
+        return lines
 
     def to_dict(self) -> dict:
         """The content of ``fit.json`` (JSON-ready: NaN as None): ``ok`` and ``failures`` first,
@@ -149,10 +165,13 @@ class FitResult(AbstractResult):
             "window_length_s": self.window_length_s,
             "window_losses": self.window_losses,
             "window_states": self.window_states,
+            "profiles": self.profiles,
             "settings": self.settings,
             "warnings": self.warnings,
             "loss_definition": "mean over the fitted samples of ((model - measured) / rms(measured))^2",
-            "std_definition": "Gauss-Newton: sigma^2 (J^T J)^-1 in the transformed parameters, delta method back",
+            "std_definition": ("Gauss-Newton: sigma^2 (J^T J)^-1 in the transformed parameters, delta method back; "
+                               "for the names in profiles, the longer half of the profile likelihood's 90 % interval "
+                               "over 1.645"),
         })
 
     def to_dataframe(self):

@@ -10,7 +10,7 @@ import numpy as np
 
 from .._errors import FitDataError
 from .parameters import values_of
-from .plan import Stage
+from .plan import Stage, final_stage
 from .problem import FitProblem
 from .solver import (
     Optimizer,
@@ -115,7 +115,10 @@ def stage_jacobian(problem: FitProblem, st: FitState, stage: Stage) -> tuple[flo
         rs.append(np.asarray(r))
         jts.append(jt)
         jss.append(js)
-    return float(np.sum(np.concatenate(rs) ** 2)), np.asarray(stack_jacobian(jts, jss, stage.theta, _free_rows(stage)))
+    jac = np.array(stack_jacobian(jts, jss, stage.theta, _free_rows(stage)))
+    if stage.held and stage.theta:
+        jac[:, list(stage.held)] = 0.0  # held parameters are no unknowns (as in the solver's StageResidual)
+    return float(np.sum(np.concatenate(rs) ** 2)), jac
 
 
 def _free_rows(stage: Stage) -> tuple:
@@ -134,7 +137,7 @@ def stage_run(problem: FitProblem, opt: Optimizer, st: FitState, stage: Stage, j
         u = np.asarray(st.x, dtype=float)
     wins = [problem.window_input(k, stage.horizon, stage.integrate, st.guesses) for k in stage.windows]
     fn = StageResidual(problem.model, jnp.asarray(st.column_scale, dtype=float), stage.theta, _free_rows(stage))
-    args = stage_arguments(st.theta, [st.states[k] for k in stage.windows], wins)
+    args = stage_arguments(st.theta, [st.states[k] for k in stage.windows], wins, stage.held)
     return StageRun(opt, fn, args, u, st.solver), st
 
 
@@ -238,3 +241,26 @@ def run_plan(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoint
     if problem.stages[-1].start >= 0:
         st = st.at_best_start()
     return st
+
+
+def evaluate_all(problem: FitProblem, theta, states, guesses):
+    """Per window at horizon 1: residual, Jacobians and signal (the compiled window function)."""
+    out = []
+    for k in range(problem.windows):
+        win = problem.window_input(k, 1.0, False, guesses)
+        r, jt, js, y, _ = evaluate_window_jit(problem.model, jnp.asarray(theta), jnp.asarray(states[k]), win)
+        out.append((np.asarray(r), np.asarray(jt), np.asarray(js), np.asarray(y)))
+    return out
+
+
+def final_jacobian(problem: FitProblem, evals) -> tuple[np.ndarray, np.ndarray]:
+    """Stacked residual ``(W n_pad,)`` and Jacobian over the parameters and the free window
+    states (2..W, or all with a free start); a window-state column that is exactly zero (a
+    coordinate the fit holds: the approach speed of a contact under way, :mod:`.window_start`)
+    is not an unknown and is left out."""
+    stage = final_stage(problem.windows, problem.anywhere)
+    r = np.concatenate([e[0] for e in evals])
+    jac = np.asarray(stack_jacobian([e[1] for e in evals], [e[2] for e in evals], True, stage.states))
+    p = len(problem.free)
+    keep = np.concatenate([np.ones(p, dtype=bool), np.any(jac[:, p:] != 0.0, axis=0)])
+    return r, jac[:, keep]

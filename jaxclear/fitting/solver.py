@@ -74,12 +74,17 @@ _TAGS = frozenset()
 
 class StageArgs(eqx.Module):
     """Data of a stage: the fixed ``theta`` ``(P,)``, the start states of its windows ``(W_s,
-    S)`` (fixed rows used, free rows replaced by ``x``) and the windows' inputs, stacked along a
-    leading window axis (one :class:`WindowInput` whose leaves are ``(W_s, ...)``)."""
+    S)`` (fixed rows used, free rows replaced by ``x``), the windows' inputs, stacked along a
+    leading window axis (one :class:`WindowInput` whose leaves are ``(W_s, ...)``), and ``keep``
+    ``(P,)``: a parameter whose entry is 0 is held (its Jacobian column is zero, so the
+    Levenberg-Marquardt step leaves it where it is: the points of a profile likelihood,
+    :mod:`jaxclear.fitting.profile`). An array, not a static field, so a profile point shares
+    the compiled program of the stage it repeats."""
 
     theta: jax.Array
     states: jax.Array
     windows: tuple
+    keep: jax.Array  # (P,): 1 for a free parameter, 0 for one held at its value (a profile point)
 
 
 class StageResidual(eqx.Module):
@@ -104,6 +109,7 @@ class StageResidual(eqx.Module):
         for j, row in enumerate(self.free_rows):
             states = states.at[row].set(x[offset + j * n_state: offset + (j + 1) * n_state])
         r, jt, js, y, _ = jax.vmap(evaluate_window, in_axes=(None, None, 0, 0))(self.model, theta, states, args.windows)
+        jt = jt * args.keep
         rows = range(r.shape[0])
         return (jnp.reshape(r, (-1,)), stack_jacobian([jt[k] for k in rows], [js[k] for k in rows], self.theta_free,
                                                       self.free_rows), y)
@@ -331,8 +337,11 @@ class StageRun:
         return StepReport(u, u / self.scale, loss, True, reason, arrays)
 
 
-def stage_arguments(theta, states, windows: list[WindowInput]) -> StageArgs:
-    """:class:`StageArgs` from ``theta`` ``(P,)``, the stage windows' states and inputs (stacked)."""
+def stage_arguments(theta, states, windows: list[WindowInput], held: tuple = ()) -> StageArgs:
+    """:class:`StageArgs` from ``theta`` ``(P,)``, the stage windows' states and inputs (stacked)
+    and the indices of the parameters ``held`` at their values."""
     stacked = jax.tree_util.tree_map(lambda *leaves: jnp.stack(leaves), *windows)
-    return StageArgs(jnp.asarray(theta, dtype=float), jnp.asarray(np.asarray(states, dtype=float)), stacked)
+    theta = jnp.asarray(theta, dtype=float)
+    keep = jnp.ones_like(theta).at[jnp.asarray(held, dtype=int)].set(0.0) if held else jnp.ones_like(theta)
+    return StageArgs(theta, jnp.asarray(np.asarray(states, dtype=float)), stacked, keep)
 

@@ -70,6 +70,8 @@ class FitState(eqx.Module):
             report ``{"window", "candidates", "finite", "best_loss", "median_loss"}``.
         found: the window start states the way in found (``(W, S)``; every start of the
             parameters of a record that begins mid-run begins from them), or ``()``.
+        profile: the points of the profile likelihood computed so far (:mod:`jaxclear.fitting.profile`),
+            one dict each ``{"name", "side", "z", "loss", "theta", "states", "reason"}``.
         wall: wall time spent so far [s]; stop_reason: why the final stage ended.
         refit: in the automatic refit from several starts (``fit(starts=None)``), why the
             single start before it was not enough (``FitResult.settings["auto_starts"]``);
@@ -92,6 +94,7 @@ class FitState(eqx.Module):
     skipped: tuple = ()
     way_in: tuple = ()
     found: tuple = ()
+    profile: tuple = ()
     wall: float = 0.0
     stop_reason: str = ""
     refit: str = ""
@@ -127,6 +130,7 @@ class FitState(eqx.Module):
         out = {f.name: _plain(getattr(self, f.name)) for f in dataclasses.fields(self)}
         out["starts"] = {k: {name: _plain(value) for name, value in v} for k, v in self.starts}
         out["history"] = list(self.history)
+        out["profile"] = [_plain_point(p) for p in self.profile]
         return out
 
     @classmethod
@@ -139,7 +143,13 @@ class FitState(eqx.Module):
                                  for k, v in data.get("starts", {}).items())
         values["history"] = tuple(dict(h, loss=_number(h["loss"])) if "loss" in h else h
                                   for h in data.get("history", ()))
-        return cls(**{k: (v if k == "history" else _frozen(v)) for k, v in values.items()})
+        values["profile"] = tuple(dict(p, loss=_number(p["loss"])) for p in data.get("profile", ()))
+        return cls(**{k: (v if k in ("history", "profile") else _frozen(v)) for k, v in values.items()})
+
+
+def _plain_point(point: dict) -> dict:
+    """A profile point JSON-ready (its arrays as lists)."""
+    return {k: _plain(v) for k, v in point.items()}
 
 
 def _number(value) -> float:

@@ -100,7 +100,7 @@ _START_STAGE = re.compile(r"^start (\d+)/(\d+)\b")
 def assess(free: Sequence[str], estimates: dict, std: dict, *, start: dict | None = None,
            mech: Mechanism | None = None, history: Iterable[dict] = (), scale: float = 1.0,
            autocorrelation: float | None = None, loss: float | None = None, stop_reason: str = "",
-           free_start: bool = False) -> tuple[str, ...]:
+           free_start: bool = False, profiles: dict | None = None) -> tuple[str, ...]:
     """The reasons a fit's estimates are not a result; ``()`` when they are.
 
     Args:
@@ -120,6 +120,9 @@ def assess(free: Sequence[str], estimates: dict, std: dict, *, start: dict | Non
             residual rule is skipped.
         stop_reason, free_start: the last stage's stop reason and whether every window's start
             was free (``start_state="free"``): a free-start fit that stopped on ``max_iter`` fails.
+        profiles: name -> its profile likelihood (``FitResult.profiles``): a side that stays
+            open fails the name (the record does not bound it; the std rules then judge the
+            Gauss-Newton std), a point that fits better than the estimate fails the fit.
 
     Returns:
         One sentence per broken rule (module docstring), in ``free`` order, then the starts.
@@ -127,9 +130,14 @@ def assess(free: Sequence[str], estimates: dict, std: dict, *, start: dict | Non
     start = start or {}
     fitted = _with_estimates(mech, free, estimates)
     out: list[str] = []
+    profiles = profiles or {}
     for name in free:
-        out += _parameter_failures(name, estimates.get(name, math.nan), std.get(name, math.nan), start.get(name),
-                                   fitted)
+        sd = std.get(name, math.nan)
+        if name in profiles and not math.isfinite(sd):
+            sd = profiles[name]["std_gauss_newton"]
+        out += _parameter_failures(name, estimates.get(name, math.nan), sd, start.get(name), fitted)
+        if name in profiles:
+            out += _profile_failures(name, estimates.get(name, math.nan), profiles[name], _unit(name, fitted))
     out += _start_failures(free, std, history, scale)
     if free_start and stop_reason == "max_iter":
         out.append("the last stage stopped on max_iter before converging, with every window's start free: the "
@@ -143,6 +151,22 @@ def assess(free: Sequence[str], estimates: dict, std: dict, *, start: dict | Non
                    "start_state='free' (--start-state free) with the encoder's crank angle, the sensor's filter "
                    "(cut-off, order) and delay, more or shorter windows, other start values")
     return tuple(out)
+
+
+def _profile_failures(name: str, value: float, profile: dict, unit: str) -> list:
+    """The failures a profile likelihood shows (:mod:`jaxclear.fitting.profile`)."""
+    out = []
+    better = profile.get("better")
+    if better is not None:
+        out.append(f"the profile likelihood of {name} found a better fit at {better['value']:.6g}{unit} (its loss "
+                   f"{-better['deviance']:.3g} noise variances below the estimate {value:.6g}{unit}'s): the fit stopped "
+                   f"in a local minimum; fit again from start={{{name!r}: {better['value']:.6g}}} (--start "
+                   f"{name}={better['value']:.6g}) or with more starts (--starts N)")
+    if profile.get("open"):
+        out.append(f"{name} = {value:.6g}{unit}: its profile likelihood does not close at the 90 % level "
+                   f"({'; '.join(profile['open'])}): the record does not determine it; free fewer parameters (fix the "
+                   "known ones), or fit a longer window or more windows (--windows N) holding more impacts")
+    return out
 
 
 #: Lag-1 autocorrelation of the residual above which the model does not follow the record: white
