@@ -1,6 +1,7 @@
 """Time profiles of drivers and loads (jaxclear.model.profiles), in Python and in mechanism
 files: each profile against its closed form written out here (ramp, harmonic) or SciPy's own
-PCHIP evaluation and quadrature (table); a driven crank following the prescribed angle; files
+PCHIP evaluation and quadrature (table); a driven crank following the prescribed angle; the
+crank period of a constant-speed crank (host, traced, its derivative); files
 read back equal; bad input named by key with the allowed range; the drawing of jaxclear check."""
 
 from __future__ import annotations
@@ -115,6 +116,36 @@ def test_driven_crank_follows_the_ramp():
     np.testing.assert_allclose(sol.coordinate(mech, "crank", "phi", 2), jax.vmap(prof.derivative)(t), rtol=1e-7,
                                atol=1e-3)
 
+
+
+def test_crank_period_on_the_host_traced_and_named():
+    """jc.crank_period (jaxclear.model.drivers), the one crank period T = N 2 pi/|omega| [s]: on
+    the host the float written out before; under jax.jit and jax.vmap the same numbers; under
+    jax.grad dT/domega = -2 pi/omega^2 (omega > 0, the closed form at rtol 1e-12); a named
+    ParameterError for a mechanism without a crank driver (a speed profile: no constant period)
+    and for a crank at rest."""
+    from jaxclear import params
+    from jaxclear.model import crank_driver
+
+    mech = jc.preset("flores-slider-crank", ideal=True)
+    w = float(crank_driver(mech)[1].speed)
+    assert float(jc.crank_period(mech)) == 2.0 * math.pi / abs(w)
+    assert float(jc.crank_period(mech, 3)) == 3 * 2.0 * math.pi / abs(w)
+    assert float(jc.crank_period(params.replace(mech, "speed", -w))) == 2.0 * math.pi / abs(w)
+
+    def period(v):
+        return jc.crank_period(params.replace(mech, "speed", v))
+
+    assert float(jax.jit(period)(w)) == float(jc.crank_period(mech))
+    np.testing.assert_allclose(np.asarray(jax.vmap(period)(jnp.array([10.0, -20.0]))),
+                               2.0 * math.pi / np.array([10.0, 20.0]), rtol=1e-15)
+    for v in (w, 12.5, 1.0e3):
+        np.testing.assert_allclose(float(jax.grad(period)(v)), -2.0 * math.pi / v**2, rtol=1e-12)
+        np.testing.assert_allclose(float(jax.jit(jax.grad(period))(v)), -2.0 * math.pi / v**2, rtol=1e-12)
+    with pytest.raises(jc.ParameterError, match="has no crank driver"):
+        jc.crank_period(_driven(jc.RampProfile(100.0, 0.01)))
+    with pytest.raises(jc.ParameterError, match="speed is 0 rad/s"):
+        jc.crank_period(params.replace(mech, "speed", 0.0))
 
 PROFILE_TEXT = '''
 [drivers.profile]

@@ -24,7 +24,7 @@ from ..analysis.channels import channel
 from ..integrate import Settings, Solution, State
 from ..integrate import solve
 from ..integrate.simulate import raise_for_status as _raise_run_status
-from ..model import Mechanism, crank_driver
+from ..model import Mechanism, crank_driver, crank_period
 from . import manifold
 from .benettin import LyapunovResult, benettin
 
@@ -92,7 +92,7 @@ def _default_interval(mech: Mechanism) -> float:
     if found is None or float(found[1].speed) == 0.0:
         raise ParameterError(f"interval: mechanism {mech.name!r} has no turning crank, so there is no default "
                              "renormalisation interval (one revolution); give interval [s] > 0")
-    return 2.0 * math.pi / abs(float(found[1].speed))
+    return float(crank_period(mech))
 
 
 @eqx.filter_jit
@@ -249,7 +249,7 @@ class LyapunovMap(eqx.Module):
 def _member(mech, s, names, row, revolutions, transient_revolutions, per_revolution, samples, count, channels,
             discard):
     m = params.replace_many(mech, {n: row[i] for i, n in enumerate(names)})
-    period = 2.0 * jnp.pi / jnp.abs(crank_driver(m)[1].speed)
+    period = crank_period(m)
     r = benettin(m, s, None, transient=transient_revolutions * period, interval=period / per_revolution,
                  windows=revolutions * per_revolution, discard=discard, samples=samples, count=count,
                  scale=manifold.time_scale(m), keep=bool(channels))

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import csv
 import io
-import math
 import os
 from dataclasses import dataclass, field
 
@@ -25,7 +24,7 @@ from .._results import AbstractResult, deprecated
 from .._storage import atomic_write_json, atomic_write_text, jsonable
 from ..analysis.sections import MAX_PERIOD, check_channels, detect_period, period_name, section_indices
 from ..integrate import Settings
-from ..model import Mechanism, crank_driver
+from ..model import Mechanism, crank_driver, crank_period
 from . import figures
 from .benettin import LyapunovResult
 from .lyapunov import lyapunov, trajectory
@@ -66,7 +65,7 @@ def characterise(mech: Mechanism, s: Settings, channels, *, per_revolution: int 
     if found is None or float(found[1].speed) == 0.0:
         raise ParameterError(f"jaxclear chaos runs whole crank revolutions: mechanism {mech.name!r} has no turning "
                              "crank (AngleDriver with a non-zero speed)")
-    period = 2 * math.pi / abs(float(found[1].speed))
+    period = float(crank_period(mech))
     r = lyapunov(mech, s, interval=period / per_revolution, transient=transient_revolutions * period,
                  discard=discard, count=count, samples=samples, tol=tol)
     sol = trajectory(mech, s, r)

@@ -58,6 +58,7 @@ def psd(values, dt: float, nperseg: int | None = None):
     if x.ndim != 1 or x.size < 16 or not np.all(np.isfinite(x)):
         raise ParameterError(f"psd: expected at least 16 finite samples, got {x.shape} (finite: "
                              f"{bool(np.all(np.isfinite(x)))})")
+    dt = float(dt)  # a 0-d array too (jc.crank_period): NumPy frequencies
     if not (math.isfinite(dt) and dt > 0):
         raise ParameterError(f"psd: sample step dt = {dt!r} s is outside the allowed range (0, inf)")
     nperseg = max(16, x.size // 8) if nperseg is None else int(nperseg)

@@ -37,7 +37,7 @@ import jax.numpy as jnp
 from .._errors import ParameterError
 from ..integrate.kinematics import is_kinematic, kinematic_solution
 from ..integrate.settings import settings
-from ..model import Mechanism, constraints as equations, crank_driver
+from ..model import Mechanism, constraints as equations, crank_driver, crank_period
 from .objectives import Run
 
 
@@ -135,7 +135,7 @@ class Assembles(AbstractDesignConstraint):
         """Smallest singular value of the ideal mechanism's constraint Jacobian at ``samples``
         crank angles over one revolution (NaN where the loop does not close)."""
         ideal = mech.ideal() if mech.clearance_joints else mech
-        s = settings(2.0 * jnp.pi / jnp.abs(crank_driver(ideal)[1].speed), n_out=self.samples, throw=False)
+        s = settings(crank_period(ideal), n_out=self.samples, throw=False)
         sol = kinematic_solution(ideal, s)
         sig = jax.vmap(lambda q, t: jnp.linalg.svd(equations.jacobian(ideal, q, t), compute_uv=False)[-1])(sol.q, sol.ts)
         return jnp.where(sol.status == 0, sig, jnp.nan)

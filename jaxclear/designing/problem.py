@@ -36,7 +36,7 @@ from ..integrate import Settings, simulate
 from ..integrate.compile import jit
 from ..integrate.kinematics import is_kinematic, kinematic_solution
 from ..integrate.settings import settings as make_settings
-from ..model import Mechanism, crank_driver
+from ..model import Mechanism, crank_driver, crank_period
 from ..sweep.batch import lanes_one_by_one
 from .constraints import AbstractDesignConstraint
 from .objectives import AbstractObjective, Run
@@ -165,8 +165,7 @@ class DesignProblem(eqx.Module):
     def settings_of(self, m: Mechanism, throw: bool = False) -> Settings:
         """The run's settings: the design's settings over ``revolutions`` of ``m``'s crank
         (traced speed) from t = 0, ``n_out`` samples, no progress bar."""
-        _, crank = crank_driver(m)
-        t_end = self.revolutions * 2.0 * jnp.pi / jnp.abs(crank.speed)
+        t_end = crank_period(m, self.revolutions)
         return dataclasses.replace(self.base, t_start=0.0, t_end=t_end, n_out=self.n_out, throw=throw, progress=False)
 
     def run(self, m: Mechanism, s: Settings) -> Run:
@@ -284,7 +283,7 @@ def _start_guesses(m: Mechanism, k: int):
     if not is_kinematic(ideal):
         raise ParameterError(f"design runs start from the ideal-joint kinematics; the ideal-joint counterpart of "
                              f"{m.name!r} is not kinematically driven (its crank driver does not determine its motion)")
-    period = 2.0 * math.pi / abs(float(crank_driver(m)[1].speed))
+    period = float(crank_period(m))
     # 32 samples between members: the analysis continues each Newton solve from the last sample,
     # and a quarter revolution apart is too far for it to converge (the slider-crank)
     sol = kinematic_solution(ideal, make_settings(period, n_out=32 * k + 1))

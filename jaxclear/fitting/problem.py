@@ -162,7 +162,7 @@ def _window_length(mech, window, windows: int, span: float, dt: float, h: float,
     shared by the windows), shortened to what the record covers when it is shorter."""
     given = window is not None
     if not given:
-        window = 0.25 * crank_period(mech) if crank_driver(mech) is not None else span / windows
+        window = 0.25 * float(crank_period(mech)) if crank_driver(mech) is not None else span / windows
     if not window > 0:
         raise ParameterError(f"window = {window!r} s must be > 0")
     steps = int(round(window / h))

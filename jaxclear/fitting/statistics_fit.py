@@ -55,7 +55,7 @@ from tqdm.auto import tqdm
 from .. import params
 from .._errors import ParameterError
 from ..analysis.sensor import Accelerometer, uniform_spacing
-from ..model import Mechanism, crank_driver
+from ..model import Mechanism, crank_driver, crank_period
 from .parameters import DEFAULT_FREE, SENSOR_PARAMETERS, check_name, current_value
 from .priors import parse_prior
 from .records import read_record, slider_role
@@ -255,7 +255,7 @@ def fit_statistics(data, mech: Mechanism, free=DEFAULT_FREE, grid: dict | None =
                              "(an integer: the start-up revolutions of every run left out)")
 
     y, dt, phase, path = _record(data, mech, column)
-    period = 2.0 * math.pi / abs(float(params.get(mech, "speed")))
+    period = float(crank_period(mech))
     spr = period / dt
     nb = int(math.floor(spr))
     n_rec = whole_revolutions(y.size, spr)

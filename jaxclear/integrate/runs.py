@@ -41,7 +41,7 @@ def revolutions_of(mech: Mechanism, t_end: float) -> float | None:
     crank = crank_driver(mech)
     if crank is None or float(crank[1].speed) == 0.0:
         return None
-    return float(t_end) / crank_period(mech)
+    return float(t_end) / float(crank_period(mech))
 
 
 def revolution_settings(mech: Mechanism, revolutions: float | None = 3.0, *, t_end: float | None = None,
@@ -63,7 +63,7 @@ def revolution_settings(mech: Mechanism, revolutions: float | None = 3.0, *, t_e
 
     Raises:
         ParameterError: ``revolutions`` or ``t_end`` not > 0, or no crank speed for
-            ``revolutions`` (MechanismError without a crank driver).
+            ``revolutions`` (no crank driver, or a crank at rest: :func:`~jaxclear.model.crank_period`).
     """
     if t_end is not None:
         check_range("t_end", t_end, low=0.0, low_open=True, unit="s")
@@ -71,7 +71,7 @@ def revolution_settings(mech: Mechanism, revolutions: float | None = 3.0, *, t_e
         revolutions = revolutions_of(mech, t_end)
     else:
         check_range("revolutions", revolutions, low=0.0, low_open=True)
-        t_end = float(revolutions) * crank_period(mech)
+        t_end = float(revolutions) * float(crank_period(mech))
     if n_out is None:
         n_out = DEFAULT_SAMPLES if revolutions is None else (
             max(int(round(samples_per_revolution * revolutions)), MIN_SAMPLES) + 1)

@@ -1,5 +1,5 @@
 r"""Drivers: prescribed motion as constraint equations (Nikravesh 1988, sec. 3.5), and the one
-lookup of a mechanism's crank.
+lookup of a mechanism's crank (:func:`crank_driver`) and its one period (:func:`crank_period`).
 
 Extension point: :class:`AbstractDriver` (a subclass of
 :class:`~jaxclear.model.joints.AbstractConstraint` acting on one body).
@@ -7,13 +7,14 @@ Extension point: :class:`AbstractDriver` (a subclass of
 
 from __future__ import annotations
 
-import math
 from typing import Callable, ClassVar
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
+import numpy as np
 
-from .._errors import MechanismError, ParameterError, check_finite
+from .._errors import MechanismError, ParameterError, check_finite, is_concrete
 from .._types import Scalar
 from .bodies import GROUND
 from .joints import AbstractConstraint
@@ -140,12 +141,38 @@ def crank_driver(mech) -> tuple[int, AngleDriver] | None:
     return None
 
 
-def crank_period(mech) -> float:
-    """Period [s] of the crank (:func:`crank_driver`), for 'revolutions' options."""
+def crank_period(mech, revolutions=1.0) -> jax.Array:
+    r"""The one crank period: the duration [s] of ``revolutions`` turns of the crank
+    (:func:`crank_driver`) at its constant speed :math:`\omega` [rad/s],
+
+    .. math:: T = N_{rev}\, 2\pi / |\omega|
+
+    written as the jnp expression ``revolutions * 2.0 * jnp.pi / jnp.abs(speed)`` on the driver's
+    ``speed`` leaf, so it traces: inside ``jit``, ``vmap`` and ``grad`` a swept or differentiated
+    speed flows through it (:math:`dT/d\omega = -N_{rev}\, 2\pi\,\mathrm{sign}(\omega)/\omega^2`).
+    On the host ``float()`` of it is ``revolutions * 2 pi / |omega|`` in float64.
+
+    Args:
+        mech: the mechanism (its first :class:`AngleDriver` is the crank).
+        revolutions: crank revolutions :math:`N_{rev}` [-], a number or an array that
+            broadcasts against the speed (default 1: one period).
+
+    Returns:
+        :math:`T` [s], a float64 array of the broadcast shape of ``revolutions`` and the speed
+        (0-d for one mechanism and a number of revolutions).
+
+    Raises:
+        ParameterError: the mechanism has no crank driver (no :class:`AngleDriver`; a
+            :class:`ProfileDriver` has no constant period), or its speed is concrete (not
+            traced) and 0 rad/s somewhere: the period is undefined (give ``t_end`` [s] instead
+            of revolutions).
+    """
     found = crank_driver(mech)
     if found is None:
-        raise MechanismError("the mechanism has no AngleDriver: give t_end instead of revolutions")
-    w = float(found[1].speed)
-    if w == 0.0:
-        raise ParameterError("driver speed is 0 rad/s: revolutions are undefined, give t_end instead")
-    return 2.0 * math.pi / abs(w)
+        raise ParameterError(f"mechanism {mech.name!r} has no crank driver (AngleDriver), so it has "
+                             "no crank period: give t_end [s] instead of revolutions")
+    speed = found[1].speed
+    if is_concrete(speed) and bool(np.any(np.asarray(speed) == 0.0)):
+        raise ParameterError(f"mechanism {mech.name!r}: the crank driver's speed is 0 rad/s, so the "
+                             "crank period (and revolutions) is undefined: give t_end [s] instead")
+    return revolutions * 2.0 * jnp.pi / jnp.abs(speed)

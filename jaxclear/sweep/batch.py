@@ -32,7 +32,7 @@ from jax.sharding import PartitionSpec
 from .. import params
 from .._xla_flags import loop_kernels_active
 from ..elements import journal_state
-from ..model import Mechanism, crank_driver
+from ..model import Mechanism, crank_period
 from ..analysis.channels import channel
 from ..analysis.metrics import channel_metrics, run_metrics
 from ..analysis.sections import at_samples
@@ -70,9 +70,9 @@ def _with_row(plan: Plan, mech: Mechanism, row) -> Mechanism:
 
 def _settings(plan: Plan, m: Mechanism) -> Settings:
     """Integration settings of one run: ``t_end = revolutions * 2 pi / |omega|`` [s] of the crank
-    driver's speed ``omega`` [rad/s]; ``throw=False`` (a failure is a status, not an error)."""
-    _, crank = crank_driver(m)
-    t_end = plan.revolutions * 2.0 * jnp.pi / jnp.abs(crank.speed)
+    driver's (traced) speed ``omega`` [rad/s] (:func:`~jaxclear.model.crank_period`);
+    ``throw=False`` (a failure is a status, not an error)."""
+    t_end = crank_period(m, plan.revolutions)
     # stages="loop": under vmap one copy of the vector field serves every Runge-Kutta stage
     return Settings(t_end=t_end, n_out=plan.n_out, solver=plan.solver, rtol=plan.rtol, atol=plan.atol,
                     max_steps=plan.max_steps, throw=False, stages="loop")
