@@ -1,0 +1,16 @@
+r"""Derivatives of long-time averages of chaotic motions by shadowing.
+
+* :func:`nilss`: non-intrusive least-squares shadowing (Ni and Wang 2017) for a general ODE
+  :math:`\dot u = f(u, s)`, batched over independent trajectories whose spread is the error
+  estimate; returns a :class:`ShadowingResult`.
+* :func:`shadowing_coefficients`: its small least-squares problem (the KKT system over the
+  segments, solved block by block).
+
+Theory: docs/theory/shadowing.md.
+"""
+
+from ._least_squares import kkt_dense, shadowing_coefficients
+from ._nilss import nilss
+from ._result import ShadowingResult
+
+__all__ = ["ShadowingResult", "kkt_dense", "nilss", "shadowing_coefficients"]
