@@ -19,7 +19,9 @@ with :math:`L = |r|^2` the sum of squares of the normalised residual at the refi
 fitted samples and :math:`P` unknowns. The 90 % interval is where :math:`D \le \chi^2_{1,0.90}
 = 2.706` (Wilks; the likelihood ratio of white Gaussian noise of unknown level, to first order
 in :math:`P/N`). Its ends are interpolated linearly in :math:`\sqrt{D}` (the signed root
-deviance, linear in the parameter where the loss is quadratic) between the points of a walk.
+deviance, linear in the parameter where the loss is quadratic) between the points of a walk;
+where the loss jumps across the bracket (a contact that appears or vanishes: the deviance beyond
+it exceeds four times the threshold) the bracket is first bisected (:data:`REFINE` times).
 
 The walk: from the estimate outwards on each side, in the fit's transformed coordinate ``z``
 (log of a stiffness, logit of a restitution; :mod:`.parameters`), at most :data:`MAX_POINTS`
@@ -69,6 +71,12 @@ SPAN = {"log": math.log(4.0), "logit": 6.0, "scaled": 1.0}
 #: (0.01 % of a stiffness); an eighth of the span where the std is not finite.
 FIRST_STEP = 1.5
 MIN_STEP = {"log": 1e-4, "logit": 1e-4, "scaled": 1e-5}
+#: Bisections of a bracket whose outer deviance exceeds ``CLIFF^2`` times the threshold (the
+#: loss jumps there: a grazing impact that appears or vanishes; on a record of the independent
+#: simulator the loss rose from 6.2 to 41.8 between +0.3 % and +0.4 % of the stiffness), so that
+#: the end is not interpolated across a jump.
+REFINE = 4
+CLIFF = 2.0
 #: A point whose deviance is below ``-BETTER`` fits better than the estimate.
 BETTER = 1.0
 
@@ -130,23 +138,44 @@ def run_profiles(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkp
         stage = base._replace(name=f"profile {name}", held=(i,))
         single = dataclasses.replace(problem, stages=[stage])
         for side in (-1, 1):
-            theta, states = np.asarray(st.theta, dtype=float), np.asarray(st.states, dtype=float)
+            below = (0.0, np.asarray(st.theta, dtype=float), np.asarray(st.states, dtype=float))
             for dz in steps(name, std_z[name]):
-                done = [p for p in st.profile if p["name"] == name and p["side"] == side]
-                point = next((p for p in done if math.isclose(p["dz"], float(dz), rel_tol=1e-12)), None)
-                if point is None:
-                    theta = theta.copy()
-                    theta[i] = float(st.theta[i]) + side * dz
-                    point = _fit_point(single, opt, st, theta, states, on_iteration)
-                    point.update(name=name, side=side, dz=float(dz), deviance=(point["loss"] - loss_min) / s2)
-                    st = st.replace(profile=st.profile + (point,))
-                    ckpt.save(st)
-                    on_point(f"profile {name}: {from_z(name, theta[i], problem.win.scale):.6g}, deviance "
-                             f"{point['deviance']:.3g}")
-                theta, states = np.asarray(point["theta"], dtype=float), np.asarray(point["states"], dtype=float)
-                if not math.isfinite(point["loss"]) or point["deviance"] > THRESHOLD:
+                st, point = _point(single, opt, st, ckpt, i, side, float(dz), below, loss_min, s2, on_iteration, on_point)
+                if not math.isfinite(point["loss"]):
                     break
+                if point["deviance"] > THRESHOLD:  # the end lies between `below` and this point
+                    above = point
+                    for _ in range(REFINE):  # a cliff (the loss jumps): bisect before interpolating
+                        if above["deviance"] <= CLIFF**2 * THRESHOLD:
+                            break
+                        st, mid = _point(single, opt, st, ckpt, i, side, 0.5 * (below[0] + above["dz"]), below, loss_min,
+                                         s2, on_iteration, on_point)
+                        if not math.isfinite(mid["loss"]) or mid["deviance"] > THRESHOLD:
+                            above = mid
+                        else:
+                            below = (mid["dz"], np.asarray(mid["theta"]), np.asarray(mid["states"]))
+                    break
+                below = (point["dz"], np.asarray(point["theta"], dtype=float), np.asarray(point["states"], dtype=float))
     return st
+
+
+def _point(single: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoint, i: int, side: int, dz: float,
+           below: tuple, loss_min: float, s2: float, on_iteration, on_point) -> tuple[FitState, dict]:
+    """The profile point at ``z_hat + side dz`` of parameter ``i``: read back from the state (a
+    resumed profile) or fitted from ``below`` (``(dz, theta, states)`` of the nearest point
+    inside, the estimate itself at first) and appended to the state, which is checkpointed."""
+    name = single.free[i]
+    for p in st.profile:
+        if p["name"] == name and p["side"] == side and math.isclose(p["dz"], dz, rel_tol=1e-12):
+            return st, p
+    theta = np.array(below[1], dtype=float)
+    theta[i] = float(st.theta[i]) + side * dz
+    point = _fit_point(single, opt, st, theta, np.asarray(below[2], dtype=float), on_iteration)
+    point.update(name=name, side=side, dz=dz, deviance=(point["loss"] - loss_min) / s2)
+    st = st.replace(profile=st.profile + (point,))
+    ckpt.save(st)
+    on_point(f"profile {name}: {from_z(name, theta[i], single.win.scale):.6g}, deviance {point['deviance']:.3g}")
+    return st, point
 
 
 def _fit_point(single: FitProblem, opt: Optimizer, st: FitState, theta, states, on_iteration) -> dict:
