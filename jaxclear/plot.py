@@ -399,5 +399,37 @@ def plot_fit(path, result) -> Figure:
     return save_figure(fig, path)
 
 
+def plot_profiles(path, result) -> Figure:
+    """The profile likelihoods of a :class:`jaxclear.fitting.FitResult` (``fit(profile=...)``),
+    one panel per profiled parameter: the deviance ``D = (L - L_min) / s^2`` of the refits
+    against the held value (SI), the 90 % threshold 2.706 and the interval it cuts, and the
+    parabola ``((value - estimate) / std_GN)^2`` the Gauss-Newton std implies (where the two
+    differ, the profile is the honest one). A point below 0 fits better than the estimate."""
+    names = list(result.profiles)
+    fig = Figure(figsize=(4.6 * max(len(names), 1), 3.8))
+    for j, name in enumerate(names):
+        p = result.profiles[name]
+        ax = fig.add_subplot(1, max(len(names), 1), j + 1)
+        v, d = np.asarray(p["values"], dtype=float), np.asarray(p["deviance"], dtype=float)
+        est, sd = float(result.estimates[name]), float(p["std_gauss_newton"])
+        ax.plot(v, d, "o-", color=COLORS[0], ms=4, lw=1.0, label="profile (refits)")
+        if np.isfinite(sd) and sd > 0:
+            grid = np.linspace(v.min(), v.max(), 200)
+            ax.plot(grid, ((grid - est) / sd) ** 2, color="tab:orange", lw=0.9, ls="--", label="Gauss-Newton")
+        ax.axhline(2.706, color="black", lw=0.6, ls=":", label="90 % threshold")
+        lo, hi = p["interval"]
+        ax.axvspan(lo if lo is not None else v.min(), hi if hi is not None else v.max(), color=COLORS[0], alpha=0.12,
+                   label="90 % interval" + (" (open)" if None in (lo, hi) else ""))
+        ax.axvline(est, color="black", lw=0.6)
+        ax.set_ylim(min(-0.5, float(np.nanmin(d)) - 0.5), max(8.0, min(float(np.nanmax(d)), 30.0)))
+        ax.set_xlabel(name)
+        ax.set_ylabel("deviance (L - L_min) / s²")
+        ax.ticklabel_format(axis="x", style="sci", scilimits=(-3, 4))
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7, loc="upper center")
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
 __all__ = ["plot_slider_acceleration", "plot_orbit", "plot_contact_force", "plot_simulation", "plot_heatmap",
-           "plot_bifurcation", "plot_poincare", "plot_fit"]
+           "plot_bifurcation", "plot_poincare", "plot_fit", "plot_profiles"]

@@ -794,7 +794,7 @@ def test_identification_notebook_runs(tmp_path):
     errors = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs if o.output_type == "error"]
     assert not errors
     figures = sorted(p.name for p in (tmp_path / "figures").glob("*.png"))
-    assert "identification_fit.png" in figures
+    assert "identification_fit.png" in figures and "identification_profiles.png" in figures
 
 
 def test_committed_identification_notebook_has_outputs_and_figures():
@@ -805,3 +805,4 @@ def test_committed_identification_notebook_has_outputs_and_figures():
     nb = nbformat.read(root / "identification.ipynb", as_version=4)
     assert all(c.outputs for c in nb.cells if c.cell_type == "code")
     assert (root / "figures" / "identification_fit.png").stat().st_size > 10_000
+    assert (root / "figures" / "identification_profiles.png").stat().st_size > 10_000

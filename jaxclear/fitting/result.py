@@ -12,7 +12,7 @@ import numpy as np
 from .._results import AbstractResult, deprecated
 from .._storage import atomic_write_json, jsonable
 from ..model import Mechanism
-from ..plot import plot_fit
+from ..plot import plot_fit, plot_profiles
 from .verdict import assess, fallback_mechanism
 
 
@@ -208,18 +208,29 @@ class FitResult(AbstractResult):
 
     def write(self, folder, *, plots: bool = True) -> list[str]:
         """``fit.json`` (:meth:`to_dict`, keys in their order) and, with ``plots``, ``fit.png``
-        (:meth:`plot`) in ``folder``; returns their paths."""
+        (:meth:`plot`) and, with profiles, ``profiles.png`` (:meth:`plot_profiles`) in
+        ``folder``; returns their paths."""
         folder = os.fspath(folder)
         os.makedirs(folder, exist_ok=True)
         paths = [atomic_write_json(os.path.join(folder, "fit.json"), self.to_dict(), sort_keys=False)]
         if plots:
             paths.append(self.plot(os.path.join(folder, "fit.png")))
+            if self.profiles:
+                paths.append(self.plot_profiles(os.path.join(folder, "profiles.png")))
         return paths
 
     def write_json(self, path) -> str:
         """Deprecated: :meth:`write` (``fit.json`` in a folder). Writes :meth:`to_dict` to ``path``."""
         deprecated("FitResult.write_json(path)", "FitResult.write(folder), which writes fit.json (and fit.png)")
         return atomic_write_json(path, self.to_dict(), sort_keys=False)
+
+    def plot_profiles(self, path=None):
+        """The profile likelihoods (:func:`jaxclear.plot.plot_profiles`; ``fit(profile=...)``):
+        the figure, or ``path`` once saved there."""
+        if not self.profiles:
+            raise ValueError("this fit has no profile likelihood: fit(..., profile=True) (--profile all)")
+        fig = plot_profiles(path, self)
+        return fig if path is None else os.fspath(path)
 
     def plot(self, path=None):
         """The fit plot (:func:`jaxclear.plot.plot_fit`): the figure, or ``path`` once saved there
