@@ -129,7 +129,11 @@ white Gaussian noise); the standard deviation of each parameter follows by the d
 ``std(theta) = |d theta / d z| std(z)`` (:mod:`.uncertainty`). This is honest only if the
 residual is white noise: ``fit.json`` reports the lag-1 autocorrelation of the residuals (about
 0 for white noise; near 1 when the model cannot reproduce the data, e.g. a different contact
-law), and the fit warns when it exceeds 0.3, because then the std understate the error.
+law), and the fit warns when it exceeds 0.3, because then the std understate the error. The
+Gauss-Newton std is the curvature at the minimum; ``fit(..., profile=NAMES)`` walks the profile
+likelihood instead (:mod:`.profile`: each parameter held at values round the estimate, the
+other unknowns fitted again, the 90 % interval where the loss rises by less than 2.706 noise
+variances), honest where the loss is not quadratic or jumps (a contact that appears).
 
 Resuming
 --------
@@ -144,7 +148,7 @@ Modules
 checks, quiet cut), :mod:`.targets` (record columns mapped to named channels), :mod:`.window` (the window model and the record cut into windows),
 :mod:`.window_start` (a window's unknown start), :mod:`.way_in` (candidate starts scored),
 :mod:`.verdict` (whether the estimates are a result),
-:mod:`.plan` (stages and starts), :mod:`.problem` (the checked inputs), :mod:`.state` (the fit
+:mod:`.plan` (stages and starts), :mod:`.profile` (the profile likelihood), :mod:`.problem` (the checked inputs), :mod:`.state` (the fit
 state and its checkpoint), :mod:`.solver` (optimistix steps of one stage), :mod:`.run` (the
 plan with checkpoints), :mod:`.uncertainty`, :mod:`.verdict` (:func:`assess`: whether the
 estimates are a result; ``FitResult.failures``, ``FitResult.ok``), :mod:`.result` (:class:`FitResult`),
