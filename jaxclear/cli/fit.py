@@ -92,7 +92,7 @@ def configure(p: argparse.ArgumentParser):
                    f"{AUTO_STARTS} starts where one start stops on --max-iter or leaves a residual that is not white)")
     f.add_argument("--profile", default=None, metavar="NAMES",
                    help="free parameters (comma-separated, or 'all') whose profile likelihood is walked after the "
-                   "fit: each held at up to 12 values while the other unknowns are fitted again; their 90 %% "
+                   "fit: each held at up to 20 values (6 a side, 4 more where the loss jumps) while the other unknowns are fitted again; their 90 %% "
                    "interval replaces the Gauss-Newton std (an honest one where the loss is not quadratic) and "
                    "a better fit found on the way fails the fit; with the same --out, adding it to a finished fit "
                    "runs only the profile (default: none)")

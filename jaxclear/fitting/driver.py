@@ -121,12 +121,12 @@ def fit(
         callback: called as ``callback(record)`` after every iteration (record: dict with
             ``stage``, ``iteration``, ``loss``, ``values``).
         profile: free parameter name(s), or True for all, whose profile likelihood is walked
-            after the fit (:mod:`jaxclear.fitting.profile`: each held at up to 12 values while
+            after the fit (:mod:`jaxclear.fitting.profile`: each held at up to 20 values while
             every other unknown is fitted again): their 90 % interval is
             ``FitResult.profiles[name]["interval"]`` and their ``std`` the interval's longer half
             over 1.645 (the Gauss-Newton std beside it), infinite where the record does not bound
             them; a profile that finds a better fit than the estimate fails the fit. Costs up to
-            12 warm-started final stages per name. Not part of the checkpoint's key: the same
+            20 warm-started final stages per name (usually 4-8). Not part of the checkpoint's key: the same
             call with ``out`` and a profile added to a finished fit runs only the profile.
 
     Raises:
