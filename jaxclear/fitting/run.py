@@ -25,7 +25,7 @@ from .solver import (
 from .state import Checkpoint, FitState
 from .way_in import find_start
 from .window import evaluate_window_jit
-from .window_start import CANDIDATE_APPROACH, state_to_z
+from .window_start import state_to_z
 
 
 def fresh_state(problem: FitProblem) -> FitState:
@@ -79,8 +79,7 @@ def begin_stage(problem: FitProblem, st: FitState) -> FitState:
     if problem.anywhere and stage.way_in:
         k = stage.states[0]
         win = problem.window_input(k, stage.horizon, False, st.guesses)
-        ranked, report = find_start(problem.model, problem.mech, st.theta, win, stage.horizon,
-                                    seeds=_previous_end(problem, st, k))
+        ranked, report = find_start(problem.model, problem.mech, st.theta, win, stage.horizon)
         rank = _first_that_runs(problem, st.theta, ranked, win)
         states = list(st.states)
         states[k] = ranked[rank].tolist()
@@ -93,23 +92,6 @@ def begin_stage(problem: FitProblem, st: FitState) -> FitState:
         states[k] = state_to_z(end, problem.start_scales, problem.velocity_scale).tolist()
         st = st.replace(guesses=guesses, states=states)
     return st
-
-
-def _previous_end(problem: FitProblem, st: FitState, k: int) -> np.ndarray | None:
-    """The way in's seed for window ``k > 0`` of a record that begins mid-run: the journal state
-    at the end of window ``k - 1`` simulated from the start its own way in found (the windows are
-    back to back), in the anywhere layout, the ongoing contact's approach speed at the grid's
-    middle value (:data:`~jaxclear.fitting.window_start.CANDIDATE_APPROACH`: the approach pass
-    scores it); None for the first window or where that run fails. The run has drifted from the
-    record over a window (the motion's predictability is about 2 ms at the benchmark's operating
-    point), so the seed competes with the grid and wins only where it scores best."""
-    if k == 0:
-        return None
-    _, _, end = window_end(problem, st, k - 1)
-    if not np.all(np.isfinite(end)):
-        return None
-    speeds = [CANDIDATE_APPROACH * problem.velocity_scale * float(np.mean(s)) for s in problem.start_scales]
-    return state_to_z(end, problem.start_scales, problem.velocity_scale, speeds)[None, :]
 
 
 def _first_that_runs(problem: FitProblem, theta, ranked: np.ndarray, win) -> int:

@@ -24,12 +24,12 @@ free-flight candidates move along the wall only, and a journal in flight towards
 (window 2 of an acceptance record of the independent simulator: 28 micrometres off the wall,
 closing at 4.4 omega c, striking it 0.02 ms into the window) is reached only so (best misfit
 0.21 of the data's mean square after the grid, 0.0143 after the search, 0.0115 from the true
-start). From the second window on, the end of the previous window's run (from the start its
-own way in found) is one more candidate of the first pass (:func:`.run.begin_stage`): the windows
-are back to back, so it is the continuity that multiple shooting would impose, offered as a
-candidate rather than a constraint (it has drifted over a window, and competes with the grid;
-on acceptance record 2 of the independent simulator the fit then ended at a misfit of 0.0114
-against 0.0121, in 29 joint iterations against 46). The candidates are runs of the window model (values only; one after another on a CPU,
+start). Tried and not kept: the end of the previous window's run (from the start its own way in
+found; the windows are back to back) as one more candidate of the first pass, the continuity
+that multiple shooting imposes offered as a candidate. It won the first pass on later windows
+and moved the fit to other basins: on acceptance record 2 of the independent simulator the
+misfit fell from 0.0121 to 0.0114 (stiffness -10.4 % for -11.8 %), on record 3 it rose from 0.0103
+to 0.0165 (stiffness -27 % for -13 %, the last stage on max_iter). The candidates are runs of the window model (values only; one after another on a CPU,
 :func:`jaxclear.sweep.batch.over_lanes`), four passes of 1560; a window's start is the best of them whose whole window runs with its Jacobian
 (:func:`jaxclear.fitting.run.begin_stage`).
 
@@ -118,8 +118,7 @@ def scoring_model(model: WindowModel, horizon: float) -> WindowModel:
                                                                    n_out=n + 1))
 
 
-def find_start(model: WindowModel, mech, theta_z, win: WindowInput, horizon: float = 1.0,
-               seeds: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
+def find_start(model: WindowModel, mech, theta_z, win: WindowInput, horizon: float = 1.0) -> tuple[np.ndarray, dict]:
     """The best candidate starts ``(APPROACH_GEOMETRIES, S)``, best first, of the window ``win``
     (its mask: the fitted samples of the first ``horizon``) at the parameters ``theta_z``, and a
     report: ``{"candidates": runs,
@@ -133,9 +132,7 @@ def find_start(model: WindowModel, mech, theta_z, win: WindowInput, horizon: flo
     method's sampling round the elites, Rubinstein and Kroese 2004): the
     :data:`APPROACH_GEOMETRIES` best starts scored so far, each with Gaussian perturbations of
     every start number (position, velocity in any direction, approach speed), the spread
-    shrinking round by round. ``seeds`` ``(n, S)``: starts of the layout scored with the grid's
-    geometries in the first pass (the end of the previous window's run: :func:`.run.begin_stage`),
-    so that the approach speeds and the local search refine round them where they score best."""
+    shrinking round by round."""
     short = scoring_model(model, horizon)
     theta = jnp.asarray(theta_z)
 
@@ -144,8 +141,6 @@ def find_start(model: WindowModel, mech, theta_z, win: WindowInput, horizon: flo
 
     cands = candidates(mech)
     m = cands.shape[0]
-    if seeds is not None and len(seeds):
-        cands = np.concatenate([cands[: m - len(seeds)], np.asarray(seeds, dtype=float)])  # one program: m runs a pass
     scores = score(cands)
     order = np.argsort(scores)
     k = max(1, min(APPROACH_GEOMETRIES, m))
