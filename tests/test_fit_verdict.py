@@ -257,3 +257,27 @@ def test_a_closed_profile_passes_and_an_open_or_better_one_fails():
     better = _profile(better={"value": 0.75, "deviance": -12.0})
     _one(assess(FREE, GOOD, {**GOOD_STD, "restitution": better["std"]}, profiles={"restitution": better}),
          "found a better fit at 0.75", "12 noise variances below", "local minimum", "--start restitution=0.75")
+
+
+def test_a_residual_above_the_given_noise_fails():
+    """With the sensor's noise given (a record at rest), dof s^2 / sigma^2 is chi-square with dof
+    degrees of freedom for a model that follows the record: z = (s^2/sigma^2 - 1) / sqrt(2/dof).
+    1.12 times the noise over 539 dof is z = 4.2 (the record of the independent simulator whose
+    fit passed every other rule with the stiffness 11.8 % low): a failure; 1.05 times is z = 1.7:
+    none; a residual below the noise is none either (it says nothing about a misfit); without
+    a given noise no test."""
+    out = assess(FREE, GOOD, GOOD_STD, noise=(1.12 * 1000.0, 1000.0, 539))
+    _one(out, "1.12 times the sensor's noise 1000", "4.2 chi-square std over 539", "does not follow the record")
+    assert assess(FREE, GOOD, GOOD_STD, noise=(1.05 * 1000.0, 1000.0, 539)) == ()
+    assert assess(FREE, GOOD, GOOD_STD, noise=(0.8 * 1000.0, 1000.0, 539)) == ()
+    assert assess(FREE, GOOD, GOOD_STD, noise=(2000.0, None, 539)) == ()
+
+
+def test_noise_sigma_is_checked():
+    import numpy as np
+
+    meas = jc.Measurements(time_s=np.arange(100) * 1e-5, slider_acc_m_s2=np.ones(100))
+    mech = jc.preset("flores-slider-crank")
+    for bad in (-1.0, 0.0, math.nan, "1"):
+        with pytest.raises(jc.ParameterError, match="noise_sigma = .* must be a finite number > 0"):
+            jc.fit(meas, mech, window=5e-4, noise_sigma=bad)

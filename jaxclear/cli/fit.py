@@ -141,7 +141,9 @@ def configure(p: argparse.ArgumentParser):
                    "uniform:LOW:HIGH, halfnormal:SCALE, repeatable (default: lognormal with a factor 10 around the "
                    "start for positive parameters, uniform(0, 1) for restitution, halfnormal(data RMS) for the noise)")
     b.add_argument("--noise-sigma", type=number_in(float, 0.0, low_open=True), metavar="S",
-                   help="known noise standard deviation [unit of the first column], > 0 (default: sampled)")
+                   help="the sensor's noise standard deviation [unit of the first column], > 0, measured on a record "
+                   "of the machine at rest: the fit's verdict tests the residual against it and the posterior holds "
+                   "the noise level at it (default: unknown; the posterior samples it)")
     b.add_argument("--seed", type=number_in(int, 0), default=0, metavar="N", help="random seed, >= 0 (default: 0)")
     out = p.add_argument_group("output")
     out.add_argument("--out", default="./jaxclear-fit", metavar="DIR",
@@ -201,7 +203,7 @@ def run(args) -> int:
         res = fit(args.data, mech, free, dict(args.start), channels=channels, sensor=sensor, window=args.window, windows=args.windows,
                   start_state=args.start_state, starts=args.starts, optimizer=args.optimizer, max_iter=args.max_iter, rtol=args.rtol,
                   atol=args.atol, align=args.align, time_offset=args.time_offset, out=args.out, resume=not args.restart,
-                  progress=not args.no_progress, profile=_profile_names(args.profile))
+                  progress=not args.no_progress, profile=_profile_names(args.profile), noise_sigma=args.noise_sigma)
     files = res.write(args.out, plots=not args.no_plots)
     _print_result(res, files)
     if not res.ok and args.strict:

@@ -4,6 +4,7 @@ uncertainty at the optimum and returns a :class:`FitResult` (method: :mod:`jaxcl
 from __future__ import annotations
 
 import contextlib
+import math
 import time
 import warnings
 from typing import Callable, Sequence
@@ -14,7 +15,7 @@ from tqdm.auto import tqdm
 
 from .._interrupt import stop_at_safe_points
 from .._numbers import as_typed
-from .._errors import CheckpointError
+from .._errors import CheckpointError, ParameterError
 from .._storage import locked_folder
 from ..integrate.compile import on_trace
 from ..model import Mechanism
@@ -63,6 +64,7 @@ def fit(
     progress: bool = True,
     callback: Callable | None = None,
     profile: Sequence[str] | str | bool | None = None,
+    noise_sigma: float | None = None,
 ) -> FitResult:
     """Fit the ``free`` parameters of ``mech`` to measured channels, by default the slider
     acceleration (method: :mod:`jaxclear.fitting`).
@@ -128,6 +130,11 @@ def fit(
             them; a profile that finds a better fit than the estimate fails the fit. Costs up to
             20 warm-started final stages per name (usually 4-8). Not part of the checkpoint's key: the same
             call with ``out`` and a profile added to a finished fit runs only the profile.
+        noise_sigma: the sensor's noise standard deviation [record units, m/s^2], measured
+            on a record of the machine at rest; None (default): unknown. Given, the verdict
+            tests the residual against it (:mod:`jaxclear.fitting.verdict`: a residual std
+            more than 3 chi-square std above it fails the fit: the model does not follow the
+            record to its noise). One fitted column only. Not part of the checkpoint's key.
 
     Raises:
         ParameterError: unknown free parameter, start value outside its bounds, record shorter
@@ -149,17 +156,18 @@ def fit(
     problem = build_problem(data, mech, free, start, sensor, window, windows, horizons, coarse, 1 if auto else starts,
                             settings, channels, start_state)
     names = check_profile(profile, problem.free)
+    extra = {"noise_sigma_given_m_s2": check_noise(noise_sigma, problem)} if noise_sigma is not None else {}
     auto = auto and not problem.anywhere
     with locked_folder(out, "fit output folder") if out is not None else contextlib.nullcontext():
         if not (auto and opt.least_squares):
-            return _fit_locked(problem, opt, out, resume, progress, callback, t_wall, profile=names)
+            return _fit_locked(problem, opt, out, resume, progress, callback, t_wall, profile=names, extra=extra)
         several = problem.with_starts(AUTO_STARTS)
         if resume and _checkpoint(several, out).load() is not None:  # killed in the refit (or at the switch to it)
-            return _fit_locked(several, opt, out, resume, progress, callback, t_wall, profile=names)
+            return _fit_locked(several, opt, out, resume, progress, callback, t_wall, profile=names, extra=extra)
         with warnings.catch_warnings(record=True) as first_warnings:
             warnings.simplefilter("always")
             first = _fit_locked(problem, opt, out, resume, progress, callback, t_wall, profile=names,
-                                unless=_not_converged)
+                                unless=_not_converged, extra=extra)
         why = _not_converged(first)
         if not why:
             for w in first_warnings:
@@ -167,7 +175,8 @@ def fit(
             return first
         if progress:
             tqdm.write(f"jaxclear fit: one start {why}; fitting again from {AUTO_STARTS} starts")
-        return _fit_locked(several, opt, out, False, progress, callback, time.perf_counter(), after=first, profile=names)
+        return _fit_locked(several, opt, out, False, progress, callback, time.perf_counter(), after=first, profile=names,
+                           extra=extra)
 
 
 #: Starts of the refit of a fit with ``starts=None`` (the default) whose single start stops on
@@ -177,6 +186,19 @@ def fit(
 #: such variants). Always starting 4 times would cost 1.7x the iterations of every fit (24
 #: against 11 on 3 of those records), so it is done only where one start fails.
 AUTO_STARTS = 4
+
+
+def check_noise(noise_sigma, problem: FitProblem) -> float:
+    """The given noise level as a float > 0 [record units]; a
+    :class:`~jaxclear.ParameterError` for another value or a fit of several columns."""
+    if isinstance(noise_sigma, bool) or not isinstance(noise_sigma, (int, float)) or not math.isfinite(noise_sigma) \
+            or noise_sigma <= 0:
+        raise ParameterError(f"noise_sigma = {noise_sigma!r} must be a finite number > 0 (the sensor's noise standard "
+                             "deviation in the record's units, m/s^2), or None")
+    if len(problem.columns) > 1:
+        raise ParameterError(f"noise_sigma applies to a fit of one column; this fit compares {len(problem.columns)} "
+                             f"({', '.join(problem.columns)})")
+    return float(noise_sigma)
 
 
 def _not_converged(res: FitResult) -> str:
@@ -194,14 +216,15 @@ def _checkpoint(problem: FitProblem, out, clock=None) -> Checkpoint:
 
 
 def _fit_locked(problem: FitProblem, opt, out, resume: bool, progress: bool, callback, t_wall: float,
-                after: FitResult | None = None, profile: tuple = (), unless: Callable | None = None):
+                after: FitResult | None = None, profile: tuple = (), unless: Callable | None = None,
+                extra: dict | None = None):
     """:func:`fit` inside the output folder's lock, its wall time counted from ``t_wall``
     (:func:`time.perf_counter`). ``after``: the single start that this automatic refit follows
     (a fresh refit: its state starts from that fit's wall time and reason, and is checkpointed at
     once, so that a kill from here on resumes the refit; the result is resumed if that fit was).
     ``profile``: the names whose profile likelihood is walked after the plan, unless
     ``unless(result)`` says the result will be fitted again (the single start of the automatic
-    refit)."""
+    refit). ``extra``: settings for the result only (the given noise level), not the checkpoint's key."""
     ckpt = _checkpoint(problem, out, clock=lambda: wall_before + time.perf_counter() - t_wall)
     saved = ckpt.load() if resume else None
     if saved is not None:
@@ -247,7 +270,7 @@ def _fit_locked(problem: FitProblem, opt, out, resume: bool, progress: bool, cal
             bar.refresh()
             bar.close()
     resumed = saved is not None or (after is not None and after.settings["resumed"])
-    return _result(problem, st, wall_before + time.perf_counter() - t_wall, resumed, profile=profile)
+    return _result(problem, st, wall_before + time.perf_counter() - t_wall, resumed, profile=profile, extra=extra)
 
 
 def iterations_left(problem: FitProblem, st: FitState) -> int:
@@ -320,7 +343,7 @@ def _channel_series(problem: FitProblem, evals, initial) -> dict:
 
 
 def _result(problem: FitProblem, st: FitState, wall: float, resumed: bool, profile: tuple = (),
-            quiet: bool = False) -> FitResult:
+            quiet: bool = False, extra: dict | None = None) -> FitResult:
     """The :class:`FitResult` at the state's optimum (uncertainty on all windows, all samples;
     the std of the ``profile`` names from their profile likelihood); ``quiet``: no warnings."""
     theta, states = np.asarray(st.theta, dtype=float), np.asarray(st.states, dtype=float)
@@ -364,7 +387,7 @@ def _result(problem: FitProblem, st: FitState, wall: float, resumed: bool, profi
                   "law": law_name(problem.mech), "resumed": resumed, "optimizer": s["optimizer"],
                   "skipped_stages": list(st.skipped), "start_state": "free" if problem.anywhere else "known",
                   "way_in": [dict(w) for w in st.way_in],
-                  "channels": problem.channel_config(),
+                  "channels": problem.channel_config(), **(extra or {}),
                   **({"auto_starts": f"{s['starts']} starts: one start {st.refit}"} if st.refit else {})},
         series=_channel_series(problem, evals, initial),
         warnings=warn, window_states=[list(map(float, v)) for v in (states if problem.anywhere else states[1:])],

@@ -98,7 +98,9 @@ class FitResult(AbstractResult):
                                    history=self.history, scale=float(self.settings.get("data_rms_m_s2", 1.0)),
                                    autocorrelation=self.residual_autocorrelation, loss=self.loss,
                                    stop_reason=self.stop_reason,
-                                   free_start=self.settings.get("start_state") == "free", profiles=self.profiles)
+                                   free_start=self.settings.get("start_state") == "free", profiles=self.profiles,
+                                   noise=(self.noise_sigma_m_s2, self.settings.get("noise_sigma_given_m_s2"),
+                                          self.n_samples - self.n_unknowns))
         self.failures = tuple(self.failures)
 
     @property

@@ -100,7 +100,8 @@ _START_STAGE = re.compile(r"^start (\d+)/(\d+)\b")
 def assess(free: Sequence[str], estimates: dict, std: dict, *, start: dict | None = None,
            mech: Mechanism | None = None, history: Iterable[dict] = (), scale: float = 1.0,
            autocorrelation: float | None = None, loss: float | None = None, stop_reason: str = "",
-           free_start: bool = False, profiles: dict | None = None) -> tuple[str, ...]:
+           free_start: bool = False, profiles: dict | None = None,
+           noise: tuple | None = None) -> tuple[str, ...]:
     """The reasons a fit's estimates are not a result; ``()`` when they are.
 
     Args:
@@ -123,6 +124,10 @@ def assess(free: Sequence[str], estimates: dict, std: dict, *, start: dict | Non
         profiles: name -> its profile likelihood (``FitResult.profiles``): a side that stays
             open fails the name (the record does not bound it; the std rules then judge the
             Gauss-Newton std), a point that fits better than the estimate fails the fit.
+        noise: ``(sigma_fit, sigma_given, dof)``: the residual's std [record units], the
+            sensor's noise level given by the user (None: unknown, no test) and the residual's
+            degrees of freedom (samples minus unknowns): a residual above the noise by more
+            than :data:`NOISE_Z` chi-square std fails the fit.
 
     Returns:
         One sentence per broken rule (module docstring), in ``free`` order, then the starts.
@@ -143,6 +148,8 @@ def assess(free: Sequence[str], estimates: dict, std: dict, *, start: dict | Non
         out.append("the last stage stopped on max_iter before converging, with every window's start free: the "
                    "estimates are not at an optimum of the joint problem; try a larger max_iter (--max-iter), more or "
                    "shorter windows (--windows, --window), or the encoder's crank angle if it was fitted")
+    if noise is not None and noise[1] is not None:
+        out += _noise_failures(*noise)
     limit = FREE_START_AUTOCORRELATION if free_start else RESIDUAL_AUTOCORRELATION
     if autocorrelation is not None and loss is not None and autocorrelation > limit and loss > RESIDUAL_LOSS:
         out.append(f"the residual is not noise (lag-1 autocorrelation {autocorrelation:.2f} > "
@@ -151,6 +158,30 @@ def assess(free: Sequence[str], estimates: dict, std: dict, *, start: dict | Non
                    "start_state='free' (--start-state free) with the encoder's crank angle, the sensor's filter "
                    "(cut-off, order) and delay, more or shorter windows, other start values")
     return tuple(out)
+
+
+#: Chi-square standard deviations by which the residual's variance may exceed the given noise's.
+#: With the noise level known (a record of the machine at rest), ``dof s^2 / sigma^2`` is
+#: chi-square with ``dof`` degrees of freedom for a model that follows the record, so
+#: ``z = (s^2 / sigma^2 - 1) / sqrt(2 / dof)`` is about standard normal. A fit of a record of the
+#: independent simulator that began mid-run passed every other rule with the stiffness 11.8 % low
+#: (6 std) and a residual std 1.12 times the noise's over 539 degrees of freedom (z = 4.3).
+NOISE_Z = 3.0
+
+
+def _noise_failures(sigma_fit: float, sigma_given: float, dof: int) -> list:
+    """The failure of a residual above the given noise level (:data:`NOISE_Z`)."""
+    if not (math.isfinite(sigma_fit) and dof > 0):
+        return []
+    ratio = (sigma_fit / sigma_given) ** 2
+    z = (ratio - 1.0) / math.sqrt(2.0 / dof)
+    if z <= NOISE_Z:
+        return []
+    return [f"the residual's std {sigma_fit:.4g} is {math.sqrt(ratio):.3g} times the sensor's noise {sigma_given:.4g} "
+            f"given (noise_sigma; {z:.1f} chi-square std over {dof} degrees of freedom, more than {NOISE_Z:g}): the "
+            "model does not follow the record to its noise, so the estimates describe a misfit; for a record that "
+            "begins mid-run a window's start may not have been found: try more or shorter windows (--windows, "
+            "--window), other start values, --starts N; check the sensor model and the noise level"]
 
 
 def _profile_failures(name: str, value: float, profile: dict, unit: str) -> list:
