@@ -34,7 +34,7 @@ DEFAULT_JSON = os.path.join(HERE, "results", "lab_fit.json")
 FREE = ["stiffness", "restitution", "sensor_gain", "sensor_bias"]
 
 
-def fit_case(case: dict, windows: int, window: float, starts: int = 1) -> dict:
+def fit_case(case: dict, windows: int, window: float, starts: int = 1, noise: bool = True) -> dict:
     """One record (``make_record``'s arguments ``case``) made and fitted: the truth, the
     estimates, std, errors, verdict and times."""
     factor, c_r, seed = case["stiffness_factor"], case["c_r"], case["seed"]
@@ -46,7 +46,8 @@ def fit_case(case: dict, windows: int, window: float, starts: int = 1) -> dict:
     data = {"time_s": rec["time_s"], "slider_acc_m_s2": rec["slider_acc_m_s2"]}
     t1 = time.perf_counter()
     res = jc.fit(data, mech, free=FREE, start={"restitution": 0.9}, sensor=jc.Accelerometer(10e3),
-                 start_state="free", windows=windows, window=window, starts=starts, progress=False)
+                 start_state="free", windows=windows, window=window, starts=starts, progress=False,
+                 noise_sigma=truth["noise_std"] if noise else None)
     wall = time.perf_counter() - t1
     k, c = res.estimates["stiffness"], res.estimates["restitution"]
     return {"stiffness_factor": factor, "c_r": c_r, "seed": seed, "revolutions_before": case["revolutions_before"],
@@ -58,6 +59,7 @@ def fit_case(case: dict, windows: int, window: float, starts: int = 1) -> dict:
             "restitution_error_std": (c - c_r) / res.std["restitution"], "ok": res.ok, "failures": list(res.failures),
             "loss": res.loss, "autocorrelation": res.residual_autocorrelation, "iterations": res.iterations,
             "fit_wall_s": wall, "record_s": made, "way_in": res.settings.get("way_in", []), "starts": starts,
+            "noise_sigma_given": truth["noise_std"] if noise else None, "residual_std": res.noise_sigma_m_s2,
             "stop_reason": res.stop_reason}
 
 
@@ -68,6 +70,8 @@ def main(argv=None) -> int:
     p.add_argument("--windows", type=int, default=4)
     p.add_argument("--window", type=float, default=2.99e-3)
     p.add_argument("--starts", type=int, default=1, help="starts of the parameters (default 1)")
+    p.add_argument("--no-noise", action="store_true",
+                   help="do not give the fit the sensor's noise level (default: given, as a record at rest would)")
     p.add_argument("--json", default=DEFAULT_JSON)
     args = p.parse_args(argv)
     cases = [lab_record.CASES[args.set][int(i)] for i in args.cases.split(",")]
@@ -77,7 +81,7 @@ def main(argv=None) -> int:
         for case in cases:
             if any(all(r.get(k) == v for k, v in case.items()) and r.get("starts", 1) == args.starts for r in done):
                 continue
-            done.append(fit_case(case, args.windows, args.window, args.starts))
+            done.append(fit_case(case, args.windows, args.window, args.starts, not args.no_noise))
             atomic_write_json(args.json, {"meta": {"date": time.strftime("%Y-%m-%d"), "windows": args.windows,
                                                    "window_s": args.window, "free": FREE}, "records": done},
                               indent=1, sort_keys=False)
