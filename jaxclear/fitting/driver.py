@@ -25,7 +25,7 @@ from .plan import DEFAULT_HORIZONS
 from .problem import FitProblem, build_problem
 from .result import FitResult
 from .profile import check_profile, run_profiles, summarize
-from .run import evaluate_all, final_jacobian, fresh_state, run_plan
+from .run import evaluate_all, final_jacobian, fitted_mask, fresh_state, run_plan
 from .solver import make_optimizer
 from .state import Checkpoint, FitState
 from .uncertainty import AUTOCORRELATION_WARNING, Uncertainty, estimate_uncertainty
@@ -349,7 +349,7 @@ def _result(problem: FitProblem, st: FitState, wall: float, resumed: bool, profi
     theta, states = np.asarray(st.theta, dtype=float), np.asarray(st.states, dtype=float)
     evals = evaluate_all(problem, theta, states, st.guesses)
     r, jac = final_jacobian(problem, evals)
-    mask = np.concatenate([problem.win.residual_mask(k, 1.0) for k in range(problem.windows)])
+    mask = fitted_mask(problem)
     unc: Uncertainty = estimate_uncertainty(r, jac, mask, problem.win.scale, theta, problem.free)
     converged = st.stop_reason not in ("", "max_iter")
     warn = list(unc.warnings)

@@ -52,7 +52,7 @@ from .._errors import ParameterError
 from .parameters import dvalue_dz, from_z, transform
 from .plan import Stage, final_stage
 from .problem import FitProblem
-from .run import evaluate_all, final_jacobian, run_stage
+from .run import evaluate_all, final_jacobian, fitted_mask, run_stage, sum_of_squares
 from .solver import Optimizer
 from .state import Checkpoint, FitState
 from .uncertainty import estimate_uncertainty
@@ -99,10 +99,10 @@ def optimum(problem: FitProblem, st: FitState):
     """``(L_min, s^2, std_z)`` at the state's parameters: the sum of squares of the normalised
     residual, the noise variance in its units and the Gauss-Newton std in ``z`` per free name."""
     theta, states = np.asarray(st.theta, dtype=float), np.asarray(st.states, dtype=float)
-    r, jac = final_jacobian(problem, evaluate_all(problem, theta, states, st.guesses))
-    mask = np.concatenate([problem.win.residual_mask(k, 1.0) for k in range(problem.windows)])
-    unc = estimate_uncertainty(r, jac, mask, problem.win.scale, theta, problem.free)
-    loss = float(np.sum(r[mask > 0] ** 2))
+    evals = evaluate_all(problem, theta, states, st.guesses)
+    r, jac = final_jacobian(problem, evals)
+    unc = estimate_uncertainty(r, jac, fitted_mask(problem), problem.win.scale, theta, problem.free)
+    loss = sum_of_squares(problem, evals)
     s2 = loss / max(unc.n_samples - unc.n_unknowns, 1)
     std_z = {}
     for i, name in enumerate(problem.free):
@@ -191,11 +191,8 @@ def _fit_point(single: FitProblem, opt: Optimizer, st: FitState, theta, states, 
             reason = inner.stop_reason
         except (ArithmeticError, ValueError) as exc:  # FitDataError: the model cannot run at this value
             return {"loss": math.nan, "theta": theta.tolist(), "states": states.tolist(), "reason": str(exc)}
-    evals = evaluate_all(single, np.asarray(inner.theta, dtype=float), np.asarray(inner.states, dtype=float),
-                         inner.guesses)
-    mask = np.concatenate([single.win.residual_mask(k, 1.0) for k in range(single.windows)])
-    r = np.concatenate([e[0] for e in evals])
-    loss = float(np.sum(r[mask > 0] ** 2))
+    loss = sum_of_squares(single, evaluate_all(single, np.asarray(inner.theta, dtype=float),
+                                               np.asarray(inner.states, dtype=float), inner.guesses))
     return {"loss": loss if math.isfinite(loss) else math.nan, "theta": list(map(float, inner.theta)),
             "states": np.asarray(inner.states, dtype=float).tolist(), "reason": reason}
 

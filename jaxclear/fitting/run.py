@@ -264,3 +264,16 @@ def final_jacobian(problem: FitProblem, evals) -> tuple[np.ndarray, np.ndarray]:
     p = len(problem.free)
     keep = np.concatenate([np.ones(p, dtype=bool), np.any(jac[:, p:] != 0.0, axis=0)])
     return r, jac[:, keep]
+
+
+def fitted_mask(problem: FitProblem) -> np.ndarray:
+    """``(W n_pad,)``: 1 on the fitted samples of every window at horizon 1 (the stacked residual's
+    layout of :func:`final_jacobian`), 0 elsewhere."""
+    return np.concatenate([problem.win.residual_mask(k, 1.0) for k in range(problem.windows)])
+
+
+def sum_of_squares(problem: FitProblem, evals) -> float:
+    """``|r|^2`` of the normalised residual over the fitted samples of every window
+    (:func:`evaluate_all`'s ``evals``)."""
+    r = np.concatenate([e[0] for e in evals])
+    return float(np.sum(r[fitted_mask(problem) > 0] ** 2))
