@@ -9,18 +9,17 @@ from __future__ import annotations
 
 import jax
 
-from .settings import Settings
+from .settings import CONTINUOUS_CONTACT_AFTER
 
 
 def element_outputs(mech, sol, k: int, continuous_after: float | None = None) -> dict:
     """Clearance joint ``k``'s named outputs on the samples of ``sol``: name -> (T,) array (the
     names and units of ``type(joint).OUTPUTS``; an element without any gives ``{}``).
-    ``continuous_after`` [s] (default: the :class:`Settings` default) splits contact modes into
+    ``continuous_after`` [s] (default: the :class:`~jaxclear.Settings` default) splits contact modes into
     impact (1) and continuous contact (2)."""
     joint = mech.clearance_joints[k]
     if not joint.OUTPUTS:
         return {}
-    after = Settings.__dataclass_fields__["continuous_contact_after"].default if continuous_after is None \
-        else continuous_after
+    after = CONTINUOUS_CONTACT_AFTER if continuous_after is None else continuous_after
     state = sol.element_states[k]
     return jax.vmap(lambda t, q, qd, st: joint.outputs(mech, t, q, qd, st, after))(sol.ts, sol.q, sol.qdot, state)

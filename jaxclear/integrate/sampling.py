@@ -13,7 +13,8 @@ sample (a long step on a dense grid is cut there, as diffrax's ``step_ts`` would
 cost per step (the block's interpolation and the gathering, about 10 us on the benchmark with
 XLA's kernel-per-operation runtime) makes it pay only from about 10 samples per step there;
 with jaxclear's single-kernel loops (``jaxclear/_xla_flags.py``) diffrax's saving is faster on
-every grid measured (``Settings.sampling``), so ``Settings(sampling="block")`` is opt-in.
+every grid measured (``benchmarks/README.md``, "Settings' measured choices"), so
+``Settings(output=SampleBlock())`` (:class:`~jaxclear.integrate.strategies.SampleBlock`) is opt-in.
 
 The step's interpolant comes from the solver (:class:`~jaxclear.integrate.solvers.ImpactMemorySolver`
 with ``dense_to_controller``, which hands its dense output to the controller beside the error
@@ -207,8 +208,9 @@ class DirectAdjoint(diffrax.DirectAdjoint):
 
 
 def adjoint(kind: str, checkpoints: int | None = None, block: bool = True) -> diffrax.AbstractAdjoint:
-    """The diffrax adjoint of ``Settings.adjoint`` (``"recursive"``, ``"forward"``,
-    ``"direct"``); with ``block`` the one that declares a :class:`SampleWriter`'s buffer."""
+    """diffrax's adjoint ``kind`` (``"recursive"`` with ``checkpoints``, ``"forward"``,
+    ``"direct"``; :class:`~jaxclear.integrate.strategies.ThroughLoop`); with ``block`` the one that
+    declares a :class:`SampleWriter`'s buffer."""
     if kind == "forward":
         return ForwardMode() if block else diffrax.ForwardMode()
     if kind == "direct":

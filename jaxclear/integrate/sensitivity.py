@@ -1,6 +1,6 @@
 r"""Error-controlled forward sensitivities: the derivatives of a simulation with respect to its
 parameters, integrated with the state and held to the values' tolerances times
-``Settings.derivative_tolerance`` (0.1 by default).
+the :class:`~jaxclear.integrate.strategies.Sensitivity` ``tolerance`` (0.1 by default).
 
 For a state :math:`y(t; \theta)` with :math:`\dot y = f(t, y, \theta)`, the tangent
 :math:`S_j = \partial y/\partial\theta_j` obeys the variational equation
@@ -31,7 +31,7 @@ there is the derivative of the force (:math:`K\delta^{n}`: unbounded curvature f
 :math:`n < 2`), and the error control shortens the steps there as far as the tangents need.
 
 :func:`tangent_run` is the JVP rule of :func:`~jaxclear.simulate` under
-``Settings(adjoint="sensitivity")`` (the default): the sensitivity solve runs with the values
+``Settings(derivatives=Sensitivity())`` (the default): the sensitivity solve runs with the values
 (its primal part), for the perturbed inputs only, and the output tangent is the linear
 combination of the computed sensitivities with the input tangents. So ``jax.jvp``,
 ``jax.jacfwd``, ``jax.grad``/``jax.vjp`` (the transpose of that combination) and ``jax.vmap``
@@ -207,10 +207,10 @@ def _is_float(x) -> bool:
 
 
 def tangent_run(primals, tangents):
-    """The JVP rule of :func:`~jaxclear.simulate` (``Settings(adjoint="sensitivity")``):
+    """The JVP rule of :func:`~jaxclear.simulate` (``Settings(derivatives=Sensitivity())``):
     ``primals = (mech, settings, y0)``, ``tangents`` the same with ``None`` for the inputs that
     are not perturbed. Returns the solution (of the sensitivity solve: its steps are controlled
-    on the values and the tangents, at ``Settings.derivative_tolerance`` times the tolerances)
+    on the values and the tangents, at ``Sensitivity.tolerance`` times the tolerances)
     and its tangent."""
     leaves, treedef = jax.tree_util.tree_flatten(primals)
     tleaves = treedef.flatten_up_to(tangents)
@@ -230,8 +230,8 @@ def tangent_run(primals, tangents):
     v0, start_tangent = jax.linearize(lambda p: solve.start(*rebuild(p)).packed, point)
     t0, t1, ts = solve.grid(s, begin, dtype)
     system = TangentSystem(mech, s.baumgarte, rebuild, point, dirs, DTMIN_FRACTION * (t1 - t0), size, count)
-    f = s.derivative_tolerance
-    tight = dataclasses.replace(s, rtol=s.rtol * f, atol=s.atol * f) if f != 1 else s
+    rtol, atol = s.derivatives.tolerances(s.rtol, s.atol)
+    tight = dataclasses.replace(s, rtol=rtol, atol=atol)
     run = solve.integrate(system, tight, t0, t1, ts, jnp.concatenate([v0, jax.vmap(start_tangent)(dirs).reshape(-1)]))
     samples = run.samples[:, :size]
     tangent_samples = jnp.moveaxis(run.samples[:, size:].reshape(-1, count, size), 1, 0)  # (P, T, N)

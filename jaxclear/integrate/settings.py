@@ -1,6 +1,9 @@
-"""How to integrate: the solver choice, tolerances, output grid and adjoint (:class:`Settings`)."""
+"""How to integrate: the solver, tolerances, output grid, derivatives, output sampling and
+contact onsets (:class:`Settings`; the strategy objects of :mod:`.strategies`)."""
 
 from __future__ import annotations
+
+import warnings
 
 import diffrax
 import equinox as eqx
@@ -9,25 +12,41 @@ import jax.numpy as jnp
 from .._errors import ParameterError, is_concrete
 from .._types import Array, Float
 from .dynamics import Baumgarte
-
-SOLVERS = {
-    "tsit5": diffrax.Tsit5,
-    "dopri5": diffrax.Dopri5,
-    "dopri8": diffrax.Dopri8,
-    "bosh3": diffrax.Bosh3,
-    "kvaerno5": diffrax.Kvaerno5,
-}
-"""Solver name (``Settings.solver``) -> diffrax solver class."""
-
-
-#: Values of ``Settings.adjoint``: the error-controlled sensitivities, then diffrax's adjoints
-#: through its loop.
-ADJOINTS = ("sensitivity", "recursive", "forward", "direct")
-
+from .strategies import (
+    AbstractDerivatives,
+    AbstractOnsets,
+    AbstractSampling,
+    ExactOnsets,
+    Sensitivity,
+    from_names,
+    stages_name,
+)
 
 #: Largest number of output samples of one run (``n_out``): ~1 kB per sample of a small
 #: mechanism (states, accelerations, reactions, contact outputs) makes this ~2 GB.
 MAX_OUT_SAMPLES = 2_000_000
+
+#: Default of ``Settings.continuous_contact_after`` [s].
+CONTINUOUS_CONTACT_AFTER = 2e-4
+
+
+class _OldName:
+    """An attribute of :class:`Settings` before its strategy objects, kept for one release: read
+    on an instance, its old value (a string or number) with a ``DeprecationWarning`` naming the
+    new field; read on the class, its old default."""
+
+    def __init__(self, field: str, read, default):
+        self.field, self.read, self.default = field, read, default
+
+    def __set_name__(self, owner, name):
+        self.name = name
+
+    def __get__(self, obj, owner=None):
+        if obj is None:
+            return self.default
+        warnings.warn(f"Settings.{self.name} is deprecated and will be removed in the next release: read "
+                      f"Settings.{self.field}", DeprecationWarning, stacklevel=2)
+        return self.read(obj)
 
 
 class Settings(eqx.Module):
@@ -35,107 +54,103 @@ class Settings(eqx.Module):
 
     Attributes:
         t_end: end time [s] (array leaf: may be swept).
-        t_start: start time [s].
-        n_out: number of output samples on the uniform grid ``[t_start, t_end]``.
-        solver: one of :data:`SOLVERS` (default ``"tsit5"``).
-        rtol, atol: tolerances of the adaptive PID step controller (relative, absolute [SI]).
-        dt0: first step [s]; ``None`` lets diffrax choose.
-        dtmax: largest step [s] or ``None``.
-        max_steps: step limit; reaching it is an error (or status 1 with ``throw=False``).
-        baumgarte: stabilization gains (alpha, beta) [1/s].
-        adjoint: how derivatives of the run are computed. ``"sensitivity"`` (default): every
-            derivative (``jax.jvp``, ``jax.jacfwd``, ``jax.grad``, ``jax.vjp``) is the
-            error-controlled forward sensitivity of :mod:`jaxclear.integrate.sensitivity`: the
-            tangents of the perturbed inputs are integrated with the state, take part in the
-            step-size control and carry the memory rules' derivatives; reverse mode costs one
-            tangent per perturbed scalar input. Differentiating through diffrax's loop instead
-            (the derivative of the discretization whose steps were sized for the values only;
-            after a contact ends it is off by 0.1 % to several times the derivative at the
-            default tolerances and does not converge with them over several impacts, see the
-            sensitivities theory page and ``benchmarks/bench_gradients.py``): ``"recursive"`` (reverse mode with checkpoints),
-            ``"forward"`` (forward mode), ``"direct"``.
-        derivative_tolerance: the sensitivity solve's ``rtol`` and ``atol`` are the values'
-            times this (default 0.1; in (0, 1]): a derivative needs a tighter tolerance than a
-            value to be smooth in the parameters, since the step sequence changes with them
-            and a misfit's derivative is a sum whose terms cancel (measured on
-            ``benchmarks/bench_gradients.py``'s worst misfit, slider-crank friction 0.1,
-            n = 1: the derivatives at parameter values 1e-7 apart departed from a straight
-            line by 1.7e-3 at rtol 1e-6, by 2.4e-5 at 1e-7, for 1.07-1.24x the Jacobian's
-            time where contacts dominate (its steps are spent at the onsets), up to 2-3.5x
-            on the lubricated joint, whose smooth film's steps the tolerance sets). The values of a plain
-            run keep ``rtol``; those returned with derivatives come from the sensitivity
-            solve. Only with ``adjoint="sensitivity"``.
-        checkpoints: number of checkpoints of reverse mode (``None``: diffrax's default,
-            logarithmic in ``max_steps``); fewer checkpoints = less memory, more recomputation.
-        throw: raise errors (True) or report them in ``Solution.status`` (False; sweeps).
-        progress: show a progress bar while integrating.
+        t_start: start time [s] (default 0).
+        n_out: number of output samples on the uniform grid ``[t_start, t_end]`` (default 1001).
+        solver: a diffrax Runge-Kutta solver instance (default ``diffrax.Tsit5()``); a name of
+            :data:`~.strategies.SOLVERS` is accepted. Its stages run in diffrax's stage loop; an explicit
+            solver in :class:`~jaxclear.integrate.solvers.UnrolledExplicitRK` runs them unrolled
+            (the same step; ``stages="unrolled"``).
+        rtol, atol: tolerances of the adaptive PID step controller (relative [-], absolute [SI];
+            defaults 1e-6, 1e-9).
+        dt0: first step [s]; ``None`` (default) lets diffrax choose.
+        dtmax: largest step [s] or ``None`` (default).
+        max_steps: step limit (default 400,000); reaching it is an error (or status 1 with
+            ``throw=False``).
+        baumgarte: stabilization gains (alpha, beta) [1/s] (default 5, 5).
+        derivatives: how derivatives of the run are computed: :class:`~.strategies.Sensitivity`
+            (default; the error-controlled forward sensitivities, ``tolerance`` 0.1) or
+            :class:`~.strategies.ThroughLoop` (JAX's derivative through diffrax's loop with
+            its ``adjoint``: ``"recursive"`` with ``checkpoints``, ``"forward"``, ``"direct"``).
+        throw: raise errors (True, default) or report them in ``Solution.status`` (False;
+            sweeps).
+        progress: show a progress bar while integrating (default False).
         continuous_contact_after: a contact lasting longer than this [s] is classed as
-            continuous contact (mode 2) instead of impact (mode 1).
+            continuous contact (mode 2) instead of impact (mode 1) (default 2e-4).
         allow_free_dof: a driven mechanism normally has all its motion determined by the
-            drivers (plus the journal's freedom); set True to allow additional free motion.
-        stages: how an explicit Runge-Kutta solver evaluates its stages: ``"loop"``
-            (default; diffrax's own ``while_loop`` over the stages, one copy of the vector field
-            for every stage) or ``"unrolled"`` (:class:`UnrolledExplicitRK`, straight-line
-            stages). The two compute the same step. Measured 2026-11-25 on the benchmark
-            slider-crank (one run, 2 cores): the loop compiles in about half the time (2.7-3.2 s
-            against 4.7-6.1 s of XLA compilation) and ran 17-30 % faster per step (28.7 against
-            37-42 us); on the four-bar the unrolled form was 10 % faster per step. Under
-            ``jax.vmap`` the loop is faster still (1.7x per member at a batch of 32).
-        exact_onsets: end the step that crosses into contact just past the onset (a rejected
-            step per onset, :class:`~jaxclear.integrate.solvers.OnsetController`), so the
-            dissipative laws use the approach speed at the onset throughout the contact
-            (default True; False: the onset is found only after the step, whose force used the
-            approach speed of its start).
-        sampling: how the output samples are written: ``"loop"`` (default; diffrax's saving,
-            one sample per iteration of a loop inside each step) or ``"block"``
-            (:class:`~jaxclear.integrate.sampling.SampleWriter`: all of a step's samples at
-            once, a step ending by its 64th sample). Measured 2026-11-25 on the benchmark (1
-            revolution, about 1200 steps, Intel Xeon): with XLA's single-kernel loops
-            (jaxclear's default, ``jaxclear/_xla_flags.py``) "loop" is faster on every grid
-            (241 samples 7.6 ms against 12.0 ms, 24,001 samples 20.0 ms against 23.0 ms);
-            without them (``JAXCLEAR_SMALL_LOOP_BYTES=0``) "block" pays from about 10 samples
-            per step (24,001 samples 52.5 ms against 63 ms, 241 samples 45 ms against 31 ms).
-            The fits use "block" (their wall time is the same either way with single-kernel
-            loops: the rig record's fit 54 s against 55 s).
+            drivers (plus the journal's freedom); True allows additional free motion (default
+            False).
+        output: how the output samples are written: :class:`~.strategies.SampleLoop`
+            (default; diffrax's saving) or :class:`~.strategies.SampleBlock` (a step's samples at
+            once).
+        onsets: contact onsets: :class:`~.strategies.ExactOnsets` (default; the step that
+            crosses into contact ends just past the onset) or :class:`~.strategies.StepOnsets`.
+
+    The defaults' measurements (stage loop against unrolled stages, the two samplings, the
+    sensitivities' tolerance): ``benchmarks/README.md``, "Settings' measured choices".
+
+    The keywords of before the strategy objects are still accepted and converted
+    (:func:`~jaxclear.integrate.strategies.from_names`): ``adjoint`` (``"sensitivity"``,
+    ``"recursive"``, ``"forward"``, ``"direct"``), ``derivative_tolerance``, ``checkpoints``,
+    ``stages`` (``"loop"``, ``"unrolled"``), ``exact_onsets`` (bool), ``sampling`` (``"loop"``,
+    ``"block"``); each replaces its part of the field it now belongs to (so
+    ``dataclasses.replace(s, adjoint="forward")`` works). Reading them (``s.adjoint``, ...) gives
+    the old value with a ``DeprecationWarning``, for one release.
     """
 
     t_end: Float[Array, ""]
-    t_start: float = eqx.field(static=True, default=0.0)
-    n_out: int = eqx.field(static=True, default=1001)
-    solver: str = eqx.field(static=True, default="tsit5")
-    rtol: float = eqx.field(static=True, default=1e-6)
-    atol: float = eqx.field(static=True, default=1e-9)
-    dt0: float | None = eqx.field(static=True, default=None)
-    dtmax: float | None = eqx.field(static=True, default=None)
-    max_steps: int = eqx.field(static=True, default=400_000)
-    baumgarte: Baumgarte = eqx.field(default_factory=lambda: Baumgarte(jnp.asarray(5.0), jnp.asarray(5.0)))
-    adjoint: str = eqx.field(static=True, default="sensitivity")
-    derivative_tolerance: float = eqx.field(static=True, default=0.1)
-    checkpoints: int | None = eqx.field(static=True, default=None)
-    throw: bool = eqx.field(static=True, default=True)
-    progress: bool = eqx.field(static=True, default=False)
-    continuous_contact_after: float = eqx.field(static=True, default=2e-4)
-    allow_free_dof: bool = eqx.field(static=True, default=False)
-    stages: str = eqx.field(static=True, default="loop")
-    exact_onsets: bool = eqx.field(static=True, default=True)
-    sampling: str = eqx.field(static=True, default="loop")
+    t_start: float = eqx.field(static=True)
+    n_out: int = eqx.field(static=True)
+    solver: diffrax.AbstractSolver = eqx.field(static=True)
+    rtol: float = eqx.field(static=True)
+    atol: float = eqx.field(static=True)
+    dt0: float | None = eqx.field(static=True)
+    dtmax: float | None = eqx.field(static=True)
+    max_steps: int = eqx.field(static=True)
+    baumgarte: Baumgarte
+    derivatives: AbstractDerivatives = eqx.field(static=True)
+    throw: bool = eqx.field(static=True)
+    progress: bool = eqx.field(static=True)
+    continuous_contact_after: float = eqx.field(static=True)
+    allow_free_dof: bool = eqx.field(static=True)
+    output: AbstractSampling = eqx.field(static=True)
+    onsets: AbstractOnsets = eqx.field(static=True)
+
+    def __init__(self, t_end, t_start=0.0, n_out=1001, solver="tsit5", rtol=1e-6, atol=1e-9, dt0=None, dtmax=None,
+                 max_steps=400_000, baumgarte=None, derivatives=None, throw=True, progress=False,
+                 continuous_contact_after=CONTINUOUS_CONTACT_AFTER, allow_free_dof=False, output=None, onsets=None, *,
+                 adjoint=None, derivative_tolerance=None, checkpoints=None, stages=None, exact_onsets=None,
+                 sampling=None):
+        self.t_end = t_end
+        self.t_start = t_start
+        self.n_out = n_out
+        self.rtol = rtol
+        self.atol = atol
+        self.dt0 = dt0
+        self.dtmax = dtmax
+        self.max_steps = max_steps
+        self.baumgarte = Baumgarte(jnp.asarray(5.0), jnp.asarray(5.0)) if baumgarte is None else baumgarte
+        self.throw = throw
+        self.progress = progress
+        self.continuous_contact_after = continuous_contact_after
+        self.allow_free_dof = allow_free_dof
+        self.solver, self.derivatives, self.output, self.onsets = from_names(
+            solver, derivatives, output, onsets, adjoint=adjoint, derivative_tolerance=derivative_tolerance,
+            checkpoints=checkpoints, stages=stages, exact_onsets=exact_onsets, sampling=sampling)
+
+    # the names of before the strategy objects, for one release
+    adjoint = _OldName("derivatives", lambda s: s.derivatives.name, "sensitivity")
+    derivative_tolerance = _OldName(
+        "derivatives", lambda s: getattr(s.derivatives, "tolerance", Sensitivity().tolerance), Sensitivity().tolerance)
+    checkpoints = _OldName("derivatives", lambda s: getattr(s.derivatives, "checkpoints", None), None)
+    stages = _OldName("solver", lambda s: stages_name(s.solver), "loop")
+    exact_onsets = _OldName("onsets", lambda s: isinstance(s.onsets, ExactOnsets), True)
+    sampling = _OldName("output", lambda s: s.output.name, "loop")
 
     def __check_init__(self):
-        if self.solver not in SOLVERS:
-            raise ParameterError(f"unknown solver {self.solver!r}; valid: {sorted(SOLVERS)}")
-        if self.stages not in ("unrolled", "loop"):
-            raise ParameterError(f"stages must be 'unrolled' or 'loop', got {self.stages!r}")
-        if self.sampling not in ("loop", "block"):
-            raise ParameterError(f"sampling must be 'loop' or 'block', got {self.sampling!r}")
-        if self.adjoint not in ADJOINTS:
-            raise ParameterError(f"adjoint must be one of {list(ADJOINTS)}, got {self.adjoint!r}")
         if not (0 < self.rtol < 1):
             raise ParameterError(f"rtol = {self.rtol:g} outside the allowed range (0, 1)")
         if not (self.atol > 0):
             raise ParameterError(f"atol = {self.atol:g} outside the allowed range (0, inf)")
-        if not (0 < self.derivative_tolerance <= 1):
-            raise ParameterError(
-                f"derivative_tolerance = {self.derivative_tolerance:g} outside the allowed range (0, 1]")
         if not 2 <= self.n_out <= MAX_OUT_SAMPLES:
             raise ParameterError(
                 f"n_out = {self.n_out} output samples outside the allowed range [2, {MAX_OUT_SAMPLES}] "

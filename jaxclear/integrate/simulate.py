@@ -11,7 +11,7 @@ Speed (the benchmark slider-crank takes a few thousand steps of a vector field w
 dozen flops per kernel, so per-kernel overhead dominates): the solver integrates one packed
 vector rather than a pytree, the Runge-Kutta stages run in diffrax's stage loop (one copy of
 the vector field; :class:`~jaxclear.integrate.solvers.UnrolledExplicitRK` unrolls them, see
-``Settings.stages``), and XLA compiles with
+``Settings.solver``), and XLA compiles with
 :func:`~jaxclear.integrate.compile.compiler_options`. ``benchmarks/bench_engine.py --profile``
 measures each part.
 """
@@ -60,21 +60,17 @@ def _run(mech: Mechanism, s: Settings, y0: State | None):
     return solve.run(mech, s, begin)[0], begin.assembly
 
 
-@eqx.filter_custom_jvp
-def _with_sensitivities(mech: Mechanism, s: Settings, y0: State | None) -> Solution:
-    """The run whose derivatives (``jax.jvp``, ``jax.jacfwd``, ``jax.grad``, ...) are the
-    error-controlled sensitivities of :func:`~jaxclear.integrate.sensitivity.tangent_run`."""
+def _solution(mech: Mechanism, s: Settings, y0: State | None) -> Solution:
     return _run(mech, s, y0)[0]
-
-
-_with_sensitivities.def_jvp(tangent_run)
 
 
 @jit
 def _simulate(mech: Mechanism, s: Settings, y0: State | None) -> Solution:
-    if s.adjoint == "sensitivity":
-        return _with_sensitivities(mech, s, y0)
-    return _run(mech, s, y0)[0]
+    """The run as ``s.derivatives`` differentiates it: under the default
+    :class:`~jaxclear.integrate.strategies.Sensitivity` its derivatives (``jax.jvp``,
+    ``jax.jacfwd``, ``jax.grad``, ...) are the error-controlled sensitivities of
+    :func:`~jaxclear.integrate.sensitivity.tangent_run`."""
+    return s.derivatives.differentiable(_solution, tangent_run)(mech, s, y0)
 
 
 @jit

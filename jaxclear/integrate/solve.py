@@ -7,7 +7,7 @@ Speed (the benchmark slider-crank takes a few thousand steps of a vector field w
 dozen flops per kernel, so per-kernel overhead dominates): the solver integrates one packed
 vector rather than a pytree, the Runge-Kutta stages run in diffrax's stage loop (one copy of
 the vector field; :class:`~jaxclear.integrate.solvers.UnrolledExplicitRK` unrolls them, see
-``Settings.stages``), and XLA compiles with
+``Settings.solver``), and XLA compiles with
 :func:`~jaxclear.integrate.compile.compiler_options`. ``benchmarks/bench_engine.py --profile``
 measures each part.
 """
@@ -23,24 +23,19 @@ from .._errors import RESULTS
 from .._xla_flags import loop_kernels_active
 from ..elements.base import contact_mode
 from ..model.mechanism import Mechanism
-from . import sampling
 from .assembly import NEWTON_TOL, assemble, initial_state
 from .compile import without_input_callbacks
 from .dynamics import _accelerations
-from .settings import SOLVERS, Settings
+from .settings import Settings
 from .solution import Solution
-from .solvers import ImpactMemorySolver, OnsetController, StopOnNonFinite, UnrolledExplicitRK
+from .solvers import ImpactMemorySolver, StopOnNonFinite
 from .state import State, stack_memory
 from .system import AbstractSystem, MechanismSystem, system_field
 
 
 def _inner_solver(s: Settings):
-    solver = SOLVERS[s.solver]()
-    if not solver.tableau.implicit and s.stages == "unrolled":
-        return UnrolledExplicitRK(solver)
-    if s.adjoint in ("forward", "direct"):
-        return SOLVERS[s.solver](scan_kind="bounded")
-    return solver
+    """The solver of ``s`` as the integration loop runs it (its derivatives' form)."""
+    return s.derivatives.solver(s.solver)
 
 
 #: Without single-kernel loops (``JAXCLEAR_SMALL_LOOP_BYTES=0``, see ``jaxclear/_xla_flags.py``):
@@ -133,22 +128,16 @@ class Integration(eqx.Module):
 def integrate(system: AbstractSystem, s: Settings, t0, t1, ts, v0) -> Integration:
     """Integrate ``system`` from ``v0`` over ``[t0, t1]`` with the settings ``s``, sampled at
     ``ts``: diffrax's PID controller (the system's error norm) wrapped by
-    :class:`~jaxclear.integrate.solvers.StopOnNonFinite` and, with exact onsets,
-    :class:`~jaxclear.integrate.solvers.OnsetController`; the solver wrapped by
-    :class:`~jaxclear.integrate.solvers.ImpactMemorySolver`."""
+    :class:`~jaxclear.integrate.solvers.StopOnNonFinite` and as ``s.onsets`` needs; the solver
+    (``s.derivatives``' form of ``s.solver``) wrapped by
+    :class:`~jaxclear.integrate.solvers.ImpactMemorySolver`; the samples written as
+    ``s.output`` writes them, the adjoint ``s.derivatives``'."""
     controller = StopOnNonFinite(diffrax.PIDController(rtol=s.rtol, atol=s.atol, dtmax=s.dtmax, norm=system.norm(),
                                                        dtmin=system.dtmin()))
-    if s.exact_onsets and system.mech.clearance_joints:
-        controller = OnsetController(controller)
-    block = s.sampling == "block"
-    solver = ImpactMemorySolver(_inner_solver(s), dense_to_controller=block)
-    if block:  # the output samples are written by the controller, a block per accepted step
-        controller = sampling.SampleWriter(controller, ts, solver.interpolation_cls, sampling.BLOCK)
-        saveat = diffrax.SaveAt(t1=True, controller_state=True)
-    else:  # diffrax's saving loop, one sample per iteration
-        saveat = diffrax.SaveAt(ts=ts)
+    controller = s.onsets.controller(controller, system.mech)
+    solver = ImpactMemorySolver(_inner_solver(s), dense_to_controller=s.output.dense_to_controller)
+    controller, saveat = s.output.saving(controller, ts, solver.interpolation_cls)
     meter = diffrax.TqdmProgressMeter(refresh_steps=200) if s.progress else diffrax.NoProgressMeter()
-    kind = s.adjoint if s.adjoint in ("recursive", "forward", "direct") else "recursive"
     with without_input_callbacks():
         sol = diffrax.diffeqsolve(
             diffrax.ODETerm(system_field),
@@ -161,11 +150,11 @@ def integrate(system: AbstractSystem, s: Settings, t0, t1, ts, v0) -> Integratio
             saveat=saveat,
             stepsize_controller=controller,
             max_steps=s.max_steps,
-            adjoint=sampling.adjoint(kind, s.checkpoints, block),
+            adjoint=s.derivatives.loop_adjoint(s.output),
             throw=False,
             progress_meter=meter,
         )
-    packed = controller.samples(sol.controller_state, v0, t1 > t0) if block else sol.ys
+    packed = s.output.samples(sol, controller, v0, t1 > t0)
     return Integration(packed, sol.stats["num_steps"], sol.stats["num_accepted_steps"],
                        sol.stats["num_rejected_steps"], sol.result)
 

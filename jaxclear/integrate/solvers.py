@@ -2,9 +2,10 @@ r"""Solver wrappers around diffrax's Runge-Kutta solvers.
 
 * :class:`UnrolledExplicitRK`: the same step as a diffrax explicit Runge-Kutta solver (its
   tableau and interpolation), with the stages unrolled into straight-line code; per-kernel
-  overhead dominates the small right-hand side of a planar mechanism (``Settings(stages=
-  "unrolled")``; the default since 2026-11-25 is diffrax's stage loop, which now compiles in
-  half the time and runs as fast or faster on the benchmark: see ``Settings.stages``).
+  overhead dominates the small right-hand side of a planar mechanism
+  (``Settings(solver=UnrolledExplicitRK(diffrax.Tsit5()))``, or ``stages="unrolled"``; the
+  default is diffrax's stage loop, which compiles in half the time and runs as fast or faster
+  on the benchmark: ``benchmarks/README.md``, "Settings' measured choices").
 * :class:`ImpactMemorySolver`: wraps any solver; after every accepted step it calls every force
   element's ``after_step`` (the impact-memory rule), so history-dependent force laws see the
   approach speed at the onset; the step's dense output carries the updated memory.
@@ -101,7 +102,7 @@ class UnrolledExplicitRK(_Forwarding):
         if tab.fsal:
             # re-evaluate the first stage on the first step and after a jump (under vmap this
             # cond becomes a select that evaluates it for every member at every step: one reason
-            # why Settings(stages="loop") is the faster form for batches)
+            # why diffrax's stage loop is the faster form for batches)
             f0 = jax.lax.cond(first | made_jump, lambda: terms.vf(t0, y0, args), lambda: f0)
         else:
             f0 = terms.vf(t0, y0, args)
@@ -150,7 +151,7 @@ class ImpactMemorySolver(_Forwarding):
 
     @property
     def scan_kind(self):
-        # DirectAdjoint/ForwardMode want a "bounded" scan; _inner_solver sets it on the inner solver.
+        # DirectAdjoint/ForwardMode want a "bounded" scan; ThroughLoop.solver sets it on the inner solver.
         return getattr(self.solver, "scan_kind", None)
 
 
