@@ -84,11 +84,17 @@ from .elements import (  # noqa: E402
 from .integrate import (  # noqa: E402
     SOLVERS,
     Baumgarte,
+    ExactOnsets,
     ImpactMemorySolver,
     OnsetController,
+    SampleBlock,
+    SampleLoop,
+    Sensitivity,
     Settings,
     Solution,
     State,
+    StepOnsets,
+    ThroughLoop,
     UnrolledExplicitRK,
     accelerations,
     assemble,
@@ -188,7 +194,8 @@ __all__ = [
     "CornerMemory", "kinematics", "AbstractForceElement", "AbstractJournalJoint",
     # Integration (integrate.md)
     "simulate", "settings", "Settings", "Solution", "State", "SOLVERS", "Baumgarte", "ImpactMemorySolver",
-    "OnsetController", "UnrolledExplicitRK", "initial_state", "assemble", "accelerations", "vector_field", "energy",
+    "OnsetController", "UnrolledExplicitRK", "Sensitivity", "ThroughLoop", "SampleLoop", "SampleBlock",
+    "ExactOnsets", "StepOnsets", "initial_state", "assemble", "accelerations", "vector_field", "energy",
     "enable_cache", "disable_cache", "clear_cache", "cache_folder",
     # Parameters, derivatives, presets, mechanism files (params.md)
     "preset", "preset_names", "preset_file", "sensitivities", "differentiable_names", "amplification",

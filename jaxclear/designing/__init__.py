@@ -10,7 +10,7 @@ gradients through the simulations (theory: docs/theory/design.md).
 * an evaluation simulates every operating point times every ensemble member in one program
   (mapped; :mod:`.problem`) and reduces them to the objective (:mod:`.objectives`) and the
   constraints' residuals (:mod:`.constraints`);
-* its Jacobian is one linearisation: under the default ``Settings(adjoint="sensitivity")`` an
+* its Jacobian is one linearisation: under the default ``Settings(derivatives=Sensitivity())`` an
   error-controlled forward-sensitivity solve per run, through the impacts;
 * SciPy's L-BFGS-B (bounds) or SLSQP (bounds and constraints) drive it (:mod:`.optimize`);
   every evaluation goes to a journal first, so a design resumes bit for bit (:mod:`.journal`);

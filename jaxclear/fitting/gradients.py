@@ -21,11 +21,12 @@ def parameter_grad(loss: Callable, mech: Mechanism, names: Sequence[str], s: Set
     """Value and gradient of ``loss(solution, mechanism)`` (a scalar) with respect to the named
     parameters (:mod:`jaxclear.params`).
 
-    With ``s.adjoint = "sensitivity"`` (the default) both modes give the error-controlled
+    With ``s.derivatives = Sensitivity()`` (the default) both modes give the error-controlled
     sensitivities (:mod:`jaxclear.integrate.sensitivity`): ``mode="forward"`` by ``jax.jacfwd``,
-    ``mode="reverse"`` by ``jax.grad`` (their transpose), the same numbers. With an adjoint through
-    diffrax's loop, ``mode="reverse"`` uses ``s.adjoint`` (``"forward"`` is replaced by
-    ``"recursive"``) and ``mode="forward"`` uses ``adjoint="forward"``. Returns ``(value, {name: d
+    ``mode="reverse"`` by ``jax.grad`` (their transpose), the same numbers. Through diffrax's loop
+    (:class:`~jaxclear.ThroughLoop`), ``mode="reverse"`` uses ``s.derivatives``' adjoint
+    (``"forward"`` is replaced by ``"recursive"``) and ``mode="forward"`` uses ``"forward"``
+    (:meth:`~jaxclear.integrate.strategies.AbstractDerivatives.for_mode`). Returns ``(value, {name: d
     loss / d name})``. Compiles on every call: for repeated use, build your own
     ``eqx.filter_jit`` of the same function.
     """
@@ -34,10 +35,7 @@ def parameter_grad(loss: Callable, mech: Mechanism, names: Sequence[str], s: Set
         check_name(mech, n)
     if mode not in ("reverse", "forward"):
         raise ParameterError(f"mode = {mode!r}; valid: 'reverse', 'forward'")
-    if mode == "forward" and s.adjoint != "sensitivity":
-        s = dataclasses.replace(s, adjoint="forward")
-    elif mode == "reverse" and s.adjoint == "forward":
-        s = dataclasses.replace(s, adjoint="recursive")
+    s = dataclasses.replace(s, derivatives=s.derivatives.for_mode(mode))
     x0 = jnp.asarray([params.get(mech, n) for n in names], dtype=float)
 
     def f(x):

@@ -16,7 +16,7 @@ from .._errors import FitDataError, ParameterError
 from ..model import FunctionDriver, Mechanism, crank_driver, crank_period
 from ..analysis.channels import unit as named_unit
 from ..analysis.sensor import Accelerometer, record_times, uniform_spacing
-from ..integrate import Settings, settings as make_settings
+from ..integrate import ExactOnsets, SampleBlock, Sensitivity, settings as make_settings
 from .parameters import check_free, fixed_values, start_values, z_vector
 from .plan import check_plan, plan_stages, spread_starts
 from .records import read_record
@@ -42,25 +42,25 @@ START_PARAMETERS = ("offset_x", "offset_y", "velocity_x", "velocity_y")
 #: Crank parameters whose fit moves every window's crank angle (``angle0 + speed t_k``).
 CRANK_PARAMETERS = ("angle0", "speed", "speed_rpm")
 
-#: Whether the fit's model integrates with exact contact onsets (:class:`~jaxclear.Settings`
-#: ``exact_onsets``), as every other run does. It was off while the forward-mode derivative of
+#: How the fit's model treats contact onsets (:class:`~jaxclear.Settings` ``onsets``): exactly
+#: (:class:`~jaxclear.ExactOnsets`), as every other run does. It was off while the forward-mode derivative of
 #: the approach speed at an onset was noise on the short steps that end just past an onset (the
 #: rig record's Jacobian 10 to 600 times too large, its fit stalled at -10 % stiffness; fixed in
 #: :func:`jaxclear.elements.memory.contact_switches`, see "Impact memory" in the documentation).
-FIT_EXACT_ONSETS = True
-#: How the fit's model writes its dense output samples (:class:`~jaxclear.Settings` ``sampling``).
-FIT_SAMPLING = "block"
+FIT_ONSETS = ExactOnsets()
+#: How the fit's model writes its dense output samples (:class:`~jaxclear.Settings` ``output``).
+FIT_OUTPUT = SampleBlock()
 
 
 def derivative_tolerance(rtol: float) -> float:
-    """The fit's :class:`~jaxclear.Settings` ``derivative_tolerance`` for a model at ``rtol``: 1
+    """The fit's :class:`~jaxclear.Sensitivity` ``tolerance`` for a model at ``rtol``: 1
     (the sensitivity solve at the model's own tolerance) where ``rtol`` is 1e-7 or tighter, else
-    :class:`~jaxclear.Settings`' default (a tenth). The tenth keeps a misfit's derivatives smooth
+    :class:`~jaxclear.Sensitivity`'s default (a tenth). The tenth keeps a misfit's derivatives smooth
     in the parameters at the default rtol 1e-6 (their non-smooth part at parameter values 1e-7
     apart: 1.7e-3 at rtol 1e-6, 2.0e-5 at 1e-7, 1.5e-6 at 1e-8; ``benchmarks/README.md``,
     "Derivatives through impacts"); the fit's model runs at 1e-8, where it is already smooth,
     and the tenth cost its Jacobians about 1.2x."""
-    return 1.0 if rtol <= 1e-7 else Settings.derivative_tolerance
+    return 1.0 if rtol <= 1e-7 else Sensitivity().tolerance
 
 
 @dataclass(frozen=True)
@@ -260,8 +260,8 @@ def build_problem(data, mech: Mechanism, free: Sequence[str], start: dict | None
     n_fine = int(round(window / h))
     max_steps = settings["max_steps"] or (FREE_START_MAX_STEPS if anywhere else MAX_STEPS)
     s = make_settings(n_fine * h, n_out=n_fine + 1, rtol=settings["rtol"], atol=settings["atol"],
-                      throw=False, max_steps=max_steps, exact_onsets=FIT_EXACT_ONSETS, sampling=FIT_SAMPLING,
-                      derivative_tolerance=derivative_tolerance(settings["rtol"]))
+                      throw=False, max_steps=max_steps, onsets=FIT_ONSETS, output=FIT_OUTPUT,
+                      derivatives=Sensitivity(derivative_tolerance(settings["rtol"])))
     model = WindowModel(mech=mech, sensors=tuple(fc.sensor for _, fc in targets),
                         weights=jnp.asarray([fc.weight for _, fc in targets], dtype=float), settings=s,
                         bias_scale=jnp.asarray(win.scale), velocity_scale=jnp.asarray(velocity_scale), free=free,

@@ -105,7 +105,7 @@ def _run(mech: Mechanism, sensor: Accelerometer, plan: SignalPlan, row):
     m = params.replace(m, "offset_x", params.get(m, "offset_x") + row[-1])
     h = plan.dt / plan.oversample
     s = Settings(t_end=jnp.asarray((plan.n_out - 1) * h, dtype=float), n_out=plan.n_out, rtol=plan.rtol,
-                 atol=plan.atol, max_steps=plan.max_steps, throw=False, stages="loop")
+                 atol=plan.atol, max_steps=plan.max_steps, throw=False)  # diffrax's stage loop (vmap)
     sol = simulate(m, s)
     acc = sol.coordinate(m, slider_role(m), "x", derivative=2)
     y = sensor.filter(h, acc)[jnp.asarray(plan.index())]

@@ -168,7 +168,7 @@ class ThroughLoop(AbstractDerivatives):
     def solver(self, solver):
         # forward mode and the direct adjoint differentiate a Runge-Kutta solver's stage loop in
         # its "bounded" form (unrolled stages have no loop)
-        if self.adjoint in ("forward", "direct") and isinstance(solver, diffrax.AbstractRungeKutta):
+        if self.adjoint in ("forward", "direct") and not isinstance(solver, UnrolledExplicitRK):
             return dataclasses.replace(solver, scan_kind="bounded")
         return solver
 

@@ -73,9 +73,10 @@ def _settings(plan: Plan, m: Mechanism) -> Settings:
     driver's (traced) speed ``omega`` [rad/s] (:func:`~jaxclear.model.crank_period`);
     ``throw=False`` (a failure is a status, not an error)."""
     t_end = crank_period(m, plan.revolutions)
-    # stages="loop": under vmap one copy of the vector field serves every Runge-Kutta stage
+    # the solver named keeps diffrax's stage loop: under vmap one copy of the vector field serves
+    # every Runge-Kutta stage
     return Settings(t_end=t_end, n_out=plan.n_out, solver=plan.solver, rtol=plan.rtol, atol=plan.atol,
-                    max_steps=plan.max_steps, throw=False, stages="loop")
+                    max_steps=plan.max_steps, throw=False)
 
 
 def _clearance_run(plan: Plan, mech: Mechanism, row):

@@ -39,6 +39,7 @@ from .._results import AbstractResult
 from .._storage import atomic_write_json, atomic_write_text, fingerprint, fsync_append, jsonable, locked_folder
 from ..integrate.settings import Settings
 from ..integrate.simulate import check_status, simulate
+from ..integrate.strategies import StepOnsets
 from ..model.mechanism import Mechanism
 from .figures import plot_wear
 from .archard import WindowWear, wear_element, window_wear
@@ -297,7 +298,7 @@ def wear(mech: Mechanism, settings: Settings, options: WearOptions, out: str | N
     # A worn bearing's contact is resolved at the Gauss points, so it flickers in and out as points
     # cross the profile; the exact-onset controller would retry a step at every flicker (measured:
     # max_steps reached on a worn benchmark window). The wear integral does not need onset timing.
-    settings = dataclasses.replace(settings, exact_onsets=False)
+    settings = dataclasses.replace(settings, onsets=StepOnsets())
     index = wear_element(mech, options.joint)
     law = mech.elements[index].law
     if options.n_nodes > law.n_elements * law.n_gauss / 2:
