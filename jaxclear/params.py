@@ -1,6 +1,17 @@
 """Named numeric parameters of a mechanism: read, replace (pytree-functionally, so the value may
-be a tracer under ``vmap``/``grad``), validate and transform. Fits and sweeps address parameters
-by these names; this module is the one place that maps a name to a leaf of the mechanism.
+be a tracer under ``vmap``/``grad``), check, validate and transform. Fits, sweeps, designs and
+derivatives address parameters by these names; this module is the one place that maps a name to
+a leaf of the mechanism.
+
+Where the names come from: every class that holds named numbers declares them in its
+``PARAMETERS`` table next to its fields (:class:`~jaxclear._parameters.Parameter`: leaf, unit,
+range, transform, whether the value may be derived from others): contact and friction laws
+(:mod:`jaxclear.contact.base`), force elements with state (:mod:`jaxclear.elements.base`, which
+answer for their law and friction too), force elements between two bodies
+(:mod:`jaxclear.model.connectors`), bodies, the crank's :class:`~jaxclear.AngleDriver`, point
+loads, torques and the :class:`~jaxclear.Mechanism` (its frame's points). This module composes
+them into a mechanism's names (:func:`names`), the catalogue :data:`INFO` and the one check of a
+name (:func:`check_name`) and of values (:func:`validate`); a new class is named without editing it.
 
 Names (``J`` = clearance-joint index, default 0, written ``name@J`` e.g. ``clearance@1``):
 
@@ -59,7 +70,7 @@ of Varedi et al. 2015) is set by moving every body-fixed point of the body by mi
 shift, in the body's frame; the centroidal inertia, the mass and the body's position guess stay
 as given (the assembly places the body). Their value is the shift relative to the mechanism
 they are applied to (``get`` reads 0), so ``replace(mech, "centroid_x:rod", 0.01)`` moves the
-rod's centroid 10 mm towards its point of larger x. This is the one place that shift is made.
+rod's centroid 10 mm towards its point of larger x (:class:`~jaxclear.Body`'s declaration makes the shift).
 
 A force element among the loads names its constants ``BASE:NAME`` (:data:`CONNECTOR_NAMES`; units,
 ranges: its class's ``PARAMETERS``, :mod:`jaxclear.model.connectors`; docs/theory/force-elements.md).
@@ -81,18 +92,21 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
-from typing import Callable
+from typing import Any, Callable, NamedTuple
 
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
 from ._errors import JaxclearError, ParameterError, check_range, closest
-from ._units import rad_s_to_rpm, rpm_to_rad_s
+from ._parameters import Parameter, declared, leaf
+from .contact.base import FRICTION_PARAMETERS, AbstractFriction, AbstractNormalLaw
 from .contact.friction import FRICTION_MODELS
-from .elements import LubricatedJoint, TranslationalClearanceJoint
-from .model import GROUND, Mechanism, crank_driver
-from .model.connectors import AbstractConnector, connector_parameters, connector_where
+from .contact.friction_laws import KarnoppFriction
+from .contact.registry import LAWS
+from .elements import AbstractForceElement, ClearanceJoint, LubricatedJoint, PinSlotJoint, TranslationalClearanceJoint
+from .model import GROUND, AngleDriver, Body, Mechanism, PointForce, Torque, crank_driver
+from .model.connectors import CONNECTORS, AbstractConnector, connector_index
 
 
 @dataclass(frozen=True)
@@ -110,126 +124,143 @@ class ParameterInfo:
     doc: str
 
 
-INFO = {
-    "clearance": ParameterInfo("clearance", "m", 0.0, None, True, False, "log", "radial clearance R_B - R_J"),
-    "restitution": ParameterInfo("restitution", "", 0.0, 1.0, True, False, "logit", "nominal coefficient of restitution"),
-    "stiffness": ParameterInfo("stiffness", "law unit", 0.0, None, True, False, "log", "contact stiffness of the law"),
-    "exponent": ParameterInfo("exponent", "", 0.0, None, True, False, "log", "force exponent n"),
-    "friction": ParameterInfo("friction", "", 0.0, None, False, False, "log", "friction coefficient mu"),
-    "friction_static": ParameterInfo("friction_static", "", 0.0, None, False, False, "log",
-                                     "static friction coefficient mu_s"),
-    "friction_viscous": ParameterInfo("friction_viscous", "s/m", 0.0, None, False, False, "log",
-                                      "viscous friction coefficient mu_v (per newton of normal force)"),
-    "v_stribeck": ParameterInfo("v_stribeck", "m/s", 0.0, None, True, False, "log", "Stribeck speed"),
-    "stribeck_exponent": ParameterInfo("stribeck_exponent", "", 0.0, None, True, False, "log",
-                                       "exponent of the Stribeck curve"),
-    "v_threlfall": ParameterInfo("v_threlfall", "m/s", 0.0, None, True, False, "log", "Threlfall speed"),
-    "v_transition": ParameterInfo("v_transition", "m/s", 0.0, None, True, False, "log",
-                                  "Brown-McPhee transition speed"),
-    "bristle_stiffness": ParameterInfo("bristle_stiffness", "1/m", 0.0, None, True, False, "log",
-                                       "bristle stiffness sigma_0 (per newton of normal force)"),
-    "bristle_damping": ParameterInfo("bristle_damping", "s/m", 0.0, None, False, False, "log",
-                                     "bristle damping sigma_1 (per newton of normal force)"),
-    "length": ParameterInfo("length", "m", 0.0, None, True, False, "log",
-                            "axial length of the joint (a lubricated joint's film width)"),
-    "viscosity": ParameterInfo("viscosity", "Pa s", 0.0, None, True, False, "log", "oil viscosity (lubricated joint)"),
-    "speed": ParameterInfo("speed", "rad/s", None, None, False, False, "none", "crank speed"),
-    "speed_rpm": ParameterInfo("speed_rpm", "rpm", None, None, False, False, "none", "crank speed"),
-    "mass": ParameterInfo("mass", "kg", 0.0, None, True, False, "log", "body mass (mass:BODY)"),
-    "inertia": ParameterInfo("inertia", "kg m^2", 0.0, None, True, False, "log", "body inertia (inertia:BODY)"),
-    "point_x": ParameterInfo("point_x", "m", None, None, False, False, "none",
-                             "x of a body-fixed point (point_x:BODY.POINT)"),
-    "point_y": ParameterInfo("point_y", "m", None, None, False, False, "none",
-                             "y of a body-fixed point (point_y:BODY.POINT)"),
-    "centroid_x": ParameterInfo("centroid_x", "m", None, None, False, False, "none",
-                                "shift of a body's centroid along its x axis, its points moving the other way "
-                                "(centroid_x:BODY)"),
-    "centroid_y": ParameterInfo("centroid_y", "m", None, None, False, False, "none",
-                                "shift of a body's centroid along its y axis, its points moving the other way "
-                                "(centroid_y:BODY)"),
-    "load_x": ParameterInfo("load_x", "N", None, None, False, False, "none",
-                            "x of the force of a point load (load_x:K, K its index in mech.loads)"),
-    "load_y": ParameterInfo("load_y", "N", None, None, False, False, "none",
-                            "y of the force of a point load (load_y:K)"),
-    "torque": ParameterInfo("torque", "N m", None, None, False, False, "none",
-                            "torque of a torque load (torque:K, K its index in mech.loads)"),
-    "angle0": ParameterInfo("angle0", "rad", None, None, False, False, "none", "crank angle at t = 0"),
-    "offset_x": ParameterInfo("offset_x", "m", None, None, False, False, "none",
-                              "initial offset of the clearance joint, first component"),
-    "offset_y": ParameterInfo("offset_y", "m", None, None, False, False, "none",
-                              "initial offset of the clearance joint, second component"),
-    "velocity_x": ParameterInfo("velocity_x", "m/s", None, None, False, False, "none",
-                                "initial relative velocity of the clearance joint, first component"),
-    "velocity_y": ParameterInfo("velocity_y", "m/s", None, None, False, False, "none",
-                                "initial relative velocity of the clearance joint, second component"),
-}
+def _scope(cls) -> str:
+    """Where a class's objects sit in a mechanism, which decides the suffix: ``joint`` (``@J``),
+    ``crank`` (none), ``body`` (``:BODY``, ``:BODY.POINT``), ``load`` (``:K``), ``element`` (``:NAME``)."""
+    if issubclass(cls, (AbstractForceElement, AbstractNormalLaw, AbstractFriction)):
+        return "joint"
+    if issubclass(cls, AngleDriver):
+        return "crank"
+    if issubclass(cls, (Body, Mechanism)):
+        return "body"
+    return "element" if issubclass(cls, AbstractConnector) else "load"
 
+
+#: the classes whose names are known without a mechanism (:func:`parameter_names`): the package's own and
+#: the mechanism files' (laws, friction, force elements); any other class is named on a mechanism holding it
+REGISTERED = (Mechanism, Body, AngleDriver, PointForce, Torque, ClearanceJoint, LubricatedJoint, PinSlotJoint,
+              TranslationalClearanceJoint, *dict.fromkeys(cls for cls, *_ in LAWS.values()),
+              *(cls for cls, _ in FRICTION_MODELS.values()), KarnoppFriction, *CONNECTORS.values())
+
+
+class _Entry(NamedTuple):
+    scope: str
+    parameter: Parameter
+    classes: tuple  # the classes declaring it
+
+
+def _info(name: str, e: _Entry) -> ParameterInfo:
+    p = e.parameter
+    doc = f"{p.doc} ({name}:NAME)" if e.scope == "element" else p.doc
+    return ParameterInfo(name, p.unit, p.low, p.high, p.low_open, p.high_open, p.transform, doc)
+
+
+def _compose(classes) -> dict[str, _Entry]:
+    """Base name -> its scope, its declaration and the classes declaring it; two classes that
+    declare one name must agree on its scope, unit, range and transform."""
+    out: dict[str, _Entry] = {}
+    for cls in classes:
+        for name, p in declared(cls).items():
+            if name not in out:
+                out[name] = _Entry(_scope(cls), p, (cls,))
+                continue
+            first = out[name]
+            if (first.scope, first.parameter.range()) != (_scope(cls), p.range()):
+                raise TypeError(f"parameter {name!r}: {cls.__name__} declares {p.range()} ({_scope(cls)}), "
+                                f"{first.classes[0].__name__} {first.parameter.range()} ({first.scope})")
+            out[name] = first._replace(classes=(*first.classes, cls))
+    return out
+
+
+_CATALOGUE = _compose(REGISTERED)
+
+#: base name -> :class:`ParameterInfo` of every registered class's parameters
+INFO = {name: _info(name, e) for name, e in sorted(_CATALOGUE.items())}
 #: a force element's constants (``BASE:NAME``): base name -> the element's field
-CONNECTOR_NAMES = {b: p.field for b, p in connector_parameters().items()}
-INFO.update({b: ParameterInfo(b, p.unit, p.low, None, p.low_open, False, p.transform, f"{p.doc} ({b}:NAME)")
-             for b, p in connector_parameters().items()})
-#: names of one component of a 2-vector leaf: name -> (leaf kind, component)
-COMPONENTS = {"load_x": ("load", 0), "load_y": ("load", 1), "point_x": ("point", 0), "point_y": ("point", 1), "centroid_x": ("centroid", 0),
-              "centroid_y": ("centroid", 1), "offset_x": ("offset", 0), "offset_y": ("offset", 1),
-              "velocity_x": ("velocity", 0), "velocity_y": ("velocity", 1)}
-
+CONNECTOR_NAMES = {n: e.parameter.field for n, e in _CATALOGUE.items() if e.scope == "element"}
+#: names of one component of a 2-vector leaf: name -> (leaf, component)
+COMPONENTS = {n: (e.parameter.field, e.parameter.component) for n, e in _CATALOGUE.items()
+              if e.parameter.component is not None}
 #: old parameter name -> the name that replaced it (accepted with a DeprecationWarning)
 DEPRECATED = {"width": "length"}
-
 #: parameter name -> field of the joint's friction law (the parameters beyond ``friction``)
-FRICTION_FIELDS = {"friction_static": "static", "friction_viscous": "viscous", "v_stribeck": "v_stribeck",
-                   "stribeck_exponent": "stribeck_exponent", "v_threlfall": "v_threlfall",
-                   "v_transition": "v_transition", "bristle_stiffness": "bristle_stiffness",
-                   "bristle_damping": "bristle_damping"}
-
+FRICTION_FIELDS = {n: p.field for n, p in FRICTION_PARAMETERS.items() if n != "friction"}
 #: names that need a body (``NAME:BODY``)
-BODY_NAMES = ("mass", "inertia", "centroid_x", "centroid_y")
+BODY_NAMES = tuple(n for n, p in Body.PARAMETERS.items() if not p.keyed)
 #: names of a load's numbers (``NAME:K``, ``K`` the index of the load in ``mech.loads``)
-LOAD_NAMES = ("load_x", "load_y", "torque")
+LOAD_NAMES = tuple(n for n, e in _CATALOGUE.items() if e.scope == "load")
 #: derived names: several leaves set by one value (:func:`replace`), read as 0 (the shift from as given)
-DERIVED = ("centroid_x", "centroid_y")
+DERIVED = tuple(n for n, p in Body.PARAMETERS.items() if p.field == "points" and not p.keyed)
 
 
 def parameter_names() -> list[str]:
-    """Base names accepted by :func:`get`/:func:`replace` (see module docstring for suffixes)."""
+    """Base names accepted by :func:`get`/:func:`replace` (see module docstring for suffixes):
+    those of the registered classes (:data:`REGISTERED`)."""
     return sorted(INFO)
+
+
+class _Owner(NamedTuple):
+    scope: str
+    key: Any  # joint index, None (crank), body name, load index as text, element name
+    where: Callable  # mech -> the owner
+    obj: Any
+
+
+def _owners(mech: Mechanism) -> list[_Owner]:
+    """Everything in ``mech`` that declares parameters, in the order :func:`names` lists them."""
+    out = [_Owner("joint", k, lambda m, k=k: m.clearance_joints[k], j) for k, j in enumerate(mech.clearance_joints)]
+    found = crank_driver(mech)
+    if found is not None:
+        out.append(_Owner("crank", None, lambda m, i=found[0]: m.drivers[i], found[1]))
+    out += [_Owner("body", b.name, lambda m, i=i: m.bodies[i], b) for i, b in enumerate(mech.bodies)]
+    out.append(_Owner("body", GROUND, lambda m: m, mech))
+    for i, load in enumerate(mech.loads):
+        if isinstance(load, AbstractConnector):
+            out.append(_Owner("element", load.name, lambda m, i=i: m.loads[i], load))
+        elif declared(load):
+            out.append(_Owner("load", str(i), lambda m, i=i: m.loads[i], load))
+    return out
+
+
+def _entries(mech: Mechanism | None) -> dict[str, _Entry]:
+    """The catalogue, plus the names declared by the classes in ``mech`` that are not registered."""
+    if mech is None:
+        return _CATALOGUE
+    extra = {type(o.obj) for o in _owners(mech)} - set(REGISTERED)
+    extra |= {type(getattr(o.obj, part)) for o in _owners(mech) if o.scope == "joint" for part in ("law", "friction")
+              if getattr(o.obj, part, None) is not None}
+    extra -= set(REGISTERED)
+    return {**_compose(sorted(extra, key=lambda c: c.__qualname__)), **_CATALOGUE} if extra else _CATALOGUE
+
+
+def _suffixed(o: _Owner, name: str) -> str:
+    if o.scope == "joint":
+        return name if o.key == 0 else f"{name}@{o.key}"
+    return name if o.scope == "crank" else f"{name}:{o.key}"
 
 
 def names(mech: Mechanism) -> list[str]:
     """Every name that addresses a number of ``mech`` (suffixed for each body, point, load and
     clearance joint ``@J``): what :func:`get`, :func:`replace`, :func:`jaxclear.sensitivities`
-    and a design accept for this mechanism."""
+    and a design accept for this mechanism (:func:`jaxclear.differentiable_names`). Composed
+    from the declarations of what ``mech`` holds."""
     out = []
-    for k, _ in enumerate(mech.clearance_joints):
-        suffix = "" if k == 0 else f"@{k}"
-        for base in parameter_names():
-            if base in (*BODY_NAMES, "point_x", "point_y", "speed", "speed_rpm", "angle0", *LOAD_NAMES):
-                continue
-            try:
-                _lookup(mech, base + suffix)
-            except JaxclearError:
-                continue
-            out.append(base + suffix)
-    if crank_driver(mech) is not None:
-        out += ["speed", "speed_rpm", "angle0"]
-    for body in mech.bodies:
-        out += [f"{base}:{body.name}" for base in BODY_NAMES]
-        out += [f"point_{c}:{body.name}.{p}" for p in body.points for c in "xy"]
-    out += [f"point_{c}:{GROUND}.{p}" for p in mech.ground_points for c in "xy"]
-    for i, load in enumerate(mech.loads):
-        if isinstance(load, AbstractConnector):
-            out += [f"{base}:{load.name}" for base in load.PARAMETERS]
-        else:
-            out += [f"torque:{i}"] if "torque" in type(load).__dataclass_fields__ else [f"load_x:{i}", f"load_y:{i}"]
+    for o in _owners(mech):
+        table = declared(o.obj)
+        plain = [n for n, p in table.items() if not p.keyed]
+        out += [_suffixed(o, n) for n in (sorted(plain) if o.scope == "joint" else plain)]
+        keyed = [n for n, p in table.items() if p.keyed]
+        keys = leaf(o.obj, table[keyed[0]]._replace(keyed=False)) if keyed else ()
+        out += [f"{n}:{o.key}.{k}" for k in keys for n in keyed]
     return out
 
 
-def split_name(name: str) -> tuple[str, int, str | None]:
+def split_name(name: str, mech: Mechanism | None = None) -> tuple[str, int, str | None]:
     """``(base, joint, suffix)`` of a parameter name: ``"mass:rod"`` -> ``("mass", 0, "rod")``,
     ``"clearance@1"`` -> ``("clearance", 1, None)`` (a deprecated base replaced, with its
-    warning); a malformed or unknown name is a :class:`~jaxclear.ParameterError`."""
-    base, joint = name, 0
-    body = None
+    warning); a malformed or unknown name is a :class:`~jaxclear.ParameterError`. With ``mech``,
+    the names its own classes declare are known too."""
+    base, joint, body = name, 0, None
     if "@" in base:
         base, j = base.split("@", 1)
         try:
@@ -242,44 +273,122 @@ def split_name(name: str) -> tuple[str, int, str | None]:
         warnings.warn(f"parameter name {base!r} is deprecated; use {DEPRECATED[base]!r}", DeprecationWarning,
                       stacklevel=3)
         base = DEPRECATED[base]
-    if base not in INFO:  # the closest names follow (closest), from check_name, get or info
+    entry = _entries(mech).get(base)
+    if entry is None:  # the closest names follow (closest), from check_name, get or info
         raise ParameterError(f"unknown parameter {name!r}")
-    if base in BODY_NAMES and body is None:
-        raise ParameterError(f"parameter {name!r} needs a body: {base}:BODY")
-    if base in LOAD_NAMES and (body is None or not body.isdigit()):
-        raise ParameterError(f"parameter {name!r} needs the index of a load: {base}:K (K in mech.loads)")
-    if base in ("point_x", "point_y") and (body is None or "." not in body):
+    if entry.parameter.keyed and (body is None or "." not in body):
         raise ParameterError(f"parameter {name!r} needs a body and a point: {base}:BODY.POINT (ground.POINT for a "
                              "point of the frame)")
+    if entry.scope == "body" and body is None:
+        raise ParameterError(f"parameter {name!r} needs a body: {base}:BODY")
+    if entry.scope == "load" and (body is None or not body.isdigit()):
+        raise ParameterError(f"parameter {name!r} needs the index of a load: {base}:K (K in mech.loads)")
     return base, joint, body
 
 
-def info(name: str) -> ParameterInfo:
-    """:class:`ParameterInfo` of a (possibly suffixed) parameter name."""
+def info(name: str, mech: Mechanism | None = None) -> ParameterInfo:
+    """:class:`ParameterInfo` of a (possibly suffixed) parameter name; with ``mech``, also of the
+    names its own classes declare."""
     try:
-        return INFO[split_name(name)[0]]
+        base = split_name(name, mech)[0]
     except ParameterError as err:
-        raise ParameterError(f"{err}{closest(name, parameter_names(), 'jc.params.parameter_names()')}") from None
+        known = parameter_names() if mech is None else names(mech)
+        raise ParameterError(f"{err}{closest(name, known, 'jc.params.parameter_names()')}") from None
+    return _info(base, _entries(mech)[base])
 
 
-def _joint(mech: Mechanism, name: str, k: int):
-    if not mech.clearance_joints:
-        raise ParameterError(f"parameter {name!r} needs a clearance joint; mechanism {mech.name!r} has none")
-    if not 0 <= k < len(mech.clearance_joints):
-        raise ParameterError(f"parameter {name!r}: joint index {k} outside [0, {len(mech.clearance_joints) - 1}]")
-    return mech.clearance_joints[k]
+class Address(NamedTuple):
+    """Where a name of a mechanism lies: the object declaring it (``owner``, at
+    ``owner_where(mech)``), its :class:`~jaxclear._parameters.Parameter` and, for a keyed leaf
+    (a point), the key."""
+
+    name: str
+    owner: Any
+    owner_where: Callable
+    parameter: Parameter
+    key: str | None
+
+    def where(self, mech):
+        """The leaf in ``mech`` (for ``eqx.tree_at``)."""
+        return leaf(self.owner_where(mech), self.parameter, self.key)
+
+    def value(self):
+        """The value (the leaf, its component, or what ``read`` makes of it)."""
+        p, value = self.parameter, leaf(self.owner, self.parameter, self.key)
+        return p.read(self.owner) if p.read is not None else value if p.component is None else value[p.component]
+
+    def new_leaf(self, value):
+        """The leaf that sets the parameter to ``value``."""
+        p = self.parameter
+        if p.write is not None:
+            return p.write(self.owner, value)
+        old = leaf(self.owner, p, self.key)
+        return value if p.component is None else jnp.asarray(old, dtype=float).at[p.component].set(value)
 
 
-def _driver_index(mech: Mechanism, name: str) -> int:
-    found = crank_driver(mech)
-    if found is not None:
-        return found[0]
-    raise ParameterError(f"parameter {name!r} needs an AngleDriver; mechanism {mech.name!r} has none")
+def _missing(mech: Mechanism, name: str, base: str, entry: _Entry, k: int) -> JaxclearError:
+    """Why a clearance joint has no ``base``, naming who has it."""
+    joint = mech.clearance_joints[k]
+    field = entry.parameter.field
+    if any(issubclass(c, AbstractFriction) for c in entry.classes):
+        having = sorted(n for n, (cls, _) in FRICTION_MODELS.items() if base in cls.PARAMETERS)
+        return ParameterError(f"parameter {name!r}: friction law {type(joint.friction).__name__} of clearance joint "
+                              f"{k} has no {field!r}; the friction models that have it: {having}")
+    if any(issubclass(c, AbstractNormalLaw) for c in entry.classes):
+        return ParameterError(f"parameter {name!r}: contact law {type(joint.law).__name__} has no {field!r}")
+    owners = [c.__name__ for c in entry.classes]
+    owners = ", ".join(owners[:-1]) + " or " + owners[-1] if len(owners) > 1 else owners[0]
+    return ParameterError(f"parameter {name!r} belongs to a {owners}; clearance joint {k} is a "
+                          f"{type(joint).__name__}")
 
 
-def _accessor(mech: Mechanism, name: str) -> tuple[Callable, Callable]:
-    """(get, where) for a name; ``where(m)`` selects the leaf for ``eqx.tree_at``. A name that
-    addresses no number of ``mech`` is an error of its kind (:class:`~jaxclear.ParameterError`,
+def _lookup(mech: Mechanism, name: str) -> Address:
+    """:func:`address` without the closest names (what :func:`check_name` adds them to)."""
+    base, k, suffix = split_name(name, mech)
+    entry = _entries(mech)[base]
+    owners = _owners(mech)
+    key = None
+    if entry.scope == "joint":
+        if not mech.clearance_joints:
+            raise ParameterError(f"parameter {name!r} needs a clearance joint; mechanism {mech.name!r} has none")
+        if not 0 <= k < len(mech.clearance_joints):
+            raise ParameterError(f"parameter {name!r}: joint index {k} outside [0, {len(mech.clearance_joints) - 1}]")
+        owner = owners[k]
+        if base not in declared(owner.obj):
+            raise _missing(mech, name, base, entry, k)
+    elif entry.scope == "crank":
+        owner = next((o for o in owners if o.scope == "crank"), None)
+        if owner is None:
+            raise ParameterError(f"parameter {name!r} needs an AngleDriver; mechanism {mech.name!r} has none")
+    elif entry.scope == "body":
+        body, key = suffix.split(".", 1) if entry.parameter.keyed else (suffix, None)
+        mech.body_index(body)  # an unknown body: MechanismError
+        owner = next(o for o in owners if o.scope == "body" and o.key == body)
+        table = declared(owner.obj)
+        if base not in table:
+            raise ParameterError(f"parameter {name!r}: the ground has no {base}")
+        points = leaf(owner.obj, table[base]._replace(keyed=False)) if key is not None else ()
+        if key is not None and key not in points:
+            raise ParameterError(f"parameter {name!r}: {body!r} has no point {key!r}; its points: {sorted(points)}")
+    elif entry.scope == "load":
+        i = int(suffix)
+        if not i < len(mech.loads):
+            raise ParameterError(f"parameter {name!r}: load index {i} outside [0, {len(mech.loads) - 1}] "
+                                 f"({len(mech.loads)} loads)")
+        load = mech.loads[i]
+        if base not in declared(load):
+            raise ParameterError(f"parameter {name!r}: load {i} is a {type(load).__name__}, which has no "
+                                 f"{entry.parameter.field!r}")
+        owner = _Owner("load", suffix, lambda m: m.loads[i], load)
+    else:
+        i = connector_index(mech.loads, base, suffix)
+        owner = _Owner("element", suffix, lambda m: m.loads[i], mech.loads[i])
+    return Address(name, owner.obj, owner.where, declared(owner.obj)[base], key)
+
+
+def address(mech: Mechanism, name: str) -> Address:
+    """Where ``name`` lies in ``mech`` (:class:`Address`). A name that addresses no number of
+    ``mech`` is an error of its kind (:class:`~jaxclear.ParameterError`,
     :class:`~jaxclear.MechanismError`) saying why, then the closest names (:func:`closest`)."""
     try:
         return _lookup(mech, name)
@@ -287,133 +396,29 @@ def _accessor(mech: Mechanism, name: str) -> tuple[Callable, Callable]:
         raise type(err)(f"{err}{closest(name, names(mech), 'jc.params.names(mech)')}") from None
 
 
-def check_name(mech: Mechanism, name: str) -> None:
-    """Raise the error of :func:`get` unless ``name`` addresses a number of ``mech``: why, then
-    the closest names (:func:`closest`)."""
-    _accessor(mech, name)
-
-
-def _lookup(mech: Mechanism, name: str) -> tuple[Callable, Callable]:
-    """:func:`_accessor` without the closest names (what :func:`names` tries each name with)."""
-    base, k, body = split_name(name)
-    if base in BODY_NAMES:
-        i = mech.body_index(body)
-        if i < 0:
-            raise ParameterError(f"parameter {name!r}: the ground has no {base}")
-        if base in DERIVED:  # every point of the body; the value read is the shift from as given: 0
-            where = lambda m: m.bodies[i].points  # noqa: E731
-            return (lambda m: jnp.zeros((), dtype=float)), where
-        where = (lambda m: m.bodies[i].mass) if base == "mass" else (lambda m: m.bodies[i].inertia)
-        return where, where
-    if base in ("speed", "speed_rpm", "angle0"):
-        i = _driver_index(mech, name)
-        field = "angle0" if base == "angle0" else "speed"
-        w = lambda m: getattr(m.drivers[i], field)  # noqa: E731
-        return w, w
-    if base in LOAD_NAMES:
-        i = int(body)
-        if not i < len(mech.loads):
-            raise ParameterError(f"parameter {name!r}: load index {i} outside [0, {len(mech.loads) - 1}] "
-                                 f"({len(mech.loads)} loads)")
-        load, field = mech.loads[i], "torque" if base == "torque" else "force"
-        if field not in type(load).__dataclass_fields__:
-            raise ParameterError(f"parameter {name!r}: load {i} is a {type(load).__name__}, which has no {field!r}")
-        where = lambda m: getattr(m.loads[i], field)  # noqa: E731
-        if base == "torque":
-            return where, where
-        k = COMPONENTS[base][1]
-        return (lambda m: where(m)[k]), where
-    if base in CONNECTOR_NAMES:
-        w = connector_where(mech.loads, base, body)
-        return w, w
-    if base in ("point_x", "point_y"):
-        owner, point = body.split(".", 1)
-        if owner == GROUND:
-            table = mech.ground_points
-            where = lambda m: m.ground_points[point]  # noqa: E731
-        else:
-            i = mech.body_index(owner)
-            if i < 0:
-                raise ParameterError(f"parameter {name!r}: no body {owner!r}; bodies: {[b.name for b in mech.bodies]}")
-            table = mech.bodies[i].points
-            where = lambda m: m.bodies[i].points[point]  # noqa: E731
-        if point not in table:
-            raise ParameterError(f"parameter {name!r}: {owner!r} has no point {point!r}; its points: {sorted(table)}")
-        k = COMPONENTS[base][1]
-        return (lambda m: where(m)[k]), where
-    if base in ("offset_x", "offset_y", "velocity_x", "velocity_y"):
-        joint = _joint(mech, name, k)
-        field = "initial_offset" if base.startswith("offset") else "initial_velocity"
-        j = COMPONENTS[base][1]
-        where = lambda m: getattr(m.clearance_joints[k], field)  # noqa: E731
-        return (lambda m: where(m)[j]), where
-    joint = _joint(mech, name, k)
-    if base == "clearance":
-        if isinstance(joint, TranslationalClearanceJoint):  # (W - b)/2: sets the guide width, block kept
-            return (lambda m: m.clearance_joints[k].clearance), (lambda m: m.clearance_joints[k].guide_width)
-        return (lambda m: m.clearance_joints[k].clearance), (lambda m: m.clearance_joints[k].journal_radius)
-    if base == "friction":
-        w = lambda m: m.clearance_joints[k].friction.coefficient  # noqa: E731
-        return w, w
-    if base in FRICTION_FIELDS:
-        field = FRICTION_FIELDS[base]
-        if field not in type(joint.friction).__dataclass_fields__:
-            having = sorted(n for n, (cls, _) in FRICTION_MODELS.items() if field in cls.__dataclass_fields__)
-            raise ParameterError(f"parameter {name!r}: friction law {type(joint.friction).__name__} of clearance "
-                                 f"joint {k} has no {field!r}; the friction models that have it: {having}")
-        w = lambda m: getattr(m.clearance_joints[k].friction, field)  # noqa: E731
-        return w, w
-    if base == "length":
-        if isinstance(joint, TranslationalClearanceJoint):
-            raise ParameterError(f"parameter {name!r}: a translational clearance joint has no axial length "
-                                 "(its block has slider_length and slider_height)")
-        w = lambda m: m.clearance_joints[k].length  # noqa: E731
-        return w, w
-    if base == "viscosity":
-        if not isinstance(joint, LubricatedJoint):
-            raise ParameterError(f"parameter {name!r} belongs to a LubricatedJoint; clearance joint {k} is a "
-                                 f"{type(joint).__name__}")
-        w = lambda m: m.clearance_joints[k].viscosity  # noqa: E731
-        return w, w
-    field = {"restitution": "restitution", "exponent": "exponent"}.get(base) or joint.law.stiffness_parameter
-    if field not in type(joint.law).__dataclass_fields__:
-        raise ParameterError(f"parameter {name!r}: contact law {type(joint.law).__name__} has no {field!r}")
-    w = lambda m: getattr(m.clearance_joints[k].law, field)  # noqa: E731
-    if base == "stiffness" and isinstance(joint, TranslationalClearanceJoint):  # always explicit
-        return w, w
-    if base == "stiffness":  # the leaf, or the value derived from the materials when it is None
-        return (lambda m: m.clearance_joints[k].law.stiffness_value(
-            m.clearance_joints[k].bearing_radius, m.clearance_joints[k].journal_radius)), w
-    return w, w
+def check_name(mech: Mechanism, name: str, context: str | None = None) -> None:
+    """The one check of a name: raise the error of :func:`get` unless ``name`` addresses a number
+    of ``mech`` (why, then the closest names, :func:`closest`). With ``context`` (``"design
+    variable 'x'"``), a :class:`~jaxclear.ParameterError` whose message is ``context: why``."""
+    try:
+        address(mech, name)
+    except JaxclearError as err:
+        if context is None:
+            raise
+        raise ParameterError(f"{context}: {err}") from None
 
 
 def get(mech: Mechanism, name: str):
     """Current value of a named parameter (SI; ``speed_rpm`` in rpm)."""
-    getter, _ = _accessor(mech, name)
-    value = getter(mech)
-    if split_name(name)[0] == "speed_rpm":
-        value = rad_s_to_rpm(value)
-    return value
+    return address(mech, name).value()
 
 
 def replace(mech: Mechanism, name: str, value) -> Mechanism:
     """A new mechanism with parameter ``name`` set to ``value`` (a float, array or tracer).
     No validation here (``value`` may be traced): see :func:`validate`."""
-    _, where = _accessor(mech, name)
-    base, k, _ = split_name(name)
-    value = jnp.asarray(value, dtype=float)
-    if base == "clearance" and isinstance(mech.clearance_joints[k], TranslationalClearanceJoint):
-        value = mech.clearance_joints[k].slider_height + 2.0 * value
-    elif base == "clearance":
-        value = mech.clearance_joints[k].bearing_radius - value
-    elif base == "speed_rpm":
-        value = rpm_to_rad_s(value)
-    elif base in DERIVED:  # the centroid moves by value along one body axis: every point by -value
-        shift = jnp.zeros(2, dtype=float).at[COMPONENTS[base][1]].set(value)
-        value = {p: jnp.asarray(v, dtype=float) - shift for p, v in where(mech).items()}
-    elif base in COMPONENTS:  # one component of a 2-vector leaf
-        value = jnp.asarray(where(mech), dtype=float).at[COMPONENTS[base][1]].set(value)
-    return eqx.tree_at(where, mech, value, is_leaf=lambda x: x is None)
+    at = address(mech, name)
+    new = at.new_leaf(jnp.asarray(value, dtype=float))
+    return eqx.tree_at(at.where, mech, new, is_leaf=lambda x: x is None)
 
 
 def replace_many(mech: Mechanism, values: dict) -> Mechanism:
@@ -427,15 +432,11 @@ def is_derived(mech: Mechanism, name: str) -> bool:
     """Whether the value of ``name`` in ``mech`` is derived from other numbers rather than set: a
     ``stiffness`` whose law leaf (``law.stiffness_parameter``) is ``None``, computed by
     ``law.stiffness_value(R_B, R_J)`` from the materials (and, for the Hertz-type laws, the
-    radii, so it follows ``clearance``). Setting it (:func:`replace`) makes it explicit. (Not to
-    be confused with the derived *names* ``centroid_x``/``centroid_y``, one value setting
-    several leaves.)"""
-    check_name(mech, name)
-    base, k, _ = split_name(name)
-    if base != "stiffness":
-        return False
-    law = mech.clearance_joints[k].law
-    return getattr(law, law.stiffness_parameter, 0.0) is None
+    radii, so it follows ``clearance``); in general a name declared ``derived`` whose leaf is
+    ``None``. Setting it (:func:`replace`) makes it explicit. (Not to be confused with the
+    derived *names* ``centroid_x``/``centroid_y``, one value setting several leaves.)"""
+    at = address(mech, name)
+    return at.parameter.derived and leaf(at.owner, at.parameter, at.key) is None
 
 
 def replace_following(mech: Mechanism, values: dict, base: dict) -> Mechanism:
@@ -453,44 +454,41 @@ def replace_following(mech: Mechanism, values: dict, base: dict) -> Mechanism:
     return replace_many(out, {n: get(out, n) + (jnp.asarray(values[n], dtype=float) - base[n]) for n in derived})
 
 
-def validate(mech: Mechanism, name: str, values) -> np.ndarray:
-    """Check concrete ``values`` of parameter ``name`` against its range (and, for
-    ``clearance``, against the bearing radius). Returns them as a float array."""
-    check_name(mech, name)
-    base, k, _ = split_name(name)
+def validate(mech: Mechanism, name: str, values, context: str | None = None) -> np.ndarray:
+    """Check concrete ``values`` of parameter ``name`` against its declared range (and a bound
+    that depends on the mechanism: a clearance below the bearing radius). Returns them as a
+    float array. With ``context``, errors read ``context: why`` (:func:`check_name`)."""
+    check_name(mech, name, context)
+    at = address(mech, name)
+    p = at.parameter
     arr = np.asarray(values, dtype=float)
-    p = INFO[base]
-    check_range(name, arr, low=p.low, high=p.high, low_open=p.low_open, high_open=p.high_open,
-                unit="" if p.unit in ("", "law unit") else p.unit)
-    if base == "clearance" and not isinstance(mech.clearance_joints[k], TranslationalClearanceJoint):
-        rb = float(mech.clearance_joints[k].bearing_radius)
-        if np.any(arr >= rb):
-            raise ParameterError(f"{name} = {arr.max():g} m must be smaller than the bearing radius {rb:g} m")
+    unit = "" if p.unit in ("", "law unit") else p.unit
+    try:
+        check_range(name, arr, low=p.low, high=p.high, low_open=p.low_open, high_open=p.high_open, unit=unit)
+        if p.limit is not None:
+            bound, what = p.limit(at.owner)
+            if np.any(arr >= bound):
+                raise ParameterError(f"{name} = {arr.max():g} {unit} must be smaller than {what} {bound:g} {unit}")
+    except ParameterError as err:
+        if context is None:
+            raise
+        raise ParameterError(f"{context}: {err}") from None
     return arr
 
 
-def to_unconstrained(name: str, value):
+def to_unconstrained(name: str, value, mech: Mechanism | None = None):
     """Map a value in the parameter's range to the real line (``log`` or ``logit``)."""
-    t = info(name).transform
-    value = jnp.asarray(value, dtype=float)
-    if t == "log":
-        return jnp.log(value)
-    if t == "logit":
-        return jnp.log(value) - jnp.log1p(-value)
-    return value
+    t, value = info(name, mech).transform, jnp.asarray(value, dtype=float)
+    return jnp.log(value) if t == "log" else jnp.log(value) - jnp.log1p(-value) if t == "logit" else value
 
 
-def from_unconstrained(name: str, z):
+def from_unconstrained(name: str, z, mech: Mechanism | None = None):
     """Inverse of :func:`to_unconstrained`."""
-    t = info(name).transform
-    if t == "log":
-        return jnp.exp(z)
-    if t == "logit":
-        return 1.0 / (1.0 + jnp.exp(-z))
-    return z
+    t = info(name, mech).transform
+    return jnp.exp(z) if t == "log" else 1.0 / (1.0 + jnp.exp(-z)) if t == "logit" else z
 
 
-__all__ = ["BODY_NAMES", "COMPONENTS", "CONNECTOR_NAMES", "DEPRECATED", "DERIVED", "FRICTION_FIELDS", "INFO",
-           "LOAD_NAMES", "ParameterInfo", "check_name", "closest", "from_unconstrained", "get", "info", "is_derived",
-           "names", "parameter_names", "replace", "replace_following", "replace_many", "split_name", "to_unconstrained",
-           "validate"]
+__all__ = ["Address", "BODY_NAMES", "COMPONENTS", "CONNECTOR_NAMES", "DEPRECATED", "DERIVED", "FRICTION_FIELDS", "INFO",
+           "LOAD_NAMES", "Parameter", "ParameterInfo", "REGISTERED", "address", "check_name", "closest", "from_unconstrained",
+           "get", "info", "is_derived", "names", "parameter_names", "replace", "replace_following", "replace_many",
+           "split_name", "to_unconstrained", "validate"]

@@ -12,6 +12,10 @@ hierarchy; concrete laws are final):
 * :class:`AbstractFriction`: ``__call__(v_t, F_N) -> F_T``; a law with internal (bristle)
   states sets ``state_size`` and implements ``force_and_rate(state, v_t, F_N)``.
 
+Each law declares its named parameters (``restitution``, ``stiffness``, ``friction``, ...) in
+its class's ``PARAMETERS`` (:class:`~jaxclear._parameters.Parameter`; :func:`law_parameters`,
+:func:`friction_parameters`), which :mod:`jaxclear.params` composes.
+
 A new law is one subclass in one file plus one entry in :mod:`jaxclear.contact.registry`.
 """
 
@@ -26,6 +30,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._errors import RESULTS, ParameterError, Rule, check_range, first_failure
+from .._parameters import NONNEGATIVE, POSITIVE, Parameter
 from .._types import Array, ArrayLike, Float, Scalar, Vec2
 
 
@@ -107,6 +112,19 @@ def effective_modulus(bearing: Material, journal: Material):
     return 1.0 / (bearing.compliance + journal.compliance)
 
 
+def law_parameters(stiffness: str = "stiffness", derived: bool = True, exponent: bool = False) -> dict[str, Parameter]:
+    """A law's named parameters: ``restitution``, ``stiffness`` (the leaf ``stiffness``, the
+    class's ``stiffness_parameter``; ``derived``: the leaf may be ``None``, the value then derived
+    from the materials) and, with ``exponent``, ``exponent``."""
+    table = {"restitution": Parameter("restitution", "", 0.0, True, "logit", "nominal coefficient of restitution",
+                                      high=1.0),
+             "stiffness": Parameter(stiffness, "law unit", **POSITIVE, doc="contact stiffness of the law",
+                                    derived=derived)}
+    if exponent:
+        table["exponent"] = Parameter("exponent", "", **POSITIVE, doc="force exponent n")
+    return table
+
+
 class AbstractNormalLaw(eqx.Module):
     r"""A normal contact force law :math:`F_N(\delta, \dot\delta, \dot\delta^{(-)}) \ge 0` [N].
 
@@ -117,6 +135,8 @@ class AbstractNormalLaw(eqx.Module):
 
     restitution: eqx.AbstractVar[Scalar]
     stiffness_parameter: ClassVar[str] = "stiffness"
+    #: named parameters (:mod:`jaxclear.params`): base name -> :class:`~jaxclear._parameters.Parameter`
+    PARAMETERS: ClassVar[dict[str, Parameter]] = law_parameters()
 
     @property
     @abc.abstractmethod
@@ -194,6 +214,7 @@ class AbstractModulusLaw(AbstractNormalLaw):
     journal_material: eqx.AbstractVar["Material"]
 
     stiffness_parameter: ClassVar[str] = "modulus"
+    PARAMETERS: ClassVar[dict[str, Parameter]] = law_parameters("modulus")
 
     def checks(self) -> tuple:
         """Restitution in (0, 1], E* > 0 (when given), the materials."""
@@ -210,6 +231,29 @@ class AbstractModulusLaw(AbstractNormalLaw):
         return self.modulus_value()
 
 
+#: every friction law's named parameters (:func:`friction_parameters` picks a law's)
+FRICTION_PARAMETERS = {
+    "friction": Parameter("coefficient", "", **NONNEGATIVE, doc="friction coefficient mu"),
+    "friction_static": Parameter("static", "", **NONNEGATIVE, doc="static friction coefficient mu_s"),
+    "friction_viscous": Parameter("viscous", "s/m", **NONNEGATIVE,
+                                  doc="viscous friction coefficient mu_v (per newton of normal force)"),
+    "v_stribeck": Parameter("v_stribeck", "m/s", **POSITIVE, doc="Stribeck speed"),
+    "stribeck_exponent": Parameter("stribeck_exponent", "", **POSITIVE, doc="exponent of the Stribeck curve"),
+    "v_threlfall": Parameter("v_threlfall", "m/s", **POSITIVE, doc="Threlfall speed"),
+    "v_transition": Parameter("v_transition", "m/s", **POSITIVE, doc="Brown-McPhee transition speed"),
+    "bristle_stiffness": Parameter("bristle_stiffness", "1/m", **POSITIVE,
+                                   doc="bristle stiffness sigma_0 (per newton of normal force)"),
+    "bristle_damping": Parameter("bristle_damping", "s/m", **NONNEGATIVE,
+                                 doc="bristle damping sigma_1 (per newton of normal force)"),
+}
+
+
+def friction_parameters(*names: str) -> dict[str, Parameter]:
+    """A friction law's named parameters: ``friction`` (its coefficient) and ``names`` of
+    :data:`FRICTION_PARAMETERS`."""
+    return {n: FRICTION_PARAMETERS[n] for n in ("friction", *names)}
+
+
 class AbstractFriction(eqx.Module):
     r"""A tangential (friction) law: :math:`F_T(v_T, F_N)` [N] on the journal along the tangent,
     with :math:`F_T v_T \le 0` (friction never does positive work)."""
@@ -221,6 +265,8 @@ class AbstractFriction(eqx.Module):
     #: True for a law that needs the tangential load on the sliding body (Karnopp's stick band),
     #: which no force element knows: the elements refuse such a law (:func:`element_friction`)
     needs_applied_load: ClassVar[bool] = False
+    #: named parameters (:mod:`jaxclear.params`): base name -> :class:`~jaxclear._parameters.Parameter`
+    PARAMETERS: ClassVar[dict[str, Parameter]] = friction_parameters()
 
     def state_init(self, dtype=float):
         """Internal state at the start, shape ``(state_size,)`` (zeros: unloaded bristles)."""

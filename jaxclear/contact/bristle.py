@@ -32,7 +32,8 @@ import jax.numpy as jnp
 
 from .._errors import RESULTS, Rule, check_range
 from .._types import ArrayLike, Scalar
-from .base import AbstractFriction
+from .._parameters import Parameter
+from .base import AbstractFriction, friction_parameters
 from .friction_laws import (check_static, kinetic, speed, speed_ok, static_ok, stribeck, stribeck_coefficient,
                             viscous_coefficient, viscous_ok)
 
@@ -72,6 +73,8 @@ class DahlFriction(AbstractFriction):
     r"""Dahl's law (:func:`dahl_rate`, :func:`dahl_force`): ``coefficient`` :math:`\mu > 0` (the
     sliding limit), ``bristle_stiffness`` :math:`\sigma_0` > 0 [1/m]. One internal state."""
 
+    PARAMETERS: ClassVar[dict[str, Parameter]] = friction_parameters("bristle_stiffness")
+
     coefficient: Scalar
     bristle_stiffness: Scalar
     state_size: ClassVar[int] = 1
@@ -104,6 +107,9 @@ class LuGreFriction(AbstractFriction):
     Typical values: :math:`\sigma_0` such that the pre-sliding displacement :math:`\mu_s/\sigma_0`
     is about a micrometre (1e5 to 1e6 1/m); :math:`\sigma_1` near critical damping of the bristle
     with the sliding mass m, :math:`2\sqrt{\sigma_0 m/F_N}`."""
+
+    PARAMETERS: ClassVar[dict[str, Parameter]] = friction_parameters(
+        "friction_static", "v_stribeck", "bristle_stiffness", "bristle_damping", "friction_viscous")
 
     coefficient: Scalar
     static: Scalar

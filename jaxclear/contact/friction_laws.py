@@ -19,7 +19,8 @@ import jax.numpy as jnp
 
 from .._errors import RESULTS, ParameterError, Rule, check_range, is_concrete
 from .._types import ArrayLike, Scalar
-from .base import AbstractFriction
+from .._parameters import Parameter
+from .base import AbstractFriction, friction_parameters
 
 
 def viscous(v_t, normal_force, mu, mu_v):
@@ -136,6 +137,8 @@ class ViscousFriction(AbstractFriction):
     r"""Coulomb plus viscous friction (:func:`viscous`): ``coefficient`` :math:`\mu \ge 0`,
     ``viscous`` :math:`\mu_v \ge 0` [s/m]."""
 
+    PARAMETERS: ClassVar[dict[str, Parameter]] = friction_parameters("friction_viscous")
+
     coefficient: Scalar
     viscous: Scalar
 
@@ -159,6 +162,9 @@ class StribeckFriction(AbstractFriction):
     r"""Stribeck friction (:func:`stribeck`): kinetic ``coefficient`` :math:`\mu_k \ge 0`,
     ``static`` :math:`\mu_s \ge \mu_k` (``None``: equal), Stribeck speed ``v_stribeck`` > 0 [m/s],
     ``stribeck_exponent`` > 0 (2: Gaussian), ``viscous`` :math:`\mu_v \ge 0` [s/m]."""
+
+    PARAMETERS: ClassVar[dict[str, Parameter]] = friction_parameters(
+        "friction_static", "v_stribeck", "stribeck_exponent", "friction_viscous")
 
     coefficient: Scalar
     static: Scalar
@@ -203,6 +209,8 @@ class KarnoppFriction(AbstractFriction):
     LuGre (:mod:`~jaxclear.contact.bristle`) sticks under a load below its static limit and works
     in every joint."""
 
+    PARAMETERS: ClassVar[dict[str, Parameter]] = friction_parameters("friction_static", "friction_viscous")
+
     coefficient: Scalar
     static: Scalar
     v_stick: Scalar
@@ -228,6 +236,8 @@ class ThrelfallFriction(AbstractFriction):
     r"""Threlfall's law (:func:`threlfall`): ``coefficient`` :math:`\mu \ge 0`, ``v_threlfall``
     :math:`v_0` > 0 [m/s]."""
 
+    PARAMETERS: ClassVar[dict[str, Parameter]] = friction_parameters("v_threlfall")
+
     coefficient: Scalar
     v_threlfall: Scalar
 
@@ -246,6 +256,9 @@ class ThrelfallFriction(AbstractFriction):
 class BrownMcPheeFriction(AbstractFriction):
     r"""Brown-McPhee law (:func:`brown_mcphee`): kinetic ``coefficient`` :math:`\mu_k`, ``static``
     :math:`\mu_s \ge \mu_k`, transition speed ``v_transition`` > 0 [m/s], ``viscous`` [s/m]."""
+
+    PARAMETERS: ClassVar[dict[str, Parameter]] = friction_parameters(
+        "friction_static", "v_transition", "friction_viscous")
 
     coefficient: Scalar
     static: Scalar

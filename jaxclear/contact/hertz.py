@@ -28,7 +28,8 @@ import jax.numpy as jnp
 
 from .._errors import RESULTS, ParameterError, Rule, check_range
 from .._types import ArrayLike, Scalar
-from .base import STEEL, AbstractNormalLaw, Material
+from .._parameters import Parameter
+from .base import STEEL, AbstractNormalLaw, law_parameters, Material
 
 
 # --------------------------------------------------------------------------------------
@@ -207,6 +208,7 @@ class ContactLaw(AbstractNormalLaw):
         self.journal_material = journal_material
 
     stiffness_parameter: ClassVar[str] = "stiffness"
+    PARAMETERS: ClassVar[dict[str, Parameter]] = law_parameters(exponent=True)
 
     @property
     def name(self) -> str:

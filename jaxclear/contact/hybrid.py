@@ -47,7 +47,8 @@ from typing import ClassVar
 
 from .._errors import RESULTS, ParameterError, Rule, check_range
 from .._types import Array, ArrayLike, Float, Scalar
-from .base import STEEL, AbstractNormalLaw, ContactKinematics, Material
+from .._parameters import Parameter
+from .base import STEEL, AbstractNormalLaw, law_parameters, ContactKinematics, Material
 from .hertz import chi_qin_lu
 
 
@@ -170,6 +171,7 @@ class HybridLaw(AbstractNormalLaw):
     layers: int = eqx.field(static=True)
 
     stiffness_parameter: ClassVar[str] = "foundation_modulus"
+    PARAMETERS: ClassVar[dict[str, Parameter]] = law_parameters("foundation_modulus")
     name: ClassVar[str] = "hybrid"
 
     def __init__(

@@ -23,7 +23,8 @@ import jax.numpy as jnp
 
 from .._errors import RESULTS, Rule, check_range
 from .._types import ArrayLike, Scalar
-from .base import STEEL, AbstractNormalLaw, Material
+from .._parameters import Parameter
+from .base import STEEL, AbstractNormalLaw, law_parameters, Material
 from .hertz import cylindrical_stiffness, positive_power
 
 
@@ -74,6 +75,7 @@ class StepDampedImpactLaw(AbstractNormalLaw):
     journal_material: Material
 
     stiffness_parameter: ClassVar[str] = "stiffness"
+    PARAMETERS: ClassVar[dict[str, Parameter]] = law_parameters(exponent=True)
     name: ClassVar[str] = "impact"
 
     def __init__(self, restitution: ArrayLike = 1.0, stiffness: ArrayLike | None = None, exponent: ArrayLike = 1.5, max_damping: ArrayLike = 1e4,

@@ -9,7 +9,8 @@ import jax.numpy as jnp
 
 from .._errors import RESULTS, Rule, check_range
 from .._types import ArrayLike, Scalar
-from .base import AbstractNormalLaw
+from .._parameters import Parameter
+from .base import AbstractNormalLaw, law_parameters
 
 
 def kelvin_voigt_damping(stiffness, restitution, effective_mass):
@@ -47,6 +48,7 @@ class KelvinVoigtLaw(AbstractNormalLaw):
     effective_mass: Scalar
 
     stiffness_parameter: ClassVar[str] = "stiffness"
+    PARAMETERS: ClassVar[dict[str, Parameter]] = law_parameters(derived=False)
     name: ClassVar[str] = "kelvin-voigt"
 
     def __init__(self, stiffness: ArrayLike = 1e8, restitution: ArrayLike = 0.9, effective_mass: ArrayLike = 0.1):

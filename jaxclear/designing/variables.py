@@ -15,7 +15,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import params
-from .._errors import JaxclearError, ParameterError
+from .._errors import ParameterError
 from ..derivatives import differentiable_names
 from ..model import Mechanism
 
@@ -83,10 +83,8 @@ def check_variables(mech: Mechanism, variables: dict, start: dict | None = None)
         raise ParameterError(f"start values for {extra}, which are not design variables ({list(variables)})")
     out = []
     for name, bounds in variables.items():
-        try:
-            params.check_name(mech, name)
-        except JaxclearError as err:  # says why, then the closest names (params.closest)
-            raise ParameterError(f"design variable {name!r} is not a number of mechanism {mech.name!r}: {err}") from None
+        # why, then the closest names (params.closest)
+        params.check_name(mech, name, context=f"design variable {name!r} is not a number of mechanism {mech.name!r}")
         low, high = _interval(name, bounds)
         try:
             params.validate(mech, name, [low, high])
@@ -100,7 +98,7 @@ def check_variables(mech: Mechanism, variables: dict, start: dict | None = None)
             where = "the start value given" if name in start else "its value in the mechanism (the start)"
             raise ParameterError(f"design variable {name!r}: {where}, {value:g}, lies outside its range [{low:g}, "
                                  f"{high:g}]; widen the range or give a start inside it")
-        unit = params.info(name).unit
+        unit = params.info(name, mech).unit
         out.append(Variable(name, low, high, value, "" if unit == "law unit" else unit))
     return tuple(out)
 

@@ -9,6 +9,11 @@ element only through its :class:`ContactOutput`. The state layout is
 (:class:`~jaxclear.integrate.state.State`); each element's slice is the flat vector of its own
 state pytree (:meth:`~AbstractForceElement.state_to_vector`).
 
+Each element declares its named parameters in its class's ``PARAMETERS``
+(:class:`~jaxclear._parameters.Parameter`); :meth:`~AbstractForceElement.parameters` adds its
+law's and friction's, and :mod:`jaxclear.params` composes them (``name@J`` of clearance joint
+``J``).
+
 A new element is one subclass in one file of :mod:`jaxclear.elements`.
 """
 
@@ -22,6 +27,7 @@ import jax
 import jax.numpy as jnp
 
 from .._errors import RESULTS, first_failure
+from .._parameters import FREE, Parameter, declared, nested
 from .._types import Array, BoolScalar, Float, Scalar, Vec2
 from ..model.joints import AbstractConstraint
 from ..model.mechanism import Mechanism
@@ -50,6 +56,43 @@ class AbstractForceElement(eqx.Module):
     name: eqx.AbstractVar[str]
     state_size: ClassVar[int]
     n_equations: ClassVar[int]
+    #: named parameters (:mod:`jaxclear.params`, ``name@J``): base name ->
+    #: :class:`~jaxclear._parameters.Parameter`; here the start within the clearance
+    PARAMETERS: ClassVar[dict[str, Parameter]] = {
+        "offset_x": Parameter("initial_offset", "m", **FREE, component=0,
+                              doc="initial offset of the clearance joint, first component"),
+        "offset_y": Parameter("initial_offset", "m", **FREE, component=1,
+                              doc="initial offset of the clearance joint, second component"),
+        "velocity_x": Parameter("initial_velocity", "m/s", **FREE, component=0,
+                                doc="initial relative velocity of the clearance joint, first component"),
+        "velocity_y": Parameter("initial_velocity", "m/s", **FREE, component=1,
+                                doc="initial relative velocity of the clearance joint, second component"),
+    }
+
+    def parameters(self) -> dict[str, Parameter]:
+        """The element's named parameters: its class's ``PARAMETERS``, its contact law's and its
+        friction law's (``law.*``, ``friction.*``; :func:`~jaxclear._parameters.nested`)."""
+        table = dict(type(self).PARAMETERS)
+        for part in ("law", "friction"):
+            if getattr(self, part, None) is not None:
+                table.update(nested(part, declared(getattr(self, part))))
+        return table
+
+    def describe(self) -> str:
+        """One line for ``jaxclear check`` (:func:`~jaxclear.analysis.structure.check_mechanism`):
+        its label, bodies and laws. Elements override it to add their geometry."""
+        return f"{self.label}: bodies {' and '.join(self.bodies())}"
+
+    def laws_text(self) -> str:
+        """``law NAME, c_r = ..., mu = ...`` of its contact and friction laws (:meth:`describe`)."""
+        return (f"law {self.law.name}, c_r = {float(self.law.restitution):.3g}, "
+                f"mu = {float(self.friction.coefficient):.3g}")
+
+    def started_within(self, fraction) -> "AbstractForceElement":
+        """A copy whose start is moved by ``fraction`` (``(n_equations,)``) of its clearance (the
+        design ensembles' start offsets). Default: itself (an element whose start the ensembles
+        leave as given)."""
+        return self
 
     # ---- structure ------------------------------------------------------------------
     @abc.abstractmethod

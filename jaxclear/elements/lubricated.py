@@ -125,6 +125,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from typing import ClassVar
 
 import equinox as eqx
 import jax
@@ -132,6 +133,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._errors import RESULTS, ParameterError, Rule, check_range, is_concrete
+from .._parameters import POSITIVE, Parameter
 from .._types import ArrayLike, Scalar, Vec2
 from ..contact.base import AbstractFriction, AbstractNormalLaw, element_friction
 from ..contact.friction import Friction
@@ -300,6 +302,15 @@ class LubricatedJoint(AbstractJournalJoint):
     n_elements: int = eqx.field(static=True)
     n_gauss: int = eqx.field(static=True)
     name: str = eqx.field(static=True)
+
+    PARAMETERS: ClassVar[dict[str, Parameter]] = {
+        **AbstractJournalJoint.PARAMETERS,
+        "viscosity": Parameter("viscosity", "Pa s", **POSITIVE, doc="oil viscosity (lubricated joint)"),
+    }
+
+    def describe(self) -> str:
+        return (f"{super().describe()}, oil film: viscosity {float(self.viscosity):.4g} Pa s, film width (length) "
+                f"{float(self.length) * 1e3:.4g} mm")
 
     def __init__(
         self,

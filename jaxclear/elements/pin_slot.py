@@ -81,6 +81,9 @@ class PinSlotJoint(AbstractJournalJoint):
     ideal: str = eqx.field(static=True)
     name: str = eqx.field(static=True)
 
+    def describe(self) -> str:
+        return f"{super().describe()}, slot length {float(self.slot_length) * 1e3:.4g} mm"
+
     def __init__(
         self,
         bearing_body: str,

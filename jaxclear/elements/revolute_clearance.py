@@ -35,6 +35,7 @@ import jax
 import jax.numpy as jnp
 
 from .._errors import RESULTS, ParameterError, Rule, check_range
+from .._parameters import POSITIVE, Parameter
 from .._types import Array, ArrayLike, Float, Scalar, Vec2
 from ..contact.base import AbstractFriction, AbstractNormalLaw, ContactKinematics, element_friction
 from ..contact.bristle import FrozenBristles
@@ -80,6 +81,32 @@ class AbstractJournalJoint(AbstractForceElement):
     impact_velocity_floor: eqx.AbstractVar[Scalar]
     initial_offset: eqx.AbstractVar[Vec2]
     initial_velocity: eqx.AbstractVar[Vec2]
+
+    PARAMETERS: ClassVar[dict[str, Parameter]] = {
+        "clearance": Parameter("journal_radius", "m", **POSITIVE, doc="radial clearance R_B - R_J",
+                               read=lambda j: j.clearance, write=lambda j, c: j.bearing_radius - c,
+                               limit=lambda j: (float(j.bearing_radius), "the bearing radius")),
+        **AbstractForceElement.PARAMETERS,
+        "length": Parameter("length", "m", **POSITIVE, doc="axial length of the joint (a lubricated joint's film width)"),
+    }
+
+    def parameters(self) -> dict[str, Parameter]:
+        """Those of :meth:`AbstractForceElement.parameters`; a stiffness left to the law (its leaf
+        ``None``) is read derived from the materials and the radii (``law.stiffness_value``)."""
+        table = super().parameters()
+        if "stiffness" in table and table["stiffness"].derived:
+            table["stiffness"] = table["stiffness"]._replace(
+                read=lambda j: j.law.stiffness_value(j.bearing_radius, j.journal_radius))
+        return table
+
+    def describe(self) -> str:
+        return (f"{self.label}: bearing {self.bearing_body}.{self.bearing_point}, journal {self.journal_body}."
+                f"{self.journal_point}, R_B = {float(self.bearing_radius) * 1e3:.4g} mm, c = "
+                f"{float(self.clearance) * 1e6:.4g} um, {self.laws_text()}")
+
+    def started_within(self, fraction) -> "AbstractJournalJoint":
+        """Its journal started ``fraction`` (2,) of the clearance further from its initial offset."""
+        return eqx.tree_at(lambda j: j.initial_offset, self, self.initial_offset + fraction * self.clearance)
 
     @abc.abstractmethod
     def kinematics(self, mech: Mechanism, q, qdot) -> ContactKinematics:

@@ -49,6 +49,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._errors import RESULTS, ParameterError, Rule, check_range, is_concrete
+from .._parameters import POSITIVE, Parameter
 from .._types import Array, ArrayLike, Float, Scalar, Vec2
 from ..contact.base import AbstractFriction, AbstractNormalLaw, ContactKinematics, element_friction
 from ..contact.friction import Friction
@@ -203,6 +204,26 @@ class TranslationalClearanceJoint(AbstractForceElement):
     def clearance(self):
         """Clearance per side :math:`c = (W - b)/2` [m]."""
         return 0.5 * (self.guide_width - self.slider_height)
+
+    PARAMETERS: ClassVar[dict[str, Parameter]] = {
+        "clearance": Parameter("guide_width", "m", **POSITIVE, doc="radial clearance R_B - R_J",
+                               read=lambda j: j.clearance, write=lambda j, c: j.slider_height + 2.0 * c),
+        **AbstractForceElement.PARAMETERS,
+    }
+
+    def parameters(self) -> dict[str, Parameter]:
+        """Those of :meth:`AbstractForceElement.parameters`; the stiffness always explicit (the
+        joint needs the law's stiffness leaf set)."""
+        table = super().parameters()
+        if "stiffness" in table:
+            table["stiffness"] = table["stiffness"]._replace(derived=False)
+        return table
+
+    def describe(self) -> str:
+        return (f"{self.label}: guide {self.guide_body}.{self.guide_point}, slider {self.slider_body}."
+                f"{self.slider_point}, block {float(self.slider_length) * 1e3:.4g} x "
+                f"{float(self.slider_height) * 1e3:.4g} mm, guide width {float(self.guide_width) * 1e3:.4g} mm, "
+                f"c = {float(self.clearance) * 1e6:.4g} um per side, {self.laws_text()}")
 
     # ---- structure ------------------------------------------------------------------
     def bodies(self):

@@ -7,7 +7,8 @@ from .drivers import AbstractDriver, AngleDriver, FunctionDriver, ProfileDriver,
 from .geometry import cross2, dot2, perp, rotate, safe_normal
 from .joints import AbstractConstraint, AbstractJoint, Fixed, PointOnLine, Revolute, Translational
 from .loads import AbstractLoad, PointForce, Torque, gravity_force
-from .connectors import AbstractConnector, Parameter
+from .._parameters import Parameter
+from .connectors import AbstractConnector
 from .curves import AbstractCurve, PolynomialCurve, TableCurve
 from .spring_damper import TranslationalSpringDamper
 from .rotational_spring import RotationalSpringDamper

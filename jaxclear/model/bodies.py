@@ -7,10 +7,13 @@ orientation [rad]). The ground is not a body: it is named ``"ground"`` and has i
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import equinox as eqx
 import jax.numpy as jnp
 
 from .._errors import RESULTS, MechanismError, Rule, check_finite, check_range, check_vec2, first_failure
+from .._parameters import FREE, POSITIVE, Parameter
 from .._types import Array, ArrayLike, Float, Scalar, Vec2
 
 GROUND = "ground"
@@ -21,6 +24,24 @@ GROUND = "ground"
 def vec2(name: str, value) -> Array:
     """``value`` as a finite float 2-vector; :class:`MechanismError` naming ``name`` otherwise."""
     return check_vec2(name, value, MechanismError)
+
+
+def _centroid_moved(axis: int):
+    """``write`` of ``centroid_x``/``centroid_y``: every point of the body moved by minus the
+    shift along its ``axis`` (the centroid moves by the shift relative to the points)."""
+    def write(body, value):
+        shift = jnp.zeros(2, dtype=float).at[axis].set(value)
+        return {p: jnp.asarray(v, dtype=float) - shift for p, v in body.points.items()}
+
+    return write
+
+
+def point_parameters(field: str) -> dict[str, Parameter]:
+    """``point_x``, ``point_y``: the components of the named points in the dict leaf ``field``
+    (``NAME:OWNER.POINT``)."""
+    return {f"point_{c}": Parameter(field, "m", **FREE, component=k, keyed=True,
+                                    doc=f"{c} of a body-fixed point (point_{c}:BODY.POINT)")
+            for k, c in enumerate("xy")}
 
 
 class Body(eqx.Module):
@@ -41,6 +62,20 @@ class Body(eqx.Module):
     points: dict[str, Vec2]
     position: Float[Array, "3"]
     velocity: Float[Array, "3"]
+
+    #: named parameters (:mod:`jaxclear.params`, ``NAME:BODY``; points ``NAME:BODY.POINT``).
+    #: ``centroid_x``/``centroid_y`` are derived names: the value, read as 0, is the centroid's
+    #: shift relative to the points as given, made by moving every point the other way.
+    PARAMETERS: ClassVar[dict[str, Parameter]] = {
+        "mass": Parameter("mass", "kg", **POSITIVE, doc="body mass (mass:BODY)"),
+        "inertia": Parameter("inertia", "kg m^2", **POSITIVE, doc="body inertia (inertia:BODY)"),
+        **{f"centroid_{c}": Parameter("points", "m", **FREE, read=lambda body: jnp.zeros((), dtype=float),
+                                      write=_centroid_moved(k),
+                                      doc=f"shift of a body's centroid along its {c} axis, its points moving the "
+                                          f"other way (centroid_{c}:BODY)")
+           for k, c in enumerate("xy")},
+        **point_parameters("points"),
+    }
 
     def __init__(
         self,

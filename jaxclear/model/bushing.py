@@ -30,8 +30,9 @@ from typing import ClassVar
 import equinox as eqx
 import jax.numpy as jnp
 
+from .._parameters import NONNEGATIVE, Parameter
 from .._types import Array, Float, Scalar
-from .connectors import CONNECTORS, NONNEGATIVE, AbstractPointPair, Parameter, scalar
+from .connectors import CONNECTORS, AbstractPointPair, scalar
 from .geometry import rotate
 
 _FIELDS = ("stiffness_x", "stiffness_y", "stiffness_angle", "damping_x", "damping_y", "damping_angle")
@@ -64,6 +65,8 @@ class Bushing(AbstractPointPair):
     damping_y: Scalar
     damping_angle: Scalar
 
+    SKETCH_STYLE: ClassVar[dict] = {"color": "tab:brown", "lw": 1.2, "marker": "s", "ms": 7, "markevery": [-1],
+                                    "mfc": "none"}
     OUTPUTS: ClassVar[dict[str, str]] = {
         "force_x": "N", "force_y": "N", "moment": "N m", "dx": "m", "dy": "m", "angle": "rad",
         "rate_x": "m/s", "rate_y": "m/s", "rate_angle": "rad/s", "power": "W"}

@@ -30,35 +30,21 @@ range, which :meth:`AbstractConnector.checks` enforces at run time (status
 from __future__ import annotations
 
 import abc
-from typing import ClassVar, NamedTuple
+from typing import ClassVar
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from .._errors import RESULTS, MechanismError, ParameterError, Rule, check_range
+from .._parameters import Parameter
 from .._types import Array, Float, Scalar
 from .loads import AbstractLoad
 
 
-class Parameter(NamedTuple):
-    """A connector's named number: its ``field``, ``unit``, lower bound (``low``, ``None``: none;
-    ``low_open``: exclusive) and the fit's transform (``log`` or ``none``)."""
-
-    field: str
-    unit: str
-    low: float | None
-    low_open: bool
-    transform: str
-    doc: str
-
-
 #: mechanism-file ``type`` of each force element -> its class (filled by each element's module)
 CONNECTORS: dict[str, type] = {}
-#: the range of a stiffness or damping constant: [0, inf)
-NONNEGATIVE = dict(low=0.0, low_open=False, transform="log")
-#: an unbounded number (a preload, a rest angle)
-FREE = dict(low=None, low_open=False, transform="none")
 
 
 class AbstractConnector(AbstractLoad):
@@ -95,12 +81,13 @@ class AbstractConnector(AbstractLoad):
             raise MechanismError(f"a {type(self).__name__} needs a name (a non-empty string), got {self.name!r}")
         for base, p in self.PARAMETERS.items():
             check_range(f"{self.label}: {p.field} ({base}:{self.name})", getattr(self, p.field), low=p.low,
-                        low_open=p.low_open, unit=p.unit)
+                        low_open=p.low_open, high=p.high, high_open=p.high_open, unit=p.unit)
 
     def checks(self) -> tuple:
         """Traceable range rules of every named number (status ``invalid_parameter``)."""
         return tuple(Rule(f"{p.field} ({base}:{self.name})", getattr(self, p.field), RESULTS.invalid_parameter,
-                          low=p.low, low_open=p.low_open, unit=p.unit) for base, p in self.PARAMETERS.items())
+                          low=p.low, low_open=p.low_open, high=p.high, high_open=p.high_open, unit=p.unit)
+                     for base, p in self.PARAMETERS.items())
 
     def evaluate(self, mech, q, qdot) -> tuple[Float[Array, " k"], Float[Array, " k"], Float[Array, " k"], Scalar,
                                                 Float[Array, " n"]]:
@@ -122,6 +109,16 @@ class AbstractConnector(AbstractLoad):
         d, ddot, f, power, _ = self.evaluate(mech, q, qdot)
         return self.named_outputs(d, ddot, f, power)
 
+    #: how a drawing draws it (matplotlib line keywords; :meth:`sketch` the line)
+    SKETCH_STYLE: ClassVar[dict] = {"color": "tab:gray", "lw": 1.2}
+
+    def sketch(self, points: dict, size: float) -> np.ndarray | None:
+        """The polyline ``(k, 2)`` [m] that draws the element (:mod:`jaxclear.drawing`), from
+        ``points[body][point]``, the global position of every point (``"@"``: a body's
+        centroid), and ``size`` [m], the drawing's size. Default: nothing drawn (``None``);
+        :class:`AbstractPointPair` draws a straight line between its points."""
+        return None
+
     def named_outputs(self, d, ddot, f, power) -> dict[str, Scalar]:
         """Default, for one coordinate: the :data:`OUTPUTS` names in the order tension (:math:`f`),
         coordinate (:math:`d`), rate (:math:`\\dot d`), power; others override it."""
@@ -137,20 +134,19 @@ class AbstractPointPair(AbstractConnector):
     def points(self):
         return ((self.body_a, self.point_a), (self.body_b, self.point_b))
 
+    def sketch(self, points: dict, size: float) -> np.ndarray:
+        """A straight line from ``point_a`` to ``point_b``."""
+        return np.array([points[self.body_a][self.point_a], points[self.body_b][self.point_b]], dtype=float)
+
     def gap(self, mech, q) -> Float[Array, "2"]:
         """:math:`p_b - p_a` [m], global axes."""
         return mech.point_position(q, self.body_b, self.point_b) - mech.point_position(q, self.body_a, self.point_a)
 
 
-def connector_parameters() -> dict[str, Parameter]:
-    """Every force element's named constants: parameter base name -> :class:`Parameter`."""
-    return {base: p for cls in CONNECTORS.values() for base, p in cls.PARAMETERS.items()}
-
-
-def connector_where(loads, base: str, name: str | None):
-    """``where(mech)``, the leaf of parameter ``BASE:NAME`` (the constant ``base`` of the force
-    element ``name`` among ``loads``); a :class:`~jaxclear.ParameterError` naming the force
-    elements (and which have ``base``) otherwise."""
+def connector_index(loads, base: str, name: str | None) -> int:
+    """The index among ``loads`` of the force element ``name`` that declares parameter ``base``
+    (``BASE:NAME``); a :class:`~jaxclear.ParameterError` naming the force elements (and which
+    have ``base``) otherwise."""
     having = [ld.name for ld in loads if isinstance(ld, AbstractConnector) and base in ld.PARAMETERS]
     if not name:
         raise ParameterError(f"parameter {base!r} needs the name of a force element: {base}:NAME (NAME among the "
@@ -159,12 +155,11 @@ def connector_where(loads, base: str, name: str | None):
     if not found:
         raise ParameterError(f"parameter {base}:{name}: no force element (spring, damper, bushing) named {name!r} "
                              f"among the loads; those with {base!r}: {having}")
-    i, element = found[0], loads[found[0]]
+    element = loads[found[0]]
     if base not in element.PARAMETERS:
         raise ParameterError(f"parameter {base}:{name}: {element.label} has no {base!r} (its parameters: "
                              f"{sorted(element.PARAMETERS)}); the force elements that have it: {having}")
-    field = element.PARAMETERS[base].field
-    return lambda m: getattr(m.loads[i], field)
+    return found[0]
 
 
 def scalar(owner: str, field: str, value) -> Scalar:

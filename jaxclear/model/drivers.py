@@ -15,7 +15,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._errors import MechanismError, ParameterError, check_finite, is_concrete
+from .._parameters import FREE, Parameter
+from .._parameters import FREE, Parameter
 from .._types import Scalar
+from .._units import rad_s_to_rpm, rpm_to_rad_s
+from .._units import rad_s_to_rpm, rpm_to_rad_s
 from .bodies import GROUND
 from .joints import AbstractConstraint
 from .profiles import AbstractProfile
@@ -44,6 +48,13 @@ class AngleDriver(AbstractDriver):
     relative_to: str = eqx.field(static=True)
 
     n_equations: ClassVar[int] = 1
+    #: named parameters of the crank (the first AngleDriver, :func:`crank_driver`; no suffix)
+    PARAMETERS: ClassVar[dict[str, Parameter]] = {
+        "speed": Parameter("speed", "rad/s", **FREE, doc="crank speed"),
+        "speed_rpm": Parameter("speed", "rpm", **FREE, doc="crank speed", read=lambda d: rad_s_to_rpm(d.speed),
+                               write=lambda d, value: rpm_to_rad_s(value)),
+        "angle0": Parameter("angle0", "rad", **FREE, doc="crank angle at t = 0"),
+    }
 
     def __init__(self, body, speed, angle0=0.0, relative_to=GROUND):
         check_finite("driver speed", speed)

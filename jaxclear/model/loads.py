@@ -6,12 +6,13 @@ Extension point: :class:`AbstractLoad` (a generalized force on the coordinates).
 from __future__ import annotations
 
 import abc
-from typing import Callable
+from typing import Callable, ClassVar
 
 import equinox as eqx
 import jax.numpy as jnp
 
 from .._errors import ParameterError, check_finite
+from .._parameters import FREE, Parameter
 from .._types import Array, Float, Scalar, Vec2
 from .bodies import vec2
 from .profiles import AbstractProfile
@@ -64,6 +65,13 @@ class PointForce(AbstractLoad):
     function: Callable | None = eqx.field(static=True, default=None)
     profile: AbstractProfile | None = None
 
+    #: named parameters (``NAME:K``, ``K`` its index in ``mech.loads``): the constant part
+    PARAMETERS: ClassVar[dict[str, Parameter]] = {
+        "load_x": Parameter("force", "N", **FREE, component=0,
+                            doc="x of the force of a point load (load_x:K, K its index in mech.loads)"),
+        "load_y": Parameter("force", "N", **FREE, component=1, doc="y of the force of a point load (load_y:K)"),
+    }
+
     def __init__(self, body, point, force=(0.0, 0.0), function=None, profile=None):
         _check_profile(profile)
         self.body, self.point, self.function, self.profile = body, point, function, profile
@@ -89,6 +97,11 @@ class Torque(AbstractLoad):
     torque: Scalar
     function: Callable | None = eqx.field(static=True, default=None)
     profile: AbstractProfile | None = None
+
+    PARAMETERS: ClassVar[dict[str, Parameter]] = {
+        "torque": Parameter("torque", "N m", **FREE,
+                            doc="torque of a torque load (torque:K, K its index in mech.loads)"),
+    }
 
     def __init__(self, body, torque=0.0, function=None, profile=None):
         check_finite("torque", torque)

@@ -13,14 +13,15 @@ differentiated, vmapped or swept.
 from __future__ import annotations
 
 from collections import Counter
-from typing import Sequence
+from typing import ClassVar, Sequence
 
 import equinox as eqx
 import jax.numpy as jnp
 
 from .._errors import RESULTS, MechanismError, failed_check, first_failure
 from .._types import Array, ArrayLike, Float, Vec2
-from .bodies import GROUND, Body, vec2
+from .._parameters import Parameter
+from .bodies import GROUND, Body, point_parameters, vec2
 from .connectors import AbstractConnector
 from .geometry import cross2, perp, rotate
 from .joints import AbstractConstraint
@@ -54,6 +55,9 @@ class Mechanism(eqx.Module):
     ground_points: dict[str, Vec2]
     name: str = eqx.field(static=True)
     roles: tuple[tuple[str, str], ...] = eqx.field(static=True)
+
+    #: named parameters of the frame (``point_x:ground.POINT``, ``point_y:ground.POINT``)
+    PARAMETERS: ClassVar[dict[str, Parameter]] = point_parameters("ground_points")
 
     def __init__(
         self,

@@ -21,9 +21,12 @@ from typing import ClassVar
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 
+from .._parameters import FREE, NONNEGATIVE, Parameter
 from .._types import Array, Float, Scalar
-from .connectors import CONNECTORS, FREE, NONNEGATIVE, AbstractConnector, Parameter, scalar
+from .bodies import GROUND
+from .connectors import CONNECTORS, AbstractConnector, scalar
 
 
 class RotationalSpringDamper(AbstractConnector):
@@ -69,6 +72,16 @@ class RotationalSpringDamper(AbstractConnector):
 
     def points(self):
         return () if self.drawn_at is None else ((self.body_b, self.drawn_at),)
+
+    SKETCH_STYLE: ClassVar[dict] = {"color": "tab:cyan", "lw": 1.2}
+
+    def sketch(self, points: dict, size: float) -> np.ndarray:
+        """A spiral of two turns at ``drawn_at`` (body b's centroid when None)."""
+        centre = (points[self.body_b]["@" if self.drawn_at is None else self.drawn_at] if self.body_b != GROUND
+                  else points[GROUND].get(self.drawn_at, np.zeros(2)))
+        turn = np.linspace(0.0, 4.0 * np.pi, 60)
+        r = 0.035 * size * (0.2 + 0.8 * turn / turn[-1])
+        return centre + np.stack([r * np.cos(turn), r * np.sin(turn)], axis=1)
 
     def coordinates(self, mech, q) -> Float[Array, "1"]:
         return jnp.stack([mech.angle(q, self.body_b) - mech.angle(q, self.body_a)])

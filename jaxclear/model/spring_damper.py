@@ -25,10 +25,12 @@ from __future__ import annotations
 from typing import ClassVar
 
 import equinox as eqx
+import numpy as np
 
 from .._errors import ParameterError
+from .._parameters import FREE, NONNEGATIVE, Parameter
 from .._types import Array, Float, Scalar
-from .connectors import CONNECTORS, FREE, NONNEGATIVE, AbstractPointPair, Parameter, scalar
+from .connectors import CONNECTORS, AbstractPointPair, scalar
 from .curves import AbstractCurve
 from .geometry import safe_normal
 
@@ -80,6 +82,18 @@ class TranslationalSpringDamper(AbstractPointPair):
                                  f"{type(curve).__name__}")
         self.curve = curve
         self._validate()
+
+    SKETCH_STYLE: ClassVar[dict] = {"color": "tab:green", "lw": 1.2}
+
+    def sketch(self, points: dict, size: float) -> np.ndarray:
+        """A zigzag between its points."""
+        a, b = np.asarray(points[self.body_a][self.point_a], float), np.asarray(points[self.body_b][self.point_b], float)
+        along = b - a
+        normal = np.array([-along[1], along[0]]) / max(float(np.hypot(*along)), 1e-12)
+        s = np.array([0.0, 0.15, *np.linspace(0.2, 0.8, 13), 0.85, 1.0])
+        wiggle = np.concatenate([[0.0, 0.0], 0.02 * size * (-1.0) ** np.arange(13), [0.0, 0.0]])
+        wiggle[[2, -3]] = 0.0
+        return a + s[:, None] * along + wiggle[:, None] * normal
 
     def coordinates(self, mech, q) -> Float[Array, "1"]:
         gap = self.gap(mech, q)
