@@ -30,7 +30,7 @@ from matplotlib.patches import Circle
 from ._errors import ParameterError
 from .elements import TranslationalClearanceJoint
 from .integrate import Solution
-from .model import GROUND, Bushing, Mechanism, RotationalSpringDamper, Translational, TranslationalSpringDamper
+from .model import GROUND, AbstractConnector, Mechanism, Translational
 from .model.joints import AbstractJoint
 
 DPI = 110
@@ -98,14 +98,11 @@ class _Artist:
             ax.add_patch(bearing)
             ax.add_patch(journal)
             self.clearances.append((j, bearing, journal))
-        self.connectors = []
-        for k, load in enumerate(c for c in mech.loads if isinstance(c, (TranslationalSpringDamper, Bushing,
-                                                                         RotationalSpringDamper))):
-            style = ({"color": "tab:green", "lw": 1.2} if isinstance(load, TranslationalSpringDamper) else
-                     {"color": "tab:brown", "lw": 1.2, "marker": "s", "ms": 7, "markevery": [-1], "mfc": "none"}
-                     if isinstance(load, Bushing) else {"color": "tab:cyan", "lw": 1.2})
-            (line,) = ax.plot([], [], zorder=7, label=f"{load.label}", **style)
-            self.connectors.append((load, line))
+        self.connectors = []  # each force element between two bodies draws itself (AbstractConnector.sketch)
+        for load in mech.loads:
+            if isinstance(load, AbstractConnector):
+                (line,) = ax.plot([], [], zorder=7, label=f"{load.label}", **load.SKETCH_STYLE)
+                self.connectors.append((load, line))
 
     def update(self, q: np.ndarray):
         pts = _points_global(self.mech, q)
@@ -151,27 +148,9 @@ class _Artist:
             bearing.center = tuple(pb)
             journal.center = tuple(pb + self.magnify * ecc)
         for load, line in self.connectors:
-            xy = self._connector(load, pts)
-            line.set_data(xy[:, 0], xy[:, 1])
-
-    def _connector(self, load, pts) -> np.ndarray:
-        """The polyline of a force element: a zigzag (spring-damper), a straight line (bushing),
-        a spiral of two turns (rotational spring-damper)."""
-        if isinstance(load, RotationalSpringDamper):
-            centre = pts[load.body_b]["@" if load.drawn_at is None else load.drawn_at] if load.body_b != GROUND \
-                else pts[GROUND].get(load.drawn_at, np.zeros(2))
-            turn = np.linspace(0.0, 4.0 * np.pi, 60)
-            r = 0.035 * self.size * (0.2 + 0.8 * turn / turn[-1])
-            return centre + np.stack([r * np.cos(turn), r * np.sin(turn)], axis=1)
-        a, b = pts[load.body_a][load.point_a], pts[load.body_b][load.point_b]
-        if isinstance(load, Bushing):
-            return np.array([a, b])
-        along = b - a
-        normal = np.array([-along[1], along[0]]) / max(float(np.hypot(*along)), 1e-12)
-        s = np.array([0.0, 0.15, *np.linspace(0.2, 0.8, 13), 0.85, 1.0])
-        wiggle = np.concatenate([[0.0, 0.0], 0.02 * self.size * (-1.0) ** np.arange(13), [0.0, 0.0]])
-        wiggle[[2, -3]] = 0.0
-        return a + s[:, None] * along + wiggle[:, None] * normal
+            xy = load.sketch(pts, self.size)
+            if xy is not None:
+                line.set_data(xy[:, 0], xy[:, 1])
 
 
 def _axes(fig: Figure, mech: Mechanism, qs: np.ndarray, rect=(0.08, 0.08, 0.88, 0.84)):

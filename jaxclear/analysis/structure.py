@@ -22,7 +22,6 @@ import numpy as np
 
 from ..integrate.assembly import RANK_TOL, check_assembly
 from ..integrate.settings import settings
-from ..elements import AbstractJournalJoint, LubricatedJoint, PinSlotJoint, TranslationalClearanceJoint
 from ..model import AngleDriver, Mechanism
 
 
@@ -55,7 +54,7 @@ def check_mechanism(mech: Mechanism, allow_free_dof: bool = False) -> dict:
         "joints": [c.label for c in mech.joints],
         "constraint_equations": mech.n_constraints,
         "drivers": [_driver_text(d) for d in mech.drivers],
-        "clearance_joints": [_joint_text(j) for j in mech.clearance_joints],
+        "clearance_joints": [j.describe() for j in mech.clearance_joints],
         "loads": [c.label for c in mech.loads],
         "gravity_m_s2": np.asarray(mech.gravity).tolist(),
         "roles": dict(mech.roles),
@@ -69,20 +68,3 @@ def check_mechanism(mech: Mechanism, allow_free_dof: bool = False) -> dict:
 
 def _driver_text(d) -> str:
     return d.label + (f", {float(d.speed):.6g} rad/s" if isinstance(d, AngleDriver) else "")
-
-
-def _joint_text(j) -> str:
-    text = f"{j.label}: bodies {' and '.join(j.bodies())}"
-    laws = f"law {j.law.name}, c_r = {float(j.law.restitution):.3g}, mu = {float(j.friction.coefficient):.3g}"
-    if isinstance(j, AbstractJournalJoint):
-        text = (f"{j.label}: bearing {j.bearing_body}.{j.bearing_point}, journal {j.journal_body}.{j.journal_point}, "
-                f"R_B = {float(j.bearing_radius) * 1e3:.4g} mm, c = {float(j.clearance) * 1e6:.4g} um, {laws}")
-        if isinstance(j, LubricatedJoint):
-            text += f", oil film: viscosity {float(j.viscosity):.4g} Pa s, film width (length) {float(j.length) * 1e3:.4g} mm"
-        if isinstance(j, PinSlotJoint):
-            text += f", slot length {float(j.slot_length) * 1e3:.4g} mm"
-    elif isinstance(j, TranslationalClearanceJoint):
-        text = (f"{j.label}: guide {j.guide_body}.{j.guide_point}, slider {j.slider_body}.{j.slider_point}, block "
-                f"{float(j.slider_length) * 1e3:.4g} x {float(j.slider_height) * 1e3:.4g} mm, guide width "
-                f"{float(j.guide_width) * 1e3:.4g} mm, c = {float(j.clearance) * 1e6:.4g} um per side, {laws}")
-    return text

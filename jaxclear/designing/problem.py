@@ -31,7 +31,6 @@ import numpy as np
 
 from .. import params
 from .._errors import ParameterError
-from ..elements.revolute_clearance import AbstractJournalJoint
 from ..integrate import Settings, simulate
 from ..integrate.compile import jit
 from ..integrate.kinematics import is_kinematic, kinematic_solution
@@ -218,10 +217,8 @@ def _start(m: Mechanism, shift, offset, guess_q, guess_qd) -> Mechanism:
     for b in range(len(m.bodies)):
         m = eqx.tree_at(lambda mm: (mm.bodies[b].position, mm.bodies[b].velocity), m,
                         (guess_q[3 * b: 3 * b + 3], guess_qd[3 * b: 3 * b + 3]))
-    for j, joint in enumerate(m.clearance_joints):
-        if isinstance(joint, AbstractJournalJoint):
-            m = eqx.tree_at(lambda mm: mm.clearance_joints[j].initial_offset, m,
-                            joint.initial_offset + offset * joint.clearance)
+    for j, joint in enumerate(m.clearance_joints):  # each element says how its start moves
+        m = eqx.tree_at(lambda mm: mm.clearance_joints[j], m, joint.started_within(offset))
     return m
 
 
