@@ -136,7 +136,7 @@ def _api_entry(name: str, spec: dict):
         return lambda out: jax.jacfwd(lambda k: jc.simulate(params.replace(mech, "stiffness", k), s).q[-1, 6])(
             jnp.asarray(k0))
     if name == "sensitivities":
-        return lambda out: jc.sensitivities(mech, s, NAMES3)
+        return lambda out: jc.sensitivities(mech, s=s, names=NAMES3)
     if name in ("fit", "posterior"):
         if name == "fit":
             return lambda out: jc.fit(spec["record"], mech, **fit_kw)

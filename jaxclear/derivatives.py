@@ -29,7 +29,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import params
-from ._errors import JaxclearError, ParameterError
+from ._errors import ParameterError
 from .integrate import Settings, Solution, simulate
 from .integrate.simulate import check_status
 from .model import Mechanism
@@ -55,11 +55,8 @@ def check_names(mech: Mechanism, names: Sequence[str]) -> tuple:
         raise ParameterError("no parameter to differentiate with respect to: give at least one name")
     if len(set(names)) != len(names):
         raise ParameterError(f"parameters listed twice: {list(names)}")
-    for name in names:
-        try:
-            params.check_name(mech, name)
-        except JaxclearError as err:  # says why, then the closest names (params.closest)
-            raise ParameterError(f"cannot differentiate with respect to {name!r}: {err}") from None
+    for name in names:  # why, then the closest names (params.closest)
+        params.check_name(mech, name, context=f"cannot differentiate with respect to {name!r}")
     return names
 
 
@@ -83,9 +80,14 @@ def _is_float(x) -> bool:
     return hasattr(x, "dtype") and jnp.issubdtype(x.dtype, jnp.inexact)
 
 
-def sensitivities(mech: Mechanism, s: Settings, names: Sequence[str], output: Callable | None = None,
+def sensitivities(mech: Mechanism, names: Sequence[str], s: Settings, output: Callable | None = None,
                   warn: bool = True):
     r"""The run and its derivatives with respect to the named parameters.
+
+    The arguments come in the order of :func:`jaxclear.parameter_grad` (``loss, mech, names,
+    s``): the mechanism, the names, the settings. The old order ``sensitivities(mech, s, names)``
+    still works for one release, with a :class:`DeprecationWarning` (told apart by the type of
+    the second argument, a :class:`~jaxclear.Settings`).
 
     Args:
         mech: the mechanism.
@@ -114,6 +116,11 @@ def sensitivities(mech: Mechanism, s: Settings, names: Sequence[str], output: Ca
         :class:`~jaxclear.Solution` whose float fields are derivatives and whose integer fields,
         status and counts, are the run's).
     """
+    if isinstance(names, Settings) and not isinstance(s, Settings):  # the old order (mech, s, names)
+        warnings.warn("jc.sensitivities(mech, settings, names) is deprecated: the order is now "
+                      "jc.sensitivities(mech, names, settings), as jc.parameter_grad(loss, mech, names, settings)",
+                      DeprecationWarning, stacklevel=2)
+        names, s = s, names
     names = check_names(mech, names)
     x = jnp.asarray([params.get(mech, n) for n in names], dtype=float)
     value, tangents, status = _linearized(mech, s, names, x, output)

@@ -134,7 +134,7 @@ def test_failed_run_raises_after_its_program_under_transformations(caplog):
         with pytest.raises(jc.SolverError, match=r"max_steps before t_end; raise Settings.max_steps \(now 3"):
             jax.jacfwd(loss)(0.9, bad)
         with pytest.raises(jc.SolverError, match=r"max_steps before t_end.*\(the run of jaxclear.sensitivities\)"):
-            jc.sensitivities(mech, bad, ["restitution"])
+            jc.sensitivities(mech, ["restitution"], bad)
     uncacheable = [r.getMessage() for r in caplog.records if "host callbacks" in r.getMessage()]
     assert not uncacheable, uncacheable
     with pytest.raises(Exception, match="the solver reached max_steps before t_end"):

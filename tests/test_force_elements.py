@@ -160,7 +160,7 @@ def test_derivative_with_respect_to_a_spring_constant_against_central_difference
     def y_end(m):
         return float(jc.simulate(m, s).q[-1, 1])
 
-    _, d = jc.sensitivities(mech, s, ["spring_stiffness:s", "spring_damping:s"],
+    _, d = jc.sensitivities(mech, ["spring_stiffness:s", "spring_damping:s"], s,
                             output=lambda sol, m: sol.q[-1, 1])
     for name, h in (("spring_stiffness:s", 1e-4 * K), ("spring_damping:s", 1e-4 * C)):
         v = jc.params.get(mech, name)

@@ -61,7 +61,7 @@ def test_elastic_hertz_bounces_match_the_closed_form():
     tau = 2.0 * (5.0 * M * V0**2 / (4.0 * K)) ** 0.4 / V0 * HERTZ_I
     t_end = (C - x0) / V0 + 3 * tau + 2 * 2 * C / V0 + 0.3 * 2 * C / V0
     names = ["stiffness", "velocity_x", "clearance", "offset_x"]
-    value, d = jc.sensitivities(mech, jc.settings(t_end, n_out=2), names, output=lambda sol, m: sol.q[-1, 0])
+    value, d = jc.sensitivities(mech, names, jc.settings(t_end, n_out=2), output=lambda sol, m: sol.q[-1, 0])
     truth = jax.grad(_hertz_position, argnums=(0, 1, 2, 3))(K, V0, C, x0, t_end, 3)
     assert float(value) == pytest.approx(float(_hertz_position(K, V0, C, x0, t_end, 3)), abs=1e-9)
     for name, exact in zip(names, truth):
@@ -81,7 +81,7 @@ def test_restitution_derivative_through_three_impacts_matches_the_closed_form():
     de_dcr = de_dd * (-1.5 * c_r)
     mech = free_journal(restitution=c_r, law="lankarani-nikravesh", clearance=C, speed=V0)
     t_end = C / V0 + 2 * C / (e * V0) + 2 * C / (e**2 * V0) + C / (e**3 * V0)  # mid-flight after 3 impacts
-    sol, grads = jc.sensitivities(mech, jc.settings(t_end, n_out=2), ["restitution"])
+    sol, grads = jc.sensitivities(mech, ["restitution"], jc.settings(t_end, n_out=2))
     k = int(sol.impacts[0])
     assert k == 3
     assert float(sol.qdot[-1, 0]) == pytest.approx((-e) ** k * V0, rel=1e-5)
@@ -145,7 +145,7 @@ def test_named_parameters_api_errors():
                        (["viscosity"], "belongs to a LubricatedJoint"),
                        (["stiffness", "stiffness"], "listed twice"), ([], "at least one name")):
         with pytest.raises(jc.ParameterError, match=match):
-            jc.sensitivities(mech, s, bad)
+            jc.sensitivities(mech, bad, s)
 
 
 def test_horizon_warning():
@@ -155,10 +155,10 @@ def test_horizon_warning():
     mech = free_journal(restitution=0.8)
     t_end = 3e-3
     with pytest.warns(jc.DerivativeHorizonWarning, match="'stiffness' is past the run's horizon"):
-        jc.sensitivities(mech, jc.settings(t_end, n_out=101, rtol=0.3), ["stiffness"])
+        jc.sensitivities(mech, ["stiffness"], jc.settings(t_end, n_out=101, rtol=0.3))
     with warnings.catch_warnings():
         warnings.simplefilter("error", jc.DerivativeHorizonWarning)
-        sol, d = jc.sensitivities(mech, jc.settings(t_end, n_out=101), ["stiffness"])
+        sol, d = jc.sensitivities(mech, ["stiffness"], jc.settings(t_end, n_out=101))
     k = float(jc.params.get(mech, "stiffness"))
     assert jc.derivative_horizon(sol, d["stiffness"], rtol=1e-6, scale=k) == float("inf")
     assert jc.derivative_horizon(sol, d["stiffness"], rtol=0.3, scale=k) < t_end
@@ -220,9 +220,9 @@ def test_a_derived_stiffness_follows_the_clearance_whatever_else_is_asked():
     def out(sol, m):
         return sol.coordinate(m, "slider", "x", derivative=1)[-1]
 
-    alone = float(jc.sensitivities(mech, s, ["clearance"], output=out)[1]["clearance"])
-    both = jc.sensitivities(mech, s, ["stiffness", "clearance", "mass:slider"], output=out)[1]
-    held = float(jc.sensitivities(fixed, s, ["clearance"], output=out)[1]["clearance"])
+    alone = float(jc.sensitivities(mech, ["clearance"], s, output=out)[1]["clearance"])
+    both = jc.sensitivities(mech, ["stiffness", "clearance", "mass:slider"], s, output=out)[1]
+    held = float(jc.sensitivities(fixed, ["clearance"], s, output=out)[1]["clearance"])
     c = float(jc.params.get(mech, "clearance"))
     h = 1e-3 * c
 
