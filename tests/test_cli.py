@@ -260,7 +260,7 @@ def test_revolution_settings():
     period = 60.0 / 5000.0
     s = runs.revolution_settings(mech, 0.25, solver="bosh3", rtol=1e-5)
     assert math.isclose(float(s.t_end), 0.25 * period, rel_tol=1e-14) and s.n_out == 501
-    assert s.solver == "bosh3" and s.rtol == 1e-5
+    assert s.solver == jc.SOLVERS["bosh3"]() and s.rtol == 1e-5  # the named solver, as an instance
     assert runs.revolution_settings(mech).n_out == 6001  # 3 revolutions by default
     assert runs.revolution_settings(mech, 0.01).n_out == 101  # at least 100 + 1
     s = runs.revolution_settings(mech, t_end=0.5 * period)  # t_end wins over revolutions
