@@ -16,9 +16,7 @@ import numpy as np
 
 from .._errors import MechanismError, ParameterError, check_finite, is_concrete
 from .._parameters import FREE, Parameter
-from .._parameters import FREE, Parameter
 from .._types import Scalar
-from .._units import rad_s_to_rpm, rpm_to_rad_s
 from .._units import rad_s_to_rpm, rpm_to_rad_s
 from .bodies import GROUND
 from .joints import AbstractConstraint
