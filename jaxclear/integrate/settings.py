@@ -3,16 +3,20 @@ contact onsets (:class:`Settings`; the strategy objects of :mod:`.strategies`)."
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
+from typing import Mapping
 
 import diffrax
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._errors import ParameterError, is_concrete
+from .._errors import JaxclearError, ParameterError, is_concrete
 from .._types import Array, Float
 from .dynamics import Baumgarte
+from .solvers import UnrolledExplicitRK
 from .strategies import (
+    SOLVERS,
     AbstractDerivatives,
     AbstractOnsets,
     AbstractSampling,
@@ -172,3 +176,101 @@ class Settings(eqx.Module):
 def settings(t_end, **kwargs) -> Settings:
     """Build :class:`Settings` with ``t_end`` [s] as a float64 array leaf."""
     return Settings(t_end=jnp.asarray(t_end, dtype=float), **kwargs)
+
+
+# ---------------------------------------------------------------------------------------------
+# Settings as text (the command line, a [settings] table) and the drivers' old keywords
+
+#: The fields of :class:`Settings` written by name where settings are text: the command line's
+#: integration options (:func:`jaxclear.cli.settings.add_settings_options`) and the ``[settings]``
+#: table of a sweep or tolerance-study file; :func:`settings_from_options` converts them.
+#: ``derivatives`` is a name of :data:`~.strategies.ADJOINTS`, ``output`` of
+#: :data:`~.strategies.OUTPUTS`, ``onsets`` of :data:`~.strategies.ONSETS`, ``solver`` of
+#: :data:`~.strategies.SOLVERS`; ``derivative_tolerance`` is :class:`~.strategies.Sensitivity`'s
+#: ``tolerance``, ``checkpoints`` :class:`~.strategies.ThroughLoop`'s.
+OPTION_KEYS = ("solver", "rtol", "atol", "dt0", "dtmax", "max_steps", "derivatives", "derivative_tolerance",
+               "checkpoints", "output", "onsets", "continuous_contact_after", "allow_free_dof")
+_OPTION_TYPES = {"solver": str, "rtol": float, "atol": float, "dt0": float, "dtmax": float, "max_steps": int,
+                 "derivatives": str, "derivative_tolerance": float, "checkpoints": int, "output": str, "onsets": str,
+                 "continuous_contact_after": float, "allow_free_dof": bool}
+
+
+def _option(source: str, key: str, value):
+    kind = _OPTION_TYPES[key]
+    if value is None and key in ("dt0", "dtmax", "checkpoints"):
+        return None
+    if kind is bool:
+        ok = isinstance(value, bool)
+    elif kind is str:
+        ok = isinstance(value, str)
+    else:
+        ok = not isinstance(value, bool) and isinstance(value, (int, float)) and (kind is float or float(value) == int(value))
+    if not ok:
+        raise ParameterError(f"{source}: {key} = {value!r}: expected {'an integer' if kind is int else 'a number' if kind is float else 'true or false' if kind is bool else 'a name'}")
+    return kind(value)
+
+
+def settings_from_options(options: Mapping, base: Settings | None = None, *, source: str = "settings") -> Settings:
+    """``base`` (default: ``Settings`` with its defaults, ``t_end`` 1 s) with the fields of
+    ``options`` replaced, each given by name (:data:`OPTION_KEYS`, the command line's and the
+    files' spelling): the one conversion of the integration options written as text, through
+    :class:`Settings` itself (names to strategy objects:
+    :func:`~jaxclear.integrate.strategies.from_names`). A key outside :data:`OPTION_KEYS`, a
+    value of the wrong kind or outside its range is a :class:`~jaxclear.ParameterError`
+    beginning with ``source``."""
+    unknown = sorted(set(options) - set(OPTION_KEYS))
+    if unknown:
+        raise ParameterError(f"{source}: unknown key(s) {unknown}; allowed: {list(OPTION_KEYS)}")
+    changes = {key: _option(source, key, value) for key, value in options.items()}
+    base = Settings(t_end=jnp.asarray(1.0)) if base is None else base
+    if "derivative_tolerance" in changes and "derivatives" not in changes and base.derivatives.name != "sensitivity":
+        changes["derivatives"] = "sensitivity"  # a tolerance asks for the sensitivities
+    try:
+        return dataclasses.replace(base, **changes)
+    except JaxclearError as err:
+        raise ParameterError(f"{source}: {err}") from None
+
+
+def solver_name(solver) -> str:
+    """The name in :data:`~.strategies.SOLVERS` of a solver instance (its ``repr`` for another
+    solver)."""
+    inner = solver.solver if isinstance(solver, UnrolledExplicitRK) else solver
+    return next((name for name, cls in SOLVERS.items() if type(inner) is cls), repr(inner))
+
+
+def option_values(s: Settings) -> dict:
+    """The fields of ``s`` by name (:data:`OPTION_KEYS`): what :func:`settings_from_options`
+    reads, what a driver records of its runs' settings, and the defaults the command line shows
+    (read from ``Settings`` itself, never repeated)."""
+    return {"solver": solver_name(s.solver), "rtol": s.rtol, "atol": s.atol, "dt0": s.dt0, "dtmax": s.dtmax,
+            "max_steps": s.max_steps, "derivatives": s.derivatives.name,
+            "derivative_tolerance": getattr(s.derivatives, "tolerance", None),
+            "checkpoints": getattr(s.derivatives, "checkpoints", None), "output": s.output.name,
+            "onsets": s.onsets.name, "continuous_contact_after": s.continuous_contact_after,
+            "allow_free_dof": s.allow_free_dof}
+
+
+def default_settings() -> Settings:
+    """``Settings`` with every default (``t_end`` 1 s): the base of a driver given no settings."""
+    return Settings(t_end=jnp.asarray(1.0))
+
+
+def deprecated_keywords(driver: str, settings: Settings | None, stacklevel: int = 3, **given) -> dict:
+    """The old integration keywords a driver was given (``rtol=``, ``atol=``, ``solver=``,
+    ``max_steps=``: those not None), for the driver to replace in its settings, for one release:
+    alone, a ``DeprecationWarning`` naming the replacement ``settings=jc.settings(...)``
+    (``stacklevel``: as :func:`warnings.warn`'s, counted from this function: 3 is the caller of
+    the driver that calls it); with ``settings`` too, a :class:`~jaxclear.ParameterError`
+    naming both."""
+    given = {key: value for key, value in given.items() if value is not None}
+    if not given:
+        return {}
+    keywords = ", ".join(f"{key}=" for key in given)
+    spelled = ", ".join(f"{key}={value!r}" for key, value in given.items())
+    if settings is not None:
+        raise ParameterError(f"{driver}: both settings= and {keywords} given; give the settings only, e.g. "
+                             f"settings=jc.settings(t_end, {spelled}) (t_end and n_out are the driver's own)")
+    warnings.warn(f"{driver}({keywords}...) is deprecated and will be removed in the next release: pass "
+                  f"settings=jc.settings(t_end, {spelled}) (t_end and n_out are the driver's own)",
+                  DeprecationWarning, stacklevel=stacklevel)
+    return given

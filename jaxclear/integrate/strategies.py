@@ -271,6 +271,11 @@ class SampleBlock(AbstractSampling):
 class AbstractOnsets(eqx.Module):
     """How a step that crosses into contact is treated."""
 
+    @property
+    def name(self) -> str:
+        """This choice's name (``Settings(onsets=NAME)``, the command line's ``--onsets``)."""
+        raise NotImplementedError
+
     def controller(self, controller, mech):
         """The step-size controller of a run of ``mech``, ``controller`` wrapped as this choice
         needs."""
@@ -283,6 +288,10 @@ class ExactOnsets(AbstractOnsets):
     approach speed at the onset throughout the contact; the default (a mechanism without
     clearance joints runs as :class:`StepOnsets`)."""
 
+    @property
+    def name(self) -> str:
+        return "exact"
+
     def controller(self, controller, mech):
         return OnsetController(controller) if mech.clearance_joints else controller
 
@@ -290,6 +299,10 @@ class ExactOnsets(AbstractOnsets):
 class StepOnsets(AbstractOnsets):
     """The onset is found after the step that crosses it, whose force used the approach speed of
     its start (a worn bearing's flickering Gauss-point contacts: :func:`~jaxclear.wear`)."""
+
+    @property
+    def name(self) -> str:
+        return "step"
 
     def controller(self, controller, mech):
         return controller
@@ -363,6 +376,11 @@ def _output(output, name):
     return output
 
 
+ONSETS = {"exact": ExactOnsets, "step": StepOnsets}
+"""Contact onsets by name (``onsets="step"``: the command line's ``--onsets``, a ``[settings]``
+table) -> its class."""
+
+
 def _onsets(onsets, exact):
     if exact is not None:
         if not isinstance(exact, bool):
@@ -370,8 +388,14 @@ def _onsets(onsets, exact):
         return ExactOnsets() if exact else StepOnsets()
     if onsets is None:
         return ExactOnsets()
+    if isinstance(onsets, str):
+        if onsets not in ONSETS:
+            raise ParameterError(f"onsets = {onsets!r}: expected ExactOnsets() or StepOnsets() (or one of the names "
+                                 f"{list(ONSETS)})")
+        return ONSETS[onsets]()
     if not isinstance(onsets, AbstractOnsets):
-        raise ParameterError(f"onsets = {onsets!r}: expected ExactOnsets() or StepOnsets()")
+        raise ParameterError(f"onsets = {onsets!r}: expected ExactOnsets() or StepOnsets() (or one of the names "
+                             f"{list(ONSETS)})")
     return onsets
 
 
@@ -379,7 +403,7 @@ def from_names(solver, derivatives, output, onsets, *, adjoint=None, derivative_
                stages=None, exact_onsets=None, sampling=None):
     """``(solver, derivatives, output, onsets)`` of :class:`~jaxclear.Settings` from what was
     given: each either its object, a name (``solver="tsit5"``, ``derivatives="forward"``,
-    ``output="block"``) or None (the default), and the old keywords, each of which replaces its
+    ``output="block"``, ``onsets="step"``) or None (the default), and the old keywords, each of which replaces its
     part of the field it now belongs to:
 
     * ``adjoint``: one of :data:`ADJOINTS` (``"sensitivity"``: :class:`Sensitivity`, else

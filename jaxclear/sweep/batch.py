@@ -24,6 +24,8 @@ calls); read it as ``jaxclear.sweep.TRACES.value``.
 
 from __future__ import annotations
 
+import dataclasses
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -38,7 +40,7 @@ from ..analysis.metrics import channel_metrics, run_metrics
 from ..analysis.sections import at_samples
 from ..integrate import Settings, jit, simulate
 from .labels import channel_column, channel_key
-from .plan import Plan
+from .plan import Plan, dynamic_settings
 
 #: Metrics that stay defined for a failed run (counts and status); the others become NaN.
 _COUNT_KEYS = ("status", "num_steps", "num_accepted_steps", "num_rejected_steps")
@@ -68,22 +70,26 @@ def _with_row(plan: Plan, mech: Mechanism, row) -> Mechanism:
     return params.replace_many(mech, {n: row[i] for i, n in enumerate(plan.names)})
 
 
-def _settings(plan: Plan, m: Mechanism) -> Settings:
-    """Integration settings of one run: ``t_end = revolutions * 2 pi / |omega|`` [s] of the crank
-    driver's (traced) speed ``omega`` [rad/s] (:func:`~jaxclear.model.crank_period`);
-    ``throw=False`` (a failure is a status, not an error)."""
+def run_settings(plan: Plan, m: Mechanism) -> Settings:
+    """Integration settings of one run: the sweep's settings (``plan.settings``, whole: solver,
+    tolerances, step limit, derivatives, onsets...) with what the sweep owns replaced:
+    ``t_end = revolutions * 2 pi / |omega|`` [s] of the crank driver's (traced) speed ``omega``
+    [rad/s] (:func:`~jaxclear.model.crank_period`), ``n_out``, ``t_start`` 0 and ``throw=False``
+    (a failure is a status, not an error)."""
     t_end = crank_period(m, plan.revolutions)
-    # the solver named keeps diffrax's stage loop: under vmap one copy of the vector field serves
+    # a solver named keeps diffrax's stage loop: under vmap one copy of the vector field serves
     # every Runge-Kutta stage
-    return Settings(t_end=t_end, n_out=plan.n_out, solver=plan.solver, rtol=plan.rtol, atol=plan.atol,
-                    max_steps=plan.max_steps, throw=False)
+    return dataclasses.replace(dynamic_settings(plan.settings), t_end=t_end, n_out=plan.n_out, throw=False)
+
+
+_settings = run_settings  # the name of before (tests, benchmarks)
 
 
 def _clearance_run(plan: Plan, mech: Mechanism, row):
     """Phase 1 of a run: the mechanism with this row's parameters, integrated."""
     TRACES.increment()  # a Python side effect: counts traces, not calls
     m = _with_row(plan, mech, row)
-    return simulate(m, _settings(plan, m))
+    return simulate(m, run_settings(plan, m))
 
 
 def _ideal_run(plan: Plan, mech: Mechanism, ideal: Mechanism, row):
@@ -91,7 +97,7 @@ def _ideal_run(plan: Plan, mech: Mechanism, ideal: Mechanism, row):
     masses...), same time grid. Returns (slider acceleration (T,) [m/s^2], status)."""
     m = _with_row(plan, mech, row)
     im = params.replace_many(ideal, {n: row[plan.names.index(n)] for n in plan.ideal_names})
-    isol = simulate(im, _settings(plan, m))
+    isol = simulate(im, run_settings(plan, m))
     return isol.coordinate(im, im.role("slider"), "x", derivative=2), isol.status
 
 

@@ -8,9 +8,11 @@ grids, values outside their physical range, bad run and output settings; every e
 
 from __future__ import annotations
 
+import dataclasses
 import inspect
 import math
 import os
+import warnings
 from dataclasses import dataclass, field
 
 import equinox as eqx
@@ -25,7 +27,8 @@ from ..model import Mechanism
 from ..mechanism_files import load_mechanism
 from ..presets import PRESETS, preset
 from ..integrate import Settings
-from ..integrate.settings import MAX_OUT_SAMPLES
+from ..integrate.settings import (MAX_OUT_SAMPLES, OPTION_KEYS, deprecated_keywords, option_values,
+                                  settings_from_options)
 from ..analysis.channels import unit as channel_unit
 from ..analysis.sections import section_indices
 from .labels import channel_key
@@ -36,12 +39,18 @@ CONFIG_KEYS = {
     "mechanism": "preset and preset keyword overrides (law, friction, speed_rpm, clearance...)",
     "grid": "parameters swept as a Cartesian product: NAME = [values] or {start, stop, num, spacing}",
     "list": "parameters swept together (zipped, equal lengths): NAME = [values]",
-    "run": "revolutions, transient_revolutions, samples_per_revolution, solver, rtol, atol, max_steps, "
-           "ideal_reference",
+    "run": "revolutions, transient_revolutions, samples_per_revolution, ideal_reference (solver, rtol, atol, "
+           "max_steps: deprecated, in [settings])",
+    "settings": "how every run is integrated: " + ", ".join(OPTION_KEYS) + " (jaxclear.Settings by name)",
     "output": "dir, chunk_size, trajectories, progress, devices, channels",
 }
 RUN_KEYS = ("revolutions", "transient_revolutions", "samples_per_revolution", "solver", "rtol", "atol",
             "max_steps", "ideal_reference")
+#: Keys of ``[run]`` that moved to ``[settings]`` (accepted with a ``DeprecationWarning`` for one release).
+OLD_RUN_SETTINGS = ("solver", "rtol", "atol", "max_steps")
+#: The step limit of a sweep's run when no settings are given: a failing run in a batch costs at
+#: most this many steps (the batch waits for its slowest run), half of ``Settings``' default.
+MAX_STEPS = 200_000
 OUTPUT_KEYS = ("dir", "chunk_size", "trajectories", "progress", "devices", "channels")
 
 #: Largest runs x output samples of a sweep that stores its time series (``trajectories``):
@@ -66,7 +75,16 @@ class SweepConfig:
             (in [0, revolutions)).
         samples_per_revolution: output samples per revolution (>= 2; ``revolutions *
             samples_per_revolution`` must be an integer).
-        solver, rtol, atol, max_steps: integration settings (:class:`jaxclear.Settings`).
+        settings: how every run is integrated (:class:`jaxclear.Settings`: solver, tolerances,
+            step limit, derivatives, onsets...); the sweep replaces only what it owns: ``t_end``
+            (the revolutions of each run's swept speed), ``t_start`` (0), ``n_out``, ``throw``
+            (False: a failed run is a status) and ``progress`` (False). Default None: the
+            defaults of ``Settings`` with ``max_steps`` :data:`MAX_STEPS`. The derivatives
+            (``Sensitivity(tolerance)``) are those of a derivative of the runs (the tolerance
+            study's estimate from derivatives).
+        solver, rtol, atol, max_steps: deprecated (one release, a ``DeprecationWarning``):
+            ``settings=jc.settings(1.0, rtol=...)``; with ``settings`` too, a
+            :class:`~jaxclear.ParameterError`.
         ideal_reference: also run the ideal-joint mechanism (acceleration deviation metrics).
         out: output folder; chunk_size: runs per chunk (``"auto"`` or an integer, rounded up to a
             multiple of the number of devices); trajectories: also store the time series;
@@ -88,10 +106,10 @@ class SweepConfig:
     revolutions: float = 3.0
     transient_revolutions: float = 0.0
     samples_per_revolution: int = 200
-    solver: str = "tsit5"
-    rtol: float = 1e-6
-    atol: float = 1e-9
-    max_steps: int = 200_000
+    solver: str | None = None
+    rtol: float | None = None
+    atol: float | None = None
+    max_steps: int | None = None
     ideal_reference: bool = True
     out: str = "sweep-out"
     chunk_size: int | str = "auto"
@@ -99,6 +117,7 @@ class SweepConfig:
     progress: bool = True
     devices: int | None = None
     channels: tuple | list = ()
+    settings: Settings | None = None
     source: str = "<python>"
 
     def __post_init__(self):
@@ -242,13 +261,28 @@ class SweepConfig:
             raise ParameterError(f"{src}: run.revolutions x run.samples_per_revolution + 1 = {n_out} output samples "
                                  f"per run, outside the allowed range [2, {MAX_OUT_SAMPLES}] "
                                  "(jaxclear.integrate.settings.MAX_OUT_SAMPLES); use fewer revolutions or samples")
-        if isinstance(self.max_steps, bool) or not isinstance(self.max_steps, (int, np.integer)):
+        self._settings = self._run_settings()
+
+    def _run_settings(self) -> Settings:
+        """The settings of every run: ``settings`` (or the sweep's default) with the old keywords."""
+        src = self.source
+        if self.settings is not None and not isinstance(self.settings, Settings):
+            raise ParameterError(f"{src}: settings = {self.settings!r}: expected a jaxclear.Settings "
+                                 "(jc.settings(1.0, rtol=...)) or None")
+        old = {key: getattr(self, key) for key in OLD_RUN_SETTINGS if getattr(self, key) is not None}
+        if "max_steps" in old and (isinstance(self.max_steps, bool) or
+                                   not isinstance(self.max_steps, (int, np.integer))):
             raise ParameterError(f"{src}: run.max_steps = {self.max_steps!r}: expected an integer >= 1")
         for key in ("rtol", "atol"):
-            _number(f"{src}: run.{key}", getattr(self, key))
+            if key in old:
+                _number(f"{src}: run.{key}", old[key])
+        try:
+            old = deprecated_keywords("SweepConfig", self.settings, **old)
+        except ParameterError as err:
+            raise ParameterError(f"{src}: {err}") from None
+        base = self.settings if self.settings is not None else Settings(t_end=jnp.asarray(1.0), max_steps=MAX_STEPS)
         try:  # Settings' own checks (the solver's name, rtol in (0, 1), atol > 0, max_steps >= 1)
-            Settings(t_end=jnp.asarray(1.0), solver=self.solver, rtol=float(self.rtol), atol=float(self.atol),
-                     max_steps=int(self.max_steps))
+            return dataclasses.replace(base, **{k: (float(v) if k in ("rtol", "atol") else v) for k, v in old.items()})
         except JaxclearError as err:
             raise ParameterError(f"{src}: run: {err}") from None
 
@@ -303,6 +337,12 @@ class SweepConfig:
         return dict(self._channel_units)
 
     @property
+    def run_settings(self) -> Settings:
+        """How every run is integrated (``settings``, or the sweep's default, with the old
+        keywords); ``t_end`` and ``n_out`` of a run are the sweep's (:func:`~.batch.run_settings`)."""
+        return self._settings
+
+    @property
     def n_runs(self) -> int:
         return int(self._values.shape[0])
 
@@ -339,15 +379,24 @@ class SweepConfig:
             mech = {"mechanism": self._mech.name, "leaves_sha256": _tree_hash(self._mech),
                     "ideal_leaves_sha256": None if self._ideal is None else _tree_hash(self._ideal)}
         extra = {"channels": list(self._channel_units)} if self._channel_units else {}  # old hashes unchanged
+        options = option_values(self._settings)
+        defaults = option_values(Settings(t_end=jnp.asarray(1.0)))
+        # the settings beyond the four of old, where they differ from the defaults (old hashes unchanged)
+        changed = {k: v for k, v in options.items() if k not in OLD_RUN_SETTINGS and v != defaults[k]}
+        baumgarte = [float(self._settings.baumgarte.alpha), float(self._settings.baumgarte.beta)]
+        if baumgarte != [5.0, 5.0]:
+            changed["baumgarte"] = baumgarte
+        settings = {"settings": changed} if changed else {}
         return {
             **extra,
             "mechanism": mech,
             "mode": "grid" if self.grid is not None else "list",
             "parameters": {n: [float(v) for v in a] for n, a in self._axes.items()},
             "run": {"revolutions": float(self.revolutions), "transient_revolutions": float(self.transient_revolutions),
-                    "samples_per_revolution": int(self.samples_per_revolution), "solver": self.solver,
-                    "rtol": float(self.rtol), "atol": float(self.atol), "max_steps": int(self.max_steps),
-                    "ideal_reference": self._ideal is not None},
+                    "samples_per_revolution": int(self.samples_per_revolution), "solver": options["solver"],
+                    "rtol": float(options["rtol"]), "atol": float(options["atol"]),
+                    "max_steps": int(options["max_steps"]), "ideal_reference": self._ideal is not None,
+                    **settings},
             "trajectories": bool(self.trajectories),
         }
 
@@ -370,22 +419,52 @@ def _tree_hash(tree) -> str:
     return fingerprint(eqx.filter(tree, eqx.is_array))
 
 
-def load_config(path, **overrides) -> SweepConfig:
+def load_config(path, *, settings_options: dict | None = None, **overrides) -> SweepConfig:
     """Read a TOML sweep configuration (see ``examples/sweep.toml``) and validate it.
 
     Tables: ``[mechanism]`` (``preset`` and preset keyword overrides, or ``file = "M.toml"``, a
     mechanism file relative to the configuration's folder), ``[grid]`` or ``[list]``
-    (the swept parameters), ``[run]`` (:data:`RUN_KEYS`), ``[output]`` (:data:`OUTPUT_KEYS`).
-    Unknown tables or keys are errors. ``overrides`` replace :class:`SweepConfig` fields
-    (the command-line options). Relative ``output.dir`` is relative to the current folder.
+    (the swept parameters), ``[run]`` (:data:`RUN_KEYS`), ``[settings]`` (how every run is
+    integrated: :data:`~jaxclear.integrate.settings.OPTION_KEYS`, ``Settings``' fields by name,
+    converted by :func:`~jaxclear.integrate.settings.settings_from_options` as the command line's
+    are), ``[output]`` (:data:`OUTPUT_KEYS`). ``solver``, ``rtol``, ``atol``, ``max_steps`` in
+    ``[run]`` are deprecated (a ``DeprecationWarning``, one release): write them in
+    ``[settings]``. Unknown tables or keys are errors. ``overrides`` replace
+    :class:`SweepConfig` fields (the command-line options); ``settings_options`` (names, as in
+    ``[settings]``) replace the file's settings one by one (the command line's integration
+    options). Relative ``output.dir`` is relative to the current folder.
     """
     path = os.fspath(path)
-    return config_from_dict(read_toml(path, "sweep configuration"), source=path, **overrides)
+    return config_from_dict(read_toml(path, "sweep configuration"), source=path, settings_options=settings_options,
+                            **overrides)
 
 
-def config_from_dict(doc: dict, source: str = "<dict>", **overrides) -> SweepConfig:
+def settings_table(doc: dict, run: dict, source: str, given: dict | None = None) -> Settings | None:
+    """The :class:`~jaxclear.Settings` of a file's ``[settings]`` table (``doc["settings"]``),
+    with the deprecated ``solver``, ``rtol``, ``atol``, ``max_steps`` of ``run`` (its ``[run]``
+    table, removed from it; a ``DeprecationWarning``) and the command line's ``given`` options
+    over them; ``None`` when none is given (the driver's default). Base: ``Settings``' defaults
+    with ``max_steps`` :data:`MAX_STEPS`."""
+    table = dict(doc.get("settings") or {})
+    old = {key: run.pop(key) for key in OLD_RUN_SETTINGS if key in run}
+    both = sorted(set(old) & set(table))
+    if both:
+        raise ParameterError(f"{source}: {both} given both in [run] and in [settings]; keep [settings]")
+    if old:
+        warnings.warn(f"{source}: {sorted(old)} in [run] are deprecated and will be removed in the next release: "
+                      "write them in a [settings] table", DeprecationWarning, stacklevel=3)
+    options = {**old, **table, **(given or {})}
+    if not options:
+        return None
+    base = Settings(t_end=jnp.asarray(1.0), max_steps=MAX_STEPS)
+    where = "[settings]" if not old else "[run]" if not table else "[run]/[settings]"
+    return settings_from_options(options, base, source=f"{source}: {where}")
+
+
+def config_from_dict(doc: dict, source: str = "<dict>", *, settings_options: dict | None = None,
+                     **overrides) -> SweepConfig:
     """Build a :class:`SweepConfig` from the TOML layout (a dict of tables); unknown keys are
-    errors naming the allowed ones."""
+    errors naming the allowed ones (``settings_options``: :func:`load_config`)."""
     unknown = sorted(set(doc) - set(CONFIG_KEYS))
     if unknown:
         raise ParameterError(f"{source}: unknown table(s) or key(s) {unknown}; allowed tables: {list(CONFIG_KEYS)}")
@@ -399,7 +478,8 @@ def config_from_dict(doc: dict, source: str = "<dict>", **overrides) -> SweepCon
         bad = sorted(set(got) - set(allowed))
         if bad:
             raise ParameterError(f"{source}: unknown key(s) {bad} in [{table}]; allowed: {list(allowed)}")
-    kwargs: dict = {"source": source, "grid": doc.get("grid"), "list": doc.get("list"), **run}
+    settings = settings_table(doc, run, source, settings_options)
+    kwargs: dict = {"source": source, "grid": doc.get("grid"), "list": doc.get("list"), "settings": settings, **run}
     if "file" in mech:  # a mechanism file, relative to the configuration's folder
         if set(mech) != {"file"}:
             raise ParameterError(f"{source}: [mechanism] with 'file' takes no other key (got {sorted(mech)}); "

@@ -4,8 +4,15 @@ later sweep with the same plan (other numbers) reuses the compilation."""
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..integrate import Settings
 
 
 @dataclass(frozen=True)
@@ -19,7 +26,10 @@ class Plan:
         n_out: output samples per run (``revolutions * samples_per_revolution + 1``).
         start: first output sample of the metrics window (after the transient).
         section: output sample indices of the Poincare section.
-        solver, rtol, atol, max_steps: integration settings.
+        settings: how every run is integrated (the sweep's :attr:`SweepConfig.run_settings
+            <jaxclear.sweep.SweepConfig.run_settings>`), as :func:`static_settings` makes it
+            hashable; each run replaces its ``t_end`` and ``n_out``
+            (:func:`jaxclear.sweep.batch.run_settings`).
         trajectories: also return the time series.
         mesh: the 1-D ``jax.sharding.Mesh`` (axis ``"batch"``) the chunk is sharded over
             (``None`` for an unbatched call of the per-run function).
@@ -36,10 +46,7 @@ class Plan:
     n_out: int
     start: int
     section: tuple[int, ...]
-    solver: str
-    rtol: float
-    atol: float
-    max_steps: int
+    settings: Settings
     trajectories: bool
     mesh: Any
     side_by_side: bool | None = None
@@ -51,8 +58,21 @@ def make_plan(cfg, mesh, trajectories: bool | None = None, ideal: bool = True) -
     (``trajectories`` default: the config's; ``ideal=False``: no ideal-joint parameters)."""
     return Plan(
         names=cfg.names, ideal_names=cfg.ideal_names if ideal else (), revolutions=float(cfg.revolutions),
-        n_out=cfg.n_out, start=cfg.window_start, section=cfg.section, solver=cfg.solver, rtol=float(cfg.rtol),
-        atol=float(cfg.atol), max_steps=int(cfg.max_steps),
+        n_out=cfg.n_out, start=cfg.window_start, section=cfg.section, settings=static_settings(cfg.run_settings),
         trajectories=bool(cfg.trajectories if trajectories is None else trajectories), mesh=mesh,
         channels=tuple(cfg.channel_units),
     )
+
+
+def static_settings(s: Settings) -> Settings:
+    """``s`` as a part of a :class:`Plan`: what a run replaces set aside (``t_end`` 1 s,
+    ``t_start`` 0, ``throw`` False, ``progress`` False) and its array leaves (the Baumgarte
+    gains) as Python numbers, so that it hashes (a static argument of the compiled chunk; equal
+    settings, equal plans). :func:`dynamic_settings` turns it back."""
+    s = dataclasses.replace(s, t_end=jnp.asarray(1.0), t_start=0.0, throw=False, progress=False)
+    return jax.tree.map(lambda a: np.asarray(a).item(), s)
+
+
+def dynamic_settings(s: Settings) -> Settings:
+    """A :class:`Plan`'s settings with their leaves as arrays again (:func:`static_settings`)."""
+    return jax.tree.map(jnp.asarray, s)

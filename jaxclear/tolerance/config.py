@@ -20,6 +20,10 @@ r"""A tolerance study's TOML file (``jaxclear tolerance STUDY.toml``; :func:`loa
     [run]                    # each batch's sweep settings (jaxclear.sweep.SweepConfig)
     revolutions = 1.0
 
+    [settings]               # how every run is integrated (jaxclear.Settings by name; optional)
+    rtol = 1e-7
+    derivative_tolerance = 0.5
+
     [output]
     dir = "tolerance-out"
 
@@ -33,15 +37,21 @@ import os
 from .._errors import ParameterError
 from .._storage import read_toml
 from .distributions import inputs_from_dict
+from ..integrate.settings import OPTION_KEYS
 from .study import RUN_OPTIONS
 
 TABLES = {"mechanism": None, "parameters": None, "correlations": ("pairs",),
           "study": ("n", "method", "seed", "metrics", "linearise", "derivatives", "sobol_n", "importance_n"), "limits": None,
-          "run": RUN_OPTIONS, "output": ("dir", "progress")}
+          "run": RUN_OPTIONS, "settings": OPTION_KEYS, "output": ("dir", "progress")}
 
 
-def study_from_dict(doc: dict, source: str = "<dict>") -> dict:
-    """Keyword arguments of :func:`~.study.tolerance_study` from the file's tables."""
+def study_from_dict(doc: dict, source: str = "<dict>", settings_options: dict | None = None) -> dict:
+    """Keyword arguments of :func:`~.study.tolerance_study` from the file's tables; the
+    ``[settings]`` table (and the deprecated ``solver``, ``rtol``, ``atol``, ``max_steps`` of
+    ``[run]``) with ``settings_options`` (the command line's) over it become ``settings``, read
+    as a sweep file's (:func:`jaxclear.sweep.config.settings_table`)."""
+    from ..sweep.config import settings_table
+
     bad = sorted(set(doc) - set(TABLES))
     if bad:
         raise ParameterError(f"{source}: unknown table(s) {bad}; allowed: {list(TABLES)}")
@@ -52,7 +62,11 @@ def study_from_dict(doc: dict, source: str = "<dict>") -> dict:
         if keys is not None and set(got) - set(keys):
             raise ParameterError(f"{source}: unknown key(s) {sorted(set(got) - set(keys))} in [{table}]; allowed: "
                                  f"{list(keys)}")
-    kwargs = {"inputs": inputs_from_dict(doc, source), **doc.get("study", {}), **doc.get("run", {})}
+    run = dict(doc.get("run", {}))
+    settings = settings_table(doc, run, source, settings_options)
+    kwargs = {"inputs": inputs_from_dict(doc, source), **doc.get("study", {}), **run}
+    if settings is not None:
+        kwargs["settings"] = settings
     if "metrics" in kwargs:
         kwargs["metrics"] = tuple(kwargs["metrics"])
     kwargs["limits"] = dict(doc.get("limits", {}))
@@ -77,6 +91,6 @@ def study_from_dict(doc: dict, source: str = "<dict>") -> dict:
     return kwargs
 
 
-def load_study(path: str) -> dict:
+def load_study(path: str, settings_options: dict | None = None) -> dict:
     """:func:`study_from_dict` of a TOML file (a syntax error names the file and line)."""
-    return study_from_dict(read_toml(path, "tolerance study file"), path)
+    return study_from_dict(read_toml(path, "tolerance study file"), path, settings_options)

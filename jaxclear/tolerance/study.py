@@ -33,12 +33,14 @@ import os
 import warnings
 from dataclasses import dataclass, field
 
+import jax.numpy as jnp
 import numpy as np
 
 from .._errors import ParameterError
 from .._extras import require_extra
 from .._results import AbstractResult, SummaryTable
 from .._storage import atomic_write_json, atomic_write_text, jsonable
+from ..integrate.settings import Settings, deprecated_keywords, option_values, settings_from_options
 from ..model import Mechanism
 from .distributions import Inputs
 from .estimators import (UnresolvedEstimateWarning, check_limit, exceedance, importance_exceedance, linearised,
@@ -48,9 +50,31 @@ from .estimators import (UnresolvedEstimateWarning, check_limit, exceedance, imp
 DEFAULT_METRICS = ("peak_contact_force_n", "rms_acc_deviation_m_s2", "fraction_free_flight")
 #: Step of the central differences over the scores [standard deviations].
 SCORE_STEP = 0.1
-#: Run settings passed to each batch's :class:`~jaxclear.sweep.SweepConfig`.
+#: Run settings passed to each batch's :class:`~jaxclear.sweep.SweepConfig` (``solver``, ``rtol``,
+#: ``atol``, ``max_steps``: deprecated, :data:`OLD_RUN_SETTINGS`).
 RUN_OPTIONS = ("revolutions", "transient_revolutions", "samples_per_revolution", "solver", "rtol", "atol",
                "max_steps", "chunk_size", "devices")
+#: The run options that moved to ``settings=`` (accepted with a ``DeprecationWarning`` for one release).
+OLD_RUN_SETTINGS = ("solver", "rtol", "atol", "max_steps")
+
+
+def _settings(settings: Settings | None, run_options: dict) -> Settings | None:
+    """The study's runs' settings: ``settings``, or the sweep's default with the deprecated run
+    options (``solver``, ``rtol``, ``atol``, ``max_steps``: removed from ``run_options``)."""
+    if settings is not None and not isinstance(settings, Settings):
+        raise ParameterError(f"tolerance_study: settings = {settings!r}: expected a jaxclear.Settings or None")
+    old = deprecated_keywords("tolerance_study", settings,
+                              **{k: run_options.get(k) for k in OLD_RUN_SETTINGS})
+    if not old:
+        return settings
+    from ..sweep.config import MAX_STEPS
+
+    try:
+        return settings_from_options(old, Settings(t_end=jnp.asarray(1.0), max_steps=MAX_STEPS),
+                                     source="tolerance_study")
+    finally:
+        for k in old:
+            run_options.pop(k, None)
 
 
 @dataclass
@@ -219,7 +243,7 @@ def tolerance_study(inputs: Inputs, mech: Mechanism | None = None, *, preset: st
                     limits: dict | None = None, linearise: bool = True, derivatives: bool = False,
                     sobol_n: int = 0, importance_n: int = 0,
                     out="tolerance-out", restart: bool = False, progress: bool = True,
-                    **run_options) -> ToleranceResult:
+                    settings: Settings | None = None, **run_options) -> ToleranceResult:
     """Sample the inputs, run the mechanism for each sample, and estimate (module docstring).
 
     Args:
@@ -233,11 +257,21 @@ def tolerance_study(inputs: Inputs, mech: Mechanism | None = None, *, preset: st
         sobol_n: base points of the Sobol' indices (0: none; ``sobol_n (P + 2)`` runs).
         importance_n: runs of importance sampling for the first limit (0: none; needs ``linearise``).
         out: the study's folder (one sweep folder per batch); restart: discard earlier results.
-        run_options: :data:`RUN_OPTIONS` of each batch's :class:`~jaxclear.sweep.SweepConfig`.
+        settings: how every run is integrated (:class:`~jaxclear.Settings`, whole: solver,
+            tolerances, step limit, the derivatives' ``Sensitivity(tolerance)`` of the estimate
+            from ``derivatives``...); each batch's sweep replaces only ``t_end``, ``n_out``,
+            ``throw`` and ``progress`` (:class:`~jaxclear.sweep.SweepConfig`). Default None:
+            the sweep's default.
+        run_options: :data:`RUN_OPTIONS` of each batch's :class:`~jaxclear.sweep.SweepConfig`
+            (``revolutions``, ``samples_per_revolution``...); its ``solver``, ``rtol``, ``atol``,
+            ``max_steps`` are deprecated (a ``DeprecationWarning``, one release):
+            ``settings=jc.settings(1.0, rtol=...)``; with ``settings`` too, a
+            :class:`~jaxclear.ParameterError`.
     """
     bad = sorted(set(run_options) - set(RUN_OPTIONS))
     if bad:
         raise ParameterError(f"tolerance_study: unknown option(s) {bad}; allowed: {list(RUN_OPTIONS)}")
+    settings = _settings(settings, run_options)
     metrics = tuple(metrics)
     limits = {m: check_limit(m, v) for m, v in (limits or {}).items()}
     unknown = sorted(set(limits) - set(metrics))
@@ -253,14 +287,18 @@ def tolerance_study(inputs: Inputs, mech: Mechanism | None = None, *, preset: st
     if importance_n and not (limits and linearise):
         raise ParameterError("tolerance_study: importance_n needs a limit and linearise=True (the design point)")
     names = inputs.names
-    evaluate = _evaluator(mech, preset, dict(run_options), metrics, names, os.fspath(out), restart, progress)
+    run = dict(run_options, settings=settings)
+    run_options = {k: v for k, v in run_options.items() if k not in OLD_RUN_SETTINGS}  # the result: in integration
+    evaluate = _evaluator(mech, preset, run, metrics, names, os.fspath(out), restart, progress)
     x = inputs.sample(n, method, seed)
     y = evaluate("runs", x)
     statistics = {m: _describe(v) for m, v in y.items()}
     res = ToleranceResult(names, x, y, statistics, settings=dict(n=int(len(x)), method=method, seed=seed,
                                                                inputs={m.name: m.describe() for m in inputs.marginals},
                                                                correlation=None if inputs.correlation is None
-                                                               else inputs.correlation.tolist(), **run_options))
+                                                               else inputs.correlation.tolist(), **run_options,
+                                                               **({} if settings is None else
+                                                                  {"integration": option_values(settings)})))
     for m, lim in limits.items():
         res.exceedance[m] = exceedance(y[m], lim)
     if linearise:
@@ -278,7 +316,7 @@ def tolerance_study(inputs: Inputs, mech: Mechanism | None = None, *, preset: st
             if m in res.exceedance:
                 res.exceedance[m]["linearised_probability"] = res.linearised[m]["probability"]
         if derivatives:
-            grads = _derivative_gradients(mech, preset, dict(run_options), metrics, names,
+            grads = _derivative_gradients(mech, preset, run, metrics, names,
                                           inputs.scores_to_values(np.zeros((1, len(names))))[0], os.fspath(out))
             for m, g in grads.items():
                 gz = score_gradient(inputs, g)
