@@ -3,7 +3,6 @@ uncertainty at the optimum and returns a :class:`FitResult` (method: :mod:`jaxcl
 
 from __future__ import annotations
 
-import contextlib
 import math
 import time
 import warnings
@@ -16,13 +15,14 @@ from tqdm.auto import tqdm
 from .._interrupt import stop_at_safe_points
 from .._numbers import as_typed
 from .._errors import CheckpointError, ParameterError
-from .._storage import locked_folder
+from .._checkpoint import locked
 from ..integrate.compile import on_trace
 from ..model import Mechanism
 from ..analysis.sensor import Accelerometer
 from .parameters import DEFAULT_FREE, law_name, values_of
 from .plan import DEFAULT_HORIZONS
-from .problem import FitProblem, build_problem
+from ..integrate import Settings
+from .problem import FitProblem, build_problem, given_settings, settings_record
 from .result import FitResult
 from .profile import check_profile, run_profiles, summarize
 from .run import evaluate_all, final_jacobian, fitted_mask, fresh_state, run_plan
@@ -54,9 +54,10 @@ def fit(
     max_iter: int = 30,
     ftol: float = 1e-6,
     xtol: float = 1e-5,
-    rtol: float = 1e-8,
-    atol: float = 1e-11,
+    rtol: float | None = None,
+    atol: float | None = None,
     max_steps: int | None = None,
+    settings: Settings | None = None,
     align: str = "time",
     time_offset: float = 0.0,
     out=None,
@@ -112,9 +113,25 @@ def fit(
             ``"adam"``, ``"adam:LR"``, an optax transformation or an optimistix solver
             (:func:`jaxclear.fitting.make_optimizer`).
         max_iter, ftol, xtol: stopping rules per stage (:mod:`jaxclear.fitting.solver`).
-        rtol, atol, max_steps: integration settings of the model (forward-mode Jacobians);
-            ``max_steps`` None: :data:`~jaxclear.fitting.problem.MAX_STEPS` (200,000), or
-            :data:`~jaxclear.fitting.problem.FREE_START_MAX_STEPS` with ``start_state="free"``.
+        settings: how the model is integrated (:class:`~jaxclear.Settings`: solver,
+            tolerances, step limit, derivatives...). None (default): ``Settings``' defaults with
+            the fit's tolerances ``rtol`` 1e-8, ``atol`` 1e-11
+            (:data:`~jaxclear.fitting.problem.RTOL`: the Jacobians are forward-mode derivatives
+            of the runs). The fit replaces what it owns (:func:`~jaxclear.fitting.problem.model_settings`):
+            each window's ``t_end`` and ``n_out``, ``t_start`` 0, ``throw`` False (a failed trial
+            run is a refused step), ``progress`` False, and, where ``settings`` leaves them at
+            ``Settings``' defaults, its documented choices: the step limit
+            :data:`~jaxclear.fitting.problem.MAX_STEPS` (200,000;
+            :data:`~jaxclear.fitting.problem.FREE_START_MAX_STEPS` with ``start_state="free"``),
+            block output sampling (:data:`~jaxclear.fitting.problem.FIT_OUTPUT`) and the
+            derivatives ``Sensitivity(derivative_tolerance(rtol))``
+            (:func:`~jaxclear.fitting.problem.derivative_tolerance`: the sensitivity solve at the
+            model's own tolerance where ``rtol`` <= 1e-7, a tenth of it above). Derivatives set
+            otherwise than ``Sensitivity()`` (``jc.Sensitivity(0.5)``, ``jc.ThroughLoop()``) are
+            used as given.
+        rtol, atol, max_steps: deprecated (a ``DeprecationWarning``, one release):
+            ``settings=jc.settings(1.0, rtol=1e-8, atol=1e-11)``; given with ``settings``, a
+            :class:`~jaxclear.ParameterError`.
         align, time_offset: how record times map to simulation time
             (:func:`jaxclear.analysis.sensor.record_times`).
         out: folder for the checkpoint (``fit_checkpoint.json``); None: no checkpoint.
@@ -149,16 +166,17 @@ def fit(
             resumes from the checkpoint.
     """
     t_wall = time.perf_counter()
+    integration, steps = given_settings("fit", settings, rtol, atol, max_steps)
     opt = make_optimizer(optimizer, ftol, xtol)
-    settings = dict(max_iter=max_iter, ftol=ftol, xtol=xtol, rtol=rtol, atol=atol, max_steps=max_steps, align=align,
+    settings = dict(max_iter=max_iter, ftol=ftol, xtol=xtol, **settings_record(integration, steps), align=align,
                     time_offset=time_offset, optimizer=opt.name)
     auto = starts is None
     problem = build_problem(data, mech, free, start, sensor, window, windows, horizons, coarse, 1 if auto else starts,
-                            settings, channels, start_state)
+                            settings, channels, start_state, integration)
     names = check_profile(profile, problem.free)
     extra = {"noise_sigma_given_m_s2": check_noise(noise_sigma, problem)} if noise_sigma is not None else {}
     auto = auto and not problem.anywhere
-    with locked_folder(out, "fit output folder") if out is not None else contextlib.nullcontext():
+    with locked(out, "fit"):
         if not (auto and opt.least_squares):
             return _fit_locked(problem, opt, out, resume, progress, callback, t_wall, profile=names, extra=extra)
         several = problem.with_starts(AUTO_STARTS)
@@ -226,7 +244,7 @@ def _fit_locked(problem: FitProblem, opt, out, resume: bool, progress: bool, cal
     ``unless(result)`` says the result will be fitted again (the single start of the automatic
     refit). ``extra``: settings for the result only (the given noise level), not the checkpoint's key."""
     ckpt = _checkpoint(problem, out, clock=lambda: wall_before + time.perf_counter() - t_wall)
-    saved = ckpt.load() if resume else None
+    saved = ckpt.resume() if resume else None  # the protocol's rules: another fit's checkpoint is refused
     if saved is not None:
         _check_resumed(problem, saved, ckpt.path)
     if saved is not None and progress:
@@ -381,6 +399,7 @@ def _result(problem: FitProblem, st: FitState, wall: float, resumed: bool, profi
         settings={"window_s": as_typed(problem.win.length), "windows": problem.windows, "horizons": list(problem.horizons),
                   "coarse": s["coarse"], "starts": s["starts"], "max_iter": s["max_iter"], "ftol": s["ftol"],
                   "xtol": s["xtol"], "rtol": s["rtol"], "atol": s["atol"], "align": s["align"],
+                  **({"integration": s["integration"]} if "integration" in s else {}),
                   "sensor": problem.sensor.describe(), "oversample": problem.sensor.oversample,
                   "record": problem.meas.path, "record_samples": len(problem.t_rec), "sample_spacing_s": s["dt"],
                   "data_rms_m_s2": problem.win.scale, "mechanism": problem.mech.name,

@@ -24,10 +24,9 @@ states would be sampled too (not done).
 
 from __future__ import annotations
 
-import contextlib
+import dataclasses
 import json
 import math
-import os
 import time
 from typing import Sequence
 
@@ -39,21 +38,24 @@ from tqdm.auto import tqdm
 from .._errors import CheckpointError, ParameterError
 from .._extras import require_extra
 from .._interrupt import stop_at_safe_points
-from .._storage import atomic_write_npz, fingerprint, locked_folder
+from .._checkpoint import Work, key as work_key, locked
 from ..analysis.sensor import Accelerometer
+from ..integrate import Settings
 from ..model import Mechanism
 from .driver import fit
 from .parameters import DEFAULT_FREE, transform, z_vector
 from .posterior_model import LogPosterior, fitted_entries, gauss_newton_covariance
 from .posterior_result import PosteriorResult, build_result
 from .priors import check_support, default_prior, noise_prior, parse_prior
-from .problem import build_problem
+from .problem import MAX_STEPS, build_problem, given_settings, settings_record
 from .result import FitResult
 from .sampler import ChainState, StepSize, init_states, init_step_size, nuts_chunk
 from .window import evaluate_window_jit
 
 #: The posterior's checkpoint in the output folder.
 POSTERIOR_CHECKPOINT = "posterior_checkpoint.npz"
+#: The format of the posterior checkpoint (:mod:`jaxclear._checkpoint`'s version rule).
+FORMAT = 1
 #: Name of the noise level among the samples and in ``priors``.
 NOISE = "noise_sigma"
 #: Retries of a chain's start whose density is not finite (the jitter halved each time).
@@ -64,17 +66,22 @@ def posterior(data, mech: Mechanism, free: Sequence[str] = DEFAULT_FREE, start: 
               fit_result: FitResult | None = None, priors: dict | None = None, noise_sigma: float | None = None,
               chains: int = 4, draws: int = 500, warmup: int = 200, chunk: int = 50, max_tree_depth: int = 8,
               seed: int = 0, predictive_draws: int = 100, channels=None, sensor: Accelerometer | None = None,
-              window: float | None = None, windows: int = 1, rtol: float = 1e-8, atol: float = 1e-11,
-              max_steps: int = 200_000, align: str = "time", time_offset: float = 0.0, out=None,
-              resume: bool = True, progress: bool = True, **fit_options) -> PosteriorResult:
+              window: float | None = None, windows: int = 1, rtol: float | None = None, atol: float | None = None,
+              max_steps: int | None = None, settings: Settings | None = None, align: str = "time",
+              time_offset: float = 0.0, out=None, resume: bool = True, progress: bool = True,
+              **fit_options) -> PosteriorResult:
     """Sample the posterior of the ``free`` parameters and of the noise level given a record
     (method: module docstring and docs/theory/uncertainty.md).
 
     Args:
         data: the record, as :func:`~jaxclear.fit` (so are ``mech``, ``free``, ``start``,
-            ``channels``, ``sensor``, ``window``, ``rtol``, ``atol``, ``max_steps``, ``align``,
-            ``time_offset``: the fit's residual and sensor model is the likelihood);
-            ``fit_options``: further :func:`~jaxclear.fit` arguments.
+            ``channels``, ``sensor``, ``window``, ``settings``, ``align``, ``time_offset``: the
+            fit's residual and sensor model is the likelihood; ``settings``: how the model is
+            integrated, replaced where the fit owns it, as :func:`~jaxclear.fit` documents);
+            ``fit_options``: further :func:`~jaxclear.fit` arguments. ``rtol``, ``atol``,
+            ``max_steps`` are deprecated (a ``DeprecationWarning``, one release):
+            ``settings=jc.settings(1.0, rtol=1e-8, atol=1e-11)``; with ``settings`` too, a
+            :class:`~jaxclear.ParameterError`.
         fit_result: the least-squares fit of the same inputs (default: fitted here, with its
             checkpoint in ``out``).
         priors: ``name: prior`` (an :class:`~jaxclear.fitting.priors.AbstractPrior` or
@@ -102,6 +109,7 @@ def posterior(data, mech: Mechanism, free: Sequence[str] = DEFAULT_FREE, start: 
             :func:`~jaxclear.fit` error.
     """
     t_wall = time.perf_counter()
+    integration, steps = given_settings("posterior", settings, rtol, atol, max_steps)
     require_extra("uncertainty", "posterior")
     _check_counts(chains=chains, draws=draws, warmup=warmup, chunk=chunk, max_tree_depth=max_tree_depth,
                   predictive_draws=predictive_draws)
@@ -115,17 +123,18 @@ def posterior(data, mech: Mechanism, free: Sequence[str] = DEFAULT_FREE, start: 
     chunk = min(chunk, draws)
     draws = -(-draws // chunk) * chunk
     warmup = -(-warmup // chunk) * chunk
-    common = dict(channels=channels, sensor=sensor, rtol=rtol, atol=atol, max_steps=max_steps, align=align,
-                  time_offset=time_offset)
+    # the step limit of before: 200,000 unless given (the fit's own for a known start)
+    integration = integration if steps is not None else dataclasses.replace(integration, max_steps=MAX_STEPS)
+    common = dict(channels=channels, sensor=sensor, settings=integration, align=align, time_offset=time_offset)
     if fit_result is None:
         fit_result = fit(data, mech, free, start, window=window, out=out, resume=resume, progress=progress,
                          **common, **fit_options)
     lp, info = _log_posterior(data, mech, tuple(free), fit_result, priors or {}, noise_sigma, common)
     settings = dict(chains=chains, draws=draws, warmup=warmup, chunk=chunk, max_tree_depth=max_tree_depth,
                     seed=seed, noise_fixed=noise_sigma is not None)
-    key = fingerprint(info["problem_key"], np.asarray(lp.x0), np.asarray(lp.chol), json.dumps(info["priors"]),
-                      json.dumps({k: v for k, v in settings.items() if k != "draws"}), length=32)
-    with locked_folder(out, "posterior output folder") if out is not None else contextlib.nullcontext():
+    key = work_key(info["problem_key"], np.asarray(lp.x0), np.asarray(lp.chol), json.dumps(info["priors"]),
+                   json.dumps({k: v for k, v in settings.items() if k != "draws"}), length=32)
+    with locked(out, "posterior"):
         run = _sample(lp, settings, key, out, resume, progress)
         res = build_result(lp, run, info, settings, fit_result, predictive_draws, seed,
                            time.perf_counter() - t_wall)
@@ -157,11 +166,11 @@ def _log_posterior(data, mech, free, fit_result: FitResult, priors: dict, noise_
     if tuple(fit_result.free) != free:
         raise ParameterError(f"posterior: fit_result fitted {list(fit_result.free)}, not the free {list(free)}")
     priors = check_priors(free, priors)
-    settings = dict(max_iter=1, ftol=1e-6, xtol=1e-5, rtol=common["rtol"], atol=common["atol"],
-                    max_steps=common["max_steps"], align=common["align"], time_offset=common["time_offset"],
-                    optimizer="levenberg-marquardt")
+    s = common["settings"]
+    settings = dict(max_iter=1, ftol=1e-6, xtol=1e-5, **settings_record(s, s.max_steps), align=common["align"],
+                    time_offset=common["time_offset"], optimizer="levenberg-marquardt")
     problem = build_problem(data, mech, free, fit_result.estimates, common["sensor"], fit_result.window_length_s, 1,
-                            (1.0,), None, 1, settings, common["channels"])
+                            (1.0,), None, 1, settings, common["channels"], integration=s)
     win = problem.window_input(0, 1.0, False, [problem.guess0])
     scale = problem.win.scale
     theta = z_vector(free, fit_result.estimates, scale)
@@ -226,37 +235,37 @@ def _chain_keys(seed: int, chains: int, index: int):
 _DRAW_FIELDS = ("x", "lp", "diverging", "acceptance_rate", "n_steps", "tree_depth")
 
 
-def _load(path: str, key: str):
-    """The checkpoint's arrays if it exists and its key matches (else None); unreadable: an error."""
-    if path is None or not os.path.isfile(path):
+def _load(work: Work, resume: bool):
+    """The checkpoint's arrays (:meth:`jaxclear._checkpoint.Work.read_npz`: the protocol's rules;
+    none without one or without ``resume``), checked to be finite and consistent (else a
+    :class:`~jaxclear.CheckpointError` naming the file)."""
+    saved = work.read_npz(POSTERIOR_CHECKPOINT, restart=not resume)
+    if saved is None:
         return None
     try:
-        with np.load(path, allow_pickle=False) as f:
-            saved = {k: f[k] for k in f.files}
-        if str(saved["key"]) != key:
-            return None
         for name in ("position", "logdensity", "grad", *StepSize._fields, *_DRAW_FIELDS):
             if not np.all(np.isfinite(saved[name])):
                 raise ValueError(f"{name} holds a value that is not finite")
         if saved["x"].shape[:2] != saved["lp"].shape:
             raise ValueError("the draws and their log densities differ in shape")
         return saved
-    except (OSError, ValueError, KeyError) as exc:
-        raise CheckpointError(f"the posterior checkpoint {path!r} is damaged ({exc}); delete it, or start over "
-                              "with --restart (API: resume=False)") from None
+    except (ValueError, KeyError) as exc:
+        raise CheckpointError(f"the posterior checkpoint {work.path(POSTERIOR_CHECKPOINT)!r} is damaged ({exc}); "
+                              "delete it, or start over with --restart (API: resume=False)") from None
 
 
 def _sample(lp: LogPosterior, s: dict, key: str, out, resume: bool, progress: bool) -> dict:
     """Warm-up and draws in chunks of ``chunk`` with a checkpoint after each (one compilation serves
     both: :func:`.sampler.nuts_chunk`); returns the draws (``x`` ``(C, draws, D)``, ...)."""
-    path = os.path.join(os.fspath(out), POSTERIOR_CHECKPOINT) if out is not None else None
-    saved = _load(path, key) if resume else None
+    work = Work(out, "posterior", key, {k: v for k, v in s.items() if k != "draws"}, version=FORMAT)
+    path = work.path(POSTERIOR_CHECKPOINT)
+    saved = _load(work, resume)
     chains, chunk, depth = s["chains"], s["chunk"], s["max_tree_depth"]
     n_warm = s["warmup"] // chunk  # warm-up chunks (warmup is a multiple of chunk)
     if saved is None:
         states = init_states(lp, jnp.asarray(_starts(lp, chains, s["seed"])))
         d = int(lp.x0.shape[0])
-        saved = dict(key=np.asarray(key), position=np.asarray(states.position), logdensity=np.asarray(states.logdensity),
+        saved = dict(position=np.asarray(states.position), logdensity=np.asarray(states.logdensity),
                      grad=np.asarray(states.grad), **{f: np.asarray(a) for f, a in
                                                       zip(StepSize._fields, init_step_size(0.5, chains))},
                      warmup_divergences=np.zeros(chains), warm_done=np.asarray(0),
@@ -290,8 +299,7 @@ def _sample(lp: LogPosterior, s: dict, key: str, out, resume: bool, progress: bo
                     for f in _DRAW_FIELDS:
                         saved[f] = np.concatenate([saved[f], new[f]], axis=1)
                 saved["wall_s"] = np.asarray(float(saved["wall_s"]) + time.perf_counter() - t1)
-                if path is not None:
-                    atomic_write_npz(path, saved)
+                work.write_npz(POSTERIOR_CHECKPOINT, saved, finished=done + 1 >= total)
                 done += 1
                 bar.update(chunk)
                 interrupt.check()

@@ -12,11 +12,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._errors import FitDataError, ParameterError
+from .._errors import FitDataError, JaxclearError, ParameterError
 from ..model import FunctionDriver, Mechanism, crank_driver, crank_period
 from ..analysis.channels import unit as named_unit
 from ..analysis.sensor import Accelerometer, record_times, uniform_spacing
-from ..integrate import ExactOnsets, SampleBlock, Sensitivity, settings as make_settings
+from ..integrate import ExactOnsets, SampleBlock, Sensitivity, Settings
+from ..integrate.settings import default_settings, deprecated_keywords, option_values
 from .parameters import check_free, fixed_values, start_values, z_vector
 from .plan import check_plan, plan_stages, spread_starts
 from .records import read_record
@@ -50,6 +51,76 @@ CRANK_PARAMETERS = ("angle0", "speed", "speed_rpm")
 FIT_ONSETS = ExactOnsets()
 #: How the fit's model writes its dense output samples (:class:`~jaxclear.Settings` ``output``).
 FIT_OUTPUT = SampleBlock()
+
+
+#: The model's tolerances where a fit is given no settings: its Jacobians are forward-mode
+#: derivatives of the runs, which need tighter tolerances than the values (the default 1e-6 of a
+#: plain run leaves their non-smooth part at 1.7e-3: :func:`derivative_tolerance`).
+RTOL, ATOL = 1e-8, 1e-11
+
+
+def default_fit_settings() -> Settings:
+    """The settings of a fit given none: ``Settings``' defaults with :data:`RTOL`, :data:`ATOL`
+    (the rest of the fit's own choices: :func:`model_settings`)."""
+    return dataclasses.replace(default_settings(), rtol=RTOL, atol=ATOL)
+
+
+def given_settings(driver: str, settings: Settings | None, rtol=None, atol=None, max_steps=None,
+                   stacklevel: int = 4) -> tuple[Settings, int | None]:
+    """``(settings, max_steps or None)`` of a fit or posterior: ``settings``, else
+    :func:`default_fit_settings` with the deprecated ``rtol``, ``atol``, ``max_steps`` keywords
+    (a ``DeprecationWarning``; with ``settings`` too, a :class:`~jaxclear.ParameterError`). The
+    second is the step limit given (the keyword, or the settings' where it is not ``Settings``'
+    default), None where the fit chooses (:func:`model_settings`)."""
+    old = deprecated_keywords(driver, settings, stacklevel=stacklevel, rtol=rtol, atol=atol, max_steps=max_steps)
+    if settings is not None:
+        if not isinstance(settings, Settings):
+            raise ParameterError(f"{driver}: settings = {settings!r}: expected a jaxclear.Settings "
+                                 "(jc.settings(1.0, rtol=...)) or None")
+        default = default_settings().max_steps
+        return settings, (settings.max_steps if settings.max_steps != default else None)
+    try:
+        return dataclasses.replace(default_fit_settings(), **old), old.get("max_steps")
+    except JaxclearError as err:
+        raise ParameterError(f"{driver}: {err}") from None
+
+
+def model_settings(base: Settings, anywhere: bool, max_steps: int | None = None) -> Settings:
+    """The window model's settings (its ``t_end`` and ``n_out`` are each window's): ``base``,
+    what the fit owns replaced: ``t_start`` 0 (a window's own clock), ``throw`` False (a failed
+    trial run is a refused step), ``progress`` False, and, where ``base`` leaves them at
+    ``Settings``' defaults, the fit's documented choices: the step limit ``max_steps`` (given) or
+    :data:`MAX_STEPS` (:data:`FREE_START_MAX_STEPS` for free starts), the output
+    :data:`FIT_OUTPUT`, the onsets :data:`FIT_ONSETS` and the derivatives
+    ``Sensitivity(derivative_tolerance(rtol))`` (the fit's second policy for the sensitivity
+    tolerance: it applies only where the derivatives were not set; any other ``derivatives``
+    is used as given)."""
+    default = default_settings()
+    changes = dict(t_start=0.0, throw=False, progress=False)
+    if max_steps is not None:
+        changes["max_steps"] = max_steps
+    elif base.max_steps == default.max_steps:
+        changes["max_steps"] = FREE_START_MAX_STEPS if anywhere else MAX_STEPS
+    if base.output == default.output:
+        changes["output"] = FIT_OUTPUT
+    if base.onsets == default.onsets:
+        changes["onsets"] = FIT_ONSETS
+    if base.derivatives == default.derivatives:
+        changes["derivatives"] = Sensitivity(derivative_tolerance(base.rtol))
+    return dataclasses.replace(base, **changes)
+
+
+def settings_record(s: Settings, max_steps: int | None) -> dict:
+    """What a fit records of its settings (its result's ``settings``, its checkpoint's key):
+    ``rtol``, ``atol``, ``max_steps`` (the given one, or None), and under ``integration`` the
+    fields that differ from :func:`default_fit_settings` (none for a fit given no settings: the
+    keys of before)."""
+    mine, default = option_values(s), option_values(default_fit_settings())
+    changed = {k: v for k, v in mine.items() if k not in ("rtol", "atol", "max_steps") and v != default[k]}
+    baumgarte = [float(s.baumgarte.alpha), float(s.baumgarte.beta)]
+    if baumgarte != [5.0, 5.0]:
+        changed["baumgarte"] = baumgarte
+    return dict(rtol=s.rtol, atol=s.atol, max_steps=max_steps, **({"integration": changed} if changed else {}))
 
 
 def derivative_tolerance(rtol: float) -> float:
@@ -213,9 +284,11 @@ def _check_data(y_rec, where: str, column: str = DEFAULT_COLUMN, unit: str = "m/
 
 def build_problem(data, mech: Mechanism, free: Sequence[str], start: dict | None, sensor: Accelerometer | None,
                   window, windows: int, horizons, coarse, starts: int, settings: dict, channels=None,
-                  start_state: str = "known") -> FitProblem:
+                  start_state: str = "known", integration: Settings | None = None) -> FitProblem:
     """Check the inputs (ParameterError before any compilation) and build the :class:`FitProblem`.
     ``settings``: max_iter, ftol, xtol, rtol, atol, max_steps, align, time_offset, optimizer;
+    ``integration``: the model's settings (:func:`model_settings`; default: ``Settings`` with
+    the ``rtol`` and ``atol`` of ``settings``);
     ``channels``: record column -> channel spec (:mod:`.targets`; None: the slider acceleration);
     ``start_state``: one of :data:`START_STATES`."""
     if start_state not in START_STATES:
@@ -258,10 +331,10 @@ def build_problem(data, mech: Mechanism, free: Sequence[str], start: dict | None
     z0 = z_vector(free, values0, win.scale)
     velocity_scale = abs(speed) if speed else 1.0 / window
     n_fine = int(round(window / h))
-    max_steps = settings["max_steps"] or (FREE_START_MAX_STEPS if anywhere else MAX_STEPS)
-    s = make_settings(n_fine * h, n_out=n_fine + 1, rtol=settings["rtol"], atol=settings["atol"],
-                      throw=False, max_steps=max_steps, onsets=FIT_ONSETS, output=FIT_OUTPUT,
-                      derivatives=Sensitivity(derivative_tolerance(settings["rtol"])))
+    base = integration if integration is not None else dataclasses.replace(
+        default_settings(), rtol=settings["rtol"], atol=settings["atol"])
+    s = dataclasses.replace(model_settings(base, anywhere, settings["max_steps"]),
+                            t_end=jnp.asarray(n_fine * h, dtype=float), n_out=n_fine + 1)
     model = WindowModel(mech=mech, sensors=tuple(fc.sensor for _, fc in targets),
                         weights=jnp.asarray([fc.weight for _, fc in targets], dtype=float), settings=s,
                         bias_scale=jnp.asarray(win.scale), velocity_scale=jnp.asarray(velocity_scale), free=free,
