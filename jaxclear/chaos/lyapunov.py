@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 from typing import Sequence
 
 import diffrax
@@ -23,6 +24,7 @@ from .._errors import RESULTS, JaxclearError, ParameterError, is_concrete
 from ..analysis.channels import channel
 from ..integrate import Settings, Solution, State
 from ..integrate import solve
+from ..integrate.settings import default_settings
 from ..integrate.simulate import raise_for_status as _raise_run_status
 from ..model import Mechanism, crank_driver, crank_period
 from . import manifold
@@ -101,18 +103,21 @@ def _compiled(mech, s, y0, transient, interval, scale, windows, discard, samples
                     samples=samples, count=count, scale=scale, max_growth=max_growth, keep=keep)
 
 
-def lyapunov(mech: Mechanism, s: Settings, interval: float | None = None, *, transient: float = 0.0,
-             discard: int = 0, count: int | None = None, samples: int = 8, time_scale: float | None = None,
-             y0: State | None = None, tol: float | None = None, max_growth: float | None = None,
-             keep: bool = True) -> LyapunovResult:
-    r"""The Lyapunov spectrum of ``mech`` over the run of ``s`` (Benettin's method on the tangent
-    dynamics, :mod:`.benettin`), over the tangent space of the constraint manifold
+def lyapunov(mech: Mechanism, settings: Settings | None = None, interval: float | None = None, *,
+             transient: float = 0.0, discard: int = 0, count: int | None = None, samples: int = 8,
+             time_scale: float | None = None, y0: State | None = None, tol: float | None = None,
+             max_growth: float | None = None, keep: bool = True, s: Settings | None = None) -> LyapunovResult:
+    r"""The Lyapunov spectrum of ``mech`` over the run of ``settings`` (Benettin's method on the
+    tangent dynamics, :mod:`.benettin`), over the tangent space of the constraint manifold
     (:mod:`.manifold`).
 
     Args:
         mech: the mechanism.
-        s: the settings: the run is ``[s.t_start, s.t_end]``; ``rtol``, ``atol``, ``solver``,
-            ``max_steps`` (per interval) apply to the state and its tangents.
+        settings: the settings, whole (required: they hold the run's span): the run is
+            ``[t_start, t_end]``; ``rtol``, ``atol``, ``solver``, ``max_steps`` (per interval)
+            and the rest apply to the state and its tangents; nothing is replaced but ``throw``
+            (the runs report their status; ``settings.throw`` says whether it raises).
+        s: the old name of ``settings`` (deprecated: a ``DeprecationWarning``, one release).
         interval: the reporting interval [s] > 0 (default one crank revolution): the time after
             the transient is cut into the fewest equal intervals no longer than this; the running
             estimate, the batch means and the samples are per interval. The tangents are
@@ -143,6 +148,7 @@ def lyapunov(mech: Mechanism, s: Settings, interval: float | None = None, *, tra
         with ``s.throw=False`` the first two are the result's ``status``, a
         :class:`~jaxclear.RESULTS` code.
     """
+    s = _renamed("lyapunov", settings, s, required=True)
     _check_interval(interval)
     count = check_count(mech, count)
     interval = _default_interval(mech) if interval is None else interval
@@ -167,6 +173,26 @@ def lyapunov(mech: Mechanism, s: Settings, interval: float | None = None, *, tra
     if s.throw:
         _raise_for_status(result, s, tol, mech)
     return result
+
+
+def _renamed(driver: str, settings: Settings | None, s: Settings | None, required: bool) -> Settings:
+    """The settings given as ``settings`` or by their old name ``s`` (a ``DeprecationWarning``;
+    both: a :class:`~jaxclear.ParameterError`); None: ``Settings``' defaults where they are not
+    ``required`` (a run's span)."""
+    if s is not None:
+        if settings is not None:
+            raise ParameterError(f"{driver}: both settings= and s= (its old name) given; give settings= only")
+        warnings.warn(f"{driver}(s=...) is deprecated and will be removed in the next release: pass settings=...",
+                      DeprecationWarning, stacklevel=3)
+        settings = s
+    if settings is None:
+        if required:
+            raise ParameterError(f"{driver}: settings are required (the run's span [t_start, t_end]): "
+                                 "settings=jc.settings(t_end, ...)")
+        return default_settings()
+    if not isinstance(settings, Settings):
+        raise ParameterError(f"{driver}: settings = {settings!r}: expected a jaxclear.Settings")
+    return settings
 
 
 def check_convergence(result: LyapunovResult, tol: float | None) -> None:
@@ -272,9 +298,10 @@ def _compiled_map(mech, s, names, values, revolutions, transient_revolutions, pe
     return jax.lax.map(f, values, batch_size=batch_size)
 
 
-def lyapunov_map(mech: Mechanism, s: Settings, names: Sequence[str], values, *, revolutions: int,
+def lyapunov_map(mech: Mechanism, settings: Settings | None, names: Sequence[str], values, *, revolutions: int,
                  transient_revolutions: float = 0.0, per_revolution: int = 1, samples: int = 8, count: int = 1,
-                 channels: Sequence[str] = (), discard: int = 0, batch_size: int | None = None) -> LyapunovMap:
+                 channels: Sequence[str] = (), discard: int = 0, batch_size: int | None = None,
+                 s: Settings | None = None) -> LyapunovMap:
     """The Lyapunov exponents of many operating points: ``mech`` with the parameters ``names``
     (:mod:`jaxclear.params`) set to each row of ``values`` (B, P), one compiled program batched
     over the rows (``jax.vmap`` in batches of ``batch_size``, default all at once; 1 runs them
@@ -285,9 +312,14 @@ def lyapunov_map(mech: Mechanism, s: Settings, names: Sequence[str], values, *, 
     a revolution (each renormalised at its end and, within it, as often as the default
     ``max_growth`` of :func:`lyapunov` asks), ``samples`` output samples per interval; ``channels`` (named channels,
     :func:`jaxclear.channel`) are sampled once per revolution (a Poincare section each, for a
-    bifurcation diagram). ``s`` gives the tolerances and the solver (its ``t_end`` is not used).
+    bifurcation diagram). ``settings`` (:class:`~jaxclear.Settings`, whole; None: its defaults)
+    give the solver, tolerances, step limit and the rest; the map owns the span (its ``t_end``
+    is not used: each row runs its revolutions of its own crank speed from ``t_start``) and
+    ``throw`` (False).
+    ``s``: the old name of ``settings`` (deprecated: a ``DeprecationWarning``, one release).
     Nothing raises for a failed member: its ``status`` says what happened.
     """
+    s = _renamed("lyapunov_map", settings, s, required=False)
     names = tuple(str(n) for n in names)
     values = jnp.atleast_2d(jnp.asarray(values, float))
     if values.shape[1] != len(names):

@@ -4,7 +4,6 @@ journal in a locked folder and returns a :class:`~jaxclear.designing.result.Desi
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import math
 import time
@@ -16,7 +15,7 @@ from tqdm.auto import tqdm
 
 from .._errors import STATUS, DesignError, ParameterError
 from .._interrupt import stop_at_safe_points
-from .._storage import fingerprint, locked_folder
+from .._checkpoint import key as work_key, locked
 from ..derivatives import DerivativeHorizonWarning
 from ..integrate import Settings
 from ..model import Mechanism, crank_driver
@@ -103,9 +102,11 @@ def design(mech: Mechanism, variables: dict, objective="rms-deviation", constrai
         constraints: texts (``"total-mass"``, ``"assembles"``, ``"peak-force<=N"``...) or
             constraint objects (:mod:`jaxclear.designing.constraints`).
         start: start values (default: the mechanism's; a ``centroid_*`` variable's is 0).
-        settings: run settings whose ``rtol``, ``atol``, ``max_steps``, ``solver``, ``adjoint``
-            are used (``t_end`` and ``n_out`` come from ``revolutions``); default
-            ``jaxclear.Settings`` with ``rtol`` 1e-6.
+        settings: how every run is integrated (:class:`~jaxclear.Settings`, whole: solver,
+            tolerances, step limit, derivatives (``Sensitivity(tolerance)`` or ``ThroughLoop``),
+            onsets...); the design replaces only what it owns: ``t_start`` 0, ``t_end`` and
+            ``n_out`` (from ``revolutions`` and ``samples_per_revolution`` of each run's crank
+            speed), ``throw`` and ``progress``. Default None: ``Settings``' defaults.
         points: operating points (:class:`~jaxclear.designing.OperatingPoint` or dicts of
             parameter values), averaged with their weights.
         ensemble: several starts per point (:class:`~jaxclear.designing.Ensemble`).
@@ -159,22 +160,22 @@ def design(mech: Mechanism, variables: dict, objective="rms-deviation", constrai
     base = settings if settings is not None else Settings(t_end=1.0)
     problem = build_problem(mech, variables_, obj, tuple(cons), _points(points), ensemble, revolutions,
                             samples_per_revolution, base)
-    key = fingerprint(mech, [(v.name, v.low, v.high, v.start) for v in variables_], _spec(obj),
-                      [_spec(c) for c in cons], problem.members, problem.base, revolutions, problem.n_out, method_,
-                      max_iter, ftol, gtol)
+    key = work_key(mech, [(v.name, v.low, v.high, v.start) for v in variables_], _spec(obj),
+                   [_spec(c) for c in cons], problem.members, problem.base, revolutions, problem.n_out, method_,
+                   max_iter, ftol, gtol)
     config = dict(variables={v.name: [v.low, v.high] for v in variables_}, objective=obj.describe(mech),
                   constraints=[c.describe() for c in cons], method=method_, max_iter=max_iter, ftol=ftol, gtol=gtol,
                   revolutions=revolutions, samples_per_revolution=samples_per_revolution, runs_per_evaluation=
                   problem.members.count, points=[dict(p.values, weight=p.weight) for p in _points(points)],
                   ensemble=dataclasses.asdict(ensemble), rtol=problem.rtol, atol=problem.atol)
-    with locked_folder(out, "design output folder") if out is not None else contextlib.nullcontext():
+    with locked(out, "design"):
         return _design_locked(problem, variables_, to_unit(variables_, x0), start_mech, key, config, out, resume,
                               progress, check_chaos, report_sensitivity, plots, callback, t0)
 
 
 def _design_locked(problem, variables, u0, start_mech, key, config, out, resume, progress, check_chaos,
                    report_sensitivity, plots, callback, t0) -> DesignResult:
-    journal = Journal(out, key, resume)
+    journal = Journal(out, key, resume, config)
     ev = Evaluator(problem, journal)
     if progress and journal.loaded:
         tqdm.write(f"jaxclear design: resuming in {out}: {journal.loaded} evaluations in the journal")

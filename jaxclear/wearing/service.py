@@ -23,7 +23,6 @@ into any folder through the same functions (:meth:`WearHistory.write`).
 from __future__ import annotations
 
 import dataclasses
-import json
 import os
 import warnings
 
@@ -36,7 +35,8 @@ from .._errors import CheckpointError, ParameterError, check_range
 from .._interrupt import stop_at_safe_points
 from .._numbers import as_typed
 from .._results import AbstractResult
-from .._storage import atomic_write_json, atomic_write_text, fingerprint, fsync_append, jsonable, locked_folder
+from .._checkpoint import Work, key as work_key
+from .._storage import atomic_write_json, atomic_write_text, fsync_append, jsonable
 from ..integrate.settings import Settings
 from ..integrate.simulate import check_status, simulate
 from ..integrate.strategies import StepOnsets
@@ -50,6 +50,8 @@ STEP_WARNING = 0.05
 #: Most bearing nodes (checked before the node arrays are made).
 MAX_NODES = 100_000
 STATE_FILE = "wear.json"
+#: The format of ``wear.json`` (:mod:`jaxclear._checkpoint`'s version rule).
+FORMAT = 1
 UPDATES_FILE = "updates.csv"
 FIGURE_FILE = "profile.png"
 #: The numbers of an update's record in the state file (besides ``depth_m``, the depth at the nodes).
@@ -129,6 +131,7 @@ class WearHistory(AbstractResult):
     cycles_per_update: float = dataclasses.field(kw_only=True)
     clearance: float = dataclasses.field(kw_only=True)
     fingerprint: str | None = dataclasses.field(default=None, kw_only=True)
+    config: dict | None = dataclasses.field(default=None, kw_only=True)
 
     def records(self) -> list[dict]:
         """The update records of ``wear.json`` (:data:`RECORD_KEYS` and ``depth_m`` per update),
@@ -139,8 +142,10 @@ class WearHistory(AbstractResult):
                         penetration=self.max_penetration[u]) for u in range(depth.shape[0])]
 
     def to_dict(self) -> dict:
-        """The content of ``wear.json``: ``fingerprint`` and ``updates`` (:meth:`records`)."""
-        return jsonable(_state(self.fingerprint, self.records()))
+        """The content of ``wear.json``: the checkpoint protocol's header (``kind``, ``format``,
+        ``key`` (the :attr:`fingerprint`), ``config``) and ``updates`` (:meth:`records`)."""
+        work = _work(None, self.fingerprint, self.config)
+        return jsonable(work.document(_state(self.records())))
 
     def write(self, folder, *, plots: bool = True) -> list[str]:
         """The files :func:`wear` writes into its output folder, for all updates:
@@ -151,7 +156,7 @@ class WearHistory(AbstractResult):
         records = self.records()
         paths = [_write_profile(folder, u, self.angles, r["depth_m"]) for u, r in enumerate(records)]
         paths.append(atomic_write_text(os.path.join(folder, UPDATES_FILE), _updates_text(records)))
-        paths.append(_write_state(folder, self.fingerprint, records))
+        paths.append(_write_state(folder, self.fingerprint, self.config, records))
         if plots:
             paths.append(self.plot(os.path.join(folder, FIGURE_FILE)))
         return paths
@@ -219,25 +224,30 @@ def _check_records(records, n_nodes: int) -> str | None:
     return None
 
 
-def _load_state(out: str, key: str, restart: bool, n_nodes: int) -> list[dict]:
-    """The update records of the state file (none on a fresh start or with ``restart``); a
-    file that cannot be read, is not a wear state, or holds a damaged record is a
+def _work(out, key: str | None, config: dict | None) -> Work:
+    """The wear run in ``out`` as a piece of resumable work (:mod:`jaxclear._checkpoint`)."""
+    return Work(out, "wear", key, config, version=FORMAT, restart="--restart (API: restart=True)")
+
+
+def _upgrade(doc: dict) -> dict:
+    """A state written before the checkpoint protocol (``{"fingerprint", "updates"}``, format 1):
+    its fingerprint is its key."""
+    return {**doc, "key": doc["fingerprint"]} if "key" not in doc and "fingerprint" in doc else doc
+
+
+def _load_state(work: Work, restart: bool, n_nodes: int) -> list[dict]:
+    """The update records of the state file (none on a fresh start or with ``restart``); the
+    checkpoint protocol's rules (a state of another run is refused, naming what changed); a file
+    that cannot be read, is not a wear state, or holds a damaged record is a
     :class:`~jaxclear.CheckpointError` naming it and the record."""
-    path = os.path.join(out, STATE_FILE)
-    if restart or not os.path.exists(path):
+    state = work.read_json(STATE_FILE, restart=restart, upgrade=_upgrade)
+    if state is None:
         return []
+    path = work.path(STATE_FILE)
     again = "run again with --restart (restart=True) to start over"
-    try:
-        with open(path, encoding="utf-8") as f:
-            state = json.load(f)
-        records = state["updates"]
-        stored_key = state["fingerprint"]
-    except (OSError, ValueError, KeyError, TypeError) as exc:
-        detail = f"key {exc} missing" if isinstance(exc, KeyError) else str(exc)
-        raise CheckpointError(f"the wear state {path!r} is unreadable ({detail}); {again}") from None
-    if stored_key != key:
-        raise CheckpointError(f"the wear state in {out!r} belongs to another mechanism or other wear options; "
-                              "choose another folder or run with --restart (restart=True) to start over")
+    if "updates" not in state:
+        raise CheckpointError(f"the wear state {path!r} is unreadable (key 'updates' missing); {again}")
+    records = state["updates"]
     problem = _check_records(records, n_nodes)
     if problem is not None:
         raise CheckpointError(f"the wear state {path!r} is damaged ({problem}); {again}")
@@ -258,12 +268,13 @@ def _record(*, service_time, cycles, volume, depth, peak, penetration) -> dict:
             "max_penetration_m": float(penetration), "depth_m": depth.tolist()}
 
 
-def _state(key: str | None, records: list[dict]) -> dict:
-    return {"fingerprint": key, "updates": records}
+def _state(records: list[dict]) -> dict:
+    return {"updates": records}
 
 
-def _write_state(out: str, key: str | None, records: list[dict]) -> str:
-    return atomic_write_json(os.path.join(out, STATE_FILE), _state(key, records), indent=1)
+def _write_state(out: str, key: str | None, config: dict | None, records: list[dict]) -> str:
+    work = _work(out, key, config)  # the state through this module's name of the writer: a test stops a run there
+    return atomic_write_json(work.path(STATE_FILE), work.document(_state(records)), indent=1)
 
 
 def _write_profile(out: str, u: int, angles, depth) -> str:
@@ -274,7 +285,7 @@ def _write_profile(out: str, u: int, angles, depth) -> str:
     return atomic_write_text(os.path.join(out, f"profile_{u:04d}.csv"), "".join(lines))
 
 
-def _write(out: str, key: str, records: list[dict], angles, clearance: float):
+def _write(out: str, key: str, config: dict, records: list[dict], angles, clearance: float):
     """The files after the last of ``records``: its profile, its row of ``updates.csv``
     (appended), the state and the figure."""
     u = len(records) - 1
@@ -284,7 +295,7 @@ def _write(out: str, key: str, records: list[dict], angles, clearance: float):
         atomic_write_text(updates, _updates_text(records))
     else:
         fsync_append(updates, _row(u, records[-1]))
-    _write_state(out, key, records)
+    _write_state(out, key, config, records)
     plot_wear(angles, np.asarray([r["depth_m"] for r in records]), np.asarray([r["service_time_s"] for r in records]),
               clearance, os.path.join(out, FIGURE_FILE))
 
@@ -292,8 +303,13 @@ def _write(out: str, key: str, records: list[dict], angles, clearance: float):
 def wear(mech: Mechanism, settings: Settings, options: WearOptions, out: str | None = None, *,
          restart: bool = False, progress: bool = True) -> WearHistory:
     """Wear the bearing of one clearance joint of ``mech`` over ``options.updates`` windows of
-    ``settings`` (see the module docstring). ``out``: output folder (written as it goes, resumed
-    if it holds a run of the same mechanism, settings and options; ``restart`` starts over)."""
+    ``settings`` (see the module docstring). ``settings`` (:class:`~jaxclear.Settings`, whole,
+    required: its ``[t_start, t_end]`` is a window) are every window's, the wear replacing only
+    what it owns: ``onsets`` (:class:`~jaxclear.StepOnsets`: a worn bearing's contact
+    flickers at the Gauss points, where exact onsets would retry a step at every flicker) and
+    ``throw`` (False: a failed window is reported by its status). ``out``: output folder
+    (written as it goes, resumed if it holds a run of the same mechanism, settings and options;
+    ``restart`` starts over)."""
     options.check(settings)
     # A worn bearing's contact is resolved at the Gauss points, so it flickers in and out as points
     # cross the profile; the exact-onset controller would retry a step at every flicker (measured:
@@ -308,7 +324,10 @@ def wear(mech: Mechanism, settings: Settings, options: WearOptions, out: str | N
     base = prepare(mech, index, options.harmonics)
     window_time = float(settings.t_end) - settings.t_start - options.settle
     t_from = settings.t_start + options.settle
-    key = fingerprint(base, settings, repr(dataclasses.replace(options, updates=0)))
+    key = work_key(base, settings, repr(dataclasses.replace(options, updates=0)))
+    config = {"mechanism": mech.name, "joint": index, "options": dataclasses.asdict(dataclasses.replace(options, updates=0)),
+              "settings": {f.name: getattr(settings, f.name) for f in dataclasses.fields(settings)}}
+    work = _work(out, key, config)
     clearance = float(mech.elements[index].clearance)
     angles = node_angles(options.n_nodes)
 
@@ -336,7 +355,7 @@ def wear(mech: Mechanism, settings: Settings, options: WearOptions, out: str | N
                                    volume=options.cycles_per_update * float(w.volume), depth=depth, peak=peak,
                                    penetration=pen))
             if out is not None:
-                _write(out, key, records, angles, clearance)
+                _write(out, key, work.config, records, angles, clearance)
             if bar is None:  # the bar starts after the first (compiling) update
                 bar = tqdm(total=options.updates, initial=u + 1, unit="update", desc="wear", disable=not progress)
             else:
@@ -358,8 +377,8 @@ def wear(mech: Mechanism, settings: Settings, options: WearOptions, out: str | N
             records = run([])
             resumed = 0
         else:
-            with locked_folder(out, "wear output folder"):
-                records = _load_state(out, key, restart, options.n_nodes)
+            with work.lock():
+                records = _load_state(work, restart, options.n_nodes)
                 resumed = len(records)
                 if records:  # the rows of exactly the updates in the state: a row appended by a run killed
                     # before it replaced the state is dropped (that update is computed again)
@@ -378,4 +397,5 @@ def wear(mech: Mechanism, settings: Settings, options: WearOptions, out: str | N
         cycles_per_update=options.cycles_per_update,
         clearance=clearance,
         fingerprint=key,
+        config=work.config,
     )
