@@ -8,9 +8,9 @@ import argparse
 from .._errors import ParameterError
 from ..designing import METHODS, OBJECTIVES, Ensemble, OperatingPoint, design
 from ..designing.problem import SAMPLES_PER_REVOLUTION
-from ..integrate import Settings
 from .common import add_mechanism_file_option, add_mechanism_options, name_value, number_in
-from .simulate import add_tolerance_options, load
+from .settings import add_settings_options, settings_from_args
+from .simulate import load
 
 HELP = "optimal design through impacts: minimise an objective over named variables, resumable"
 DESCRIPTION = f"""\
@@ -98,7 +98,7 @@ def configure(p: argparse.ArgumentParser):
                    help="each run's length in crank revolutions [-], > 0 (default: 1)")
     r.add_argument("--samples-per-revolution", type=number_in(int, 8), default=SAMPLES_PER_REVOLUTION, metavar="N",
                    help=f"output samples per revolution [-], >= 8 (default: {SAMPLES_PER_REVOLUTION})")
-    add_tolerance_options(r)
+    add_settings_options(r)
     o = p.add_argument_group("output")
     o.add_argument("--out", default="./jaxclear-design", metavar="DIR",
                    help="output folder, created if missing, locked while running (default: ./jaxclear-design)")
@@ -120,7 +120,7 @@ def run(args) -> int:
         if name in variables:
             raise ParameterError(f"--vary {name}: given twice")
         variables[name] = bounds
-    settings = Settings(t_end=1.0, rtol=args.rtol, atol=args.atol, max_steps=args.max_steps)
+    settings = settings_from_args(args)  # the integration options given, over Settings' defaults
     print(f"jaxclear design: {mech.name}, {len(variables)} variable(s), objective {args.objective}; the first "
           "evaluations compile", flush=True)
     res = design(mech, variables, args.objective, args.constraint, start=dict(args.start), settings=settings,

@@ -11,9 +11,11 @@ from .._errors import ParameterError
 from .._extras import require_extra
 from ..fitting import fit, read_channels_toml
 from ..fitting.driver import AUTO_STARTS, COMPILING
+from ..fitting.problem import FIT_OUTPUT, FREE_START_MAX_STEPS, MAX_STEPS, default_fit_settings
 from ..analysis.sensor import Accelerometer
 from ..integrate.compile import on_trace
 from .common import add_mechanism_options, load_mechanism_file, name_value, number_in, preset_from_args
+from .settings import add_settings_options, settings_from_args
 
 HELP = "fit contact parameters to a measured record (JSON, PNG)"
 DESCRIPTION = """\
@@ -108,10 +110,11 @@ def configure(p: argparse.ArgumentParser):
     f.add_argument("--time-offset", type=number_in(float), default=0.0, metavar="S",
                    help="added to the record's times with --align time [s]; a delay to fit is sensor_delay "
                    "(default: 0)")
-    f.add_argument("--rtol", type=number_in(float, 0.0, 1.0, True, True), default=1e-8, metavar="TOL",
-                   help="relative tolerance of the model's integration, in (0, 1) (default: 1e-8)")
-    f.add_argument("--atol", type=number_in(float, 0.0, low_open=True), default=1e-11, metavar="TOL",
-                   help="absolute tolerance of the model's integration [m, rad, m/s], > 0 (default: 1e-11)")
+    # the model's integration: the fit's own settings where an option is not given (jaxclear.fit's settings)
+    add_settings_options(p, default_fit_settings(), title="integration of the model", shown={
+        "--max-steps": f"{MAX_STEPS}, {FREE_START_MAX_STEPS} with --start-state free",
+        "--derivative-tolerance": "1 where rtol <= 1e-7, else 0.1; 0.1 given counts as not given",
+        "--output-sampling": f"{FIT_OUTPUT.name}; loop given counts as not given"})
     s = p.add_argument_group("sensor model")
     s.add_argument("--sensor-cutoff-hz", type=number_in(float, 0.0, low_open=True), metavar="HZ",
                    help="accelerometer low-pass cut-off [Hz], > 0 (default: none)")
@@ -201,8 +204,8 @@ def run(args) -> int:
     with warnings.catch_warnings(), on_trace(compiling):  # the fit's warnings are printed below, once
         warnings.simplefilter("ignore", UserWarning)
         res = fit(args.data, mech, free, dict(args.start), channels=channels, sensor=sensor, window=args.window, windows=args.windows,
-                  start_state=args.start_state, starts=args.starts, optimizer=args.optimizer, max_iter=args.max_iter, rtol=args.rtol,
-                  atol=args.atol, align=args.align, time_offset=args.time_offset, out=args.out, resume=not args.restart,
+                  start_state=args.start_state, starts=args.starts, optimizer=args.optimizer, max_iter=args.max_iter,
+                  settings=_settings(args), align=args.align, time_offset=args.time_offset, out=args.out, resume=not args.restart,
                   progress=not args.no_progress, profile=_profile_names(args.profile), noise_sigma=args.noise_sigma)
     files = res.write(args.out, plots=not args.no_plots)
     _print_result(res, files)
@@ -223,6 +226,13 @@ def name_prior(text: str) -> tuple[str, str]:
     return name.strip(), spec.strip()
 
 
+def _settings(args):
+    """The model's settings from the integration options given over the fit's own
+    (:func:`~jaxclear.fitting.problem.default_fit_settings`); None where none is given (the
+    fit's own, whole)."""
+    return settings_from_args(args, default_fit_settings(), none_if_unset=True)
+
+
 def _posterior(args, mech, free, channels, sensor, res):
     """``--posterior``: sample, write the files, print the summary (flagged when not converged)."""
     from ..fitting import posterior
@@ -234,7 +244,7 @@ def _posterior(args, mech, free, channels, sensor, res):
         post = posterior(args.data, mech, free, dict(args.start), fit_result=res, priors=dict(args.prior),
                          noise_sigma=args.noise_sigma, chains=args.chains, draws=args.draws, warmup=args.warmup,
                          chunk=args.chunk, seed=args.seed, channels=channels, sensor=sensor, windows=args.windows,
-                         rtol=args.rtol, atol=args.atol, align=args.align, out=args.out, resume=not args.restart,
+                         settings=_settings(args), align=args.align, out=args.out, resume=not args.restart,
                          progress=not args.no_progress)
     print(f"posterior in {post.wall_time_s:.1f} s wall ({post.gradient_evaluations} gradient evaluations); "
           + post.summary())

@@ -13,9 +13,10 @@ from ..integrate import runs
 from .._errors import ParameterError, check_range
 from .._numbers import as_typed
 from ..model import crank_driver
-from ..integrate import SOLVERS
+
 from ..integrate.settings import MAX_OUT_SAMPLES
 from . import cache
+from .settings import add_settings_options, settings_from_args
 from .common import (add_mechanism_file_option, add_mechanism_options, fmt, load_mechanism_file, mechanism_file,
                      mechanism_overrides, number_in, preset_from_args)
 
@@ -66,20 +67,8 @@ def add_integration_options(p: argparse.ArgumentParser, revolutions: float = 3.0
                       help=f"number of output samples [-], in [2, {MAX_OUT_SAMPLES}], uniform in time (default: "
                       f"{runs.SAMPLES_PER_REVOLUTION} per crank revolution + 1, i.e. "
                       f"{3 * runs.SAMPLES_PER_REVOLUTION + 1} for 3 revolutions)")
-    run_.add_argument("--solver", default="tsit5", metavar="NAME",
-                      help=f"explicit/implicit Runge-Kutta solver, one of {', '.join(SOLVERS)} (default: tsit5)")
-    add_tolerance_options(run_)
+    add_settings_options(run_)
     add_free_dof_option(run_)
-
-
-def add_tolerance_options(group):
-    """``--rtol``, ``--atol`` and ``--max-steps`` of every run (simulate, animate, chaos, wear, design)."""
-    group.add_argument("--rtol", type=number_in(float, 0.0, 1.0, True, True), default=1e-6, metavar="TOL",
-                       help="relative tolerance of the adaptive step [-], in (0, 1) (default: 1e-6)")
-    group.add_argument("--atol", type=number_in(float, 0.0, low_open=True), default=1e-9, metavar="TOL",
-                       help="absolute tolerance of the adaptive step [m, rad, m/s, rad/s], > 0 (default: 1e-9)")
-    group.add_argument("--max-steps", type=number_in(int, 1), default=400_000, metavar="N",
-                       help="maximum number of solver steps per run [-], >= 1 (default: 400000)")
 
 
 def add_free_dof_option(group):
@@ -109,10 +98,9 @@ def settings_from(args, mech):
         check_range("--revolutions", args.revolutions, low=0.0, low_open=True)
         if crank_driver(mech) is None:
             raise ParameterError(f"{mech.name!r} has no crank (AngleDriver): give --t-end [s] instead of --revolutions")
-    return runs.revolution_settings(mech, args.revolutions, t_end=args.t_end, n_out=args.n_out,
-                                    solver=args.solver, rtol=args.rtol, atol=args.atol,
-                                    max_steps=args.max_steps, progress=cache.progress_allowed(args),
-                                    allow_free_dof=args.allow_free_dof)
+    base = runs.revolution_settings(mech, args.revolutions, t_end=args.t_end, n_out=args.n_out,
+                                    progress=cache.progress_allowed(args), allow_free_dof=args.allow_free_dof)
+    return settings_from_args(args, base)  # the integration options given (cli/settings.py)
 
 
 def run(args) -> int:

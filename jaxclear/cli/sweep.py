@@ -3,13 +3,17 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 
 import jax
 
 from .._errors import ParameterError
 from .._xla_flags import request_host_devices
-from .common import number_in
+from ..integrate.settings import default_settings
 from ..sweep import load_config, make_mesh, run_sweep
+from ..sweep.config import MAX_STEPS
+from .common import number_in
+from .settings import add_settings_options, given_options
 
 HELP = "run a parameter sweep from a TOML file (CSV, NetCDF, NPZ, PNG)"
 DESCRIPTION = """\
@@ -26,6 +30,12 @@ to the output folder:
   bifurcation_NAME.png    1-parameter sweeps: bifurcation diagram (Poincare e_x per revolution)
   poincare.png            Poincare sections of every run
 Running the same command again after an interruption resumes where it stopped."""
+
+def sweep_settings():
+    """A sweep's settings where its file has no ``[settings]``: ``Settings``' defaults with the
+    sweep's step limit (:data:`jaxclear.sweep.config.MAX_STEPS`)."""
+    return dataclasses.replace(default_settings(), max_steps=MAX_STEPS)
+
 
 def configure(p: argparse.ArgumentParser):
     """Add the options of ``jaxclear sweep``; returns its ``run(args) -> exit code``."""
@@ -45,6 +55,8 @@ def configure(p: argparse.ArgumentParser):
     p.add_argument("--restart", action="store_true", help="discard results already in the folder instead of resuming")
     p.add_argument("--no-plots", action="store_true", help="write CSV/NPZ/JSON only, no PNG (default: off)")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar (default: shown)")
+    add_settings_options(p, sweep_settings(), title="integration (each option given replaces the file's [settings] "
+                         "value; defaults: a sweep's without one)")
     return run
 
 
@@ -60,7 +72,7 @@ def run(args) -> int:
                              f"(devices available: {available})")
     cfg = load_config(args.config, out=args.out, chunk_size=args.chunk_size, devices=args.devices,
                       trajectories=args.trajectories, progress=False if args.no_progress else None,
-                      channels=args.channel)
+                      channels=args.channel, settings_options=given_options(args))
     mode = "grid" if cfg.grid is not None else "list"
     mesh = make_mesh(cfg.devices)  # the devices the sweep runs on
     print(f"jaxclear sweep: {cfg.n_runs} runs ({mode} over {', '.join(cfg.names)}), {cfg.revolutions:g} revolutions "

@@ -10,6 +10,8 @@ from .._xla_flags import request_host_devices
 from ..tolerance.config import load_study
 from ..tolerance.estimators import UnresolvedEstimateWarning
 from ..tolerance.study import tolerance_study
+from .settings import add_settings_options, given_options
+from .sweep import sweep_settings
 
 HELP = "tolerance study: distributions of parameters -> distributions of metrics, exceedance, sensitivity"
 DESCRIPTION = """\
@@ -34,13 +36,15 @@ def configure(p: argparse.ArgumentParser):
     p.add_argument("--out", metavar="DIR", help="output folder (default: the file's output.dir, else ./tolerance-out)")
     p.add_argument("--restart", action="store_true", help="discard results already in the folder instead of resuming")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bars (default: shown)")
+    add_settings_options(p, sweep_settings(), title="integration (each option given replaces the file's [settings] "
+                         "value; defaults: a sweep's without one)")
     return run
 
 
 def run(args) -> int:
     """Load the study (every key checked), run it, print the summary."""
     request_host_devices()
-    kwargs = load_study(args.study)
+    kwargs = load_study(args.study, settings_options=given_options(args))
     if args.out:
         kwargs["out"] = args.out
     if args.no_progress:
