@@ -12,22 +12,23 @@ written as ``null`` (:func:`jaxclear._storage.json_text`, strict JSON) and read 
 are the strings ``"nan"``, ``"inf"`` and ``"-inf"`` of journals written before; the optimiser
 takes any value that is not finite for a failed evaluation.
 
-The first line holds the design's key (:func:`jaxclear._storage.fingerprint` of the mechanism,
-the variables, objective, constraints, members and settings): a journal of other inputs is
-replaced, as a fit's checkpoint is. A last line cut short by a kill is dropped; any other line
-that cannot be read is a :class:`~jaxclear.CheckpointError` naming the file.
+The journal follows the one checkpoint protocol (:mod:`jaxclear._checkpoint`): its first line
+is the header ``{"kind", "format", "key", "config"}``, the key a fingerprint of the mechanism,
+the variables, objective, constraints, members and settings. A journal of other inputs is
+refused (a :class:`~jaxclear.ParameterError` naming what changed; ``--restart``,
+``resume=False``, starts over); a last line cut short by a kill is dropped; any other line that
+cannot be read is a :class:`~jaxclear.CheckpointError` naming the file and the line.
 """
 
 from __future__ import annotations
 
 import json
 import math
-import os
 
 import numpy as np
 
-from .._errors import CheckpointError
-from .._storage import atomic_write_text, fsync_append, json_text
+from .._checkpoint import Work
+from .._storage import json_text
 
 JOURNAL_NAME = "design_evaluations.jsonl"
 FORMAT = 1
@@ -39,56 +40,35 @@ def _float(v) -> float:
     return math.nan if v is None else float(v)
 
 
-class Journal:
-    """The evaluations of one design, in memory and (``folder`` not None) on disk."""
+def _entry(line: str) -> dict:
+    """One evaluation of the journal (a line of JSON), its numbers as floats."""
+    entry = json.loads(line)
+    entry["u"] = [_float(v) for v in entry["u"]]
+    entry["values"] = [_float(v) for v in entry["values"]]
+    if entry["kind"] == "gradient":
+        entry["jacobian"] = [[_float(v) for v in row] for row in entry["jacobian"]]
+    return entry
 
-    def __init__(self, folder, key: str, resume: bool = True):
-        self.path = None if folder is None else os.path.join(os.fspath(folder), JOURNAL_NAME)
+
+class Journal:
+    """The evaluations of one design, in memory and (``folder`` not None) on disk: an append-only
+    journal of the one checkpoint protocol (:class:`jaxclear._checkpoint.Work` of kind
+    ``design``; ``config``: the design's settings, named by a mismatch)."""
+
+    def __init__(self, folder, key: str, resume: bool = True, config: dict | None = None):
+        self.work = Work(folder, "design", key, config, version=FORMAT)
+        self.path = self.work.path(JOURNAL_NAME)
         self.key = key
         self.values: dict[bytes, dict] = {}
         self.gradients: dict[bytes, dict] = {}
-        self.loaded = 0
-        if self.path is None:
-            return
-        if resume and os.path.isfile(self.path):
-            self._load()
-        if not self.loaded:
-            atomic_write_text(self.path, json_text({"key": key, "format": FORMAT}, indent=None, sort_keys=False) + "\n")
+        entries = self.work.open_journal(JOURNAL_NAME, restart=not resume, parse=_entry)
+        for entry in entries:
+            self._remember(entry)
+        self.loaded = len(entries)
 
     @staticmethod
     def point_key(u) -> bytes:
         return np.ascontiguousarray(np.asarray(u, dtype="<f8")).tobytes()
-
-    def _load(self):
-        with open(self.path, encoding="utf-8") as f:
-            lines = f.read().split("\n")
-        try:
-            head = json.loads(lines[0])
-        except ValueError:
-            head = None
-        if not isinstance(head, dict) or head.get("key") != self.key:
-            return  # another design's journal (or none): replaced
-        body = [line for line in lines[1:]]
-        while body and not body[-1].strip():
-            body.pop()
-        for i, line in enumerate(body):
-            try:
-                entry = json.loads(line)
-                entry["u"] = [_float(v) for v in entry["u"]]
-                entry["values"] = [_float(v) for v in entry["values"]]
-                if entry["kind"] == "gradient":
-                    entry["jacobian"] = [[_float(v) for v in row] for row in entry["jacobian"]]
-            except (ValueError, KeyError, TypeError) as exc:
-                if i == len(body) - 1:  # cut short by a kill while it was written: that evaluation is redone
-                    break
-                raise CheckpointError(f"the design journal {self.path!r} is damaged at line {i + 2} "
-                                      f"({type(exc).__name__}: {exc}); delete it, or start over with --restart "
-                                      "(API: resume=False)") from None
-            self._remember(entry)
-            self.loaded += 1
-        if self.loaded < len(body):  # rewrite without the cut line
-            text = "\n".join([lines[0]] + body[: self.loaded]) + "\n"
-            atomic_write_text(self.path, text)
 
     def _remember(self, entry: dict):
         table = self.gradients if entry["kind"] == "gradient" else self.values
@@ -112,9 +92,7 @@ class Journal:
                  "wall_s": float(wall_s)}
         if jacobian is not None:
             entry["jacobian"] = [[float(v) for v in row] for row in np.asarray(jacobian)]
-        if self.path is not None:
-            line = json_text(entry, indent=None, sort_keys=False, separators=(",", ":"))
-            fsync_append(self.path, line + "\n")
+        self.work.append(JOURNAL_NAME, [json_text(entry, indent=None, sort_keys=False, separators=(",", ":"))])
         self._remember(entry)
         return entry
 

@@ -6,11 +6,13 @@ the parameters and window states reached so far, the results of the starts and t
 (and, in the automatic refit from several starts, why it runs).
 It is immutable (an ``equinox.Module``): every iteration makes a new one with :meth:`replace`.
 
-The checkpoint ``out/fit_checkpoint.json`` holds ``{"key", "config", "state"}``: ``key`` is a
+The checkpoint ``out/fit_checkpoint.json`` follows the one checkpoint protocol
+(:mod:`jaxclear._checkpoint`): ``{"kind", "format", "key", "config", "state"}``: ``key`` is a
 fingerprint of the record, the mechanism and sensor leaves and every setting, so a fit started
-again with the same inputs resumes where it stopped and other inputs start afresh. Floats are
-written with Python's shortest round-trip repr, so a resumed fit continues from bit-identical
-numbers. The file is replaced atomically (:func:`jaxclear._storage.atomic_write_json`).
+again with the same inputs resumes where it stopped, and a folder holding another fit's
+checkpoint is refused (naming what changed) unless the fit starts over (``--restart``,
+``resume=False``). Floats are written with Python's shortest round-trip repr, so a resumed fit
+continues from bit-identical numbers. The file is replaced atomically.
 """
 
 from __future__ import annotations
@@ -18,15 +20,16 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import os
 
 import equinox as eqx
 import numpy as np
 
+from .._checkpoint import Work, key as work_key
 from .._errors import CheckpointError
-from .._storage import atomic_write_json, fingerprint
 
 CHECKPOINT_NAME = "fit_checkpoint.json"
+#: The format of ``fit_checkpoint.json`` (:mod:`jaxclear._checkpoint`'s version rule).
+FORMAT = 1
 
 
 def _plain(value):
@@ -160,43 +163,49 @@ def _number(value) -> float:
 
 def checkpoint_key(t_rec, y_rec, leaves, config: dict) -> str:
     """Fingerprint of the record (times, values), the mechanism/sensor leaves and the settings."""
-    return fingerprint(np.asarray(t_rec, dtype=float), np.asarray(y_rec, dtype=float), np.asarray(leaves, dtype=float),
-                       json.dumps(config, default=str, sort_keys=True), length=20)
+    return work_key(np.asarray(t_rec, dtype=float), np.asarray(y_rec, dtype=float), np.asarray(leaves, dtype=float),
+                    json.dumps(config, default=str, sort_keys=True), length=20)
 
 
 class Checkpoint:
-    """The checkpoint file of a fit (``out`` None: no checkpoint); ``clock()`` gives the fit's
-    wall time so far [s], stored with every save."""
+    """The checkpoint file of a fit (``out`` None: no checkpoint), a :class:`jaxclear._checkpoint.Work`
+    of kind ``fit``; ``clock()`` gives the fit's wall time so far [s], stored with every save."""
 
     def __init__(self, out, key: str, config: dict, clock=None):
         self.clock = clock
-        self.path = os.path.join(os.fspath(out), CHECKPOINT_NAME) if out is not None else None
+        self.work = Work(out, "fit", key, config, version=FORMAT)
+        self.path = self.work.path(CHECKPOINT_NAME)
         self.key = key
-        self.config = json.loads(json.dumps(config, default=str))
+        self.config = self.work.config
 
-    def load(self) -> FitState | None:
-        """The saved state if the file exists and its key matches, else None (a different
-        fit's checkpoint is replaced). A file that cannot be read raises
-        :class:`~jaxclear.CheckpointError` naming it: nothing is discarded silently."""
-        if self.path is None or not os.path.isfile(self.path):
+    def _state(self, saved: dict | None) -> FitState | None:
+        if saved is None:
             return None
         try:
-            with open(self.path, encoding="utf-8") as f:
-                saved = json.load(f)
-            if saved.get("key") != self.key:
-                return None
             return FitState.from_json(saved["state"])
-        except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
+        except (ValueError, KeyError, TypeError, AttributeError) as exc:
             raise CheckpointError(
                 f"the fit checkpoint {self.path!r} is corrupt or unreadable ({type(exc).__name__}: {exc}); "
                 f"delete it, or start over with --restart (API: resume=False)"
             ) from None
+
+    def load(self) -> FitState | None:
+        """The saved state if the file exists and is this fit's, else None (another fit's
+        checkpoint: not this one; :meth:`resume` applies the protocol's mismatch rule). A file
+        that cannot be read raises :class:`~jaxclear.CheckpointError` naming it."""
+        return self._state(self.work.read_json(CHECKPOINT_NAME, strict=False))
+
+    def resume(self) -> FitState | None:
+        """The saved state to resume from, None if there is none; the protocol's rules
+        (:mod:`jaxclear._checkpoint`): a checkpoint of another fit is refused
+        (:class:`~jaxclear.ParameterError` naming what changed: start over with ``--restart``,
+        API ``resume=False``), one of another format or unreadable is a
+        :class:`~jaxclear.CheckpointError`."""
+        return self._state(self.work.read_json(CHECKPOINT_NAME))
 
     def save(self, state: FitState):
         if self.path is None:
             return
         if self.clock is not None:
             state = state.replace(wall=float(self.clock()))
-        os.makedirs(os.path.dirname(self.path) or ".", exist_ok=True)
-        atomic_write_json(self.path, {"key": self.key, "config": self.config, "state": state.to_json()},
-                          indent=None, sort_keys=False)
+        self.work.write_json(CHECKPOINT_NAME, {"state": state.to_json()}, indent=None, sort_keys=False)

@@ -9,14 +9,13 @@ every process feeds its own shards and process 0 alone writes the files.
 
 from __future__ import annotations
 
-import contextlib
 import os
 
 import jax
 import numpy as np
 from tqdm import tqdm
 
-from .._storage import locked_folder
+from .._checkpoint import locked
 
 from .batch import run_chunk
 from .config import SweepConfig
@@ -67,7 +66,7 @@ def run_sweep(cfg: SweepConfig, out: str | None = None, restart: bool = False,
     progress = cfg.progress if progress is None else progress
     lead = jax.process_index() == 0
     # one writer per folder: a second sweep into it fails at once (no row written twice)
-    with locked_folder(out, "sweep output folder") if lead else contextlib.nullcontext():
+    with locked(out if lead else None, "sweep"):
         return _run_sweep(cfg, out, restart, progress, lead)
 
 

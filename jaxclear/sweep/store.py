@@ -21,6 +21,7 @@ import warnings
 import numpy as np
 
 from .._numbers import as_typed
+from .._checkpoint import Work, append_lines, cut_partial_line, damaged as _damaged
 from .._storage import atomic_write_json, atomic_write_npz, fsync_append
 from .._errors import CheckpointError, ParameterError
 from ..analysis.metrics import RUN_METRIC_KEYS
@@ -87,11 +88,19 @@ def _csv_quote(text: str) -> str:
     return text
 
 
+RESTART = "--restart (API: restart=True)"
+
+
 def damaged(path: str, detail: str) -> CheckpointError:
-    """The error of a damaged file of a sweep folder: names the file and what is wrong with it,
-    and offers ``--restart``."""
-    return CheckpointError(f"{path} is damaged ({detail}); run the sweep again with --restart (restart=True) to "
-                           "discard the folder's results and start over, or use another output folder")
+    """The error of a damaged file of a sweep folder (:func:`jaxclear._checkpoint.damaged`):
+    names the file and what is wrong with it, and offers ``--restart``."""
+    return _damaged(path, detail, RESTART)
+
+
+def work(cfg: SweepConfig, out: str) -> Work:
+    """The sweep in ``out`` as a piece of resumable work (:mod:`jaxclear._checkpoint`): its key
+    the sweep's hash, its configuration the sweep's description, its header the manifest's."""
+    return Work(out, "sweep", cfg.sweep_hash(), cfg.describe(), version=FORMAT_VERSION, restart=RESTART)
 
 
 def parse_rows(path: str, data: bytes, columns: list[str] | None = None) -> tuple[list[str], list[list[str]]]:
@@ -144,15 +153,7 @@ def repair_csv(path: str, columns: list[str], n_runs: int | None = None) -> set[
     (:func:`parse_rows`), return the run indices present. Raises :class:`ParameterError` for a
     header of another sweep, :class:`~jaxclear.CheckpointError` for a damaged row that is not the
     last, a repeated run index or one outside ``[0, n_runs)``."""
-    with open(path, "rb") as f:
-        data = f.read()
-    if data and not data.endswith(b"\n"):
-        cut = data.rfind(b"\n") + 1
-        with open(path, "r+b") as f:
-            f.truncate(cut)
-            f.flush()
-            os.fsync(f.fileno())
-        data = data[:cut]
+    data = cut_partial_line(path)
     if not data:
         fsync_append(path, ",".join(columns) + "\n", mode="w")
         return set()
@@ -195,8 +196,10 @@ def _discard(out: str):
             os.remove(os.path.join(out, CHUNK_DIR, name))
 
 
-def _check_previous(out: str, digest: str, layout: dict):
-    """Refuse a folder holding another sweep; warn when resuming with another batch layout."""
+def _check_previous(out: str, sweep: Work, layout: dict):
+    """The checkpoint protocol's rules on the manifest (a folder holding another sweep is
+    refused, naming what changed; another format is an error); warn when resuming with another
+    batch layout."""
     manifest_path = os.path.join(out, MANIFEST_NAME)
     if not os.path.exists(manifest_path):
         if os.path.exists(os.path.join(out, CSV_NAME)):
@@ -204,10 +207,8 @@ def _check_previous(out: str, digest: str, layout: dict):
                                  "sweep folder; use another output folder or restart=True (--restart)")
         return
     old = read_manifest(out)
-    if old.get("sweep_hash") != digest:
-        raise ParameterError(
-            f"{out} holds a different sweep (manifest hash {str(old.get('sweep_hash'))[:12]}..., this one "
-            f"{digest[:12]}...); use another output folder or restart=True (--restart) to discard it")
+    sweep.check({"kind": "sweep", "format": old.get("format_version"), "key": old.get("sweep_hash"),
+                 "config": old.get("config")}, manifest_path)
     started = old.get("layout") if isinstance(old.get("layout"), dict) else {}
     for key in ("chunk_size", "devices"):
         if started.get(key) != layout[key]:
@@ -241,7 +242,7 @@ def prepare_output(cfg: SweepConfig, out: str, restart: bool, layout: dict) -> s
     os.makedirs(os.path.join(out, CHUNK_DIR), exist_ok=True)
     if restart:
         _discard(out)
-    _check_previous(out, cfg.sweep_hash(), layout)
+    _check_previous(out, work(cfg, out), layout)
     atomic_write_json(os.path.join(out, MANIFEST_NAME), manifest(cfg, layout))
     csv_path = os.path.join(out, CSV_NAME)
     if not os.path.exists(csv_path):
@@ -266,6 +267,6 @@ def write_chunk(cfg: SweepConfig, out: str, c: int, lo: int, res: dict, done: se
         row = {"run": i, **{n_: cfg.values[i, p] for p, n_ in enumerate(cfg.names)}}
         row.update({k: res[k][j] for k in columns if k in res})
         row["status_message"] = STATUS.get(int(res["status"][j]), "unknown status")
-        lines.append(",".join(_csv_quote(_fmt(col, row[col])) for col in columns) + "\n")
-    fsync_append(os.path.join(out, CSV_NAME), "".join(lines))
+        lines.append(",".join(_csv_quote(_fmt(col, row[col])) for col in columns))
+    append_lines(os.path.join(out, CSV_NAME), lines)
     return len(lines)
