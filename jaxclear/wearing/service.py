@@ -115,9 +115,11 @@ class WearHistory(AbstractResult):
         cycles_per_update: the extrapolation factor [-] (keyword): update ``u`` stands for
             ``(u + 1) * cycles_per_update`` cycles.
         clearance: the unworn radial clearance of the worn joint [m] (keyword; the figure's scale).
-        fingerprint: the key of the mechanism, settings and options that ``wear.json`` holds (a
-            resume checks it); ``None`` for a history not made by :func:`wear` (its ``wear.json``
-            does not resume).
+        fingerprint: the key of the mechanism, settings and options that ``wear.json`` holds (its
+            ``key``: a resume checks it, :mod:`jaxclear._checkpoint`); ``None`` for a history not
+            made by :func:`wear` (its ``wear.json`` does not resume).
+        config: the configuration the key covers (``wear.json``'s ``config``: a run of other
+            options is refused naming what changed), or None.
     """
 
     mechanism: Mechanism
