@@ -26,13 +26,10 @@ from __future__ import annotations
 
 import dataclasses
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
-from jax.sharding import PartitionSpec
 
 from .. import params
-from .._xla_flags import loop_kernels_active
 from ..elements import journal_state
 from ..model import Mechanism, crank_period
 from ..analysis.channels import channel
@@ -40,6 +37,7 @@ from ..analysis.metrics import channel_metrics, run_metrics
 from ..analysis.sections import at_samples
 from ..integrate import Settings, jit, simulate
 from .labels import channel_column, channel_key
+from .lanes import lanes_one_by_one, on_devices, over_lanes  # noqa: F401 - the lane runner's names of before
 from .plan import Plan, dynamic_settings
 
 #: Metrics that stay defined for a failed run (counts and status); the others become NaN.
@@ -175,31 +173,12 @@ def one_by_one(plan: Plan) -> bool:
     return lanes_one_by_one(None if plan.mesh is None else plan.mesh.devices.flat[0].platform)
 
 
-def lanes_one_by_one(platform: str | None = None) -> bool:
-    """Whether independent lanes of work (runs of a sweep or of a design's operating points,
-    chains of a sampler) go one after another (``jax.lax.map``) rather than side by side
-    (``jax.vmap``) on a device of ``platform`` (default: JAX's default backend): on CPU with
-    single-kernel loops (:func:`one_by_one` says why)."""
-    return (platform or jax.default_backend()) == "cpu" and loop_kernels_active()
-
-
-def over_lanes(f, *args):
-    """``f`` mapped over the leading axis of ``args``: one lane after another (``jax.lax.map``)
-    where :func:`lanes_one_by_one`, else side by side (``jax.vmap``). One after another, each
-    lane takes its own number of solver steps; side by side on a CPU, every lane waits for the
-    batch's slowest."""
-    if lanes_one_by_one():
-        return jax.lax.map(lambda a: f(*a), args)
-    return jax.vmap(f)(*args)
-
-
 def _runs(plan: Plan, mech: Mechanism, ideal: Mechanism | None, rows):
     """A batch of runs (B, P) -> dict of (B, ...). The clearance runs go one after another or
     side by side (:func:`one_by_one`); the ideal runs and the metrics are vmapped over the batch
     (an ideal mechanism that no swept parameter changes is integrated once, unbatched: vmap
     leaves it unbatched)."""
-    run = lambda r: _clearance_run(plan, mech, r)  # noqa: E731
-    sol = jax.lax.map(run, rows) if one_by_one(plan) else jax.vmap(run)(rows)
+    sol = over_lanes(lambda r: _clearance_run(plan, mech, r), rows, one_by_one=one_by_one(plan))
     ideal_acc = ideal_status = None
     if ideal is not None:
         ideal_acc, ideal_status = jax.vmap(lambda r: _ideal_run(plan, mech, ideal, r))(rows)
@@ -208,18 +187,9 @@ def _runs(plan: Plan, mech: Mechanism, ideal: Mechanism | None, rows):
 
 @jit
 def run_chunk(values, mech: Mechanism, ideal: Mechanism | None, plan: Plan):
-    """``values`` (B, P) sharded over ``plan.mesh`` -> dict of (B, ...) outputs."""
-    m_arr, m_static = eqx.partition(mech, eqx.is_array)
-    i_arr, i_static = eqx.partition(ideal, eqx.is_array)
-
-    def local(rows, m_arr, i_arr):
-        m = eqx.combine(m_arr, m_static)
-        i = None if ideal is None else eqx.combine(i_arr, i_static)
-        return _runs(plan, m, i, rows)
-
-    batch, whole = PartitionSpec("batch"), PartitionSpec()
-    f = jax.shard_map(local, mesh=plan.mesh, in_specs=(batch, whole, whole), out_specs=batch, check_vma=False)
-    return f(values, m_arr, i_arr)
+    """``values`` (B, P) sharded over ``plan.mesh`` -> dict of (B, ...) outputs (the lane runner's
+    :func:`~jaxclear.sweep.lanes.on_devices`)."""
+    return on_devices(lambda rows, m, i: _runs(plan, m, i, rows), plan.mesh, values, mech, ideal)
 
 
 def compiled_hlo(values, mech: Mechanism, ideal: Mechanism | None, plan: Plan) -> str:

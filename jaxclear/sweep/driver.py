@@ -4,7 +4,8 @@ Chunks are laid out over the global run indices (chunk ``c`` = runs ``c*S .. c*S
 last one padded by repeating its last run, the padded rows dropped), so every chunk has the
 same shape (one compilation per sweep) and a resumed sweep batches every run exactly as an
 uninterrupted one does and gets the same bits. With several processes (``jax.distributed``)
-every process feeds its own shards and process 0 alone writes the files.
+every process feeds its own shards and process 0 alone writes the files. The chunks, their
+padding and their loop are the lane runner's (:mod:`jaxclear.sweep.lanes`).
 """
 
 from __future__ import annotations
@@ -19,7 +20,8 @@ from .._checkpoint import locked
 
 from .batch import run_chunk
 from .config import SweepConfig
-from .devices import agree_on_done, barrier, chunk_size, fetch_chunk, make_mesh, put_chunk
+from .devices import agree_on_done, barrier, chunk_size, make_mesh
+from .lanes import chunks_todo, compute_chunk, run_chunks
 from .plan import Plan, make_plan
 from .results import SweepResult, read_results
 from .store import prepare_output, write_chunk
@@ -37,18 +39,13 @@ def _layout(cfg: SweepConfig):
 
 def _todo(cfg: SweepConfig, chunk: int, done: set[int]) -> list[int]:
     """Indices of the chunks with at least one run not yet done."""
-    n_chunks = -(-cfg.n_runs // chunk)
-    return [c for c in range(n_chunks)
-            if any(i not in done for i in range(c * chunk, min((c + 1) * chunk, cfg.n_runs)))]
+    return chunks_todo(cfg.n_runs, chunk, done)
 
 
 def _compute(cfg: SweepConfig, plan: Plan, c: int, chunk: int) -> tuple[int, dict]:
     """Chunk ``c`` computed (padded to ``chunk`` runs, padding dropped): (first run, outputs)."""
-    lo, hi = c * chunk, min((c + 1) * chunk, cfg.n_runs)
-    rows = cfg.values[lo:hi]
-    padded = np.concatenate([rows, np.repeat(rows[-1:], chunk - (hi - lo), axis=0)], axis=0)
-    res = fetch_chunk(run_chunk(put_chunk(padded, plan.mesh), cfg.base_mechanism, cfg.ideal, plan))
-    return lo, {k: v[: hi - lo] for k, v in res.items()}
+    res = compute_chunk(run_chunk, cfg.values, c, chunk, plan.mesh, cfg.base_mechanism, cfg.ideal, plan)
+    return c * chunk, res
 
 
 def run_sweep(cfg: SweepConfig, out: str | None = None, restart: bool = False,
@@ -84,20 +81,16 @@ def _run_sweep(cfg: SweepConfig, out: str, restart: bool, progress: bool, lead: 
     computed = 0
     if todo and show:
         tqdm.write("jaxclear sweep: compiling; the progress bar starts after the first chunk")
-    bar = None
-    try:
-        for c in todo:
-            lo, res = _compute(cfg, plan, c, chunk)
-            if lead:
-                computed += write_chunk(cfg, out, c, lo, res, done)
-            if bar is None:  # started after the first chunk (compilation), so the ETA leaves it out
-                bar = tqdm(total=n_chunks, initial=n_chunks - len(todo) + 1, unit="chunk",
-                           desc="sweep (resumed)" if done else "sweep", disable=not show, dynamic_ncols=True)
-            else:
-                bar.update(1)
-    finally:
-        if bar is not None:
-            bar.close()
+
+    def write(c, computed_chunk):
+        nonlocal computed
+        lo, res = computed_chunk
+        if lead:
+            computed += write_chunk(cfg, out, c, lo, res, done)
+
+    # the lane runner's chunk loop; _compute looked up at each call (tests count its calls)
+    run_chunks(todo, n_chunks, lambda c: _compute(cfg, plan, c, chunk), write, show=show,
+               desc="sweep", resumed=bool(done))
     barrier("jaxclear-sweep-done")
     if not lead:
         return SweepResult(out, {}, cfg.names, np.zeros(0), cfg.axes, "grid" if cfg.grid is not None else "list",
