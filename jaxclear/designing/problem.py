@@ -5,8 +5,8 @@ The runs of one evaluation are the *members*: every operating point (:class:`Ope
 speeds, loads, any :mod:`jaxclear.params` values, with a weight) times every member of the
 ensemble (:class:`Ensemble`: periodic starts at crank angles spread over a revolution, or start
 offsets of the journals spread over the clearance). They are mapped over in one program
-(``jax.lax.map`` on CPU, ``jax.vmap`` on accelerators, as the sweeps do,
-:func:`jaxclear.sweep.batch.lanes_one_by_one`); the objective is the finish of the weighted mean
+by the lane runner's rule (``jax.lax.map`` on CPU, ``jax.vmap`` on accelerators, as the sweeps do,
+:func:`jaxclear.sweep.lanes.over_lanes`); the objective is the finish of the weighted mean
 of their statistics (:mod:`.objectives`) and each constraint pools them its way
 (:mod:`.constraints`).
 
@@ -36,7 +36,7 @@ from ..integrate.compile import jit
 from ..integrate.kinematics import is_kinematic, kinematic_solution
 from ..integrate.settings import settings as make_settings
 from ..model import Mechanism, crank_driver, crank_period
-from ..sweep.batch import lanes_one_by_one
+from ..sweep.lanes import lanes_one_by_one, over_lanes
 from .constraints import AbstractDesignConstraint
 from .objectives import AbstractObjective, Run
 from .variables import Variable
@@ -193,8 +193,7 @@ class DesignProblem(eqx.Module):
         unit coordinates ``u``; NaN where a member's run failed."""
         x = self.values(u)
         ks = jnp.arange(self.members.count)
-        f = lambda k: self.member_statistics(x, k)  # noqa: E731
-        stats, status = jax.lax.map(f, ks) if self.one_by_one else jax.vmap(f)(ks)
+        stats, status = over_lanes(lambda k: self.member_statistics(x, k), ks, one_by_one=self.one_by_one)
         w = self.members.weight
         values = [self.objective.finish(jnp.sum(w * stats[:, 0]))]
         design = self.design_mechanism(x)
@@ -210,16 +209,9 @@ class DesignProblem(eqx.Module):
 
 
 def _start(m: Mechanism, shift, offset, guess_q, guess_qd) -> Mechanism:
-    """``m`` started ``shift`` [rad] further along its crank, from the guesses, its revolute-type
-    journals at ``offset`` times their clearance."""
-    i, crank = crank_driver(m)
-    m = eqx.tree_at(lambda mm: mm.drivers[i].angle0, m, crank.angle0 + shift)
-    for b in range(len(m.bodies)):
-        m = eqx.tree_at(lambda mm: (mm.bodies[b].position, mm.bodies[b].velocity), m,
-                        (guess_q[3 * b: 3 * b + 3], guess_qd[3 * b: 3 * b + 3]))
-    for j, joint in enumerate(m.clearance_joints):  # each element says how its start moves
-        m = eqx.tree_at(lambda mm: mm.clearance_joints[j], m, joint.started_within(offset))
-    return m
+    """``m`` started ``shift`` [rad] further along its crank, from the guesses, its force
+    elements' starts moved by ``offset`` of their clearance (:meth:`Mechanism.started`)."""
+    return m.started(angle0=crank_driver(m)[1].angle0 + shift, q=guess_q, qdot=guess_qd, within=offset)
 
 
 @jit

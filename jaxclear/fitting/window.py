@@ -91,18 +91,13 @@ class WindowModel(eqx.Module):
         anywhere layout; else None)."""
         values = self.values(theta_z)
         mech = params.replace_many(self.mech, {n: v for n, v in values.items() if n not in SENSOR_PARAMETERS})
+        angle0 = None
         if self.driver is not None:  # the crank where the record is at the window's start (fitted angle0, speed too)
             crank = mech.drivers[self.driver]
-            mech = eqx.tree_at(lambda m: m.drivers[self.driver].angle0, mech, crank.angle0 + crank.speed * win.t_start)
-        n_b = len(mech.bodies)
-        mech = eqx.tree_at(lambda m: [b.position for b in m.bodies], mech,
-                           [win.guess_q[3 * i: 3 * i + 3] for i in range(n_b)])
-        mech = eqx.tree_at(lambda m: [b.velocity for b in m.bodies], mech,
-                           [win.guess_qd[3 * i: 3 * i + 3] for i in range(n_b)])
+            angle0 = crank.angle0 + crank.speed * win.t_start
+        mech = mech.started(angle0=angle0, q=win.guess_q, qdot=win.guess_qd)
         elements, speeds = element_starts(mech, state_z, self.velocity_scale, self.anywhere)
-        if elements:
-            mech = eqx.tree_at(lambda m: list(m.clearance_joints), mech, elements)
-        return mech, values, speeds
+        return mech.started(elements=elements), values, speeds
 
     def start(self, mech: Mechanism, speeds):
         """The run's start: assembled (None) or, with contacts under way, the assembled state

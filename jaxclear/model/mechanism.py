@@ -187,6 +187,50 @@ class Mechanism(eqx.Module):
         qd = jnp.concatenate([b.velocity for b in self.bodies])
         return q, qd
 
+    def started(self, *, angle0=None, q=None, qdot=None, elements=None, within=None) -> "Mechanism":
+        """This mechanism started from another state: the one way a run starts from a shifted
+        crank, a state's guesses and its force elements' starts (the fit's windows, the design's
+        ensembles). Traceable (``jit``, ``vmap``, ``grad`` through every number given).
+
+        Args:
+            angle0: the crank's (:func:`~jaxclear.model.crank_driver`) angle at ``t = 0`` [rad];
+                None: as it is. A run started ``dt`` [s] later along the same motion at a
+                constant speed: ``angle0 = crank.angle0 + crank.speed * dt``.
+            q, qdot: ``(3 n_bodies,)`` the bodies' position [m, rad] and velocity [m/s, rad/s]
+                guesses (the start's assembly begins from them, e.g. a state's ``q``, ``qdot``);
+                None: as they are.
+            elements: the force elements, one per clearance joint in order (e.g. each
+                ``element.with_start(offset, velocity)`` of its :meth:`start_state` layout),
+                replacing them; None: as they are.
+            within: ``(n_equations,)`` fractions of the clearance by which every force element's
+                start is moved (its ``started_within``: the design's start offsets); None: not
+                moved. Applied after ``elements``.
+        """
+        m = self
+        if angle0 is not None:
+            from .drivers import crank_driver
+
+            found = crank_driver(m)
+            if found is None:
+                raise MechanismError(f"mechanism {m.name!r} has no crank (an AngleDriver): no angle0 to start from")
+            i = found[0]
+            m = eqx.tree_at(lambda mm: mm.drivers[i].angle0, m, angle0)
+        n_b = len(m.bodies)
+        if q is not None:
+            m = eqx.tree_at(lambda mm: [b.position for b in mm.bodies], m, [q[3 * b: 3 * b + 3] for b in range(n_b)])
+        if qdot is not None:
+            m = eqx.tree_at(lambda mm: [b.velocity for b in mm.bodies], m,
+                            [qdot[3 * b: 3 * b + 3] for b in range(n_b)])
+        if elements is not None and len(elements):
+            if len(elements) != len(m.clearance_joints):
+                raise MechanismError(f"started: {len(elements)} force element(s) for the {len(m.clearance_joints)} "
+                                     f"of mechanism {m.name!r}")
+            m = eqx.tree_at(lambda mm: list(mm.clearance_joints), m, list(elements))
+        if within is not None and m.clearance_joints:
+            m = eqx.tree_at(lambda mm: list(mm.clearance_joints), m,
+                            [e.started_within(within) for e in m.clearance_joints])
+        return m
+
     def mass_matrix_diagonal(self) -> Float[Array, " n"]:
         """Diagonal of :math:`M = \\mathrm{diag}(m_i, m_i, J_i)`."""
         return jnp.concatenate([jnp.stack([b.mass, b.mass, b.inertia]) for b in self.bodies])
