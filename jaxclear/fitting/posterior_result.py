@@ -27,12 +27,12 @@ import warnings
 from dataclasses import dataclass, field
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .._results import AbstractResult, SummaryTable, deprecated
 from .._storage import atomic_write_by, atomic_write_json, atomic_write_text, jsonable
+from ..sweep.lanes import over_lanes
 from .parameters import from_z
 
 #: Largest R-hat of a converged result (the issue's and Vehtari et al.'s 1.01 is for final
@@ -281,8 +281,9 @@ def _summaries(samples: dict) -> dict:
 
 @eqx.filter_jit
 def _signals(lp, xs):
-    """Model signals ``(K, C, n_pad)`` at the draws ``xs`` ``(K, D)`` (values only)."""
-    return jax.lax.map(lambda x: lp.model.signal(x[: lp.n_free], lp.state0, lp.win)[0], xs)
+    """Model signals ``(K, C, n_pad)`` at the draws ``xs`` ``(K, D)`` (values only), the draws
+    lanes of the lane runner (:func:`jaxclear.sweep.lanes.over_lanes`)."""
+    return over_lanes(lambda x: lp.model.signal(x[: lp.n_free], lp.state0, lp.win)[0], xs)
 
 
 def _predictive(lp, x: np.ndarray, sigma_r: np.ndarray, k: int, seed: int, problem) -> dict:

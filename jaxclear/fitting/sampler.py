@@ -5,7 +5,7 @@ and a random-walk Metropolis baseline (for the speed benchmark), run in compiled
 
 Several chains run one after another on a CPU device with single-kernel loops (``jax.lax.map``:
 there the lanes of a ``vmap`` would run one after another inside the loop's kernel anyway, and a
-batch of NUTS trajectories would wait for the longest; :func:`jaxclear.sweep.batch.lanes_one_by_one`)
+batch of NUTS trajectories would wait for the longest; :func:`jaxclear.sweep.lanes.lanes_one_by_one`)
 and side by side (``jax.vmap``) on accelerators.
 
 The mass matrix is the identity: the density is given in whitened coordinates
@@ -20,7 +20,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from ..sweep.batch import over_lanes
+from ..sweep.lanes import over_lanes
 
 #: Acceptance rate the warm-up's dual averaging aims at (Stan's and BlackJAX's default).
 TARGET_ACCEPT = 0.8

@@ -21,7 +21,7 @@ run's output (about 1 kB per sample) small.
 
 The runs of a chunk of rows are one compiled program: side by side (``jax.vmap``) on
 accelerators, one after another (``jax.lax.map``) on CPU devices with single-kernel loops
-(:func:`jaxclear.sweep.batch.lanes_one_by_one`, the sweep's and the sampler's rule). A failed run
+(:func:`jaxclear.sweep.lanes.lanes_one_by_one`, the sweep's and the sampler's rule). A failed run
 (``Solution.status`` not 0, e.g. the step limit; ``throw=False``) or one whose signal is not
 finite is reported as failed, never as NaN statistics.
 """
@@ -32,7 +32,6 @@ import math
 from dataclasses import dataclass
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -40,7 +39,7 @@ from .. import params
 from ..analysis.sensor import Accelerometer
 from ..integrate import Settings, simulate
 from ..model import Mechanism
-from ..sweep.batch import lanes_one_by_one, over_lanes
+from ..sweep.lanes import lanes_one_by_one, over_lanes
 from .records import slider_role
 from .statistics import block_starts
 
