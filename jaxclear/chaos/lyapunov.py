@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import warnings
 from typing import Sequence
 
@@ -20,6 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import params
+from .._checkpoint import Work, key as work_key
 from .._errors import RESULTS, JaxclearError, ParameterError, is_concrete
 from ..analysis.channels import channel
 from ..integrate import Settings, Solution, State
@@ -27,6 +29,8 @@ from ..integrate import solve
 from ..integrate.settings import default_settings
 from ..integrate.simulate import raise_for_status as _raise_run_status
 from ..model import Mechanism, crank_driver, crank_period
+from ..sweep.devices import DEFAULT_RUNS_PER_DEVICE, make_mesh
+from ..sweep.lanes import on_devices, over_lanes, round_chunk, run_lanes
 from . import manifold
 from .benettin import LyapunovResult, benettin
 
@@ -290,22 +294,38 @@ def _member(mech, s, names, row, revolutions, transient_revolutions, per_revolut
     return (r.exponents, r.spread, r.stderr, r.status, r.run_status, sections, r.running)
 
 
-@eqx.filter_jit
-def _compiled_map(mech, s, names, values, revolutions, transient_revolutions, per_revolution, samples, count,
-                  channels, discard, batch_size):
+#: The outputs of a member, in :class:`LyapunovMap`'s order after ``values``.
+MAP_KEYS = ("exponents", "spread", "stderr", "status", "run_status", "sections", "running")
+#: The state files of :func:`lyapunov_map` in its output folder: the finished map.
+MAP_FILE = "lyapunov_map.npz"
+MAP_FORMAT = 1
+MAP_RESTART = "restart=True"
+
+
+def _lanes(rows, mech, s, names, revolutions, transient_revolutions, per_revolution, samples, count, channels, discard,
+           batch_size):
+    """The members of ``rows`` (B, P), by the lane runner's rule (:func:`~jaxclear.sweep.lanes.over_lanes`;
+    ``batch_size``: side by side in batches of that many)."""
     f = lambda row: _member(mech, s, names, row, revolutions, transient_revolutions, per_revolution,  # noqa: E731
                             samples, count, channels, discard)
-    return jax.lax.map(f, values, batch_size=batch_size)
+    return dict(zip(MAP_KEYS, over_lanes(f, rows, batch_size=batch_size)))
+
+
+@eqx.filter_jit
+def _compiled_map(rows, mech, s, mesh, *statics):
+    """The members of a chunk ``rows`` split over ``mesh``'s devices (:func:`~jaxclear.sweep.lanes.on_devices`)."""
+    return on_devices(lambda r, m, ss: _lanes(r, m, ss, *statics), mesh, rows, mech, s)
 
 
 def lyapunov_map(mech: Mechanism, settings: Settings | None, names: Sequence[str], values, *, revolutions: int,
                  transient_revolutions: float = 0.0, per_revolution: int = 1, samples: int = 8, count: int = 1,
                  channels: Sequence[str] = (), discard: int = 0, batch_size: int | None = None,
-                 s: Settings | None = None) -> LyapunovMap:
+                 chunk: int | None = None, out=None, restart: bool = False, devices: int | None = None,
+                 progress: bool = False, s: Settings | None = None) -> LyapunovMap:
     """The Lyapunov exponents of many operating points: ``mech`` with the parameters ``names``
-    (:mod:`jaxclear.params`) set to each row of ``values`` (B, P), one compiled program batched
-    over the rows (``jax.vmap`` in batches of ``batch_size``, default all at once; 1 runs them
-    one after another, which is faster on CPU, where the lanes of a batch wait for its slowest).
+    (:mod:`jaxclear.params`) set to each row of ``values`` (B, P), by the lane runner of the sweeps
+    (:mod:`jaxclear.sweep.lanes`): one compiled program per chunk shape, its rows split over the
+    devices, chunk after chunk, resumable.
 
     Every run: ``transient_revolutions`` crank revolutions without tangents, then
     ``revolutions`` revolutions with ``count`` tangents in ``per_revolution`` reporting intervals
@@ -318,6 +338,29 @@ def lyapunov_map(mech: Mechanism, settings: Settings | None, names: Sequence[str
     ``throw`` (False).
     ``s``: the old name of ``settings`` (deprecated: a ``DeprecationWarning``, one release).
     Nothing raises for a failed member: its ``status`` says what happened.
+
+    How the rows run (the lane runner's, as a sweep's):
+
+    * ``batch_size``: None (default), the lane runner's rule: one row after another on a CPU
+      with single-kernel loops (each takes its own steps), side by side (``jax.vmap``) on an
+      accelerator; an integer, side by side in batches of that many rows, one batch after
+      another.
+    * ``chunk``: rows per compiled call (rounded up to a multiple of the devices; the last chunk
+      padded by repeating its last row, so every chunk is one compilation); None: all rows at
+      once, or, with ``out``, :data:`~jaxclear.sweep.devices.DEFAULT_RUNS_PER_DEVICE` per device.
+      The rows' results do not depend on it where the rows run one after another.
+    * ``devices``: the first ``devices`` of ``jax.devices()`` (default all), each chunk's rows
+      split over them (``jax.shard_map``, as a sweep's; a CPU host has one per core after
+      :func:`jaxclear.request_host_devices`).
+    * ``out``: an output folder, locked while the map runs (a second process is refused with
+      :class:`~jaxclear.OutputLockedError`), written as it goes through the one checkpoint
+      protocol: every finished chunk ``OUT/chunks/chunk_NNNNNN.npz`` (its header the map's key:
+      the mechanism, settings, names, values and the arguments above but ``progress``), the whole
+      map ``OUT/lyapunov_map.npz`` at the end. The same call after a kill computes only the
+      chunks not on disk and returns the map an uninterrupted call returns; a folder holding
+      another map is refused (a :class:`~jaxclear.ParameterError` naming what changed) unless
+      ``restart=True``, which discards it.
+    * ``progress``: a tqdm bar over the chunks.
     """
     s = _renamed("lyapunov_map", settings, s, required=False)
     names = tuple(str(n) for n in names)
@@ -336,17 +379,49 @@ def lyapunov_map(mech: Mechanism, settings: Settings | None, names: Sequence[str
                  f"{per_revolution} intervals, {discard} discarded,", "raise revolutions or per_revolution")
     if not transient_revolutions >= 0:
         raise ParameterError(f"transient_revolutions = {transient_revolutions!r} is outside the allowed range [0, inf)")
-    if batch_size is not None and (isinstance(batch_size, bool) or not isinstance(batch_size, (int, np.integer))
-                                   or batch_size < 1):
-        raise ParameterError(f"batch_size = {batch_size!r} is outside the allowed range [1, inf) "
-                             "(or None: all rows at once)")
+    for key, v in (("batch_size", batch_size), ("chunk", chunk), ("devices", devices)):
+        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1):
+            raise ParameterError(f"{key} = {v!r} is outside the allowed range [1, inf) (or None: all rows at once)")
     count = check_count(mech, count)
     channels = tuple(str(c) for c in channels)
     for c in channels:
         from ..analysis.channels import unit
         unit(mech, c)  # a named ParameterError for a channel that does not exist
     s = dataclasses.replace(s, throw=False)
-    out = _compiled_map(mech, s, names, values, int(revolutions), float(transient_revolutions), int(per_revolution),
-                        int(samples), count, channels, int(discard), batch_size)
-    exponents, spread, stderr, status, run_status, sections, running = out
-    return LyapunovMap(values, exponents, spread, stderr, status, run_status, sections[..., :len(channels)], running)
+    statics = (names, int(revolutions), float(transient_revolutions), int(per_revolution), int(samples), count,
+               channels, int(discard), None if batch_size is None else int(batch_size))
+    if not is_concrete(values):  # inside a traced program: one batch, no chunks, devices or files
+        res = _lanes(values, mech, s, *statics)
+    else:
+        res = _run_map(mech, s, np.asarray(values), statics, chunk, out, restart, devices, progress)
+    res = {k: jnp.asarray(v) for k, v in res.items()}
+    return LyapunovMap(values, *(res[k] for k in MAP_KEYS[:-2]), res["sections"][..., :len(channels)], res["running"])
+
+
+def _run_map(mech, s, values: np.ndarray, statics: tuple, chunk, out, restart: bool, devices, progress: bool) -> dict:
+    """The map's rows through the lane runner (:func:`~jaxclear.sweep.lanes.run_lanes`), in the
+    locked folder ``out`` written as it goes (None: nothing written)."""
+    mesh = make_mesh(devices)
+    if chunk is None and out is not None:
+        chunk = DEFAULT_RUNS_PER_DEVICE * mesh.devices.size
+    chunk = round_chunk(len(values) if chunk is None else chunk, mesh.devices.size)
+    compiled = lambda rows, m, ss: _compiled_map(rows, m, ss, mesh, *statics)  # noqa: E731
+    if out is None:
+        return run_lanes(compiled, values, mech, s, chunk=chunk, mesh=mesh, progress=progress, desc="lyapunov_map")
+    names, revolutions, transient, per_revolution, samples, count, channels, discard, batch_size = statics
+    config = {"mechanism": mech.name, "names": list(names), "rows": len(values), "revolutions": revolutions,
+              "transient_revolutions": transient, "per_revolution": per_revolution, "samples": samples,
+              "count": count, "channels": list(channels), "discard": discard, "batch_size": batch_size,
+              "chunk": chunk, "devices": int(mesh.devices.size)}
+    work = Work(out, "lyapunov_map", work_key(mech, s, values, config), config, version=MAP_FORMAT,
+                restart=MAP_RESTART)
+    with work.lock():
+        if restart and os.path.exists(work.path(MAP_FILE)):
+            os.remove(work.path(MAP_FILE))  # the map of before, discarded (its chunks with it, run_lanes)
+        finished = work.read_npz(MAP_FILE, restart=restart)
+        if finished is not None:
+            return {k: finished[k] for k in MAP_KEYS}
+        res = run_lanes(compiled, values, mech, s, chunk=chunk, mesh=mesh, work=work, restart=restart,
+                        progress=progress, desc="lyapunov_map")
+        work.write_npz(MAP_FILE, {"values": values, **res}, finished=True)
+    return res
