@@ -78,7 +78,7 @@ def changes(old, new, prefix: str = "") -> list[str]:
 
 
 def _short(value, limit: int = 60) -> str:
-    text = json.dumps(value, default=str)
+    text = json_text(value, indent=None, default=str)
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
