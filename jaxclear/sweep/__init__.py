@@ -19,6 +19,10 @@ Modules:
   (clearance runs, ideal-joint runs, metrics, each vmapped, inside ``jax.shard_map``), jitted
   once per sweep structure (``TRACES.value`` counts the traces);
 * :mod:`~jaxclear.sweep.devices`: the mesh, chunk sizing, moving chunks on and off the devices;
+* :mod:`~jaxclear.sweep.lanes`: the one lane runner under every batch of jaxclear (sweeps,
+  design evaluations, samplers, :func:`jaxclear.lyapunov_map`): the map-or-vmap rule
+  (:func:`lanes_one_by_one`, :func:`over_lanes`), devices (:func:`on_devices`), chunks and resume
+  (:func:`run_lanes`);
 * :mod:`~jaxclear.sweep.store`: ``runs.csv``, ``manifest.json``, ``chunks/*.npz``;
 * :mod:`~jaxclear.sweep.driver`: :func:`run_sweep`;
 * :mod:`~jaxclear.sweep.results`: :class:`SweepResult`, :func:`read_results`;
@@ -84,6 +88,7 @@ from .devices import (
     put_chunk,
 )
 from .driver import run_sweep
+from .lanes import lanes_one_by_one, on_devices, over_lanes, run_lanes
 from .plan import Plan, make_plan
 from .results import SweepResult, read_chunks, read_results
 from .store import (
@@ -168,4 +173,8 @@ __all__ = [
     "RANGE_KEYS",
     "BYTES_PER_SAMPLE",
     "DEFAULT_RUNS_PER_DEVICE",
+    "lanes_one_by_one",
+    "over_lanes",
+    "on_devices",
+    "run_lanes",
 ]
