@@ -56,11 +56,12 @@ def lanes_one_by_one(platform: str | None = None) -> bool:
 
 
 def over_lanes(f, *args, one_by_one: bool | None = None, batch_size: int | None = None):
-    """``f`` mapped over the leading axis of ``args`` (traceable). ``one_by_one`` (default: the
-    rule, :func:`lanes_one_by_one`): one lane after another (``jax.lax.map``), else side by side
-    (``jax.vmap``), in batches of ``batch_size`` lanes one batch after another where given
-    (``jax.lax.map(..., batch_size=)``). One after another, each lane takes its own number of
-    solver steps; side by side on a CPU, every lane waits for the batch's slowest."""
+    """``f`` mapped over the leading axis of ``args`` (traceable): one lane after another
+    (``jax.lax.map``) where ``one_by_one``, else side by side (``jax.vmap``), in batches of
+    ``batch_size`` lanes one batch after another where that is given (``jax.lax.map(...,
+    batch_size=)``). ``one_by_one`` None: the rule (:func:`lanes_one_by_one`) without a
+    ``batch_size``, side by side in its batches with one. One after another, each lane takes its
+    own number of solver steps; side by side on a CPU, every lane waits for the batch's slowest."""
     if one_by_one is None:
         one_by_one = batch_size is None and lanes_one_by_one()
     if one_by_one:
