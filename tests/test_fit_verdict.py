@@ -281,3 +281,19 @@ def test_noise_sigma_is_checked():
     for bad in (-1.0, 0.0, math.nan, "1"):
         with pytest.raises(jc.ParameterError, match="noise_sigma = .* must be a finite number > 0"):
             jc.fit(meas, mech, window=5e-4, noise_sigma=bad)
+
+
+def test_a_stage_stops_where_a_step_gains_less_than_a_tenth_of_a_noise_variance():
+    """jaxclear.fitting.run.statistically_converged: with N - P = 2400 degrees of freedom and a
+    sum of squares of 24 (s^2 = 0.01), an accepted step lowering it by 0.0005 (0.05 noise
+    variances) ends the stage; by 0.005 (0.5) it does not; nor does a rejected step, the first
+    step of a stage (no loss before it), or a step that raised the loss."""
+    from jaxclear.fitting.run import DEVIANCE_TOL, statistically_converged
+
+    assert DEVIANCE_TOL == 0.1
+    reason = statistically_converged(24.0005, 24.0, 2400.0, True)
+    assert "0.05 noise variances" in reason and "statistically converged" in reason
+    assert statistically_converged(24.005, 24.0, 2400.0, True) == ""
+    assert statistically_converged(24.0005, 24.0, 2400.0, False) == ""
+    assert statistically_converged(float("nan"), 24.0, 2400.0, True) == ""
+    assert statistically_converged(23.9, 24.0, 2400.0, True) == ""

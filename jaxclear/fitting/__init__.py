@@ -104,8 +104,11 @@ matrix is what makes the fit converge, so it is the default rather than an optio
 
 Stopping: per stage, at most ``max_iter`` trial steps (intermediate horizons ``max_iter // 2``,
 at least 5); a stage ends when an accepted step lowers the loss by less than ``ftol``
-(relative; at least 1e-3 for intermediate horizons), when an accepted step is below ``xtol`` in
-every coordinate, when the trust region shrinks below 1e-10 (no decreasing step), or on
+(relative; at least 1e-3 for intermediate horizons), when an accepted step lowers the sum of
+squares by less than a tenth of a noise variance (``s^2 = SS / (N - P)``:
+:data:`jaxclear.fitting.run.DEVIANCE_TOL`, the same rule in the statistics' units, where the
+estimates no longer move by a meaningful part of their uncertainty), when an accepted step is
+below ``xtol`` in every coordinate, when the trust region shrinks below 1e-10 (no decreasing step), or on
 optimistix's Cauchy criterion (``rtol=ftol``, ``atol=xtol``). An iteration is one trial step:
 one evaluation of the model and its Jacobian, accepted or rejected.
 

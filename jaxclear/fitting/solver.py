@@ -35,7 +35,9 @@ Stopping (per stage, besides optimistix's own Cauchy criterion): ``max_iter`` it
 (accepted steps); an accepted step lowering the loss by less than ``ftol`` (relative); an
 accepted step below ``xtol`` in every coordinate; a rejected trial below ``xtol`` or whose
 predicted relative decrease is below ``ftol`` (nothing left to gain: MINPACK's rule); a trust
-region below 1e-10.
+region below 1e-10. The stage loop (:func:`jaxclear.fitting.run.run_stage`) adds one: an accepted
+step that lowers the sum of squares by less than :data:`jaxclear.fitting.run.DEVIANCE_TOL` noise
+variances.
 """
 
 from __future__ import annotations
