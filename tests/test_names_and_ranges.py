@@ -22,7 +22,8 @@ MECH = jc.preset("flores-slider-crank")
 # ---- 7. the command line: every stated range is enforced, errors name the flag -------------
 
 _RANGE = re.compile(r"in ([\(\[])(-?[0-9.e+-]+), (-?[0-9.e+-]+|inf)([\)\]])|(>=|>) (-?[0-9.e+-]+)")
-_POSITIONAL = {"sweep": ["sweep.toml"], "fit": ["record.csv"], "design": ["--vary", "clearance=1e-4:6e-4"]}
+_POSITIONAL = {"sweep": ["sweep.toml"], "fit": ["record.csv"], "design": ["--vary", "clearance=1e-4:6e-4"],
+               "tolerance": ["study.toml"]}
 
 
 def _stated_ranges():

@@ -10,6 +10,7 @@ from typing import Mapping
 import diffrax
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 
 from .._errors import JaxclearError, ParameterError, is_concrete
 from .._types import Array, Float
@@ -251,8 +252,11 @@ def option_values(s: Settings) -> dict:
 
 
 def default_settings() -> Settings:
-    """``Settings`` with every default (``t_end`` 1 s): the base of a driver given no settings."""
-    return Settings(t_end=jnp.asarray(1.0))
+    """``Settings`` with every default (``t_end`` 1 s): the base of a driver given no settings,
+    and what the command line shows as its defaults. Its array leaves are NumPy values, so that
+    building it compiles nothing (the first ``jnp`` array of a process compiles a small program:
+    ``jaxclear presets`` and ``--help`` compile nothing); a driver's runs take them as any array."""
+    return Settings(t_end=np.asarray(1.0), baumgarte=Baumgarte(np.asarray(5.0), np.asarray(5.0)))
 
 
 def deprecated_keywords(driver: str, settings: Settings | None, stacklevel: int = 3, **given) -> dict:
