@@ -175,13 +175,16 @@ def find_start(model: WindowModel, mech, theta_z, win: WindowInput, horizon: flo
     speeds = np.concatenate([approach_candidates(cands[i], mech, per) for i in order[:k]])[:m]
     speeds = np.concatenate([speeds, np.repeat(cands[int(order[0])][None, :], m - speeds.shape[0], axis=0)])
     seen, seen_scores = np.concatenate([cands, speeds]), np.concatenate([scores, score(speeds)])
-    n_fit = max(float(np.sum(np.asarray(win.mask))) * model.weights.shape[0], 1.0)
+    def fitted(w):  # fitted samples of a window input, every channel
+        return max(float(np.sum(np.asarray(w.mask))) * model.weights.shape[0], 1.0)
+
+    n_first = n_fit = fitted(win)
     passes = [float(np.min(scores)) / n_fit, float(np.min(seen_scores)) / n_fit]
     rng = np.random.default_rng(REFINE_SEED)
     for j, spread in enumerate(REFINE_SPREADS):
         if longer is not None and j == 1:  # the continuation: the elites scored over the longer horizon
             score = scorer(*longer)
-            n_fit = max(float(np.sum(np.asarray(longer[0].mask))) * model.weights.shape[0], 1.0)
+            n_fit = fitted(longer[0])
             seen = seen[np.argsort(seen_scores)[:LONGER_ELITES]]
             seen_scores = score(seen)
             passes.append(float(np.min(seen_scores)) / n_fit)
@@ -198,7 +201,6 @@ def find_start(model: WindowModel, mech, theta_z, win: WindowInput, horizon: flo
     ranked = np.argsort(seen_scores)[:k]
     best = int(ranked[0])
     finite = np.isfinite(scores)
-    n_first = max(float(np.sum(np.asarray(win.mask))) * model.weights.shape[0], 1.0)
     report = {"candidates": int(cands.shape[0] + speeds.shape[0] + m * len(REFINE_SPREADS)
                                 + (LONGER_ELITES if longer is not None else 0)),
               "finite": int(np.isfinite(seen_scores).sum()),
