@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import statistics
 
-from jaxclear.integrate.runs import timed_simulate
+from jaxclear.integrate._runs import timed_simulate
 
 
 def compile_and_steady(mech, settings, repeats: int, steady=statistics.median):

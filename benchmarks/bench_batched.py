@@ -32,8 +32,8 @@ import numpy as np
 
 import jaxclear as jc
 from jaxclear import params
-from jaxclear.integrate.dynamics import flat_vector_field
-from jaxclear.integrate.state import State
+from jaxclear.integrate._dynamics import flat_vector_field
+from jaxclear.integrate._state import State
 
 #: Neighbours of the member in the mixed batches: (restitution, clearance [m]).
 OTHERS = [(0.7, 0.4e-3), (0.5, 0.3e-3), (0.95, 0.45e-3), (0.8, 0.35e-3)]

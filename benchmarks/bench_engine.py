@@ -261,10 +261,10 @@ def profile_child(revolutions, rtol, atol, solver, n_out, loops=5000):
     import jaxclear as jc
     import importlib
 
-    jsolve = importlib.import_module("jaxclear.integrate.simulate")  # the module (the package exports the function)
+    jsolve = importlib.import_module("jaxclear.integrate._simulate")  # the module (the package exports the function)
     from jaxclear.integrate import check_assembly, compiler_options, UnrolledExplicitRK
     from jaxclear.integrate import flat_vector_field, spd_solve
-    from jaxclear.integrate.system import MechanismSystem, system_field
+    from jaxclear.integrate._system import MechanismSystem, system_field
 
     mech = jc.preset("flores-slider-crank")
     s = jc.settings(revolutions * jc.crank_period(mech), n_out=n_out, rtol=rtol, atol=atol, solver=solver)
@@ -452,7 +452,7 @@ def main(argv=None):
     import jaxclear as jc
     import importlib
 
-    jsolve = importlib.import_module("jaxclear.integrate.simulate")  # the module (the package exports the function)
+    jsolve = importlib.import_module("jaxclear.integrate._simulate")  # the module (the package exports the function)
     from jaxclear.integrate import check_assembly, compiler_options, UnrolledExplicitRK
     import scipy_reference as ref
 

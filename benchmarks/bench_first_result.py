@@ -247,7 +247,7 @@ def child(spec: dict) -> None:
     if spec.get("cache") and not spec.get("default"):
         jax.config.update("jax_compilation_cache_dir", spec["cache"])
         if spec.get("programs"):
-            from jaxclear.integrate import programs
+            from jaxclear.integrate import _programs as programs
 
             programs.enable(Path(spec["cache"]) / "programs")
     if kind == "api" and spec["name"] == "posterior" and importlib.util.find_spec("blackjax") is None:

@@ -29,8 +29,8 @@ import jax
 
 import jaxclear as jc
 from _timing import compile_and_steady
-from jaxclear.integrate.assembly import initial_state
-from jaxclear.integrate.dynamics import flat_vector_field
+from jaxclear.integrate._assembly import initial_state
+from jaxclear.integrate._dynamics import flat_vector_field
 
 
 def mechanisms(rpm: float):

@@ -29,10 +29,10 @@ ROOT = HERE.parent
 sys.path.insert(0, str(ROOT))
 
 import jaxclear as jc  # noqa: E402
-from jaxclear.integrate.compile import jit  # noqa: E402
-from jaxclear.integrate.runs import revolution_settings  # noqa: E402
-from jaxclear.integrate.simulate import _postprocess  # noqa: E402
-from jaxclear.integrate.state import State  # noqa: E402
+from jaxclear.integrate._compile import jit  # noqa: E402
+from jaxclear.integrate._runs import revolution_settings  # noqa: E402
+from jaxclear.integrate._simulate import _postprocess  # noqa: E402
+from jaxclear.integrate._state import State  # noqa: E402
 
 
 def measure(fns: dict, repeats: int) -> dict:

@@ -3,7 +3,7 @@
 Importing jaxclear switches JAX to double precision (contact penetrations are micrometres),
 before JAX starts its backends, asks XLA:CPU to compile small loops as single kernels
 (``XLA_FLAGS``; see ``jaxclear/_xla_flags.py``), and keeps compiled and traced programs in the
-user's cache folder, so that a new process skips tracing and compilation (``jaxclear/caches.py``;
+user's cache folder, so that a new process skips tracing and compilation (``jaxclear/integrate/caches.py``;
 ``JAXCLEAR_CACHE_DIR=off`` switches that off).
 This module only re-exports the public API (``__all__``, each name documented in the API
 reference); the implementation lives in subpackages by layer: ``model`` (what a mechanism is)
@@ -14,6 +14,7 @@ reference); the implementation lives in subpackages by layer: ``model`` (what a 
 
 from importlib.metadata import PackageNotFoundError as _PackageNotFoundError
 from importlib.metadata import version as _version
+import sys as _sys
 
 import jax
 
@@ -135,8 +136,9 @@ from .model import (  # noqa: E402
     crank_period,
 )
 from .presets import preset, preset_file, preset_names  # noqa: E402
-from . import caches  # noqa: E402
-from .caches import cache_folder, clear_cache, disable_cache, enable_cache  # noqa: E402
+from .integrate import caches  # noqa: E402
+_sys.modules[f"{__name__}.caches"] = caches  # `import jaxclear.caches` (its home: jaxclear.integrate.caches)
+from .integrate.caches import cache_folder, clear_cache, disable_cache, enable_cache  # noqa: E402
 
 # compiled and traced programs kept across processes by default (JAXCLEAR_CACHE_DIR=off: not)
 caches.enable_at_import()

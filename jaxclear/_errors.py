@@ -70,7 +70,7 @@ class RESULTS(eqx.Enumeration):
     :attr:`LyapunovResult.status <jaxclear.chaos.LyapunovResult.status>` hold its integer code
     (0 = ok, in the order below; new members are only ever appended, so a code written to a file
     keeps its meaning); :data:`STATUS` maps codes to messages, and
-    :func:`jaxclear.integrate.simulate.raise_for_status` raises for any of them.
+    :func:`jaxclear.integrate.raise_for_status` raises for any of them.
 
     What a driver concludes about its own optimisation or sample (a fit's ``stop_reason``, a
     design's ``status`` word such as ``converged`` or ``max_iter``, a posterior's ``converged``)

@@ -14,7 +14,7 @@ A second flag goes with it: ``--xla_cpu_experimental_ynn_fusion_type=`` (empty: 
 library fusions). XLA:CPU hands some matrix products (``dot``) to YNNPACK as *custom* fusions,
 and ``SmallWhileLoopHoistingPass`` refuses a loop that contains one, so the whole loop falls
 back to thunks. A plain simulation has no such product, but every batched one has: the
-error-controlled sensitivities (:mod:`jaxclear.integrate.sensitivity`; the tangents' ``vmap``
+error-controlled sensitivities (:mod:`jaxclear.integrate._sensitivity`; the tangents' ``vmap``
 turns the vector field's matrix-vector products into a 4 x 4 product) and a vmapped sweep.
 Measured on the 2-core machine: ``jax.jacfwd`` of the slider-crank with a clearance guide (4
 parameters) 144 ms -> 24 ms, a ``vmap`` of 32 runs of the benchmark 653 ms -> 282 ms; a single

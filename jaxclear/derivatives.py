@@ -2,7 +2,7 @@ r"""Derivatives of a simulation with respect to named parameters: :func:`sensiti
 
 ``jax.jvp``, ``jax.jacfwd``, ``jax.grad`` and ``jax.vjp`` of :func:`~jaxclear.simulate` already
 give the error-controlled sensitivities (``Settings(adjoint="sensitivity")``, the default;
-:mod:`jaxclear.integrate.sensitivity`); this module names what to differentiate by the names of
+:mod:`jaxclear.integrate._sensitivity`); this module names what to differentiate by the names of
 :mod:`jaxclear.params` and reports how far the derivatives can be trusted:
 
 * :func:`differentiable_names` lists the names of a mechanism (every ``name@J`` of each clearance
@@ -31,7 +31,7 @@ import numpy as np
 from . import params
 from ._errors import ParameterError
 from .integrate import Settings, Solution, simulate
-from .integrate.simulate import check_status
+from .integrate import check_status
 from .model import Mechanism
 
 

@@ -19,7 +19,7 @@ from matplotlib.ticker import MaxNLocator, MultipleLocator
 
 from .model import Mechanism
 from .integrate import Solution
-from .integrate.compile import jit
+from .integrate import jit
 
 DPI = 130
 FIGSIZE = (9.0, 4.8)

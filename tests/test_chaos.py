@@ -307,12 +307,12 @@ def test_tangent_tolerance_grows_with_the_tangents():
     one: the sensitivities' system). Without it, a component that the constraints hold near zero
     was asked for atol absolutely while the tangent grew 1e10-fold in a revolution of the
     benchmark slider-crank, whose steps then shrank to the floor (400,000 not enough)."""
-    from jaxclear.integrate import solve
-    from jaxclear.integrate.sensitivity import Rebuild, TangentSystem
+    from jaxclear.integrate import _solve as solve
+    from jaxclear.integrate._sensitivity import Rebuild, TangentSystem
 
     mech = oscillator()
     s = jc.settings(1.0)
-    size = solve.start(mech, s, None).packed.shape[0]
+    size = solve.start_run(mech, s, None).packed.shape[0]
     n, count, rtol, atol = mech.n_coordinates, 2, 1e-8, 1e-12
     leaves, treedef = __import__("jax").tree_util.tree_flatten((mech, s, None))
     ref = 0.5
@@ -371,12 +371,12 @@ def test_only_the_memory_the_motion_reads_is_carried():
     import jax
 
     from jaxclear.chaos import manifold
-    from jaxclear.integrate import State, solve
+    from jaxclear.integrate import State, _solve as solve
 
     for law, expected in (("lankarani-nikravesh", [1, 0, 0, 0, 0, 0]), ("hertz", [0] * 6)):
         mech = jc.preset("flores-slider-crank", law=law, speed_rpm=1000.0, friction=0.2, restitution=0.3)
         s = jc.settings(0.12, n_out=1201)
-        begin = solve.start(mech, s, None)
+        begin = solve.start_run(mech, s, None)
         np.testing.assert_array_equal(np.asarray(manifold.live_memory(mech, s.baumgarte, 0.0, begin.packed)), [0] * 6)
         # the deepest sample of the second revolution: inside a contact
         sol = jc.simulate(mech, s)

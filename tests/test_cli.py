@@ -14,8 +14,8 @@ import pytest
 import jaxclear as jc
 from jaxclear import io
 from jaxclear.analysis import metrics
-from jaxclear.integrate import runs
-from jaxclear.integrate.state import element_states
+from jaxclear.integrate import _runs as runs
+from jaxclear.integrate._state import element_states
 from jaxclear.cli import build_parser, main
 from jaxclear.cli.common import mechanism_overrides
 from conftest import assert_strict_json, strict_json

@@ -11,7 +11,7 @@ from jax.experimental.compilation_cache import compilation_cache
 
 from jaxclear import caches
 from jaxclear.cli import build_parser, cache
-from jaxclear.integrate import programs
+from jaxclear.integrate import _programs as programs
 
 
 @pytest.fixture

@@ -20,7 +20,7 @@ from jaxclear import ParameterError
 from jaxclear.cli import build_parser
 from jaxclear.cli.settings import FLAGS, given_options, settings_from_args
 from jaxclear.fitting import problem as fit_problem
-from jaxclear.integrate.settings import OPTION_KEYS, default_settings, option_values, settings_from_options
+from jaxclear.integrate._settings import OPTION_KEYS, default_settings, option_values, settings_from_options
 from jaxclear.sweep import SweepConfig, config_from_dict, make_plan
 from jaxclear.sweep.batch import run_settings
 

@@ -23,7 +23,7 @@ import pytest
 
 import jaxclear as jc
 from jaxclear.cli import main
-from jaxclear.integrate import programs
+from jaxclear.integrate import _programs as programs
 from jaxclear.sweep import driver as sweep_driver, store as sweep_store
 
 ROOT = Path(__file__).resolve().parents[1]

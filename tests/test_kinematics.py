@@ -11,8 +11,8 @@ import pytest
 
 import jaxclear as jc
 from jaxclear import params
-from jaxclear.integrate.kinematics import is_kinematic, kinematic_solution
-from jaxclear.integrate.runs import revolution_settings, simulate_with_ideal
+from jaxclear.integrate._kinematics import is_kinematic, kinematic_solution
+from jaxclear.integrate._runs import revolution_settings, simulate_with_ideal
 from jaxclear.model import crank_driver
 
 from conftest import slider_crank_exact

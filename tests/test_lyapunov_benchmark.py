@@ -14,8 +14,8 @@ import numpy as np
 
 import jaxclear as jc
 from jaxclear.chaos import lyapunov, manifold
-from jaxclear.integrate import solve
-from jaxclear.integrate.system import MechanismSystem
+from jaxclear.integrate import _solve as solve
+from jaxclear.integrate._system import MechanismSystem
 
 
 def test_undamped_hertz_spectrum_sums_to_zero_and_pairs_at_the_defaults():
@@ -74,10 +74,10 @@ def test_periodic_point_exponent_is_its_floquet_multiplier():
     system = MechanismSystem(mech, s.baumgarte)
 
     def flow(t0, t1, y):
-        return solve.integrate(system, s, t0, t1, jnp.asarray([t1]), y).samples[-1]
+        return solve.integrate_system(system, s, t0, t1, jnp.asarray([t1]), y).samples[-1]
 
     t0 = 8 * period
-    y = jax.jit(flow)(0.0, t0, solve.start(mech, s, None).packed)
+    y = jax.jit(flow)(0.0, t0, solve.start_run(mech, s, None).packed)
     jac = np.asarray(jax.jit(jax.jacfwd(lambda v: flow(t0, t0 + period, v)))(y))
     w = np.asarray(manifold.weights(mech, manifold.time_scale(mech)))
     basis = np.asarray(manifold.tangent_basis(mech, t0, y[:n], y[n:2 * n], jnp.asarray(w), 4))
@@ -112,7 +112,7 @@ def test_full_spectrum_volume_is_the_tangent_maps_determinant():
     n, h = mech.n_coordinates, period / 8
     sf = jc.settings(period, rtol=1e-10, atol=1e-14, adjoint="forward", max_steps=400_000)
     system = MechanismSystem(mech, sf.baumgarte)
-    jac = jax.jit(jax.jacfwd(lambda t0, y: solve.integrate(system, sf, t0, t0 + h, jnp.asarray([t0 + h]),
+    jac = jax.jit(jax.jacfwd(lambda t0, y: solve.integrate_system(system, sf, t0, t0 + h, jnp.asarray([t0 + h]),
                                                             y).samples[-1], argnums=1))
     w = np.asarray(manifold.weights(mech, manifold.time_scale(mech)))
     for k in (10, 12):

@@ -9,9 +9,9 @@ import jax
 import numpy as np
 
 import jaxclear as jc
-from jaxclear.integrate.dynamics import accelerations
+from jaxclear.integrate._dynamics import accelerations
 
-simulate_module = importlib.import_module("jaxclear.integrate.simulate")
+simulate_module = importlib.import_module("jaxclear.integrate._simulate")
 
 from conftest import free_journal
 

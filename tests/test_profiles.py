@@ -18,7 +18,7 @@ from scipy.interpolate import PchipInterpolator
 
 import jaxclear as jc
 from jaxclear.cli import main
-from jaxclear.integrate.kinematics import kinematic_solution
+from jaxclear.integrate._kinematics import kinematic_solution
 from jaxclear.mechanism_files import dumps_mechanism, loads_mechanism
 
 T = jnp.linspace(0.0, 0.03, 61)

@@ -16,11 +16,11 @@ import numpy as np
 import pytest
 
 import jaxclear as jc
-from jaxclear.integrate import programs
-from jaxclear.integrate.compile import compiler_options
-from jaxclear.integrate.runs import revolution_settings
+from jaxclear.integrate import _programs as programs
+from jaxclear.integrate._compile import compiler_options
+from jaxclear.integrate._runs import revolution_settings
 
-simulate_module = importlib.import_module("jaxclear.integrate.simulate")
+simulate_module = importlib.import_module("jaxclear.integrate._simulate")
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -97,7 +97,7 @@ CHILD = textwrap.dedent("""
         lambda e, d, **kw: e.endswith("jaxpr_trace_duration") and traces.append(str(kw.get("fun_name"))))
     monitoring.register_event_listener(lambda e, **kw: events.append(e))
     import jaxclear as jc  # nothing configured: the caches jaxclear keeps by default
-    from jaxclear.integrate import programs
+    from jaxclear.integrate import _programs as programs
     mech = jc.preset("flores-slider-crank")
     sol = jc.simulate(mech, jc.settings(2e-3))  # what benchmarks/bench_first_result.py runs
     print(json.dumps(dict(status=int(sol.status), folder=str(jc.cache_folder()), traces=traces,
@@ -134,7 +134,7 @@ def test_a_second_process_neither_traces_nor_compiles_the_run(tmp_path):
 def test_prepare_traces_once_and_the_overlay_runs_through_the_store(store, monkeypatch):
     """simulate_with_ideal traces the clearance run first (prepare_simulate), then runs both;
     the call after prepare does not trace again, and the results equal the plain runs."""
-    from jaxclear.integrate.runs import simulate_with_ideal
+    from jaxclear.integrate._runs import simulate_with_ideal
 
     mech = jc.preset("flores-slider-crank")
     s = revolution_settings(mech, 0.05, n_out=51)
@@ -157,7 +157,7 @@ def test_on_trace_reports_cache_misses_only():
     """``on_trace`` listeners hear of a top-level trace (a program JAX compiles next) and of
     nothing else: not a call that hits the cache, not a call inside a user's jit, not after the
     block (the fit says "compiling ..." through it, only when it compiles)."""
-    from jaxclear.integrate.compile import jit, on_trace
+    from jaxclear.integrate._compile import jit, on_trace
 
     @jit
     def double(x):

@@ -278,7 +278,7 @@ def test_output_size_bounded_before_compiling():
     with pytest.raises(jc.ParameterError, match=r"n_out = 1000000000000 .*--n-out"):
         jc.Settings(t_end=1.0, n_out=10**12)
     with pytest.raises(jc.ParameterError, match="n_out"):
-        jc.integrate.runs.revolution_settings(MECH, 1e9)
+        jc.integrate.revolution_settings(MECH, 1e9)
 
 
 def test_sweep_sizes_bounded_before_compiling():
@@ -287,7 +287,7 @@ def test_sweep_sizes_bounded_before_compiling():
     is refused before its table is built)."""
     from jaxclear.sweep import config_from_dict
     from jaxclear.sweep.config import MAX_RUNS, MAX_TRAJECTORY_SAMPLES
-    from jaxclear.integrate.settings import MAX_OUT_SAMPLES
+    from jaxclear.integrate._settings import MAX_OUT_SAMPLES
 
     big = {"grid": {"restitution": {"start": 0.1, "stop": 0.9, "num": 10_000},
                     "stiffness": {"start": 1e9, "stop": 1e10, "num": 10_000}}}

@@ -16,7 +16,7 @@ import pytest
 
 import jaxclear as jc
 from jaxclear.chaos import LyapunovError
-from jaxclear.integrate.simulate import raise_for_status
+from jaxclear.integrate._simulate import raise_for_status
 
 
 # ---- the one status family ----------------------------------------------------------------

@@ -16,12 +16,12 @@ import numpy as np
 import pytest
 
 import jaxclear as jc
-from jaxclear.integrate import sampling
-from jaxclear.integrate.assembly import assemble, initial_state
-from jaxclear.integrate.solvers import ImpactMemorySolver, OnsetController, StopOnNonFinite
-from jaxclear.integrate.system import MechanismSystem, StateNorm, system_field
+from jaxclear.integrate import _sampling as sampling
+from jaxclear.integrate._assembly import assemble, initial_state
+from jaxclear.integrate._solvers import ImpactMemorySolver, OnsetController, StopOnNonFinite
+from jaxclear.integrate._system import MechanismSystem, StateNorm, system_field
 
-SIM = sys.modules["jaxclear.integrate.simulate"]  # the module (jaxclear.integrate.simulate is the function)
+SIM = sys.modules["jaxclear.integrate._simulate"]  # the module (jaxclear.integrate.simulate is the function)
 
 
 def _solve(mech, s, block=None):

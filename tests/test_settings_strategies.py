@@ -14,8 +14,8 @@ import jax
 import pytest
 
 import jaxclear as jc
-from jaxclear.integrate import programs, strategies
-from jaxclear.integrate.solvers import OnsetController, StopOnNonFinite
+from jaxclear.integrate import _programs as programs, _strategies as strategies
+from jaxclear.integrate._solvers import OnsetController, StopOnNonFinite
 
 # (old spelling, new spelling) of the same settings
 SAME = [

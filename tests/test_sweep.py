@@ -37,7 +37,7 @@ import jaxclear as jc
 from jaxclear._xla_flags import loop_kernels_active
 from jaxclear import params, sweep
 from jaxclear.analysis import metrics
-from jaxclear.integrate.state import element_states
+from jaxclear.integrate._state import element_states
 from jaxclear.cli import main
 from jaxclear import ParameterError
 

@@ -4,7 +4,7 @@ import re
 
 import pytest
 
-from jaxclear.integrate import versions
+from jaxclear.integrate import _versions as versions
 
 
 def test_installed_versions_are_tested_ones():

@@ -13,7 +13,7 @@ Names are fields separated by ``:``; options ``key=value`` or flags may follow i
   [N m]) of ideal joint or driver ``J`` on body ``B`` (default its second body);
 * ``joint:K:ecc_x|ecc_y|ecc|penetration|normal_force|friction_force|mode``: clearance joint ``K``
   as one contact; ``joint:K:NAME`` for a name of the element's own outputs
-  (``type(joint).OUTPUTS``, :meth:`~jaxclear.integrate.solution.Solution.element_outputs`), e.g.
+  (``type(joint).OUTPUTS``, :meth:`~jaxclear.integrate.Solution.element_outputs`), e.g.
   ``joint:0:film_force``, ``joint:0:min_film_thickness`` (lubricated),
   ``joint:0:rear_lower_normal_force`` (translational, per corner), ``joint:0:feature``
   (pin-in-slot).
@@ -31,7 +31,7 @@ Kinematics follow Nikravesh, "Computer-Aided Analysis of Mechanical Systems" (19
 acceleration :math:`\ddot r + \ddot\phi\,\mathrm{perp}(A s') - \dot\phi^2 A s'`
 (:func:`jaxclear.model.point_acceleration`), components in a body frame
 :math:`A(\phi_F)^T v`. Reactions: with the equations of motion
-:math:`M\ddot q = g - D^T\lambda` (:mod:`jaxclear.integrate.dynamics`), the constraint force of
+:math:`M\ddot q = g - D^T\lambda` (:mod:`jaxclear.integrate._dynamics`), the constraint force of
 joint ``J`` on body ``B`` is :math:`-D_{J,B}^T\lambda_J` (3 generalized components: force x,
 y and moment about B's centroid), with :math:`D_{J,B} = \partial\Phi_J/\partial q_B` by
 automatic differentiation.

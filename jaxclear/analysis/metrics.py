@@ -19,7 +19,7 @@ import numpy as np
 from .._errors import STATUS
 from .._numbers import as_typed
 from ..integrate import Solution
-from ..integrate.compile import jit
+from ..integrate import jit
 from ..model import Mechanism, crank_driver
 from .channels import channel
 

@@ -20,8 +20,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..integrate.assembly import RANK_TOL, check_assembly
-from ..integrate.settings import settings
+from ..integrate import RANK_TOL, check_assembly
+from ..integrate import settings
 from ..model import AngleDriver, Mechanism
 
 

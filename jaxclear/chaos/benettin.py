@@ -4,14 +4,14 @@ r"""Benettin's method on the tangent dynamics of a mechanism: the traceable core
 The run is cut into ``windows`` intervals of length :math:`\tau`, each renormalised at least once,
 at its end (more often where the tangents' growth asks for it, below). The state and ``count``
 tangent vectors (perturbations of the state at a step's start) are integrated together by
-:class:`~jaxclear.integrate.sensitivity.TangentSystem` with no perturbed parameter: the variational
+:class:`~jaxclear.integrate._sensitivity.TangentSystem` with no perturbed parameter: the variational
 equation :math:`\dot S = f_y S` with the same Runge-Kutta steps as the state, the tangents in the
 step-size control (CVODES ``errconS``), steps ending at every contact onset and separation and at
 the friction laws' kinks, and the memory rules' derivatives applied at every accepted step. A
 contact force is continuous at an onset and a separation (zero at zero penetration), so the
 positions' and velocities' tangents do not jump there; what does jump is the stored approach speed,
 whose tangent carries the shift of the onset time (saltation of the memory rule,
-:mod:`jaxclear.integrate.sensitivity`).
+:mod:`jaxclear.integrate._sensitivity`).
 
 At the end of each renormalisation step the tangents are projected on the tangent space of the
 constraint manifold (:mod:`.manifold`), weighted, and orthonormalised by a QR factorisation
@@ -61,10 +61,7 @@ import jax.numpy as jnp
 from jax.scipy.linalg import solve_triangular
 
 from .._errors import RESULTS
-from ..integrate import Settings, State
-from ..integrate import solve
-from ..integrate.sensitivity import DTMIN_FRACTION, Rebuild, TangentSystem
-from ..integrate.system import MechanismSystem
+from ..integrate import Settings, State, integrate_system, mechanism_system, start_run, tangent_system
 from ..model.mechanism import Mechanism
 from . import manifold
 
@@ -196,7 +193,7 @@ def benettin(mech: Mechanism, s: Settings, y0: State | None, *, transient, inter
     ``windows`` intervals of ``interval`` [s] with ``count`` tangents, ``samples`` output samples
     per interval; the first ``discard`` intervals do not count; ``scale`` [s] is the metric's time
     scale. ``keep``: return the trajectory's samples."""
-    begin = solve.start(mech, s, y0)
+    begin = start_run(mech, s, y0)
     dtype = begin.packed.dtype
     size = begin.packed.shape[0]
     n = mech.n_coordinates
@@ -206,7 +203,7 @@ def benettin(mech: Mechanism, s: Settings, y0: State | None, *, transient, inter
     t_a = t0 + jnp.where(ok0, jnp.asarray(transient, dtype), 0.0)
 
     # the transient, without tangents
-    pre = solve.integrate(MechanismSystem(mech, s.baumgarte), s, t0, t_a, t_a[None], begin.packed)
+    pre = integrate_system(mechanism_system(mech, s), s, t0, t_a, t_a[None], begin.packed)
     y = pre.samples[-1]
     code = jnp.where(ok0, _run_status(pre.result, jnp.all(jnp.isfinite(y))),
                      jnp.asarray(jnp.where(begin.valid == RESULTS.successful, RESULTS.assembly_failed._value,
@@ -215,13 +212,11 @@ def benettin(mech: Mechanism, s: Settings, y0: State | None, *, transient, inter
     basis = manifold.tangent_basis(mech, t_a, y[:n], y[n:2 * n], w, count)  # (2n, count), weighted
     tangents = jnp.zeros((count, size), dtype).at[:, :2 * n].set((basis / w[:, None]).T)
 
-    leaves, treedef = jax.tree_util.tree_flatten((mech, s, None))
     # the tangents' absolute tolerance grows with them (TangentSystem.weigh_error): the reference
     # is the size of a tangent just after renormalising (a unit vector of the metric spread over
     # the 2n coordinates: its largest entry in the coordinates' units)
     reference = jnp.max(1.0 / w) / jnp.sqrt(w.shape[0])
-    system = TangentSystem(mech, s.baumgarte, Rebuild(leaves, treedef, ()), (), (),
-                           DTMIN_FRACTION * interval, size, count, reference)
+    system = tangent_system(mech, s, size=size, count=count, span=interval, reference=reference)
     fractions = jnp.arange(1, samples + 1, dtype=dtype) / samples
     bound = jnp.asarray(default_max_growth(s.rtol) if max_growth is None else max_growth, dtype)
     shortest = SHORTEST * interval
@@ -243,7 +238,7 @@ def benettin(mech: Mechanism, s: Settings, y0: State | None, *, transient, inter
         renormalise, accept when the log growths spread no more than ``bound``."""
         t, y, tangents, h, logs, buf, steps, code, overflow, taken = c
         t1 = jnp.minimum(t + h, tb)
-        run = solve.integrate(system, s, t, t1, jnp.clip(ts, t, t1), jnp.concatenate([y, tangents.reshape(-1)]))
+        run = integrate_system(system, s, t, t1, jnp.clip(ts, t, t1), jnp.concatenate([y, tangents.reshape(-1)]))
         end = run.samples[-1]
         y1, s1 = end[:size], end[size:].reshape(count, size)
         finite_state = jnp.all(jnp.isfinite(y1))

@@ -14,7 +14,6 @@ import os
 import warnings
 from typing import Sequence
 
-import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -22,12 +21,11 @@ import numpy as np
 
 from .. import params
 from .._checkpoint import Work, key as work_key
-from .._errors import RESULTS, JaxclearError, ParameterError, is_concrete
+from .._errors import JaxclearError, ParameterError, is_concrete
 from ..analysis.channels import channel
-from ..integrate import Settings, Solution, State
-from ..integrate import solve
-from ..integrate.settings import default_settings
-from ..integrate.simulate import raise_for_status as _raise_run_status
+from ..integrate import Settings, Solution, State, stored_solution
+from ..integrate import default_settings
+from ..integrate import raise_for_status as _raise_run_status
 from ..model import Mechanism, crank_driver, crank_period
 from ..sweep.devices import DEFAULT_RUNS_PER_DEVICE, make_mesh
 from ..sweep.lanes import on_devices, over_lanes, round_chunk, run_lanes
@@ -240,12 +238,7 @@ def trajectory(mech: Mechanism, s: Settings, result: LyapunovResult) -> Solution
     its output grid (``samples`` per interval after the transient): accelerations, reactions and
     contact outputs recomputed from the stored states, so that any named channel
     (:func:`jaxclear.channel`) applies. Traceable."""
-    packed = result.packed
-    ts = result.ts
-    steps = jnp.asarray(result.num_steps)
-    run = solve.Integration(packed, steps, steps, jnp.zeros_like(steps), diffrax.RESULTS.successful)
-    begin = solve.Start(packed[0], jnp.asarray(True), RESULTS.successful, None)
-    sol, _ = solve.solution(mech, s, ts, packed, run, begin)
+    sol = stored_solution(mech, s, result.ts, result.packed, result.num_steps)
     return eqx.tree_at(lambda x: x.status, sol, jnp.asarray(result.run_status, jnp.int32))
 
 

@@ -1,14 +1,14 @@
 r"""The space over which the Lyapunov spectrum of a mechanism is taken: the tangent space of its
 constraint manifold, in a weighted metric.
 
-A mechanism's packed state is ``[q (n), qdot (n), memory]`` (:mod:`jaxclear.integrate.state`).
+A mechanism's packed state is ``[q (n), qdot (n), memory]`` (:mod:`jaxclear.integrate._state`).
 The motion stays on the constraint manifold
 
 .. math:: \mathcal M(t) = \{(q, \dot q):\ \Phi(q, t) = 0,\ \dot\Phi = D(q, t)\,\dot q + \Phi_t(q, t) = 0\},
 
 of dimension :math:`2(n - m)` (``m`` independent constraint equations, joints and drivers): the
 mechanism's phase space. Perturbations off it are not motions of the mechanism: Baumgarte's
-stabilisation (:mod:`jaxclear.integrate.dynamics`) makes them decay like
+stabilisation (:mod:`jaxclear.integrate._dynamics`) makes them decay like
 :math:`\ddot\Phi + 2\alpha\dot\Phi + \beta^2\Phi = 0`, at rates :math:`-\alpha \pm
 \sqrt{\alpha^2 - \beta^2}` that are the solver's gains, not the mechanism's (``-5 1/s``, twice,
 per constraint at the default gains). Their exponents would enter a spectrum of the full
@@ -49,7 +49,7 @@ import jax
 import jax.numpy as jnp
 
 from ..integrate import spd_solve
-from ..integrate.dynamics import flat_vector_field
+from ..integrate import flat_vector_field
 from ..model import constraints
 from ..model.drivers import crank_driver
 from ..model.mechanism import Mechanism
@@ -130,7 +130,7 @@ def tangent_basis(mech: Mechanism, t, q, qdot, w, count: int) -> jax.Array:
 def live_memory(mech: Mechanism, baumgarte, t, y) -> jax.Array:
     r"""Which entries of the memory part ``y[2n:]`` of the packed state ``y`` the motion reads
     at ``(t, y)`` (1.0) and which it does not (0.0): entry ``j`` is read when some component of
-    the vector field :math:`f(t, y)` (:func:`~jaxclear.integrate.dynamics.flat_vector_field`:
+    the vector field :math:`f(t, y)` (:func:`~jaxclear.integrate.flat_vector_field`:
     accelerations and memory rates) has a non-zero derivative :math:`\partial f/\partial y_j`
     (``jax.jacfwd``). Read: the approach speed inside a contact whose law damps with it, the
     bristle states. Not read: the records (work, peaks, onset time, impact count: outputs) and

@@ -6,7 +6,7 @@ import argparse
 import os
 
 from ..drawing import animate
-from ..integrate import runs
+from ..integrate import timed_simulate
 from .common import add_mechanism_file_option, add_mechanism_options, number_in
 from .simulate import add_integration_options, load, settings_from
 
@@ -41,7 +41,7 @@ def run(args) -> int:
     mech, _, _ = load(args)
     s = settings_from(args, mech)
     print(f"jaxclear: {mech.name}: simulating {float(s.t_end):.6g} s ({int(s.n_out)} samples)...", flush=True)
-    sol, wall = runs.timed_simulate(mech, s)
+    sol, wall = timed_simulate(mech, s)
     folder = os.path.dirname(os.path.abspath(args.to))
     os.makedirs(folder, exist_ok=True)
     path = animate(mech, sol, args.to, fps=args.fps, frames=args.frames, magnify=args.magnify, joint=args.joint)

@@ -4,7 +4,7 @@ tracing and XLA compilation.
 
 The caches themselves are jaxclear's, shared with the Python API (:mod:`jaxclear.caches`: JAX's
 persistent compilation cache in the folder, the traced programs of
-:mod:`jaxclear.integrate.programs` in its subfolder ``programs``, a size limit, least recently
+:mod:`jaxclear.integrate._programs` in its subfolder ``programs``, a size limit, least recently
 used removed first); ``import jaxclear`` already enables them in the environment's folder. The
 command line adds its options: ``--cache-dir DIR`` (another folder, JAX's compilation cache
 included, whatever JAX's own settings) and ``--no-cache`` (both off for the command).
@@ -22,11 +22,11 @@ from pathlib import Path
 
 import jax
 
-from .. import caches
+from ..integrate import caches
 
 #: Environment variable naming the cache folder (``off``, ``0``, ``none`` or empty: no cache).
 ENV = caches.ENV
-#: Subfolder of the traced programs (:mod:`jaxclear.integrate.programs`).
+#: Subfolder of the traced programs (:mod:`jaxclear.integrate._programs`).
 PROGRAMS = caches.PROGRAMS
 #: Programs that compile faster than this [s] are not written (the many tiny eager-op programs).
 MIN_COMPILE_TIME_S = caches.MIN_COMPILE_TIME_S

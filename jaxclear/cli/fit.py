@@ -13,7 +13,7 @@ from ..fitting import fit, read_channels_toml
 from ..fitting.driver import AUTO_STARTS, COMPILING
 from ..fitting.problem import FIT_OUTPUT, FREE_START_MAX_STEPS, MAX_STEPS, default_fit_settings
 from ..analysis.sensor import Accelerometer
-from ..integrate.compile import on_trace
+from ..integrate import on_trace
 from .common import add_mechanism_options, load_mechanism_file, name_value, number_in, preset_from_args
 from .settings import add_settings_options, settings_from_args
 

@@ -3,19 +3,19 @@ design, fit and its posterior, sweep, tolerance): one option group, :func:`add_s
 whose defaults are read from :class:`~jaxclear.Settings` (a command's own default settings where
 it has them, the fit's tolerances), never written here; and one function,
 :func:`settings_from_args`, that turns the options given into a ``Settings`` through
-:func:`~jaxclear.integrate.settings.settings_from_options`, the conversion a sweep's or a tolerance
+:func:`~jaxclear.integrate.settings_from_options`, the conversion a sweep's or a tolerance
 study's ``[settings]`` table goes through too."""
 
 from __future__ import annotations
 
 import argparse
 
-from ..integrate.settings import Settings, default_settings, option_values, settings_from_options
-from ..integrate.strategies import ADJOINTS, ONSETS, OUTPUTS, SOLVERS
+from ..integrate import Settings, default_settings, option_values, settings_from_options
+from ..integrate import ADJOINTS, ONSETS, OUTPUTS, SOLVERS
 from .common import number_in
 
 #: The group's options: flag -> ``Settings`` field by name
-#: (:data:`~jaxclear.integrate.settings.OPTION_KEYS`); the parsed value's ``dest`` is the flag's.
+#: (:data:`~jaxclear.integrate.OPTION_KEYS`); the parsed value's ``dest`` is the flag's.
 FLAGS = {
     "--solver": "solver",
     "--rtol": "rtol",
@@ -84,7 +84,7 @@ def add_settings_options(group, defaults: Settings | None = None, *, shown: dict
 
 def given_options(args) -> dict:
     """The integration options given on the command line, by ``Settings`` field name
-    (:data:`FLAGS`): what :func:`~jaxclear.integrate.settings.settings_from_options` and a file's
+    (:data:`FLAGS`): what :func:`~jaxclear.integrate.settings_from_options` and a file's
     ``settings_options`` take."""
     given = getattr(args, GIVEN, None) or ()
     return {FLAGS[flag]: getattr(args, _dest(flag)) for flag in FLAGS if _dest(flag) in given}

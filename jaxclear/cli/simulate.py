@@ -9,12 +9,12 @@ import jax
 
 from .. import io, plot
 from ..analysis import channels, metrics
-from ..integrate import runs
+from ..integrate import SAMPLES_PER_REVOLUTION, revolution_settings, revolutions_of, simulate_with_ideal
 from .._errors import ParameterError, check_range
 from .._numbers import as_typed
 from ..model import crank_driver
 
-from ..integrate.settings import MAX_OUT_SAMPLES
+from ..integrate import MAX_OUT_SAMPLES
 from . import cache
 from .settings import add_settings_options, settings_from_args
 from .common import (add_mechanism_file_option, add_mechanism_options, fmt, load_mechanism_file, mechanism_file,
@@ -65,8 +65,8 @@ def add_integration_options(p: argparse.ArgumentParser, revolutions: float = 3.0
                       help="simulated time [s], > 0; overrides --revolutions (default: unset)")
     run_.add_argument("--n-out", type=number_in(int, 2, MAX_OUT_SAMPLES), metavar="N",
                       help=f"number of output samples [-], in [2, {MAX_OUT_SAMPLES}], uniform in time (default: "
-                      f"{runs.SAMPLES_PER_REVOLUTION} per crank revolution + 1, i.e. "
-                      f"{3 * runs.SAMPLES_PER_REVOLUTION + 1} for 3 revolutions)")
+                      f"{SAMPLES_PER_REVOLUTION} per crank revolution + 1, i.e. "
+                      f"{3 * SAMPLES_PER_REVOLUTION + 1} for 3 revolutions)")
     add_settings_options(run_)
     add_free_dof_option(run_)
 
@@ -98,8 +98,8 @@ def settings_from(args, mech):
         check_range("--revolutions", args.revolutions, low=0.0, low_open=True)
         if crank_driver(mech) is None:
             raise ParameterError(f"{mech.name!r} has no crank (AngleDriver): give --t-end [s] instead of --revolutions")
-    base = runs.revolution_settings(mech, args.revolutions, t_end=args.t_end, n_out=args.n_out,
-                                    progress=cache.progress_allowed(args), allow_free_dof=args.allow_free_dof)
+    base = revolution_settings(mech, args.revolutions, t_end=args.t_end, n_out=args.n_out,
+                               progress=cache.progress_allowed(args), allow_free_dof=args.allow_free_dof)
     return settings_from_args(args, base)  # the integration options given (cli/settings.py)
 
 
@@ -108,7 +108,7 @@ def run(args) -> int:
     mech, path, overrides = load(args)
     s = settings_from(args, mech)
     t_end, n_out = float(s.t_end), int(s.n_out)
-    revolutions = runs.revolutions_of(mech, t_end)
+    revolutions = revolutions_of(mech, t_end)
     os.makedirs(args.out, exist_ok=True)
 
     joint = mech.clearance_joints[0] if mech.clearance_joints else None
@@ -124,7 +124,7 @@ def run(args) -> int:
     overlay = bool(mech.clearance_joints) and (wants_overlay or (not args.no_plots and mech.role("slider") is not None))
     print("compiling and integrating (the first run includes JIT compilation)"
           + (", then the ideal-joint mechanism for the overlay" if overlay else "") + "...", flush=True)
-    r = runs.simulate_with_ideal(mech, s, ideal=overlay)
+    r = simulate_with_ideal(mech, s, ideal=overlay)
     # host (NumPy) copies: indexing and plotting them runs no small JAX programs, each of which a
     # new process would compile or load from the cache
     r = r._replace(sol=jax.device_get(r.sol), ideal_sol=jax.device_get(r.ideal_sol))

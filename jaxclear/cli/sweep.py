@@ -9,7 +9,7 @@ import jax
 
 from .._errors import ParameterError
 from .._xla_flags import request_host_devices
-from ..integrate.settings import default_settings
+from ..integrate import default_settings
 from ..sweep import load_config, make_mesh, run_sweep
 from ..sweep.config import MAX_STEPS
 from .common import number_in

@@ -7,7 +7,7 @@ import argparse
 import textwrap
 
 from .._errors import ParameterError, check_range
-from ..integrate import runs
+from ..integrate import revolutions_of
 from ..wearing import WearOptions, wear
 from ..wearing.service import MAX_NODES
 from .common import add_mechanism_file_option, add_mechanism_options, number_in
@@ -76,7 +76,7 @@ def run(args) -> int:
     options = WearOptions(coefficient=args.wear_coefficient, updates=args.updates,
                           cycles_per_update=args.cycles_per_update, settle=args.settle, joint=joint,
                           n_nodes=args.nodes, harmonics=args.harmonics)
-    revs = runs.revolutions_of(mech, float(s.t_end))
+    revs = revolutions_of(mech, float(s.t_end))
     print(f"jaxclear wear: {mech.name}, {args.updates} update(s) of {float(s.t_end):.6g} s"
           + (f" ({revs:g} revolution(s))" if revs is not None else "")
           + f" x {args.cycles_per_update:g} cycles; k_w = {args.wear_coefficient:g} m^2/N; the first update compiles",

@@ -47,7 +47,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..derivatives import DerivativeHorizonWarning, amplification, derivative_horizon
-from ..integrate.compile import jit
+from ..integrate import jit
 from .problem import DesignProblem
 
 #: Steps of the roughness check, fractions of each variable's range: far below any design

@@ -10,7 +10,7 @@ Offered by name (``constraint("...")``, the command line's ``--constraint``):
 ``assembles`` / ``assembles:margin=F`` (:class:`Assembles`)
     the ideal-joint mechanism still assembles at every crank angle and stays away from a
     singular position: the smallest singular value of its constraint Jacobian over one crank
-    revolution (kinematic analysis, :func:`~jaxclear.integrate.kinematics.kinematic_solution`),
+    revolution (kinematic analysis, :func:`~jaxclear.integrate.kinematic_solution`),
     soft-minimised over the angles, is at least ``F`` (default 0.2) times its value at the start
     design. At a dead centre or where the loop no longer closes that value reaches 0.
 ``peak-force<=N`` (:class:`PeakForce`)
@@ -35,8 +35,8 @@ import jax
 import jax.numpy as jnp
 
 from .._errors import ParameterError
-from ..integrate.kinematics import is_kinematic, kinematic_solution
-from ..integrate.settings import settings
+from ..integrate import is_kinematic, kinematic_solution
+from ..integrate import settings
 from ..model import Mechanism, constraints as equations, crank_driver, crank_period
 from .objectives import Run
 

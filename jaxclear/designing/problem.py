@@ -13,7 +13,7 @@ of their statistics (:mod:`.objectives`) and each constraint pools them its way
 Derivatives: ``jax.linearize`` of the whole evaluation, then its linear map applied to the P unit
 vectors. Under ``Settings(adjoint="sensitivity")`` linearizing a simulation runs the
 error-controlled sensitivity solve once, with one tangent per perturbed scalar leaf of the
-mechanism (:mod:`jaxclear.integrate.sensitivity`); the P columns are then linear combinations,
+mechanism (:mod:`jaxclear.integrate._sensitivity`); the P columns are then linear combinations,
 so the whole Jacobian costs one sensitivity solve per member (``jax.jacfwd`` would batch P of
 them).
 """
@@ -32,9 +32,9 @@ import numpy as np
 from .. import params
 from .._errors import ParameterError
 from ..integrate import Settings, simulate
-from ..integrate.compile import jit
-from ..integrate.kinematics import is_kinematic, kinematic_solution
-from ..integrate.settings import settings as make_settings
+from ..integrate import jit
+from ..integrate import is_kinematic, kinematic_solution
+from ..integrate import settings as make_settings
 from ..model import Mechanism, crank_driver, crank_period
 from ..sweep.lanes import lanes_one_by_one, over_lanes
 from .constraints import AbstractDesignConstraint

@@ -7,9 +7,9 @@ import numpy as np
 
 from .. import params
 from ..analysis import channels
-from ..integrate.kinematics import is_kinematic, kinematic_solution
-from ..integrate.runs import revolution_settings
-from ..integrate.simulate import simulate
+from ..integrate import is_kinematic, kinematic_solution
+from ..integrate import revolution_settings
+from ..integrate import simulate
 from ..model import Mechanism
 from .objectives import RmsDeviation
 from .optimize import Evaluator

@@ -6,7 +6,7 @@ The vector field sums every element's generalized force; the solver wrapper call
 element's :meth:`~AbstractForceElement.after_step` once per accepted step; outputs see an
 element only through its :class:`ContactOutput`. The state layout is
 ``y = [q, qdot, state of element 0, state of element 1, ...]``
-(:class:`~jaxclear.integrate.state.State`); each element's slice is the flat vector of its own
+(:class:`~jaxclear.integrate.State`); each element's slice is the flat vector of its own
 state pytree (:meth:`~AbstractForceElement.state_to_vector`).
 
 Each element declares its named parameters in its class's ``PARAMETERS``
@@ -158,7 +158,7 @@ class AbstractForceElement(eqx.Module):
         the earliest contact onset or separation among the element's contacts that the step
         cannot keep inside it (sign changes of the cubic Hermite interpolant of the penetration,
         :func:`~jaxclear.elements.memory.onset_fraction`) and whether there is one. The
-        step-size controller (:class:`~jaxclear.integrate.solvers.OnsetController`) uses it to end
+        step-size controller (:class:`~jaxclear.integrate.OnsetController`) uses it to end
         a step just past the switch, so the impact memory is taken at the onset and a free
         flight between contacts is never stepped over. Default: never a switch (elements
         without a memory of the approach speed)."""

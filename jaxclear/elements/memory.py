@@ -141,7 +141,7 @@ def _hermite_rate(s, p0, p1, r0, r1, h, accel=None):
     :math:`D = \int_0^1 e(s)\,ds` with :math:`e` the rate's deviation from its linear blend,
     :math:`|e| \le s(1 - s) h^2 \max|\dddot\delta|/2`, far below :math:`|r_1 - r_0| \approx
     h|\ddot\delta|` on a short step), and not differentiated: the error-controlled sensitivities
-    (:mod:`jaxclear.integrate.sensitivity`) approach an onset in steps down to 1e-18 s, where the
+    (:mod:`jaxclear.integrate._sensitivity`) approach an onset in steps down to 1e-18 s, where the
     unbounded term turned an approach speed of 4.39 m/s into 79 m/s."""
     if accel is not None:  # the switch's part from the penetration's own acceleration
         fixed = jax.lax.stop_gradient(s)

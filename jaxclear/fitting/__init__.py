@@ -87,7 +87,7 @@ The fit minimises ``0.5 |r(z)|^2`` over unconstrained coordinates ``z`` (the tra
 restitution; plus ``sensor_gain`` (log) and ``sensor_bias`` (scaled by the data RMS);
 :mod:`.parameters`). The residual Jacobian ``dr/dz`` is computed in **forward mode**
 (``jax.jacfwd`` of the window model, whose simulations give the error-controlled sensitivities of
-:mod:`jaxclear.integrate.sensitivity`: the tangents of the free parameters and window start
+:mod:`jaxclear.integrate._sensitivity`: the tangents of the free parameters and window start
 states integrated with the state and in its step-size control): there are a handful of columns
 and hundreds of rows.
 

@@ -16,7 +16,7 @@ from .._interrupt import stop_at_safe_points
 from .._numbers import as_typed
 from .._errors import CheckpointError, ParameterError
 from .._checkpoint import locked
-from ..integrate.compile import on_trace
+from ..integrate import on_trace
 from ..model import Mechanism
 from ..analysis.sensor import Accelerometer
 from .parameters import DEFAULT_FREE, law_name, values_of
@@ -31,7 +31,7 @@ from .state import Checkpoint, FitState
 from .uncertainty import AUTOCORRELATION_WARNING, Uncertainty, estimate_uncertainty
 
 
-#: What a fit says when its programs are not compiled yet (:func:`~jaxclear.integrate.compile.on_trace`).
+#: What a fit says when its programs are not compiled yet (:func:`~jaxclear.integrate.on_trace`).
 COMPILING = ("compiling the model (tens of seconds, once per structure of mechanism and record in a process; "
              "less where the persistent compilation cache holds it)")
 

@@ -22,11 +22,11 @@ def parameter_grad(loss: Callable, mech: Mechanism, names: Sequence[str], s: Set
     parameters (:mod:`jaxclear.params`).
 
     With ``s.derivatives = Sensitivity()`` (the default) both modes give the error-controlled
-    sensitivities (:mod:`jaxclear.integrate.sensitivity`): ``mode="forward"`` by ``jax.jacfwd``,
+    sensitivities (:mod:`jaxclear.integrate._sensitivity`): ``mode="forward"`` by ``jax.jacfwd``,
     ``mode="reverse"`` by ``jax.grad`` (their transpose), the same numbers. Through diffrax's loop
     (:class:`~jaxclear.ThroughLoop`), ``mode="reverse"`` uses ``s.derivatives``' adjoint
     (``"forward"`` is replaced by ``"recursive"``) and ``mode="forward"`` uses ``"forward"``
-    (:meth:`~jaxclear.integrate.strategies.AbstractDerivatives.for_mode`). Returns ``(value, {name: d
+    (:meth:`~jaxclear.integrate._strategies.AbstractDerivatives.for_mode`). Returns ``(value, {name: d
     loss / d name})``. Compiles on every call: for repeated use, build your own
     ``eqx.filter_jit`` of the same function.
     """

@@ -17,7 +17,7 @@ from ..model import FunctionDriver, Mechanism, crank_driver, crank_period
 from ..analysis.channels import unit as named_unit
 from ..analysis.sensor import Accelerometer, record_times, uniform_spacing
 from ..integrate import ExactOnsets, SampleBlock, Sensitivity, Settings
-from ..integrate.settings import default_settings, deprecated_keywords, option_values
+from ..integrate import default_settings, deprecated_keywords, option_values
 from .parameters import check_free, fixed_values, start_values, z_vector
 from .plan import check_plan, plan_stages, spread_starts
 from .records import read_record

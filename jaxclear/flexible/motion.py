@@ -5,7 +5,7 @@ With the constant mass matrix :math:`M`, the elastic and damping forces
 :math:`Q_e(e) + Q_d(e, \dot e)` (:class:`~jaxclear.flexible.beam.AncfBeam`), the constant
 applied force :math:`f` (gravity and point loads) and the supports :math:`\Phi(e, t) = 0`
 (:mod:`jaxclear.flexible.supports`), the accelerations and multipliers solve the augmented
-system of the mechanism's equations (:mod:`jaxclear.integrate.dynamics`; Nikravesh 1988,
+system of the mechanism's equations (:mod:`jaxclear.integrate._dynamics`; Nikravesh 1988,
 Baumgarte 1972)
 
 .. math::

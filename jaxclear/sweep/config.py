@@ -27,7 +27,7 @@ from ..model import Mechanism
 from ..mechanism_files import load_mechanism
 from ..presets import PRESETS, preset
 from ..integrate import Settings
-from ..integrate.settings import (MAX_OUT_SAMPLES, OPTION_KEYS, deprecated_keywords, option_values,
+from ..integrate import (MAX_OUT_SAMPLES, OPTION_KEYS, deprecated_keywords, option_values,
                                   settings_from_options)
 from ..analysis.channels import unit as channel_unit
 from ..analysis.sections import section_indices

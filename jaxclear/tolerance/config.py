@@ -37,7 +37,7 @@ import os
 from .._errors import ParameterError
 from .._storage import read_toml
 from .distributions import inputs_from_dict
-from ..integrate.settings import OPTION_KEYS
+from ..integrate import OPTION_KEYS
 from .study import RUN_OPTIONS
 
 TABLES = {"mechanism": None, "parameters": None, "correlations": ("pairs",),

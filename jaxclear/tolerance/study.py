@@ -40,7 +40,7 @@ from .._errors import ParameterError
 from .._extras import require_extra
 from .._results import AbstractResult, SummaryTable
 from .._storage import atomic_write_json, atomic_write_text, jsonable
-from ..integrate.settings import Settings, deprecated_keywords, option_values, settings_from_options
+from ..integrate import Settings, deprecated_keywords, option_values, settings_from_options
 from ..model import Mechanism
 from .distributions import Inputs
 from .estimators import (UnresolvedEstimateWarning, check_limit, exceedance, importance_exceedance, linearised,

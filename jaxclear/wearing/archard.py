@@ -31,7 +31,7 @@ from .._errors import ParameterError
 from .._types import Array, Float, Scalar
 from ..contact.hybrid import HybridLaw
 from ..elements.revolute_clearance import AbstractJournalJoint
-from ..integrate.solution import Solution
+from ..integrate import Solution
 from ..model.mechanism import Mechanism
 
 

@@ -37,9 +37,9 @@ from .._numbers import as_typed
 from .._results import AbstractResult
 from .._checkpoint import Work, key as work_key
 from .._storage import atomic_write_json, atomic_write_text, fsync_append, jsonable
-from ..integrate.settings import Settings
-from ..integrate.simulate import check_status, simulate
-from ..integrate.strategies import StepOnsets
+from ..integrate import Settings
+from ..integrate import check_status, simulate
+from ..integrate import StepOnsets
 from ..model.mechanism import Mechanism
 from .figures import plot_wear
 from .archard import WindowWear, wear_element, window_wear

@@ -21,10 +21,10 @@ import jax
 
 from .._errors import check_range
 from ..model import Mechanism, crank_driver, crank_period
-from .settings import Settings, settings
-from .kinematics import is_kinematic, kinematic_solution
-from .simulate import prepare_simulate, simulate
-from .solution import Solution
+from ._settings import Settings, settings
+from ._kinematics import is_kinematic, kinematic_solution
+from ._simulate import prepare_simulate, simulate
+from ._solution import Solution
 
 #: Output samples per crank revolution of :func:`revolution_settings` (plus one for the end).
 SAMPLES_PER_REVOLUTION = 2000
@@ -106,9 +106,9 @@ def simulate_with_ideal(mech: Mechanism, s: Settings, ideal: bool = True) -> Run
     settings, so both solutions share the output grid. Errors of either run propagate
     (:class:`jaxclear.JaxclearError`).
 
-    When the drivers determine the ideal mechanism's motion (:func:`~jaxclear.integrate.kinematics.is_kinematic`,
+    When the drivers determine the ideal mechanism's motion (:func:`~jaxclear.integrate.is_kinematic`,
     e.g. a crank-driven slider-crank or four-bar), its solution is the kinematic analysis at the
-    samples (:func:`~jaxclear.integrate.kinematics.kinematic_solution`): no integration, a small
+    samples (:func:`~jaxclear.integrate.kinematic_solution`): no integration, a small
     program, exact to the Newton tolerance. Otherwise it is integrated with ``s``. Either way it
     is another program than the clearance run's. The clearance run is traced (or loaded from the
     store of traced programs) first; the ideal run then starts in a second thread, so that its

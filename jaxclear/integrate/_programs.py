@@ -312,7 +312,7 @@ def call(name: str, fun: Callable, args: tuple, out_structure: Callable[[], jax.
         fun: the function (traced on a miss).
         args: its arguments (a tuple of pytrees: arrays are inputs, everything else is keyed).
         out_structure: returns the pytree structure of ``fun``'s output without tracing it.
-        compiler_options: XLA options of the compilation (:func:`~jaxclear.integrate.compile.compiler_options`).
+        compiler_options: XLA options of the compilation (:func:`~jaxclear.integrate.compiler_options`).
     """
     prepared = _prepared(name, fun, args, compiler_options)
     if prepared is None:

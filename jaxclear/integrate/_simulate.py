@@ -4,15 +4,15 @@ fits differentiate.
 Data path: mechanism and settings -> consistent start state (:mod:`.assembly`) -> packed state
 vector (:mod:`.state`) -> vector field (forces -> augmented solve, :mod:`.dynamics`) ->
 diffrax with the element-state solver wrapper (:mod:`.solvers`) -> post-processing on the
-output grid -> :class:`~jaxclear.integrate.solution.Solution` with a :class:`~jaxclear.RESULTS`
+output grid -> :class:`~jaxclear.integrate.Solution` with a :class:`~jaxclear.RESULTS`
 status.
 
 Speed (the benchmark slider-crank takes a few thousand steps of a vector field with only a few
 dozen flops per kernel, so per-kernel overhead dominates): the solver integrates one packed
 vector rather than a pytree, the Runge-Kutta stages run in diffrax's stage loop (one copy of
-the vector field; :class:`~jaxclear.integrate.solvers.UnrolledExplicitRK` unrolls them, see
+the vector field; :class:`~jaxclear.integrate.UnrolledExplicitRK` unrolls them, see
 ``Settings.solver``), and XLA compiles with
-:func:`~jaxclear.integrate.compile.compiler_options`. ``benchmarks/bench_engine.py --profile``
+:func:`~jaxclear.integrate.compiler_options`. ``benchmarks/bench_engine.py --profile``
 measures each part.
 """
 
@@ -28,14 +28,14 @@ import jax.numpy as jnp
 from .._errors import RESULTS, JaxclearError, ParameterError, SolverError, invalid_codes, is_concrete, status_message
 from .._errors import STATUS
 from ..model.mechanism import Mechanism
-from . import solve
-from .assembly import ASSEMBLY_TEMPLATE, check_assembly
-from .compile import jit
-from .sensitivity import tangent_run
-from .settings import Settings
-from .solution import Solution
-from .solve import POSTPROCESS_BATCH, output_grid  # noqa: F401  (re-exported: tests, kinematics)
-from .state import State
+from . import _solve as solve
+from ._assembly import ASSEMBLY_TEMPLATE, check_assembly
+from ._compile import jit
+from ._sensitivity import tangent_run
+from ._settings import Settings
+from ._solution import Solution
+from ._solve import POSTPROCESS_BATCH, output_grid  # noqa: F401  (re-exported: tests, kinematics)
+from ._state import State
 
 
 def solution_template(mech: Mechanism) -> Solution:
@@ -56,7 +56,7 @@ def solution_structure(mech: Mechanism):
 def _run(mech: Mechanism, s: Settings, y0: State | None):
     """The solution and the assembly at ``s.t_start`` (a member that cannot be assembled is not
     integrated: status ``assembly_failed``, a zero-length run)."""
-    begin = solve.start(mech, s, y0)
+    begin = solve.start_run(mech, s, y0)
     return solve.run(mech, s, begin)[0], begin.assembly
 
 
@@ -67,9 +67,9 @@ def _solution(mech: Mechanism, s: Settings, y0: State | None) -> Solution:
 @jit
 def _simulate(mech: Mechanism, s: Settings, y0: State | None) -> Solution:
     """The run as ``s.derivatives`` differentiates it: under the default
-    :class:`~jaxclear.integrate.strategies.Sensitivity` its derivatives (``jax.jvp``,
+    :class:`~jaxclear.integrate.Sensitivity` its derivatives (``jax.jvp``,
     ``jax.jacfwd``, ``jax.grad``, ...) are the error-controlled sensitivities of
-    :func:`~jaxclear.integrate.sensitivity.tangent_run`."""
+    :func:`~jaxclear.integrate._sensitivity.tangent_run`."""
     return s.derivatives.differentiable(_solution, tangent_run)(mech, s, y0)
 
 
@@ -90,7 +90,7 @@ def _concrete_call(mech: Mechanism, s: Settings):
 
 def prepare_simulate(mech: Mechanism, s: Settings) -> None:
     """Trace (or load from the store of traced programs) what ``simulate(mech, s)`` will run,
-    without compiling it: :func:`~jaxclear.integrate.runs.simulate_with_ideal` does this before
+    without compiling it: :func:`~jaxclear.integrate.simulate_with_ideal` does this before
     it starts the ideal-joint run in a second thread, so that run's tracing overlaps this run's
     XLA compilation (which releases Python's lock) rather than its tracing."""
     if s.throw and is_concrete((mech, s)):
@@ -134,7 +134,7 @@ def simulate(mech: Mechanism, s: Settings, y0: State | None = None) -> Solution:
     Args:
         mech: the mechanism (structure + parameters).
         s: :class:`Settings`.
-        y0: optional start :class:`~jaxclear.integrate.state.State`; default: assembled by
+        y0: optional start :class:`~jaxclear.integrate.State`; default: assembled by
             :func:`~jaxclear.assemble`.
     """
     if not (s.throw and is_concrete((mech, s, y0))):

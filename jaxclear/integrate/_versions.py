@@ -1,7 +1,7 @@
 """The versions of the libraries whose internals jaxclear leans on, and a check against them.
 
-:class:`~jaxclear.integrate.solvers.UnrolledExplicitRK` and
-:class:`~jaxclear.integrate.solvers.ImpactMemorySolver` use diffrax's solver internals (the
+:class:`~jaxclear.integrate.UnrolledExplicitRK` and
+:class:`~jaxclear.integrate.ImpactMemorySolver` use diffrax's solver internals (the
 wrapped-solver base class, Butcher tableau fields, the step protocol); the engine's speed relies
 on XLA:CPU compiler options of jax/jaxlib. ``pyproject.toml`` pins the same bounds; a test fails
 with :func:`check` naming the untested version.

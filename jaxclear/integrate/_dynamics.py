@@ -7,7 +7,7 @@ r"""Equations of motion of a constrained planar multibody system with clearance 
     \begin{bmatrix} g(q, \dot q, t) \\ \gamma - 2\alpha\dot\Phi - \beta^2\Phi \end{bmatrix}
 
 ``g`` holds gravity, applied loads and the force elements' forces (clearance joints). The
-state is :class:`~jaxclear.integrate.state.State` ``(q, qdot, element states)``; the vector
+state is :class:`~jaxclear.integrate.State` ``(q, qdot, element states)``; the vector
 field is :func:`vector_field`.
 """
 
@@ -22,7 +22,7 @@ from ..elements.base import stack_outputs
 from ..model import constraints
 from ..model.loads import gravity_force
 from ..model.mechanism import Mechanism
-from .state import State, element_states
+from ._state import State, element_states
 
 
 class Baumgarte(eqx.Module):

@@ -14,9 +14,9 @@ cost per step (the block's interpolation and the gathering, about 10 us on the b
 XLA's kernel-per-operation runtime) makes it pay only from about 10 samples per step there;
 with jaxclear's single-kernel loops (``jaxclear/_xla_flags.py``) diffrax's saving is faster on
 every grid measured (``benchmarks/README.md``, "Settings' measured choices"), so
-``Settings(output=SampleBlock())`` (:class:`~jaxclear.integrate.strategies.SampleBlock`) is opt-in.
+``Settings(output=SampleBlock())`` (:class:`~jaxclear.integrate.SampleBlock`) is opt-in.
 
-The step's interpolant comes from the solver (:class:`~jaxclear.integrate.solvers.ImpactMemorySolver`
+The step's interpolant comes from the solver (:class:`~jaxclear.integrate.ImpactMemorySolver`
 with ``dense_to_controller``, which hands its dense output to the controller beside the error
 estimate), so samples read what diffrax's own saving would read: the same interpolation class
 on the same coefficients, the memory of the step's end included (equal to rounding; a test).
@@ -39,7 +39,7 @@ import jax
 import jax.numpy as jnp
 
 from .._types import Array, Float, Int
-from .solvers import AbstractDelegatingController
+from ._solvers import AbstractDelegatingController
 
 #: Most output samples one accepted step writes (its interpolant evaluated at once, vectorised);
 #: a step is ended no later than the BLOCK-th unwritten sample. Measured 2026-11-25 on the
@@ -79,7 +79,7 @@ class Samples(eqx.Module):
 class SampleWriter(AbstractDelegatingController):
     r"""A step-size controller that delegates to ``inner`` and writes the output samples of
     every accepted step (module docstring). ``y_error`` of the solver's step must be the pair
-    ``(error estimate, dense output)`` (:class:`~jaxclear.integrate.solvers.ImpactMemorySolver`
+    ``(error estimate, dense output)`` (:class:`~jaxclear.integrate.ImpactMemorySolver`
     with ``dense_to_controller=True``); ``inner`` sees the error estimate only. The state is
     ``(inner state, Samples)``; :meth:`samples` reads the outputs off the final state.
 
@@ -209,7 +209,7 @@ class DirectAdjoint(diffrax.DirectAdjoint):
 
 def adjoint(kind: str, checkpoints: int | None = None, block: bool = True) -> diffrax.AbstractAdjoint:
     """diffrax's adjoint ``kind`` (``"recursive"`` with ``checkpoints``, ``"forward"``,
-    ``"direct"``; :class:`~jaxclear.integrate.strategies.ThroughLoop`); with ``block`` the one that
+    ``"direct"``; :class:`~jaxclear.integrate.ThroughLoop`); with ``block`` the one that
     declares a :class:`SampleWriter`'s buffer."""
     if kind == "forward":
         return ForwardMode() if block else diffrax.ForwardMode()

@@ -1,14 +1,14 @@
 r"""The integration itself, shared by :func:`~jaxclear.simulate` and its sensitivities
 (:mod:`.sensitivity`): the start state, diffrax with jaxclear's solver and controller wrappers on
 a system (:mod:`.system`), and the post-processing of the output samples into a
-:class:`~jaxclear.integrate.solution.Solution`.
+:class:`~jaxclear.integrate.Solution`.
 
 Speed (the benchmark slider-crank takes a few thousand steps of a vector field with only a few
 dozen flops per kernel, so per-kernel overhead dominates): the solver integrates one packed
 vector rather than a pytree, the Runge-Kutta stages run in diffrax's stage loop (one copy of
-the vector field; :class:`~jaxclear.integrate.solvers.UnrolledExplicitRK` unrolls them, see
+the vector field; :class:`~jaxclear.integrate.UnrolledExplicitRK` unrolls them, see
 ``Settings.solver``), and XLA compiles with
-:func:`~jaxclear.integrate.compile.compiler_options`. ``benchmarks/bench_engine.py --profile``
+:func:`~jaxclear.integrate.compiler_options`. ``benchmarks/bench_engine.py --profile``
 measures each part.
 """
 
@@ -23,14 +23,14 @@ from .._errors import RESULTS
 from .._xla_flags import loop_kernels_active
 from ..elements.base import contact_mode
 from ..model.mechanism import Mechanism
-from .assembly import NEWTON_TOL, assemble, initial_state
-from .compile import without_input_callbacks
-from .dynamics import _accelerations
-from .settings import Settings
-from .solution import Solution
-from .solvers import ImpactMemorySolver, StopOnNonFinite
-from .state import State, stack_memory
-from .system import AbstractSystem, MechanismSystem, system_field
+from ._assembly import NEWTON_TOL, assemble, initial_state
+from ._compile import without_input_callbacks
+from ._dynamics import _accelerations
+from ._settings import Settings
+from ._solution import Solution
+from ._solvers import ImpactMemorySolver, StopOnNonFinite
+from ._state import State, stack_memory
+from ._system import AbstractSystem, MechanismSystem, system_field
 
 
 def _inner_solver(s: Settings):
@@ -101,7 +101,7 @@ class Start(eqx.Module):
     assembly: object
 
 
-def start(mech: Mechanism, s: Settings, y0: State | None) -> Start:
+def start_run(mech: Mechanism, s: Settings, y0: State | None) -> Start:
     """The start of a run: the assembly at ``s.t_start`` (a member that cannot be assembled is
     not integrated: status ``assembly_failed``, a zero-length run) and the start state (``y0``,
     or the assembled one)."""
@@ -125,12 +125,12 @@ class Integration(eqx.Module):
     result: diffrax.RESULTS
 
 
-def integrate(system: AbstractSystem, s: Settings, t0, t1, ts, v0) -> Integration:
+def integrate_system(system: AbstractSystem, s: Settings, t0, t1, ts, v0) -> Integration:
     """Integrate ``system`` from ``v0`` over ``[t0, t1]`` with the settings ``s``, sampled at
     ``ts``: diffrax's PID controller (the system's error norm) wrapped by
-    :class:`~jaxclear.integrate.solvers.StopOnNonFinite` and as ``s.onsets`` needs; the solver
+    :class:`~jaxclear.integrate._solvers.StopOnNonFinite` and as ``s.onsets`` needs; the solver
     (``s.derivatives``' form of ``s.solver``) wrapped by
-    :class:`~jaxclear.integrate.solvers.ImpactMemorySolver`; the samples written as
+    :class:`~jaxclear.integrate.ImpactMemorySolver`; the samples written as
     ``s.output`` writes them, the adjoint ``s.derivatives``'."""
     controller = StopOnNonFinite(diffrax.PIDController(rtol=s.rtol, atol=s.atol, dtmax=s.dtmax, norm=system.norm(),
                                                        dtmin=system.dtmin()))
@@ -165,7 +165,7 @@ def solution(mech: Mechanism, s: Settings, ts, packed, run: Integration, begin: 
     ``begin``): accelerations, reactions, drift and contact outputs at the samples, and the
     status, also as a :class:`~jaxclear.RESULTS` entry. Nothing raises here: the compiled
     program holds no host callback (JAX's persistent compilation cache stores no program that
-    has one); :func:`~jaxclear.integrate.simulate.check_status` raises for the status after it."""
+    has one); :func:`~jaxclear.integrate.check_status` raises for the status after it."""
     ys: State = jax.vmap(lambda v: State.unpack(v, mech))(packed)
     qdd, lam, drift, ecc, pen, fn, ft, mode = _postprocess(mech, s, ts, packed, ys)
     finite = jnp.all(jnp.isfinite(ys.q)) & jnp.all(jnp.isfinite(ys.qdot)) & jnp.all(jnp.isfinite(qdd))
@@ -196,6 +196,22 @@ def solution(mech: Mechanism, s: Settings, ts, packed, run: Integration, begin: 
     ), result
 
 
+def mechanism_system(mech: Mechanism, s: Settings) -> MechanismSystem:
+    """What :func:`integrate_system` integrates for a run of ``mech`` alone: its packed state
+    under the vector field with ``s``'s Baumgarte terms."""
+    return MechanismSystem(mech, s.baumgarte)
+
+
+def stored_solution(mech: Mechanism, s: Settings, ts, packed, num_steps) -> Solution:
+    """The :class:`Solution` of packed states ``packed`` (T, N) stored at ``ts`` (T,) by a run
+    that took ``num_steps`` steps (a Lyapunov run's trajectory): accelerations, reactions and
+    contact outputs recomputed from them, as for a run. Traceable."""
+    steps = jnp.asarray(num_steps)
+    run = Integration(packed, steps, steps, jnp.zeros_like(steps), diffrax.RESULTS.successful)
+    begin = Start(packed[0], jnp.asarray(True), RESULTS.successful, None)
+    return solution(mech, s, ts, packed, run, begin)[0]
+
+
 def grid(s: Settings, begin: Start, dtype):
     """The output grid of a run that starts at ``begin``: zero length for a member with invalid
     parameters or that cannot be assembled (:func:`output_grid`)."""
@@ -205,7 +221,7 @@ def grid(s: Settings, begin: Start, dtype):
 def run(mech: Mechanism, s: Settings, begin: Start) -> tuple[Solution, RESULTS]:
     """The run of ``mech`` from ``begin`` and its status (no error raised)."""
     t0, t1, ts = grid(s, begin, begin.packed.dtype)
-    out = integrate(MechanismSystem(mech, s.baumgarte), s, t0, t1, ts, begin.packed)
+    out = integrate_system(mechanism_system(mech, s), s, t0, t1, ts, begin.packed)
     return solution(mech, s, ts, out.samples, out, begin)
 
 

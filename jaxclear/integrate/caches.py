@@ -1,6 +1,6 @@
 """Where jaxclear keeps what it compiled, so that a new process skips the work: JAX's persistent
 compilation cache (compiled XLA programs) and jaxclear's store of traced programs
-(:mod:`jaxclear.integrate.programs`: a new process skips tracing too). Both are on by default,
+(:mod:`jaxclear.integrate._programs`: a new process skips tracing too). Both are on by default,
 for the Python API (``import jaxclear`` enables them) and the command line alike, in one folder.
 
 **Where**: ``$JAXCLEAR_CACHE_DIR`` if set, else the folder ``jaxclear/xla`` in the user's cache
@@ -45,8 +45,8 @@ from pathlib import Path
 import jax
 from jax.experimental.compilation_cache import compilation_cache
 
-from ._errors import ParameterError
-from .integrate import programs
+from .._errors import ParameterError
+from . import _programs as programs
 
 #: Environment variable naming the cache folder (``off``, ``0``, ``none``, ``false``, ``no`` or
 #: empty: no cache).
@@ -55,7 +55,7 @@ ENV = "JAXCLEAR_CACHE_DIR"
 SIZE_ENV = "JAXCLEAR_CACHE_MAX_MB"
 #: The size limit without :data:`SIZE_ENV` [MB].
 DEFAULT_MAX_MB = 2048
-#: Subfolder of the traced programs (:mod:`jaxclear.integrate.programs`).
+#: Subfolder of the traced programs (:mod:`jaxclear.integrate._programs`).
 PROGRAMS = "programs"
 #: Programs that compile faster than this [s] are not written (the many tiny eager-op programs).
 MIN_COMPILE_TIME_S = 0.1

@@ -2,14 +2,14 @@
 joint, the corners of a translational joint, the active feature of a pin-in-slot joint, ...):
 each element's :meth:`~jaxclear.elements.base.AbstractForceElement.outputs` evaluated at every
 output sample from the sampled coordinates and the element's sampled state (its memories), so
-they need nothing stored beyond :class:`~jaxclear.integrate.solution.Solution`. Traceable:
+they need nothing stored beyond :class:`~jaxclear.integrate.Solution`. Traceable:
 fits and sweeps can use them through the channels ``joint:K:NAME``."""
 
 from __future__ import annotations
 
 import jax
 
-from .settings import CONTINUOUS_CONTACT_AFTER
+from ._settings import CONTINUOUS_CONTACT_AFTER
 
 
 def element_outputs(mech, sol, k: int, continuous_after: float | None = None) -> dict:

@@ -9,7 +9,7 @@ whatever its masses and loads: at each time :math:`t`
     D^T\lambda = g(q, \dot q, t) - M\ddot q
 
 (position, velocity and acceleration analysis, then the reactions from the equations of motion of
-:mod:`~jaxclear.integrate.dynamics`; Nikravesh, *Computer-Aided Analysis of Mechanical Systems*,
+:mod:`~jaxclear.integrate._dynamics`; Nikravesh, *Computer-Aided Analysis of Mechanical Systems*,
 1988, ch. 3 and 6). The ideal-joint counterpart of a driven mechanism with clearance joints
 (:meth:`~jaxclear.model.Mechanism.ideal`) is such a mechanism: the command line's ideal-joint
 overlay is its kinematic solution, a far smaller program than an integration (compiled in a
@@ -17,9 +17,9 @@ fraction of the time) and exact to the Newton tolerance, where the integrated id
 the integrator's error (about ``rtol``).
 
 Positions: Newton's method :math:`q \leftarrow q - D^{-1}\Phi` from the previous sample (the first
-sample from :func:`~jaxclear.integrate.assembly.assemble`), :data:`NEWTON_ITERATIONS` iterations per
+sample from :func:`~jaxclear.integrate.assemble`), :data:`NEWTON_ITERATIONS` iterations per
 sample, in a ``lax.scan`` over the samples; a sample whose residual stays above
-:data:`~jaxclear.integrate.assembly.NEWTON_TOL` makes the status ``assembly_failed``.
+:data:`~jaxclear.integrate._assembly.NEWTON_TOL` makes the status ``assembly_failed``.
 """
 
 from __future__ import annotations
@@ -30,12 +30,12 @@ import jax.numpy as jnp
 from .._errors import RESULTS, is_concrete
 from ..model import constraints
 from ..model.mechanism import Mechanism
-from .assembly import NEWTON_TOL, assemble
-from .compile import jit
-from .dynamics import applied_forces
-from .settings import Settings
-from .simulate import output_grid, raise_for_status, solution_structure
-from .solution import Solution
+from ._assembly import NEWTON_TOL, assemble
+from ._compile import jit
+from ._dynamics import applied_forces
+from ._settings import Settings
+from ._simulate import output_grid, raise_for_status, solution_structure
+from ._solution import Solution
 
 #: Newton iterations per output sample (from the previous sample's positions: at the default
 #: 2000 samples per crank revolution the first iteration leaves ~1e-9 of the residual, the
@@ -91,7 +91,7 @@ def kinematic_solution(mech: Mechanism, s: Settings) -> Solution:
     Raises:
         ValueError: ``mech`` is not kinematically driven (use :func:`jaxclear.simulate`).
         ParameterError, SolverError: with concrete inputs and ``s.throw``, a status other than
-            successful (:func:`~jaxclear.integrate.simulate.raise_for_status`).
+            successful (:func:`~jaxclear.integrate.raise_for_status`).
     """
     if not is_kinematic(mech):
         raise ValueError(f"{mech.name!r} is not kinematically driven ({mech.n_constraints} constraint equations "

@@ -16,7 +16,7 @@ r"""Solver wrappers around diffrax's Runge-Kutta solvers.
 
 Both rely on diffrax's solver internals (``AbstractWrappedSolver``, the Butcher tableau fields,
 the ``(y1, y_error, dense_info, solver_state, result)`` step protocol): the versions they are
-tested with are pinned in ``pyproject.toml`` and checked by :mod:`jaxclear.integrate.versions`.
+tested with are pinned in ``pyproject.toml`` and checked by :mod:`jaxclear.integrate._versions`.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ import jax.numpy as jnp
 
 from .._errors import ParameterError
 from ..elements.memory import ONSET_MARGIN
-from .state import State
+from ._state import State
 
 
 class _Forwarding(diffrax.AbstractWrappedSolver):
@@ -137,12 +137,12 @@ class ImpactMemorySolver(_Forwarding):
     ``after_step`` (for a clearance joint, the impact-memory rule of
     :mod:`jaxclear.elements.memory`). When an element's force law changed during a step (a
     contact onset) the next step re-evaluates its first stage, so FSAL solvers stay exact.
-    ``args`` of the solve must be a :class:`~jaxclear.integrate.system.AbstractSystem` (its
+    ``args`` of the solve must be a :class:`~jaxclear.integrate._system.AbstractSystem` (its
     ``after_step`` is the update: the packed state of :meth:`State.pack`, or that state with its
     tangents).
 
     With ``dense_to_controller`` the step's error estimate is handed on as the pair ``(error
-    estimate, dense output)``, for :class:`~jaxclear.integrate.sampling.SampleWriter`, which
+    estimate, dense output)``, for :class:`~jaxclear.integrate._sampling.SampleWriter`, which
     writes the output samples of each accepted step (the controller must be one)."""
 
     solver: diffrax.AbstractSolver
@@ -186,7 +186,7 @@ class ImpactMemorySolver(_Forwarding):
 class AbstractDelegatingController(diffrax.AbstractAdaptiveStepSizeController):
     """A step-size controller that wraps ``inner`` and takes its tolerances and norm: the base
     of :class:`AbstractWrappedController` and of
-    :class:`~jaxclear.integrate.sampling.SampleWriter`."""
+    :class:`~jaxclear.integrate._sampling.SampleWriter`."""
 
     inner: eqx.AbstractVar[diffrax.AbstractAdaptiveStepSizeController]
 
@@ -236,7 +236,7 @@ class StopOnNonFinite(AbstractWrappedController):
     ``nonfinite_state``.
 
     Being the wrapper next to the PID controller, it also hands the step's error estimate to the
-    system's :meth:`~jaxclear.integrate.system.AbstractSystem.weigh_error` before the PID
+    system's :meth:`~jaxclear.integrate._system.AbstractSystem.weigh_error` before the PID
     controller scales it (diffrax takes one scalar ``atol``; a Lyapunov run's tangents need
     their own)."""
 
@@ -282,7 +282,7 @@ class OnsetController(AbstractWrappedController):
     decision is not differentiated (``stop_gradient``). Branch-free (``where``), so under
     ``vmap`` it costs the elements' kinematics at both ends of each step.
 
-    ``args`` of the solve must be a :class:`~jaxclear.integrate.system.AbstractSystem`; the
+    ``args`` of the solve must be a :class:`~jaxclear.integrate._system.AbstractSystem`; the
     onsets are those of its primal (mechanism) state."""
 
     inner: diffrax.AbstractAdaptiveStepSizeController

@@ -14,9 +14,9 @@ import numpy as np
 
 from .._errors import JaxclearError, ParameterError, is_concrete
 from .._types import Array, Float
-from .dynamics import Baumgarte
-from .solvers import UnrolledExplicitRK
-from .strategies import (
+from ._dynamics import Baumgarte
+from ._solvers import UnrolledExplicitRK
+from ._strategies import (
     SOLVERS,
     AbstractDerivatives,
     AbstractOnsets,

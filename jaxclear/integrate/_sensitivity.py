@@ -1,6 +1,6 @@
 r"""Error-controlled forward sensitivities: the derivatives of a simulation with respect to its
 parameters, integrated with the state and held to the values' tolerances times
-the :class:`~jaxclear.integrate.strategies.Sensitivity` ``tolerance`` (0.1 by default).
+the :class:`~jaxclear.integrate.Sensitivity` ``tolerance`` (0.1 by default).
 
 For a state :math:`y(t; \theta)` with :math:`\dot y = f(t, y, \theta)`, the tangent
 :math:`S_j = \partial y/\partial\theta_j` obeys the variational equation
@@ -51,10 +51,11 @@ import optimistix as optx
 
 from .._types import Array, Float
 from ..model.mechanism import Mechanism
-from . import solve
-from .dynamics import Baumgarte, flat_vector_field
-from .state import State
-from .system import AbstractSystem, memory_step
+from . import _solve as solve
+from ._dynamics import Baumgarte, flat_vector_field
+from ._settings import Settings
+from ._state import State
+from ._system import AbstractSystem, memory_step
 
 
 class Rebuild(eqx.Module):
@@ -184,6 +185,18 @@ class TangentSystem(AbstractSystem):
         return self._pack(y_err, t_err)
 
 
+def tangent_system(mech: Mechanism, s: Settings, *, size: int, count: int, span, reference=None) -> TangentSystem:
+    """The packed state (``size`` entries) of ``mech`` followed by ``count`` free tangents, with
+    no perturbed parameter: the variational equations along the motion, whose tangents the
+    Lyapunov exponents follow (:mod:`jaxclear.chaos`; the tangents' start and renormalisation
+    are the caller's). ``span`` [s]: the length of the runs it integrates (the shortest step is
+    :data:`DTMIN_FRACTION` of it); ``reference``: the size of a tangent at which its absolute
+    tolerance is ``atol`` (:attr:`TangentSystem.tangent_reference`), None: ``atol`` always."""
+    leaves, treedef = jax.tree_util.tree_flatten((mech, s, None))
+    return TangentSystem(mech, s.baumgarte, Rebuild(leaves, treedef, ()), (), (), DTMIN_FRACTION * span, size, count,
+                         reference)
+
+
 def directions(point) -> tuple[tuple, Float[Array, " P"]]:
     r"""One direction per scalar entry of the perturbed leaves ``point``: ``(tangents, scale)``
     with ``tangents`` per leaf ``(P, *shape)`` (the scale :math:`\bar\theta` at that entry's row,
@@ -217,7 +230,7 @@ def tangent_run(primals, tangents):
     perturbed = tuple(i for i, (x, t) in enumerate(zip(leaves, tleaves))
                       if t is not None and eqx.is_inexact_array(x))
     mech, s, y0 = primals
-    begin = solve.start(mech, s, y0)
+    begin = solve.start_run(mech, s, y0)
     if not perturbed:
         return solve.run(mech, s, begin)[0], None
     rebuild = Rebuild(leaves, treedef, perturbed)
@@ -227,12 +240,13 @@ def tangent_run(primals, tangents):
     size = begin.packed.shape[0]
     count = scale.shape[0]
 
-    v0, start_tangent = jax.linearize(lambda p: solve.start(*rebuild(p)).packed, point)
+    v0, start_tangent = jax.linearize(lambda p: solve.start_run(*rebuild(p)).packed, point)
     t0, t1, ts = solve.grid(s, begin, dtype)
     system = TangentSystem(mech, s.baumgarte, rebuild, point, dirs, DTMIN_FRACTION * (t1 - t0), size, count)
     rtol, atol = s.derivatives.tolerances(s.rtol, s.atol)
     tight = dataclasses.replace(s, rtol=rtol, atol=atol)
-    run = solve.integrate(system, tight, t0, t1, ts, jnp.concatenate([v0, jax.vmap(start_tangent)(dirs).reshape(-1)]))
+    run = solve.integrate_system(system, tight, t0, t1, ts,
+                                 jnp.concatenate([v0, jax.vmap(start_tangent)(dirs).reshape(-1)]))
     samples = run.samples[:, :size]
     tangent_samples = jnp.moveaxis(run.samples[:, size:].reshape(-1, count, size), 1, 0)  # (P, T, N)
 

@@ -3,7 +3,7 @@ equinox module that owns its behaviour (diffrax's own design: an adjoint, a solv
 controller are objects, not names):
 
 * the solver: a diffrax Runge-Kutta solver instance (:data:`SOLVERS` by name), its stages in
-  diffrax's stage loop, or unrolled by :class:`~jaxclear.integrate.solvers.UnrolledExplicitRK`;
+  diffrax's stage loop, or unrolled by :class:`~jaxclear.integrate.UnrolledExplicitRK`;
 * the derivatives (:class:`AbstractDerivatives`): :class:`Sensitivity`, the error-controlled
   forward sensitivities (the default), or :class:`ThroughLoop`, JAX's derivative through diffrax's
   integration loop;
@@ -12,7 +12,7 @@ controller are objects, not names):
 * the contact onsets (:class:`AbstractOnsets`): :class:`ExactOnsets` (the default) or
   :class:`StepOnsets`.
 
-The integration (:func:`~jaxclear.integrate.solve.integrate`, :func:`~jaxclear.simulate`) asks
+The integration (:func:`~jaxclear.integrate.integrate_system`, :func:`~jaxclear.simulate`) asks
 these objects what to do instead of branching on names. Every field is static: a strategy is part
 of a compiled program's structure (and of the key of the store of traced programs), never an
 input. Names are still accepted where settings are written by hand (``jc.settings(adjoint=
@@ -29,9 +29,9 @@ import equinox as eqx
 import numpy as np
 
 from .._errors import ParameterError
-from .sampling import BLOCK, SampleWriter
-from .sampling import adjoint as sampling_adjoint
-from .solvers import OnsetController, UnrolledExplicitRK
+from ._sampling import BLOCK, SampleWriter
+from ._sampling import adjoint as sampling_adjoint
+from ._solvers import OnsetController, UnrolledExplicitRK
 
 SOLVERS = {
     "tsit5": diffrax.Tsit5,
@@ -65,7 +65,7 @@ class AbstractDerivatives(eqx.Module):
     def differentiable(self, run: Callable, rule: Callable) -> Callable:
         """``run(mech, settings, y0) -> Solution`` as JAX differentiates it under this choice;
         ``rule`` is the error-controlled JVP rule
-        (:func:`~jaxclear.integrate.sensitivity.tangent_run`)."""
+        (:func:`~jaxclear.integrate._sensitivity.tangent_run`)."""
         raise NotImplementedError
 
     def solver(self, solver: diffrax.AbstractSolver) -> diffrax.AbstractSolver:
@@ -85,7 +85,7 @@ class AbstractDerivatives(eqx.Module):
 
 
 class Sensitivity(AbstractDerivatives):
-    """The error-controlled forward sensitivities (:mod:`jaxclear.integrate.sensitivity`), the
+    """The error-controlled forward sensitivities (:mod:`jaxclear.integrate._sensitivity`), the
     default: the tangents of the perturbed inputs are integrated with the state, take part in the
     step-size control and carry the memory rules' derivatives; reverse mode costs one tangent per
     perturbed scalar input. Every JAX derivative of the run is this one.
@@ -189,7 +189,7 @@ class AbstractSampling(eqx.Module):
     """How the output samples at the grid times are written during the integration."""
 
     #: Whether the solver hands its dense output to the step-size controller
-    #: (:class:`~jaxclear.integrate.solvers.ImpactMemorySolver`'s ``dense_to_controller``).
+    #: (:class:`~jaxclear.integrate.ImpactMemorySolver`'s ``dense_to_controller``).
     dense_to_controller: ClassVar[bool] = False
 
     @property
@@ -233,13 +233,13 @@ class SampleLoop(AbstractSampling):
 
 class SampleBlock(AbstractSampling):
     """All of a step's samples written at once by the step-size controller
-    (:class:`~jaxclear.integrate.sampling.SampleWriter`), a step ending by its ``size``-th
+    (:class:`~jaxclear.integrate._sampling.SampleWriter`), a step ending by its ``size``-th
     unwritten sample; pays where a step holds many samples and XLA runs a kernel per operation
     (``JAXCLEAR_SMALL_LOOP_BYTES=0``). The fits use it.
 
     Attributes:
         size: most samples one step writes [-], >= 1 (default
-            :data:`~jaxclear.integrate.sampling.BLOCK`).
+            :data:`~jaxclear.integrate._sampling.BLOCK`).
     """
 
     size: int = eqx.field(static=True, default=BLOCK)
@@ -284,7 +284,7 @@ class AbstractOnsets(eqx.Module):
 
 class ExactOnsets(AbstractOnsets):
     """The step that crosses into contact ends just past the onset (a rejected step per onset,
-    :class:`~jaxclear.integrate.solvers.OnsetController`), so the dissipative laws use the
+    :class:`~jaxclear.integrate.OnsetController`), so the dissipative laws use the
     approach speed at the onset throughout the contact; the default (a mechanism without
     clearance joints runs as :class:`StepOnsets`)."""
 
@@ -412,7 +412,7 @@ def from_names(solver, derivatives, output, onsets, *, adjoint=None, derivative_
       the loop, as before);
     * ``checkpoints``: :class:`ThroughLoop`'s (kept for ``"recursive"`` only);
     * ``stages``: ``"loop"`` (the solver itself) or ``"unrolled"`` (an explicit solver in
-      :class:`~jaxclear.integrate.solvers.UnrolledExplicitRK`);
+      :class:`~jaxclear.integrate.UnrolledExplicitRK`);
     * ``exact_onsets``: True (:class:`ExactOnsets`) or False (:class:`StepOnsets`);
     * ``sampling``: ``"loop"`` (:class:`SampleLoop`) or ``"block"`` (:class:`SampleBlock`).
 

@@ -16,7 +16,7 @@ import jax
 import jax.numpy as jnp
 
 from .._errors import is_concrete
-from . import programs
+from . import _programs as programs
 
 #: XLA options for jaxclear's own compiled functions. ``xla_cpu_use_fusion_emitters=False``
 #: selects XLA:CPU's older elemental emitters for fused kernels; for the small scalar-heavy
@@ -95,7 +95,7 @@ class jit:  # noqa: N801 (used like a decorator, as eqx.filter_jit)
 
     def stored(self, name: str, out_structure, *args):
         """Call on concrete ``args`` through the store of traced programs
-        (:mod:`~jaxclear.integrate.programs`, enabled by the command line), so that a new
+        (:mod:`~jaxclear.integrate._programs`, enabled by the command line), so that a new
         process skips tracing; as a plain call when the store is off or the arguments cannot
         be keyed. ``out_structure()`` returns the output's pytree structure without tracing."""
         if not is_concrete(args):
@@ -105,7 +105,7 @@ class jit:  # noqa: N801 (used like a decorator, as eqx.filter_jit)
 
     def prepare(self, name: str, *args) -> None:
         """Trace (or load) what :meth:`stored` with the same arguments will run, without
-        compiling it (:func:`~jaxclear.integrate.programs.prepare`); with the store off, lower
+        compiling it (:func:`~jaxclear.integrate._programs.prepare`); with the store off, lower
         it (JAX keeps the trace for the call). Nothing under a transformation."""
         if not is_concrete(args):
             return
@@ -141,7 +141,7 @@ def without_input_callbacks():
     Each such check is an ``equinox.error_if`` with a traced predicate, compiled as a host
     callback, and JAX never writes a program with host callbacks to its persistent compilation
     cache: with them :func:`jaxclear.simulate` was recompiled in every new process (the command
-    line's startup). :func:`~jaxclear.integrate.simulate.simulate` builds inputs that satisfy
+    line's startup). :func:`~jaxclear.integrate.simulate` builds inputs that satisfy
     the checks by construction (a sorted grid clipped to ``[t0, t1]``, ``dt0`` > 0 or None).
     Only diffrax's integrator module is affected, and only during the ``with`` block (the
     trace); the result of the solve is still checked (:class:`~jaxclear.RESULTS`)."""

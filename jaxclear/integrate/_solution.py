@@ -11,8 +11,8 @@ from .._types import Array, Float
 from ..elements.memory import ContactMemory
 from ..model.drivers import COORDINATES
 from ..model.mechanism import Mechanism
-from .element_outputs import element_outputs
-from .state import stack_memory
+from ._element_outputs import element_outputs
+from ._state import stack_memory
 
 
 class Solution(eqx.Module):
@@ -82,7 +82,7 @@ class Solution(eqx.Module):
         force, eccentricity ratio and minimum film thickness; a translational joint's forces,
         penetration and contact mode per corner; a pin-in-slot joint's active feature and its
         penetration), recomputed from the samples and the element's sampled memories
-        (:func:`~jaxclear.integrate.element_outputs.element_outputs`)."""
+        (:func:`~jaxclear.integrate._element_outputs.element_outputs`)."""
         if self.ts.ndim > 1:  # a batch of runs (vmap over simulate): one call per run
             return jax.vmap(lambda sol: sol.element_outputs(mech, k, continuous_after))(self)
         return element_outputs(mech, self, k, continuous_after)

@@ -13,10 +13,10 @@ from .._errors import InitialConditionError, MechanismError
 from .._types import Array, Float
 from ..model import constraints
 from ..model.mechanism import Mechanism
-from .compile import jit
-from .dynamics import spd_solve
-from .settings import Settings
-from .state import State
+from ._compile import jit
+from ._dynamics import spd_solve
+from ._settings import Settings
+from ._state import State
 
 #: How a user allows a driven mechanism's free motion, in each place a run is set up.
 FREE_DOF_OPTION = ("Settings(allow_free_dof=True) in Python, --allow-free-dof on the command line (jaxclear check, "
@@ -43,7 +43,7 @@ def minimum_norm_correction(d, r):
     finite for redundant (rank-deficient but consistent) constraints, which the eager checks
     then name; for independent constraints it changes the result by a relative
     :math:`\epsilon/\sigma_{min}^2`, removed by the Newton iterations (positions) and by one
-    refinement step (velocities). The solve is :func:`~jaxclear.integrate.dynamics.spd_solve`, an unrolled
+    refinement step (velocities). The solve is :func:`~jaxclear.integrate.spd_solve`, an unrolled
     elimination: no LAPACK call, so a vmapped batch of assemblies (sweeps) never reaches jaxlib's
     batched CPU LAPACK kernels."""
     dd = jnp.sum(d[:, None, :] * d[None, :, :], axis=-1)

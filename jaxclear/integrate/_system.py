@@ -1,8 +1,8 @@
 r"""What the solver integrates: a mechanism's packed state (:class:`MechanismSystem`), or that
-state together with its tangents (:class:`~jaxclear.integrate.sensitivity.TangentSystem`).
+state together with its tangents (:class:`~jaxclear.integrate._sensitivity.TangentSystem`).
 
 diffrax gets a system as the ``args`` of its solve. The system's vector field is the term, its
-``after_step`` is what :class:`~jaxclear.integrate.solvers.ImpactMemorySolver` applies after
+``after_step`` is what :class:`~jaxclear.integrate.ImpactMemorySolver` applies after
 every step (the force elements' memory rules), its ``primal`` part is what the step-size
 controllers read (contact onsets), and its ``norm`` is the error norm of the step-size
 controller. So one set of solver wrappers serves both.
@@ -19,8 +19,8 @@ import optimistix as optx
 
 from .._types import Array, BoolScalar, Float
 from ..model.mechanism import Mechanism
-from .dynamics import Baumgarte, flat_vector_field
-from .state import State
+from ._dynamics import Baumgarte, flat_vector_field
+from ._state import State
 
 
 def memory_step(mech: Mechanism, t0, v0, t1, v1, qdd=None) -> tuple[Float[Array, " N"], BoolScalar]:
@@ -92,8 +92,8 @@ class AbstractSystem(eqx.Module):
 
 
 class MechanismSystem(AbstractSystem):
-    """A mechanism's packed state (:class:`~jaxclear.integrate.state.State`) under
-    :func:`~jaxclear.integrate.dynamics.flat_vector_field`."""
+    """A mechanism's packed state (:class:`~jaxclear.integrate.State`) under
+    :func:`~jaxclear.integrate.flat_vector_field`."""
 
     mech: Mechanism
     baumgarte: Baumgarte
