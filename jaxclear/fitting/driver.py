@@ -368,7 +368,7 @@ def _result(problem: FitProblem, st: FitState, wall: float, resumed: bool, profi
     evals = evaluate_all(problem, theta, states, st.guesses)
     r, jac = final_jacobian(problem, evals)
     mask = fitted_mask(problem)
-    unc: Uncertainty = estimate_uncertainty(r, jac, mask, problem.win.scale, theta, problem.free)
+    unc: Uncertainty = estimate_uncertainty(r, jac, mask, problem.win.scale, theta, problem.free, problem.mech)
     converged = st.stop_reason not in ("", "max_iter")
     warn = list(unc.warnings)
     if not converged:
@@ -389,7 +389,7 @@ def _result(problem: FitProblem, st: FitState, wall: float, resumed: bool, profi
     return FitResult(
         estimates=unc.estimates, std=std, profiles=profiles, loss=float(np.mean(r[mask > 0] ** 2)), iterations=int(st.total),
         evaluations=int(st.evaluations), wall_time_s=wall,
-        start={name: as_typed(v) for name, v in zip(problem.free, values_of(problem.free, problem.z0, problem.win.scale))},
+        start={name: as_typed(v) for name, v in zip(problem.free, values_of(problem.free, problem.z0, problem.win.scale, problem.mech))},
         correlation=unc.correlation, noise_sigma_m_s2=unc.sigma, residual_rms_m_s2=unc.rms,
         residual_autocorrelation=unc.autocorrelation, n_samples=unc.n_samples, n_unknowns=unc.n_unknowns,
         converged=converged, stop_reason=st.stop_reason, history=list(st.history),

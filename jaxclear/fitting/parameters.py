@@ -64,11 +64,13 @@ def check_free(mech: Mechanism, free: Sequence[str], start: dict) -> tuple:
     return free
 
 
-def transform(name: str) -> str:
-    """The transform of ``name``: ``"log"``, ``"logit"``, ``"scaled"`` or ``"none"``."""
+def transform(name: str, mech: Mechanism | None = None) -> str:
+    """The transform of ``name``: ``"log"``, ``"logit"``, ``"scaled"``, ``"delay"`` or ``"none"``;
+    with ``mech``, also of the names its own classes declare (a force element of the user's:
+    :func:`jaxclear.params.info`). Every function below takes ``mech`` for the same reason."""
     if name in SENSOR_PARAMETERS:
         return SENSOR_PARAMETERS[name][3]
-    return params.info(name).transform
+    return params.info(name, mech).transform
 
 
 def current_value(mech: Mechanism, sensor: Accelerometer, name: str) -> float:
@@ -95,7 +97,7 @@ def check_start(mech: Mechanism, name: str, value: float):
         params.validate(mech, name, value)
     except ParameterError as err:
         raise ParameterError(f"start value of {name!r} is outside its bounds: {err}") from None
-    t = params.info(name).transform
+    t = transform(name, mech)
     if t == "log" and not value > 0:
         raise ParameterError(
             f"start value {name} = {value:g} is on the bound 0 of (0, inf); the fit's log parameterization "
@@ -133,43 +135,43 @@ def fixed_values(mech: Mechanism, sensor: Accelerometer, free: tuple) -> dict:
     return fixed
 
 
-def to_z(name: str, value, scale: float = 1.0):
+def to_z(name: str, value, scale: float = 1.0, mech: Mechanism | None = None):
     """Unconstrained coordinate of a parameter value (``scale``: the data RMS, for ``sensor_bias``)."""
-    t = transform(name)
+    t = transform(name, mech)
     if t == "scaled":
         return jnp.asarray(value, dtype=float) / scale
     if t == "delay":
         return jnp.asarray(value, dtype=float) / DELAY_UNIT
     if name in SENSOR_PARAMETERS:
         return jnp.log(jnp.asarray(value, dtype=float))
-    return params.to_unconstrained(name, value)
+    return params.to_unconstrained(name, value, mech)
 
 
-def from_z(name: str, z, scale: float = 1.0):
+def from_z(name: str, z, scale: float = 1.0, mech: Mechanism | None = None):
     """Inverse of :func:`to_z` (traceable)."""
-    t = transform(name)
+    t = transform(name, mech)
     if t == "scaled":
         return z * scale
     if t == "delay":
         return z * DELAY_UNIT
     if name in SENSOR_PARAMETERS:
         return jnp.exp(z)
-    return params.from_unconstrained(name, z)
+    return params.from_unconstrained(name, z, mech)
 
 
-def dvalue_dz(name: str, z: float, scale: float) -> float:
+def dvalue_dz(name: str, z: float, scale: float, mech: Mechanism | None = None) -> float:
     """``d theta / d z`` at ``z`` (the delta method's factor)."""
-    return float(jax.grad(lambda zz: from_z(name, zz, scale))(jnp.asarray(z, dtype=float)))
+    return float(jax.grad(lambda zz: from_z(name, zz, scale, mech))(jnp.asarray(z, dtype=float)))
 
 
-def z_vector(free: Sequence[str], values: dict, scale: float) -> np.ndarray:
+def z_vector(free: Sequence[str], values: dict, scale: float, mech: Mechanism | None = None) -> np.ndarray:
     """``(P,)`` unconstrained coordinates of ``values`` in ``free`` order."""
-    return np.array([float(to_z(n, values[n], scale)) for n in free])
+    return np.array([float(to_z(n, values[n], scale, mech)) for n in free])
 
 
-def values_of(free: Sequence[str], theta, scale: float) -> list:
+def values_of(free: Sequence[str], theta, scale: float, mech: Mechanism | None = None) -> list:
     """Parameter values (SI) of the unconstrained ``theta`` ``(P,)``, in ``free`` order."""
-    return [float(from_z(n, theta[i], scale)) for i, n in enumerate(free)]
+    return [float(from_z(n, theta[i], scale, mech)) for i, n in enumerate(free)]
 
 
 def law_name(mech: Mechanism) -> str:

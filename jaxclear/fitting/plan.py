@@ -115,11 +115,11 @@ def final_stage(windows: int, anywhere: bool = False) -> Stage:
     return Stage("final", tuple(range(windows)), 1.0, True, tuple(range(0 if anywhere else 1, windows)), -1, True)
 
 
-def spread_starts(z0: np.ndarray, free: Sequence[str], n: int) -> list[np.ndarray]:
+def spread_starts(z0: np.ndarray, free: Sequence[str], n: int, mech=None) -> list[np.ndarray]:
     """``n`` starts ``(P,)``: ``z0`` and ``n - 1`` points around it (deterministic: the first at
     alternating corners, the next on a Halton sequence in [-1, 1]^P) scaled by the span
     +-log 3 for log parameters, +-1 for logit ones, +-0.1 data RMS for the bias."""
-    span = np.array([{"log": math.log(3.0), "logit": 1.0, "scaled": 0.1}.get(transform(f), 0.1 * max(abs(z), 1.0))
+    span = np.array([{"log": math.log(3.0), "logit": 1.0, "scaled": 0.1}.get(transform(f, mech), 0.1 * max(abs(z), 1.0))
                      for f, z in zip(free, z0)])
     out = [np.array(z0, dtype=float)]
     primes = [2, 3, 5, 7, 11, 13, 17, 19]

@@ -173,7 +173,7 @@ def _log_posterior(data, mech, free, fit_result: FitResult, priors: dict, noise_
                             (1.0,), None, 1, settings, common["channels"], integration=s)
     win = problem.window_input(0, 1.0, False, [problem.guess0])
     scale = problem.win.scale
-    theta = z_vector(free, fit_result.estimates, scale)
+    theta = z_vector(free, fit_result.estimates, scale, mech)
     state0 = jnp.asarray(problem.state0)
     r, jt, _, _, extra = evaluate_window_jit(problem.model, jnp.asarray(theta), state0, win)
     r, jt = np.asarray(r), np.asarray(jt)
@@ -190,7 +190,7 @@ def _log_posterior(data, mech, free, fit_result: FitResult, priors: dict, noise_
                              "is not identifiable from this record (fix it, or give a longer record)")
     prior_objs = []
     for name, value in fit_result.estimates.items():
-        pr = priors[name] if name in priors else default_prior(name, transform(name),
+        pr = priors[name] if name in priors else default_prior(name, transform(name, mech),
                                                                                   problem.values0[name], scale)
         check_support(pr, name, value)
         prior_objs.append(pr)

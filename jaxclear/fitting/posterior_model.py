@@ -72,8 +72,8 @@ class LogPosterior(eqx.Module):
         lp = jnp.asarray(0.0)
         scale = self.model.bias_scale
         for i, (name, prior) in enumerate(zip(self.model.free, self.priors)):
-            value = from_z(name, x[i], scale)
-            dv = jax.grad(lambda zz, name=name: from_z(name, zz, scale))(x[i])
+            value = from_z(name, x[i], scale, self.model.mech)
+            dv = jax.grad(lambda zz, name=name: from_z(name, zz, scale, self.model.mech))(x[i])
             lp = lp + prior.logpdf(value) + jnp.log(jnp.abs(dv))
         if not self.fixed_noise:
             sigma = self.sigma_unit * jnp.exp(x[self.n_free])

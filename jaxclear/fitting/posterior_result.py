@@ -54,9 +54,10 @@ def _arviz():
     return arviz
 
 
-def values_of_draws(free, x: np.ndarray, scale: float) -> dict:
-    """name -> SI values of the unconstrained draws ``x`` ``(..., P)``."""
-    return {n: np.asarray(from_z(n, jnp.asarray(x[..., i]), scale)) for i, n in enumerate(free)}
+def values_of_draws(free, x: np.ndarray, scale: float, mech=None) -> dict:
+    """name -> SI values of the unconstrained draws ``x`` ``(..., P)`` (``mech``: the fitted
+    mechanism, which knows the names its own classes declare)."""
+    return {n: np.asarray(from_z(n, jnp.asarray(x[..., i]), scale, mech)) for i, n in enumerate(free)}
 
 
 @dataclass
@@ -330,7 +331,7 @@ def build_result(lp, run: dict, info: dict, settings: dict, fit_result, predicti
     """The :class:`PosteriorResult` of the chains' draws ``run`` (:func:`posterior`)."""
     free, scale = info["free"], info["scale"]
     x = run["x"]
-    samples = values_of_draws(free, x, scale)
+    samples = values_of_draws(free, x, scale, lp.model.mech)
     if not settings["noise_fixed"]:
         sigma_r = np.exp(x[..., len(free)])
         samples[NOISE] = sigma_r * float(lp.sigma_unit)

@@ -171,7 +171,7 @@ class FitProblem:
         """This problem fitted from ``starts`` starts: its plan, its start points, its settings."""
         return dataclasses.replace(self, stages=plan_stages(self.windows, self.horizons, starts, self.settings["coarse"],
                                                             self.anywhere),
-                                   z_starts=spread_starts(self.z0, self.free, starts),
+                                   z_starts=spread_starts(self.z0, self.free, starts, self.mech),
                                    settings={**self.settings, "starts": starts})
 
     def window_input(self, k: int, horizon: float, integrate: bool, guesses) -> WindowInput:
@@ -328,7 +328,7 @@ def build_problem(data, mech: Mechanism, free: Sequence[str], start: dict | None
     settle = 2.0 / min(cutoffs) if cutoffs else 0.0
     win = cut_windows(t_rec, y_rec, dt, windows, window, settle, horizons, where, columns, settle_first=anywhere)
     values0 = start_values(mech, sensor, free, start)
-    z0 = z_vector(free, values0, win.scale)
+    z0 = z_vector(free, values0, win.scale, mech)
     velocity_scale = abs(speed) if speed else 1.0 / window
     n_fine = int(round(window / h))
     base = integration if integration is not None else dataclasses.replace(

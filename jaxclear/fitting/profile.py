@@ -101,19 +101,19 @@ def optimum(problem: FitProblem, st: FitState):
     theta, states = np.asarray(st.theta, dtype=float), np.asarray(st.states, dtype=float)
     evals = evaluate_all(problem, theta, states, st.guesses)
     r, jac = final_jacobian(problem, evals)
-    unc = estimate_uncertainty(r, jac, fitted_mask(problem), problem.win.scale, theta, problem.free)
+    unc = estimate_uncertainty(r, jac, fitted_mask(problem), problem.win.scale, theta, problem.free, problem.mech)
     loss = sum_of_squares(problem, evals)
     s2 = loss / max(unc.n_samples - unc.n_unknowns, 1)
     std_z = {}
     for i, name in enumerate(problem.free):
-        d = abs(dvalue_dz(name, float(theta[i]), problem.win.scale))
+        d = abs(dvalue_dz(name, float(theta[i]), problem.win.scale, problem.mech))
         std_z[name] = unc.std[name] / d if d > 0 else math.nan
     return loss, s2, std_z
 
 
-def steps(name: str, std_z: float) -> np.ndarray:
+def steps(name: str, std_z: float, mech=None) -> np.ndarray:
     """The walk's distances from the estimate in ``z`` ``(<= MAX_POINTS,)`` (module docstring)."""
-    kind = transform(name)
+    kind = transform(name, mech)
     span, floor = SPAN.get(kind, 1.0), MIN_STEP.get(kind, 0.001)
     first = min(max(FIRST_STEP * std_z, floor), span / 8) if math.isfinite(std_z) else span / 8
     growth = max(2.0, (span / first) ** (1.0 / (MAX_POINTS - 1)))
@@ -139,7 +139,7 @@ def run_profiles(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkp
         single = dataclasses.replace(problem, stages=[stage])
         for side in (-1, 1):
             below = (0.0, np.asarray(st.theta, dtype=float), np.asarray(st.states, dtype=float))
-            for dz in steps(name, std_z[name]):
+            for dz in steps(name, std_z[name], problem.mech):
                 st, point = _point(single, opt, st, ckpt, i, side, float(dz), below, loss_min, s2, on_iteration, on_point)
                 if not math.isfinite(point["loss"]):
                     break
@@ -174,7 +174,7 @@ def _point(single: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoint, i
     point.update(name=name, side=side, dz=dz, deviance=(point["loss"] - loss_min) / s2)
     st = st.replace(profile=st.profile + (point,))
     ckpt.save(st)
-    on_point(f"profile {name}: {from_z(name, theta[i], single.win.scale):.6g}, deviance {point['deviance']:.3g}")
+    on_point(f"profile {name}: {from_z(name, theta[i], single.win.scale, single.mech):.6g}, deviance {point['deviance']:.3g}")
     return st, point
 
 
@@ -208,20 +208,20 @@ def summarize(problem: FitProblem, st: FitState, names: tuple, std_gauss_newton:
     for name in names:
         i = problem.free.index(name)
         z_hat = float(st.theta[i])
-        est = float(from_z(name, z_hat, scale))
+        est = float(from_z(name, z_hat, scale, problem.mech))
         ends, why, table = [], [], [(est, 0.0)]
         for side in (-1, 1):
             pts = sorted((p for p in st.profile if p["name"] == name and p["side"] == side), key=lambda p: p["dz"])
             end, last_dz, last_d = None, 0.0, 0.0
             for p in pts:
-                table.append((float(from_z(name, z_hat + side * p["dz"], scale)), float(p["deviance"])))
+                table.append((float(from_z(name, z_hat + side * p["dz"], scale, problem.mech)), float(p["deviance"])))
                 if not math.isfinite(p["loss"]):
                     why.append(f"the model fails at {name} = {table[-1][0]:.6g} ({p['reason']})")
                     break
                 if p["deviance"] > THRESHOLD:
                     a, b = math.sqrt(max(last_d, 0.0)), math.sqrt(p["deviance"])
                     dz = last_dz + (p["dz"] - last_dz) * (math.sqrt(THRESHOLD) - a) / (b - a)
-                    end = float(from_z(name, z_hat + side * dz, scale))
+                    end = float(from_z(name, z_hat + side * dz, scale, problem.mech))
                     break
                 last_dz, last_d = p["dz"], p["deviance"]
             else:

@@ -145,7 +145,7 @@ def stage_run(problem: FitProblem, opt: Optimizer, st: FitState, stage: Stage, j
 
 
 def _cannot_simulate(problem: FitProblem, theta) -> FitDataError:
-    values = dict(zip(problem.free, values_of(problem.free, theta, problem.win.scale)))
+    values = dict(zip(problem.free, values_of(problem.free, theta, problem.win.scale, problem.mech)))
     where = problem.meas.path or "the record"
     return FitDataError(f"{where}: the loss at the start is not finite: the model cannot be simulated at the "
                         f"values {values} (solver failure or non-finite state); choose other start values")
@@ -172,7 +172,7 @@ def _no_influence(problem: FitProblem, stage: Stage, theta) -> str:
     text = (f"no free unknown changes the fitted samples up to {end:.6g} s of the window (they end, for "
             "example, before the first contact)")
     if stage.final:
-        values = dict(zip(problem.free, values_of(problem.free, np.asarray(theta, dtype=float), problem.win.scale)))
+        values = dict(zip(problem.free, values_of(problem.free, np.asarray(theta, dtype=float), problem.win.scale, problem.mech)))
         raise FitDataError(f"{problem.meas.path or 'the record'}: {text} at the values {values}: there is nothing "
                            "to fit; give a longer window or other free parameters")
     return f"skipped: {text}"
@@ -216,7 +216,7 @@ def run_stage(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoin
         loss, reason = rep.loss, rep.reason or statistically_converged(before, rep.loss, dof, rep.counted)
         if rep.counted:
             record = {"stage": stage.name, "iteration": st.total + 1, "loss": loss / n_fit,
-                      "values": dict(zip(problem.free, values_of(problem.free, theta, problem.win.scale))),
+                      "values": dict(zip(problem.free, values_of(problem.free, theta, problem.win.scale, problem.mech))),
                       **({"stop": reason} if reason else {})}
             st = st.replace(iteration=st.iteration + 1, total=st.total + 1, history=st.history + (record,))
         ckpt.save(st)

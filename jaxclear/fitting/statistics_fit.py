@@ -90,12 +90,13 @@ SPEED_TOLERANCE = 1e-3
 SPACING_TOLERANCE = 1e-6
 
 
-def coordinate(name: str) -> str:
+def coordinate(name: str, mech: Mechanism | None = None) -> str:
     """``name``'s grid coordinate: ``"log"``, ``"logit"`` or ``"none"`` (the value), the transform
-    of :mod:`jaxclear.params` (``sensor_gain``: log)."""
+    of :mod:`jaxclear.params` (``sensor_gain``: log); with ``mech``, also of the names its own
+    classes declare."""
     if name in SENSOR_PARAMETERS:
         return "log" if SENSOR_PARAMETERS[name][3] == "log" else "none"
-    t = params.info(name.split("@")[0]).transform
+    t = params.info(name.split("@")[0], mech).transform
     return t if t in ("log", "logit") else "none"
 
 
@@ -103,7 +104,7 @@ def grid_values(mech: Mechanism, sensor: Accelerometer, name: str, spec=None) ->
     """The grid of ``name``: ``spec`` a sequence of values (strictly increasing, in the
     parameter's range), a string ``"LOW:HIGH:N"`` (``N`` nodes, geometric for a log coordinate,
     else even), or ``None`` for the default (:data:`DEFAULT_GRIDS`)."""
-    kind = coordinate(name)
+    kind = coordinate(name, mech)
     log = kind == "log"
     if spec is None:
         v = current_value(mech, sensor, name)
@@ -319,7 +320,7 @@ def fit_statistics(data, mech: Mechanism, free=DEFAULT_FREE, grid: dict | None =
                    f"then the likelihood at {int(np.prod([(n - 1) * refine + 1 for n in shape]))} grid points")
     eps = np.random.default_rng(seed).standard_normal((n_m, nb))
     mu, cov = node_moments(signals, eps, levels, fs, kinds)
-    kinds_u = {n: coordinate(n) for n in (*mech_names, "sensor_gain")}
+    kinds_u = {n: coordinate(n, mech) for n in (*mech_names, "sensor_gain")}
     u_nodes = [to_coordinate(values[n], kinds_u[n]) for n in mech_names]
     surrogate = Surrogate([*u_nodes, np.log(levels)], mu.reshape(*shape, len(levels), d),
                           cov.reshape(*shape, len(levels), d, d))

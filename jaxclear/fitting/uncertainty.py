@@ -52,10 +52,11 @@ def lag1_autocorrelation(res: np.ndarray) -> float:
 
 
 def estimate_uncertainty(r: np.ndarray, jac: np.ndarray, mask: np.ndarray, scale: float, theta: np.ndarray,
-                         free: Sequence[str]) -> Uncertainty:
+                         free: Sequence[str], mech=None) -> Uncertainty:
     """:class:`Uncertainty` from the normalised residual ``r`` ``(N_pad,)`` (0 where ``mask`` is
     0), its Jacobian ``(N_pad, P_all)`` (the first ``P = len(free)`` columns the parameters) and
-    the data RMS ``scale`` [m/s^2] (module docstring)."""
+    the data RMS ``scale`` [m/s^2] (module docstring); ``mech``: the fitted mechanism, whose own
+    classes' names are known through it (:func:`~jaxclear.fitting.parameters.transform`)."""
     p = len(free)
     n_fit = int(mask.sum())
     n_unknown = jac.shape[1]
@@ -69,8 +70,8 @@ def estimate_uncertainty(r: np.ndarray, jac: np.ndarray, mask: np.ndarray, scale
         cov = np.full((n_unknown, n_unknown), np.nan)
         warn.append("J^T J is singular at the optimum: a free parameter is not identifiable from this record")
     std_z = np.sqrt(np.maximum(np.diag(cov)[:p], 0.0))
-    estimates = dict(zip(free, values_of(free, theta, scale)))
-    std = {n: abs(dvalue_dz(n, theta[i], scale)) * float(std_z[i]) for i, n in enumerate(free)}
+    estimates = dict(zip(free, values_of(free, theta, scale, mech)))
+    std = {n: abs(dvalue_dz(n, theta[i], scale, mech)) * float(std_z[i]) for i, n in enumerate(free)}
     d = np.sqrt(np.maximum(np.diag(cov)[:p], 1e-300))
     corr = (cov[:p, :p] / np.outer(d, d)).tolist()
     res_fit = res[mask > 0]
@@ -82,7 +83,7 @@ def estimate_uncertainty(r: np.ndarray, jac: np.ndarray, mask: np.ndarray, scale
             "wrong sensor model?), so the std understate the true error"
         )
     for i, n in enumerate(free):
-        if transform(n) == "logit" and abs(float(theta[i])) > LOGIT_EDGE:
+        if transform(n, mech) == "logit" and abs(float(theta[i])) > LOGIT_EDGE:
             warn.append(f"{n} = {estimates[n]:.6g} ran to the edge of its range: the model reaches no interior optimum "
                         "(wrong contact law or known parameter?)")
     return Uncertainty(estimates, std, corr, math.sqrt(sigma2), float(np.sqrt(np.mean(res_fit**2))), auto, n_fit,

@@ -143,7 +143,7 @@ def assess(free: Sequence[str], estimates: dict, std: dict, *, start: dict | Non
         out += _parameter_failures(name, estimates.get(name, math.nan), sd, start.get(name), fitted)
         if name in profiles:
             out += _profile_failures(name, estimates.get(name, math.nan), profiles[name], _unit(name, fitted))
-    out += _start_failures(free, std, history, scale)
+    out += _start_failures(free, std, history, scale, mech)
     if free_start and stop_reason == "max_iter":
         out.append("the last stage stopped on max_iter before converging, with every window's start free: the "
                    "estimates are not at an optimum of the joint problem; try a larger max_iter (--max-iter), more or "
@@ -230,7 +230,7 @@ def stiffness_range(mech: Mechanism, name: str = "stiffness") -> tuple[float, fl
     the bearing and the journal); ``what`` describes the joint. None where the law derives no
     stiffness from materials (Kelvin-Voigt, a translational joint without radii) or its exponent
     is not :data:`HERTZ_EXPONENT` (the formula's unit is N/m^1.5)."""
-    base, k, _ = params.split_name(name)
+    base, k, _ = params.split_name(name, mech)
     if base != "stiffness" or not 0 <= k < len(mech.clearance_joints):
         return None
     joint = mech.clearance_joints[k]
@@ -264,7 +264,7 @@ def fallback_mechanism(settings: dict, fixed: dict) -> Mechanism | None:
     the contact law ``settings["law"]`` and the known clearance ``fixed["clearance"]`` [m]
     (its default bearing radius: a preset built with another ``bearing_radius`` is not
     recognised). None when the name is no preset's."""
-    from ..presets import PRESETS, preset
+    from ..mechanisms.presets import PRESETS, preset
 
     name, law = settings.get("mechanism"), settings.get("law")
     if name not in PRESETS:
@@ -287,7 +287,7 @@ def _with_estimates(mech: Mechanism | None, free: Sequence[str], estimates: dict
     if mech is None:
         return None
     for name in free:
-        if name in SENSOR_PARAMETERS or params.split_name(name)[0] not in ("clearance", "exponent"):
+        if name in SENSOR_PARAMETERS or params.split_name(name, mech)[0] not in ("clearance", "exponent"):
             continue
         value = estimates.get(name, math.nan)
         try:
@@ -303,7 +303,7 @@ def _unit(name: str, mech: Mechanism | None) -> str:
     if name in SENSOR_PARAMETERS:
         unit = SENSOR_PARAMETERS[name][0]
     else:
-        unit = params.info(name).unit
+        unit = params.info(name, mech).unit
         if unit == "law unit":
             found = stiffness_range(mech, name) if mech is not None else None
             unit = found[2] if found else ""
@@ -312,7 +312,7 @@ def _unit(name: str, mech: Mechanism | None) -> str:
 
 def _parameter_failures(name: str, value: float, sd: float, start: float | None, mech: Mechanism | None) -> list:
     """The failures of one free parameter (estimate ``value``, std ``sd``)."""
-    unit, kind = _unit(name, mech), transform(name)
+    unit, kind = _unit(name, mech), transform(name, mech)
     shown = f"{name} = {value:.6g}{unit}"
     if not math.isfinite(value):
         return [f"{shown} is not finite: the fit diverged; try other start values (--start), more starts "
@@ -359,7 +359,7 @@ def _range_failure(name: str, value: float, shown: str, mech: Mechanism | None) 
     with the mechanism, also not below the bearing radius); '' inside."""
     if name in SENSOR_PARAMETERS:
         return ""
-    p = params.info(name)
+    p = params.info(name, mech)
     below = p.low is not None and (value < p.low or (p.low_open and value == p.low))
     above = p.high is not None and (value > p.high or (p.high_open and value == p.high))
     if below or above:
@@ -368,7 +368,7 @@ def _range_failure(name: str, value: float, shown: str, mech: Mechanism | None) 
         return (f"{shown} is outside its range {interval} (jaxclear.params): the fit ran into the bound of its "
                 "transform; try other start values (--start), more starts (--starts N) or a shorter window (--window), "
                 "and check the units of the start")
-    if mech is not None and params.split_name(name)[0] == "clearance":
+    if mech is not None and params.split_name(name, mech)[0] == "clearance":
         try:
             params.validate(mech, name, value)
         except JaxclearError as err:
@@ -380,7 +380,7 @@ def _range_failure(name: str, value: float, shown: str, mech: Mechanism | None) 
 def _stiffness_failure(name: str, value: float, shown: str, mech: Mechanism | None) -> str | None:
     """For a contact stiffness with a physical range (:func:`stiffness_range`): the failure when
     outside it, '' inside; None where no range applies."""
-    if mech is None or name in SENSOR_PARAMETERS or params.split_name(name)[0] != "stiffness":
+    if mech is None or name in SENSOR_PARAMETERS or params.split_name(name, mech)[0] != "stiffness":
         return None
     try:
         found = stiffness_range(mech, name)
@@ -397,11 +397,11 @@ def _stiffness_failure(name: str, value: float, shown: str, mech: Mechanism | No
             "of the record (SI: m/s^2, N/m^1.5)")
 
 
-def _z(name: str, value: float, scale: float) -> float:
+def _z(name: str, value: float, scale: float, mech: Mechanism | None = None) -> float:
     """The fit's transformed coordinate of a value (:func:`~jaxclear.fitting.parameters.to_z`;
     NaN outside the transform's domain)."""
     try:
-        return float(to_z(name, value, scale))
+        return float(to_z(name, value, scale, mech))
     except (JaxclearError, TypeError, ValueError):
         return math.nan
 
@@ -416,7 +416,8 @@ def _start_results(history: Iterable[dict]) -> dict:
     return last
 
 
-def _start_failures(free: Sequence[str], std: dict, history: Iterable[dict], scale: float) -> list:
+def _start_failures(free: Sequence[str], std: dict, history: Iterable[dict], scale: float,
+                    mech: Mechanism | None = None) -> list:
     """"Estimates change with the start": per parameter, the largest disagreement between the
     best start and another start whose first-stage loss is within :data:`START_LOSS_TOLERANCE`
     of it, beyond :data:`START_STD_SPREAD` std and :data:`START_MIN_SPREAD` in ``z``."""
@@ -436,8 +437,8 @@ def _start_failures(free: Sequence[str], std: dict, history: Iterable[dict], sca
         for j in rivals:
             v = float(starts[j]["values"].get(name, math.nan))
             spread = abs(v - v_best)
-            z_spread = abs(_z(name, v, scale) - _z(name, v_best, scale))
-            relative = transform(name) == "none"  # z in SI units (m, rad, N): compare relatively
+            z_spread = abs(_z(name, v, scale, mech) - _z(name, v_best, scale, mech))
+            relative = transform(name, mech) == "none"  # z in SI units (m, rad, N): compare relatively
             enough = (spread > START_MIN_SPREAD * max(abs(v), abs(v_best))) if relative else z_spread > START_MIN_SPREAD
             if spread > START_STD_SPREAD * sd and enough and (worst is None or spread > worst[1]):
                 worst = (j, spread, v)

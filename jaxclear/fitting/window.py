@@ -83,7 +83,7 @@ class WindowModel(eqx.Module):
 
     def values(self, theta_z):
         """``name: value`` (SI) of the unconstrained ``theta_z`` ``(P,)``."""
-        return {n: from_z(n, theta_z[i], self.bias_scale) for i, n in enumerate(self.free)}
+        return {n: from_z(n, theta_z[i], self.bias_scale, self.mech) for i, n in enumerate(self.free)}
 
     def mechanism(self, theta_z, state_z, win: WindowInput):
         """The mechanism of the window (free values, crank angle, guesses and element start

@@ -32,7 +32,7 @@ from ..integrate import (MAX_OUT_SAMPLES, OPTION_KEYS, deprecated_keywords, opti
 from ..analysis.channels import unit as channel_unit
 from ..analysis.sections import section_indices
 from .labels import channel_key
-from .values import MAX_RUNS, _canonical, _number, _values
+from .values import MAX_RUNS, _canonical, _is_speed, _number, _values
 
 #: Allowed keys of a sweep configuration file, per table (see :func:`load_config`).
 CONFIG_KEYS = {
@@ -172,7 +172,7 @@ class SweepConfig:
                 params.get(self._mech, name)  # unknown name, joint or body -> ParameterError
             except JaxclearError as err:
                 raise ParameterError(f"{self.source}: {err}") from None
-            key = _canonical(name)
+            key = _canonical(name, self._mech)
             if key in seen:
                 raise ParameterError(f"{self.source}: parameters {seen[key]!r} and {name!r} set the same "
                                      "quantity; keep one")
@@ -190,7 +190,7 @@ class SweepConfig:
                 params.validate(self._mech, name, vals)
             except JaxclearError as err:
                 raise ParameterError(f"{src}: {err}") from None
-            if _canonical(name) == ("speed",) and np.any(vals == 0.0):
+            if _is_speed(name, self._mech) and np.any(vals == 0.0):
                 raise ParameterError(f"{src}: {name} = 0: crank revolutions are undefined at zero speed")
             axes[name] = vals
         sizes = [len(v) for v in axes.values()]
@@ -209,7 +209,7 @@ class SweepConfig:
                                      "zips them, so they must be equally long (use 'grid' for a product)")
             values = np.stack(list(axes.values()), axis=-1)
         self._names, self._axes, self._values = tuple(names), axes, values
-        if not any(_canonical(n) == ("speed",) for n in names):
+        if not any(_is_speed(n, self._mech) for n in names):
             try:
                 w = float(params.get(self._mech, "speed"))
             except JaxclearError as err:

@@ -70,12 +70,14 @@ def _values(name: str, spec) -> np.ndarray:
     return np.array([_number(where, spec)])
 
 
-def _canonical(name: str) -> tuple:
-    """What a name addresses (so that ``speed``/``speed_rpm`` and ``clearance``/``clearance@0``
-    are recognised as the same leaf)."""
-    base, joint, body = params.split_name(name)
-    if base in ("speed", "speed_rpm"):
-        return ("speed",)
-    if base in ("mass", "inertia", "point_x", "point_y"):  # a body's (and point's) own quantity
-        return (base, body)
-    return (base, joint)
+def _canonical(name: str, mech) -> tuple:
+    """What ``name`` addresses in ``mech`` (:func:`jaxclear.params.address`): the declaring object
+    and its leaf, so that ``speed``/``speed_rpm`` and ``clearance``/``clearance@0`` are recognised
+    as the same leaf, whichever class declares them (a force element of the user's included)."""
+    at = params.address(mech, name)
+    return (id(at.owner), at.parameter.field, at.key, at.parameter.component)
+
+
+def _is_speed(name: str, mech) -> bool:
+    """Whether ``name`` sets the crank speed (``speed`` or ``speed_rpm``)."""
+    return params.split_name(name, mech)[0] in ("speed", "speed_rpm")
