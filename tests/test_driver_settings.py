@@ -4,7 +4,8 @@ DeprecationWarning and give the same settings; both at once is a ParameterError 
 the command line's one option group reads its defaults from Settings and goes through the same
 conversion as the files' ``[settings]`` tables.
 
-Fast: nothing here compiles a run but the one sweep-against-simulate check."""
+Fast: nothing here compiles a run but the sweep-against-simulate check and the statistics fit's
+step-limited run."""
 
 from __future__ import annotations
 
@@ -280,6 +281,64 @@ def test_posterior_takes_settings_and_its_old_keywords_warn(monkeypatch):
     assert seen[-1] == dataclasses.replace(fit_problem.default_fit_settings(), rtol=1e-7, max_steps=200_000)
     with pytest.raises(ParameterError, match=r"posterior: both settings= and atol= given"):
         jc.posterior(None, MECH, settings=given, atol=1e-9)
+
+
+def _statistics_calls(monkeypatch, **kw):
+    """``(settings its runs get, the plan)`` of ``jc.fit_statistics`` on a record of two tones (3
+    revolutions of the preset), stopped where it would run the model."""
+    from jaxclear.fitting import statistics_fit as sf
+
+    seen = []
+
+    def run_rows(mech, sensor, plan, rows, chunk, bar, settings):
+        seen.append((settings, plan))
+        raise Stop
+
+    monkeypatch.setattr(sf, "run_rows", run_rows)
+    t = np.arange(3 * 600) / 50e3  # 3 revolutions at 5000 rpm, 50 kHz
+    data = {"time_s": t, "slider_acc_m_s2": np.sin(2 * np.pi * 900 * t) + 0.01 * np.cos(2 * np.pi * 7e3 * t)}
+    with pytest.raises(Stop):
+        jc.fit_statistics(data, MECH, revolutions=60, progress=False, **kw)
+    return seen[-1]
+
+
+def test_fit_statistics_takes_settings_and_replaces_only_what_it_owns(monkeypatch):
+    from jaxclear.fitting.statistics_model import run_settings as statistics_run_settings
+
+    given = jc.settings(7.0, t_start=1.0, n_out=9, rtol=1e-7, atol=1e-10, max_steps=12_345, progress=True,
+                        solver="bosh3", onsets="step", derivative_tolerance=0.5)
+    settings, plan = _statistics_calls(monkeypatch, settings=given)
+    assert settings == given  # whole, to the runs
+    s = statistics_run_settings(plan, settings)
+    # what the statistics fit owns: each run from start-up to the last kept sample, its grid, no raise, no bar
+    h = plan.dt / plan.oversample
+    assert (s.t_start, s.n_out, s.throw, s.progress) == (0.0, plan.n_out, False, False)
+    assert float(s.t_end) == pytest.approx((plan.n_out - 1) * h, rel=1e-15)
+    assert s == dataclasses.replace(given, t_start=0.0, t_end=s.t_end, n_out=plan.n_out, throw=False, progress=False)
+    # no settings: Settings' defaults (the runs of before: rtol 1e-6, atol 1e-9, 400,000 steps)
+    settings, _ = _statistics_calls(monkeypatch)
+    assert settings == default_settings()
+    assert (settings.rtol, settings.atol, settings.max_steps) == (1e-6, 1e-9, 400_000)
+    with pytest.warns(DeprecationWarning, match=r"fit_statistics\(rtol=, max_steps=\.\.\.\) is deprecated"):
+        old, _ = _statistics_calls(monkeypatch, rtol=1e-7, max_steps=5000)
+    assert old == jc.settings(1.0, rtol=1e-7, max_steps=5000)
+    with pytest.raises(ParameterError, match=r"fit_statistics: both settings= and atol= given"):
+        jc.fit_statistics(None, MECH, settings=given, atol=1e-9)
+    with pytest.raises(ParameterError, match=r"fit_statistics: settings = 1e-07: expected a jaxclear.Settings"):
+        jc.fit_statistics(None, MECH, settings=1e-7)
+
+
+def test_the_settings_given_to_fit_statistics_reach_its_runs():
+    """The runs of a statistics fit's grid (:func:`~jaxclear.fitting.statistics_model.run_rows`,
+    what ``fit_statistics`` calls with its settings) integrated with a step limit of 50 stop
+    there: status 1, "the solver reached max_steps", where the defaults run to the end."""
+    from jaxclear.fitting.statistics_model import make_plan as statistics_plan
+    from jaxclear.fitting.statistics_model import run_rows
+
+    period = float(jc.crank_period(MECH))
+    plan = statistics_plan(MECH, ("restitution",), period / 50, 1, period, 10, 1, 1, 0.0)
+    _, status = run_rows(MECH, jc.Accelerometer(), plan, [[0.5, 0.0]], 1, None, jc.settings(1.0, max_steps=50))
+    assert status.tolist() == [1] and jc.STATUS[1].startswith("the solver reached max_steps")
 
 
 # --------------------------------------------------------------------------------------

@@ -169,7 +169,7 @@ def test_toy_fit_covers_the_truth_reports_failed_nodes_and_the_noise(monkeypatch
     mech = jc.preset("flores-slider-crank")
     k0 = float(jc.params.get(mech, "stiffness"))
 
-    def fake_runs(mech_, sensor, plan, rows, chunk, bar):
+    def fake_runs(mech_, sensor, plan, rows, chunk, bar, settings):
         out = np.stack([_toy_blocks(r[0] / k0, r[1], plan.blocks, seed=int(1e6 * r[1]) + int(r[0] / k0 * 1e3) + 7919
                                     * int(round(r[2] * 1e12))) for r in rows])
         status = np.where((np.abs(rows[:, 0] - rows[:, 0].max()) < 1) & (np.abs(rows[:, 1] - rows[:, 1].min()) < 1e-9),

@@ -55,13 +55,14 @@ from tqdm.auto import tqdm
 from .. import params
 from .._errors import ParameterError
 from ..analysis.sensor import Accelerometer, uniform_spacing
+from ..integrate import Settings, default_settings, option_values
 from ..model import Mechanism, crank_driver, crank_period
 from .parameters import DEFAULT_FREE, SENSOR_PARAMETERS, check_name, current_value
 from .priors import parse_prior
 from .records import read_record, slider_role
 from .statistics import (STATISTICS, block_statistics, check_kinds, precision_factor, revolution_blocks,
                          statistic_names, statistic_weights, whole_revolutions)
-from .statistics_model import default_chunk, make_plan, replicate_offsets, run_rows
+from .statistics_model import default_chunk, given_settings, make_plan, replicate_offsets, run_rows
 from .statistics_result import (StatisticsFitResult, cell_edges, from_coordinate, log_jacobian, marginal_summary,
                                 to_coordinate, verdict)
 from .statistics_surrogate import NOISE_NODES, NOISE_RANGE, Surrogate, evaluate, node_moments
@@ -198,8 +199,9 @@ def fit_statistics(data, mech: Mechanism, free=DEFAULT_FREE, grid: dict | None =
                    revolutions: int = DEFAULT_REVOLUTIONS, transient_revolutions: int = DEFAULT_TRANSIENT,
                    statistics=STATISTICS, sensor: Accelerometer | None = None, noise_std: float | None = None,
                    priors: dict | None = None, refine: int = DEFAULT_REFINE, column: str = "slider_acc_m_s2",
-                   rtol: float = 1e-6, atol: float = 1e-9, max_steps: int = 400_000, chunk: int | None = None,
-                   seed: int = 0, progress: bool = True) -> StatisticsFitResult:
+                   rtol: float | None = None, atol: float | None = None, max_steps: int | None = None,
+                   chunk: int | None = None, seed: int = 0, progress: bool = True,
+                   settings: Settings | None = None) -> StatisticsFitResult:
     """Posterior of contact parameters on a grid from per-revolution statistics of an
     acceleration record, by Wood's synthetic likelihood (module docstring).
 
@@ -227,15 +229,25 @@ def fit_statistics(data, mech: Mechanism, free=DEFAULT_FREE, grid: dict | None =
         refine: the posterior is evaluated on a grid this many times finer than the nodes,
             the model's moments interpolated (:mod:`.statistics_surrogate`).
         column: the record's column compared with the slider's acceleration.
-        rtol, atol, max_steps: the runs' integration settings.
+        rtol, atol, max_steps: deprecated (a ``DeprecationWarning``, one release):
+            ``settings=jc.settings(1.0, rtol=...)``; with ``settings`` too, a
+            :class:`~jaxclear.ParameterError`.
         chunk: runs per compiled call (default 4 on CPU, 32 on accelerators).
         seed: of the model's noise draws.
         progress: a tqdm bar over the runs.
+        settings: how every run is integrated (:class:`jaxclear.Settings`: solver, tolerances,
+            step limit, onsets...), used whole; the fit replaces only what it owns
+            (:func:`~jaxclear.fitting.statistics_model.run_settings`): ``t_start`` 0 and
+            ``t_end`` (start-up to the last revolution kept), ``n_out`` (``sensor.oversample``
+            samples per record sample), ``throw`` False (a failed run is reported with its
+            grid point) and ``progress`` False. Default None: ``Settings``' defaults (rtol
+            1e-6, atol 1e-9, 400,000 steps).
 
     Returns:
         :class:`~jaxclear.fitting.statistics_result.StatisticsFitResult`.
     """
     wall0 = time.perf_counter()
+    integration = given_settings(settings, rtol=rtol, atol=atol, max_steps=max_steps)
     mech_names, gain_free = _check_free(mech, free)
     kinds = check_kinds(statistics)
     sensor = Accelerometer() if sensor is None else sensor
@@ -302,13 +314,12 @@ def fit_statistics(data, mech: Mechanism, free=DEFAULT_FREE, grid: dict | None =
     nodes = np.stack(np.meshgrid(*[values[n] for n in mech_names], indexing="ij"), axis=-1).reshape(-1, len(shape))
     offsets = replicate_offsets(mech, replicates)
     rows = np.concatenate([np.repeat(nodes, replicates, axis=0), np.tile(offsets, len(nodes))[:, None]], axis=1)
-    plan = make_plan(mech, mech_names, dt, sensor.oversample, period, nb, blocks, transient_revolutions, phase, rtol,
-                     atol, max_steps)
+    plan = make_plan(mech, mech_names, dt, sensor.oversample, period, nb, blocks, transient_revolutions, phase)
     if progress:
         tqdm.write(f"jaxclear fit_statistics: {len(nodes)} grid nodes x {replicates} runs of "
                    f"{transient_revolutions + blocks} revolutions; compiling first (tens of seconds)")
     with tqdm(total=len(rows), desc="fit_statistics", unit="run", disable=not progress) as bar:
-        signals, status = run_rows(mech, sensor, plan, rows, chunk or default_chunk(), bar)
+        signals, status = run_rows(mech, sensor, plan, rows, chunk or default_chunk(), bar, integration)
     status = status.reshape(len(nodes), replicates)
     failed = np.any(status != 0, axis=1)
     signals = signals.reshape(len(nodes), n_m, nb)
@@ -383,13 +394,22 @@ def fit_statistics(data, mech: Mechanism, free=DEFAULT_FREE, grid: dict | None =
         settings=dict(revolutions=n_m, replicates=replicates, transient_revolutions=int(transient_revolutions),
                       statistics=list(kinds), sensor=sensor.describe(), noise_std=noise_std, column=column,
                       record=path, sample_spacing_s=dt, crank_phase_rad=phase, record_rms=rms, refine=int(refine),
-                      interpolation=surrogate.method, rtol=rtol, atol=atol, max_steps=max_steps, seed=seed,
+                      interpolation=surrogate.method, **_settings_record(integration), seed=seed,
                       priors={n: str(v) for n, v in priors.items()}, precision_factor=precision_factor(n_m, d)),
     )
     node_mass = _node_mass(post.sum(axis=-1), shape, refine) if finite else np.zeros(shape)
     result.failures, result.notes = verdict(result, summaries, failed.reshape(shape), node_mass, finite)
     result.wall_time_s = time.perf_counter() - wall0
     return result
+
+
+def _settings_record(s: Settings) -> dict:
+    """What the result records of the runs' settings: ``rtol``, ``atol``, ``max_steps`` (the keys
+    of before) and, under ``integration``, the other fields that differ from ``Settings``'
+    defaults (none for a fit given no settings)."""
+    mine, default = option_values(s), option_values(default_settings())
+    changed = {k: v for k, v in mine.items() if k not in ("rtol", "atol", "max_steps") and v != default[k]}
+    return dict(rtol=s.rtol, atol=s.atol, max_steps=s.max_steps, **({"integration": changed} if changed else {}))
 
 
 def _refined(u, refine: int) -> np.ndarray:

@@ -28,6 +28,7 @@ finite is reported as failed, never as NaN statistics.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -37,7 +38,8 @@ import numpy as np
 
 from .. import params
 from ..analysis.sensor import Accelerometer
-from ..integrate import Settings, simulate
+from .._errors import JaxclearError, ParameterError
+from ..integrate import Settings, default_settings, deprecated_keywords, simulate
 from ..model import Mechanism
 from ..sweep.lanes import lanes_one_by_one, over_lanes
 from .records import slider_role
@@ -59,7 +61,9 @@ class SignalPlan:
         dt: record sample spacing [s]; oversample: simulation samples per record sample.
         samples_per_revolution: ``T / dt``; blocks: revolution blocks per run; nb: samples per block.
         first: index (simulation grid) of the first block's first sample.
-        rtol, atol, max_steps: the integration's (:class:`jaxclear.Settings`).
+
+    How each run is integrated is the :class:`~jaxclear.Settings` given beside the plan
+    (:func:`run_settings`).
     """
 
     names: tuple
@@ -69,9 +73,6 @@ class SignalPlan:
     blocks: int
     nb: int
     first: int
-    rtol: float
-    atol: float
-    max_steps: int
 
     @property
     def n_out(self) -> int:
@@ -86,7 +87,7 @@ class SignalPlan:
 
 
 def make_plan(mech: Mechanism, names, dt: float, oversample: int, period: float, nb: int, blocks: int,
-              transient_revolutions: int, phase: float, rtol: float, atol: float, max_steps: int) -> SignalPlan:
+              transient_revolutions: int, phase: float) -> SignalPlan:
     """The :class:`SignalPlan` of a record sampled every ``dt`` [s]: crank ``period`` [s],
     ``phase`` [rad] the record's crank angle at its first sample minus the mechanism's ``angle0``
     (taken modulo 2 pi in the crank's direction of rotation)."""
@@ -94,18 +95,45 @@ def make_plan(mech: Mechanism, names, dt: float, oversample: int, period: float,
     speed = float(params.get(mech, "speed"))
     lag = (math.copysign(1.0, speed) * phase) % (2.0 * math.pi) * period / (2.0 * math.pi)  # [s]
     first = int(round((transient_revolutions * period + lag) / h))
-    return SignalPlan(tuple(names), float(dt), int(oversample), float(period / dt), int(blocks), int(nb), first,
-                      float(rtol), float(atol), int(max_steps))
+    return SignalPlan(tuple(names), float(dt), int(oversample), float(period / dt), int(blocks), int(nb), first)
 
 
-def _run(mech: Mechanism, sensor: Accelerometer, plan: SignalPlan, row):
+def given_settings(settings: Settings | None, stacklevel: int = 4, **old) -> Settings:
+    """The settings of a statistics fit's runs before it replaces what it owns
+    (:func:`run_settings`): ``settings``, else ``Settings``' defaults with the deprecated
+    ``rtol=``, ``atol=``, ``max_steps=`` keywords ``old`` (a ``DeprecationWarning``; with
+    ``settings`` too, a :class:`~jaxclear.ParameterError`; ``stacklevel`` as
+    :func:`~jaxclear.integrate.deprecated_keywords`'). Given none, the runs are those of before
+    (rtol 1e-6, atol 1e-9, 400,000 steps: ``Settings``' defaults)."""
+    old = deprecated_keywords("fit_statistics", settings, stacklevel=stacklevel, **old)
+    if settings is None:
+        try:
+            return dataclasses.replace(default_settings(), **old)
+        except JaxclearError as err:
+            raise ParameterError(f"fit_statistics: {err}") from None
+    if not isinstance(settings, Settings):
+        raise ParameterError(f"fit_statistics: settings = {settings!r}: expected a jaxclear.Settings "
+                             "(jc.settings(1.0, rtol=...)) or None")
+    return settings
+
+
+def run_settings(plan: SignalPlan, settings: Settings) -> Settings:
+    """The settings of every run of ``plan``: ``settings`` whole, with what the statistics fit
+    owns replaced: ``t_start`` 0 and ``t_end`` (each run from start-up to the last block's last
+    sample), ``n_out`` (the plan's simulation grid, ``oversample`` samples per record sample),
+    ``throw`` False (a failed run is a status: its grid point is reported and left out) and
+    ``progress`` False (the fit's bar counts the runs)."""
+    h = plan.dt / plan.oversample
+    return dataclasses.replace(settings, t_start=0.0, t_end=jnp.asarray((plan.n_out - 1) * h, dtype=float),
+                               n_out=plan.n_out, throw=False, progress=False)
+
+
+def _run(mech: Mechanism, sensor: Accelerometer, plan: SignalPlan, settings: Settings, row):
     """One run (module docstring): ``((blocks, nb) filtered slider acceleration [m/s^2], status)``."""
     m = params.replace_many(mech, {n: row[i] for i, n in enumerate(plan.names)})
     m = params.replace(m, "offset_x", params.get(m, "offset_x") + row[-1])
     h = plan.dt / plan.oversample
-    s = Settings(t_end=jnp.asarray((plan.n_out - 1) * h, dtype=float), n_out=plan.n_out, rtol=plan.rtol,
-                 atol=plan.atol, max_steps=plan.max_steps, throw=False)  # diffrax's stage loop (vmap)
-    sol = simulate(m, s)
+    sol = simulate(m, run_settings(plan, settings))
     acc = sol.coordinate(m, slider_role(m), "x", derivative=2)
     y = sensor.filter(h, acc)[jnp.asarray(plan.index())]
     status = jnp.where((sol.status == 0) & ~jnp.all(jnp.isfinite(y)), NOT_FINITE, sol.status)
@@ -113,9 +141,9 @@ def _run(mech: Mechanism, sensor: Accelerometer, plan: SignalPlan, row):
 
 
 @eqx.filter_jit
-def _chunk(mech: Mechanism, sensor: Accelerometer, plan: SignalPlan, rows):
+def _chunk(mech: Mechanism, sensor: Accelerometer, plan: SignalPlan, settings: Settings, rows):
     """The runs of ``rows`` ``(B, P + 1)``: ``((B, blocks, nb), (B,))``."""
-    one = lambda r: _run(mech, sensor, plan, r)  # noqa: E731
+    one = lambda r: _run(mech, sensor, plan, settings, r)  # noqa: E731
     return over_lanes(one, rows)
 
 
@@ -126,17 +154,19 @@ def default_chunk() -> int:
 
 
 def run_rows(mech: Mechanism, sensor: Accelerometer, plan: SignalPlan, rows, chunk: int | None = None,
-             bar=None) -> tuple[np.ndarray, np.ndarray]:
+             bar=None, settings: Settings | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Every row's run, ``chunk`` rows per call of one compiled program (the last chunk padded
     with copies of its last row). ``rows`` ``(R, P + 1)``; returns ``(R, blocks, nb)`` [m/s^2]
-    and ``(R,)`` statuses. ``bar``: a tqdm bar advanced by the rows done."""
+    and ``(R,)`` statuses. ``bar``: a tqdm bar advanced by the rows done; ``settings``: how the
+    runs are integrated (:func:`run_settings`; default ``Settings``' defaults)."""
+    settings = default_settings() if settings is None else settings
     rows = np.asarray(rows, dtype=float)
     chunk = default_chunk() if chunk is None else int(chunk)
     out, status = [], []
     for i in range(0, len(rows), chunk):
         part = rows[i:i + chunk]
         pad = np.concatenate([part, np.repeat(part[-1:], chunk - len(part), axis=0)])
-        y, st = _chunk(mech, sensor, plan, jnp.asarray(pad))
+        y, st = _chunk(mech, sensor, plan, settings, jnp.asarray(pad))
         out.append(np.asarray(y)[: len(part)])
         status.append(np.asarray(st)[: len(part)])
         if bar is not None:
