@@ -15,7 +15,7 @@ font cache (``MPLCONFIGDIR``) is a temporary one filled once before the first me
   ``JAXCLEAR_CACHE_DIR=off``. ``--api-programs`` also enables jaxclear's store of traced programs
   there, as the command line does (``jaxclear.integrate.programs``). ``--api-default`` configures
   nothing in the child: ``JAXCLEAR_CACHE_DIR`` is the folder, and ``import jaxclear`` enables both
-  caches there (``jaxclear/caches.py``, since issue 41 item 3; a source tree without it runs
+  caches there (``jaxclear/integrate/caches.py``, since issue 41 item 3; a source tree without it runs
   without caches). The entry is set up (mechanism, record: ``setup``), called once (``first``)
   and once more (``steady``: the run alone, if nothing is traced again).
 * ``cli:NAME``: ``jaxclear.cli.main(argv)`` in the child (``JAXCLEAR_CACHE_DIR`` = the folder: the
@@ -415,7 +415,7 @@ def parse_args(argv=None):
                     help="API processes also keep traced programs (jaxclear.integrate.programs), as the CLI does")
     ap.add_argument("--api-default", action="store_true",
                     help="API processes configure nothing: JAXCLEAR_CACHE_DIR is the folder, and jaxclear's default "
-                    "caches (jaxclear/caches.py) are measured")
+                    "caches (jaxclear/integrate/caches.py) are measured")
     ap.add_argument("--no-steady", action="store_true", help="skip the second call of API entries")
     ap.add_argument("--json", help="output (default benchmarks/results/first_result.json; --quick: _quick)")
     ap.add_argument("--source", type=Path, default=ROOT, help="source tree whose jaxclear is measured, e.g. "

@@ -8,7 +8,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-# Hermetic caches: the compiled and traced programs that jaxclear keeps by default (jaxclear/caches.py)
+# Hermetic caches: the compiled and traced programs that jaxclear keeps by default (jaxclear/integrate/caches.py)
 # go to a temporary folder of this session, removed at its end, never the user's cache folder
 # (nor a JAX cache the user configured: JAX_COMPILATION_CACHE_DIR is dropped). Child processes
 # (the command line, tests/test_programs.py) inherit the folder. JAXCLEAR_CACHE_DIR=off in the

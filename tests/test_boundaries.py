@@ -1,7 +1,7 @@
 """Boundaries between jaxclear's packages (issue 40, item 6).
 
 A *package* here is a top-level subpackage (``jaxclear/fitting/``) or loose module
-(``jaxclear/params.py``) of jaxclear. A module may use the private names (a leading underscore,
+(``jaxclear/_storage.py``) of jaxclear. A module may use the private names (a leading underscore,
 not a dunder) of its own package, and anything of jaxclear's top-level private modules
 (``jaxclear/_errors.py``, ``_storage.py``, ``_types.py``, ...: the shared private base); it may
 not import, or read as an attribute of an imported module, a private name or private module of

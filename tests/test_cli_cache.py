@@ -61,7 +61,7 @@ def test_cache_folder_used_and_switched_off(tmp_path, restore_cache_config):
     assert cache.progress_allowed(argparse.Namespace(no_progress=False))
 
 
-# ---- the same caches from the Python API (jaxclear/caches.py) ------------------------------------
+# ---- the same caches from the Python API (jaxclear/integrate/caches.py) ------------------------------------
 
 
 def test_api_enables_both_stores_and_switches_them_off(tmp_path, restore_cache_config):

@@ -1,4 +1,4 @@
-"""Kinematic analysis of driven mechanisms (jaxclear/integrate/kinematics.py), the command line's
+"""Kinematic analysis of driven mechanisms (jaxclear/integrate/_kinematics.py), the command line's
 ideal-joint overlay: against the slider-crank's closed form, against the integrated ideal run
 (accelerations and reactions), and its derivatives against central differences."""
 

@@ -1,4 +1,4 @@
-"""The store of traced programs (jaxclear/integrate/programs.py): a run through a stored program
+"""The store of traced programs (jaxclear/integrate/_programs.py): a run through a stored program
 equals the usual jitted run bit for bit, array values are inputs (one program serves every
 value), static structure is part of the key, unkeyable arguments and damaged files fall back to
 tracing, and a new process loads the program instead of tracing it."""

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 
-from ..drawing import animate
+from ..plot.drawing import animate
 from ..integrate import timed_simulate
 from .common import add_mechanism_file_option, add_mechanism_options, number_in
 from .simulate import add_integration_options, load, settings_from

@@ -8,11 +8,11 @@ import os
 from .. import io
 from .._errors import ParameterError
 from ..analysis.structure import check_mechanism
-from ..drawing import plot_mechanism
-from ..profile_figures import plot_profiles
+from ..plot.drawing import plot_mechanism
+from ..plot.profiles import plot_profiles
 from .common import add_mechanism_file_option, mechanism_file, number_in
-from ..mechanism_files import load_mechanism
-from ..presets import preset, preset_names
+from ..mechanisms.files import load_mechanism
+from ..mechanisms.presets import preset, preset_names
 from .simulate import add_free_dof_option
 
 HELP = "assemble a mechanism file, report its degrees of freedom, draw it (PNG)"

@@ -12,9 +12,9 @@ from ..contact.hybrid import MAX_GAUSS_PER_ELEMENT, MAX_GAUSS_POINTS
 from ..contact.registry import law_names
 from .._errors import ParameterError
 from .. import params
-from ..mechanism_files import load_mechanism
+from ..mechanisms.files import load_mechanism
 from ..model import Mechanism
-from ..presets import preset, preset_names
+from ..mechanisms.presets import preset, preset_names
 
 
 #: What reads as a number after a flag, not as a flag: ``-5``, ``-.5``, ``-0.5e-3``, ``-1E+9``,

@@ -6,7 +6,7 @@ import argparse
 import inspect
 import textwrap
 
-from ..presets import PRESETS
+from ..mechanisms.presets import PRESETS
 from .common import plain_text
 
 HELP = "list the preset mechanisms"

@@ -46,7 +46,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..derivatives import DerivativeHorizonWarning, amplification, derivative_horizon
+from ..params.derivatives import DerivativeHorizonWarning, amplification, derivative_horizon
 from ..integrate import jit
 from .problem import DesignProblem
 

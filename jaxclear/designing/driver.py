@@ -16,7 +16,7 @@ from tqdm.auto import tqdm
 from .._errors import STATUS, DesignError, ParameterError
 from .._interrupt import stop_at_safe_points
 from .._checkpoint import key as work_key, locked
-from ..derivatives import DerivativeHorizonWarning
+from ..params.derivatives import DerivativeHorizonWarning
 from ..integrate import Settings
 from ..model import Mechanism, crank_driver
 from .chaos import (RuggedObjectiveWarning, horizon_report, roughness_report, rugged_message, scale_message,

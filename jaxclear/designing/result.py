@@ -12,7 +12,7 @@ import numpy as np
 
 from .._results import AbstractResult, deprecated
 from .._storage import atomic_write_json, atomic_write_text, jsonable
-from ..mechanism_files import save_mechanism
+from ..mechanisms.files import save_mechanism
 from .figures import plot_comparison
 
 #: Outcomes of a design's optimisation (:attr:`DesignResult.status`): ``converged`` (the method's

@@ -16,7 +16,7 @@ import numpy as np
 
 from .. import params
 from .._errors import ParameterError
-from ..derivatives import differentiable_names
+from ..params.derivatives import differentiable_names
 from ..model import Mechanism
 
 

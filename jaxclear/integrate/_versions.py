@@ -51,5 +51,5 @@ def check() -> None:
         raise RuntimeError(
             f"jaxclear is tested with other versions than these: {ranges}. Its solver wrappers use "
             "diffrax internals; install the tested versions (pip install -e .) or re-run the tests "
-            "and widen the bounds in pyproject.toml and jaxclear/integrate/versions.py together."
+            "and widen the bounds in pyproject.toml and jaxclear/integrate/_versions.py together."
         )

@@ -113,7 +113,7 @@ class AbstractConnector(AbstractLoad):
     SKETCH_STYLE: ClassVar[dict] = {"color": "tab:gray", "lw": 1.2}
 
     def sketch(self, points: dict, size: float) -> np.ndarray | None:
-        """The polyline ``(k, 2)`` [m] that draws the element (:mod:`jaxclear.drawing`), from
+        """The polyline ``(k, 2)`` [m] that draws the element (:mod:`jaxclear.plot.drawing`), from
         ``points[body][point]``, the global position of every point (``"@"``: a body's
         centroid), and ``size`` [m], the drawing's size. Default: nothing drawn (``None``);
         :class:`AbstractPointPair` draws a straight line between its points."""

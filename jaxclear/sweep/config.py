@@ -24,8 +24,8 @@ from .. import params
 from .._storage import fingerprint, json_text, jsonable, read_toml
 from .._errors import JaxclearError, ParameterError
 from ..model import Mechanism
-from ..mechanism_files import load_mechanism
-from ..presets import PRESETS, preset
+from ..mechanisms.files import load_mechanism
+from ..mechanisms.presets import PRESETS, preset
 from ..integrate import Settings
 from ..integrate import (MAX_OUT_SAMPLES, OPTION_KEYS, deprecated_keywords, option_values,
                                   settings_from_options)

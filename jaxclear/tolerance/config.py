@@ -72,14 +72,14 @@ def study_from_dict(doc: dict, source: str = "<dict>", settings_options: dict | 
     kwargs["limits"] = dict(doc.get("limits", {}))
     mech = dict(doc.get("mechanism", {}))
     if "file" in mech:
-        from ..mechanism_files import load_mechanism
+        from ..mechanisms.files import load_mechanism
 
         if set(mech) != {"file"}:
             raise ParameterError(f"{source}: [mechanism] with 'file' takes no other key (got {sorted(mech)})")
         folder = os.path.dirname(source) if os.path.isfile(source) else ""
         kwargs["mech"] = load_mechanism(os.path.join(folder, str(mech["file"])))
     elif set(mech) - {"preset"}:
-        from ..presets import preset
+        from ..mechanisms.presets import preset
 
         kwargs["mech"] = preset(mech.pop("preset", "flores-slider-crank"), **mech)
     elif "preset" in mech:

@@ -28,11 +28,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import params
-from ._errors import ParameterError
-from .integrate import Settings, Solution, simulate
-from .integrate import check_status
-from .model import Mechanism
+from . import registry as params
+from .._errors import ParameterError
+from ..integrate import Settings, Solution, simulate
+from ..integrate import check_status
+from ..model import Mechanism
 
 
 class DerivativeHorizonWarning(UserWarning):

@@ -29,17 +29,17 @@ import warnings
 import numpy as np
 import tomli_w
 
-from ._errors import JaxclearError, MechanismError, ParameterError, function_name
-from ._storage import atomic_write_text, parse_toml, read_text
-from ._units import rpm_to_rad_s
-from .contact import FourierProfile, Friction, Material, make_law
-from .contact.friction import FRICTION_MODELS, friction_name
-from .contact.registry import LAWS, law_names
-from .elements import FILMS, IDEALS, ClearanceJoint, LubricatedJoint, PinSlotJoint, TranslationalClearanceJoint
-from .model import AngleDriver, Body, Fixed, Mechanism, PointForce, ProfileDriver, Revolute, Torque, Translational
-from .model.connectors import CONNECTORS
-from .profile_tables import PROFILE_KINDS, load_tables, read_curve, read_profile
-from .model.mechanism import check_sizes
+from .._errors import JaxclearError, MechanismError, ParameterError, function_name
+from .._storage import atomic_write_text, parse_toml, read_text
+from .._units import rpm_to_rad_s
+from ..contact import FourierProfile, Friction, Material, make_law
+from ..contact.friction import FRICTION_MODELS, friction_name
+from ..contact.registry import LAWS, law_names
+from ..elements import FILMS, IDEALS, ClearanceJoint, LubricatedJoint, PinSlotJoint, TranslationalClearanceJoint
+from ..model import AngleDriver, Body, Fixed, Mechanism, PointForce, ProfileDriver, Revolute, Torque, Translational
+from ..model.connectors import CONNECTORS
+from .tables import PROFILE_KINDS, load_tables, read_curve, read_profile
+from ..model.mechanism import check_sizes
 
 FORMAT_VERSION = 1
 

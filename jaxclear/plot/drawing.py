@@ -27,11 +27,11 @@ from matplotlib import animation
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 
-from ._errors import ParameterError
-from .elements import TranslationalClearanceJoint
-from .integrate import Solution
-from .model import GROUND, AbstractConnector, Mechanism, Translational
-from .model.joints import AbstractJoint
+from .._errors import ParameterError
+from ..elements import TranslationalClearanceJoint
+from ..integrate import Solution
+from ..model import GROUND, AbstractConnector, Mechanism, Translational
+from ..model.joints import AbstractJoint
 
 DPI = 110
 #: drawn bearing radius as a fraction of the drawing's size

@@ -11,7 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 from matplotlib.figure import Figure
 
-from .model import Mechanism, ProfileDriver
+from ..model import Mechanism, ProfileDriver
 
 
 def mechanism_profiles(mech: Mechanism) -> list[tuple[str, object, bool]]:

@@ -15,10 +15,10 @@ import os
 
 import numpy as np
 
-from ._errors import JaxclearError, MechanismError, ParameterError
-from ._units import rpm_to_rad_s
-from .model.curves import PolynomialCurve, TableCurve
-from .model.profiles import PROFILE_KINDS, ConstantProfile, HarmonicProfile, RampProfile, TableProfile
+from .._errors import JaxclearError, MechanismError, ParameterError
+from .._units import rpm_to_rad_s
+from ..model.curves import PolynomialCurve, TableCurve
+from ..model.profiles import PROFILE_KINDS, ConstantProfile, HarmonicProfile, RampProfile, TableProfile
 
 #: kind -> (keys with numbers, keys scaled by a speed unit)
 PROFILE_KEYS = {

@@ -98,15 +98,15 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from ._errors import JaxclearError, ParameterError, check_range, closest
-from ._parameters import Parameter, declared, leaf
-from .contact.base import FRICTION_PARAMETERS, AbstractFriction, AbstractNormalLaw
-from .contact.friction import FRICTION_MODELS
-from .contact.friction_laws import KarnoppFriction
-from .contact.registry import LAWS
-from .elements import AbstractForceElement, ClearanceJoint, LubricatedJoint, PinSlotJoint, TranslationalClearanceJoint
-from .model import GROUND, AngleDriver, Body, Mechanism, PointForce, Torque, crank_driver
-from .model.connectors import CONNECTORS, AbstractConnector, connector_index
+from .._errors import JaxclearError, ParameterError, check_range, closest
+from .._parameters import Parameter, declared, leaf
+from ..contact.base import FRICTION_PARAMETERS, AbstractFriction, AbstractNormalLaw
+from ..contact.friction import FRICTION_MODELS
+from ..contact.friction_laws import KarnoppFriction
+from ..contact.registry import LAWS
+from ..elements import AbstractForceElement, ClearanceJoint, LubricatedJoint, PinSlotJoint, TranslationalClearanceJoint
+from ..model import GROUND, AngleDriver, Body, Mechanism, PointForce, Torque, crank_driver
+from ..model.connectors import CONNECTORS, AbstractConnector, connector_index
 
 
 @dataclass(frozen=True)

@@ -17,9 +17,9 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator, MultipleLocator
 
-from .model import Mechanism
-from .integrate import Solution
-from .integrate import jit
+from ..model import Mechanism
+from ..integrate import Solution
+from ..integrate import jit
 
 DPI = 130
 FIGSIZE = (9.0, 4.8)

@@ -11,13 +11,13 @@ from pathlib import Path
 
 import numpy as np
 
-from .elements import ClearanceJoint, LubricatedJoint, PinSlotJoint, TranslationalClearanceJoint
-from .contact import Friction
-from .contact import make_law
-from ._errors import ParameterError, check_range
-from ._units import rpm_to_rad_s
-from .mechanism_files import save_mechanism
-from .model import GROUND, AngleDriver, Body, Mechanism, Revolute, Translational
+from ..elements import ClearanceJoint, LubricatedJoint, PinSlotJoint, TranslationalClearanceJoint
+from ..contact import Friction
+from ..contact import make_law
+from .._errors import ParameterError, check_range
+from .._units import rpm_to_rad_s
+from .files import save_mechanism
+from ..model import GROUND, AngleDriver, Body, Mechanism, Revolute, Translational
 
 
 #: the lubricated joint's options of a preset, with their defaults (those of :class:`LubricatedJoint`)
@@ -348,7 +348,7 @@ def preset(name: str, **overrides) -> Mechanism:
 
 #: The presets as mechanism files, shipped inside the package (generated from the functions
 #: above by :func:`write_preset_files`; a test checks that each file reads back equal).
-PRESET_DIR = Path(__file__).parent / "mechanisms"
+PRESET_DIR = Path(__file__).parent
 
 
 def preset_file(name: str) -> Path:
