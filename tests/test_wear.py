@@ -219,3 +219,50 @@ def test_the_command_prints_the_history_summary(tmp_path, monkeypatch, capsys):
     assert main(["wear", "--updates", "2", "--out", str(tmp_path / "w")]) == 0
     out = capsys.readouterr().out
     assert "\n".join("  " + line for line in h.summary().splitlines()) in out and "written to" in out
+
+
+class _Stop(Exception):
+    pass
+
+
+def test_wear_runs_with_step_onsets_and_the_command_refuses_exact_ones(tmp_path, monkeypatch, capsys):
+    """Wear's windows run with step onsets (``wearing.service.ONSETS_WHY``): the default exact
+    onsets of ``Settings`` (which cannot be told apart from asked ones) are replaced, another
+    strategy is used as given; ``jaxclear wear --onsets exact`` is an error naming the option,
+    the allowed value and why, ``--onsets step`` reaches the run."""
+    import jaxclear.cli.wear as cli_wear
+
+    seen = []
+
+    def window(mech, settings, *args):
+        seen.append(settings.onsets)
+        raise _Stop
+
+    monkeypatch.setattr(wearing.service, "_window", window)
+    options = jc.WearOptions(coefficient=KW, updates=1, settle=SETTLE)
+    for given in (SETTINGS, jc.settings(SETTLE + T, n_out=1801, allow_free_dof=True, onsets="exact")):
+        assert given.onsets == jc.ExactOnsets()
+        with pytest.raises(_Stop):
+            jc.wear(rig(), given, options, progress=False)
+        assert seen[-1] == jc.StepOnsets()
+
+    class Mine(jc.StepOnsets):
+        """A user's onsets strategy (here: step onsets under another name)."""
+
+    with pytest.raises(_Stop):
+        jc.wear(rig(), jc.settings(SETTLE + T, n_out=1801, allow_free_dof=True, onsets=Mine()), options, progress=False)
+    assert type(seen[-1]) is Mine
+    # the command line
+    assert main(["wear", "--onsets", "exact", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "--onsets exact: jaxclear wear runs with step onsets (--onsets step, the only allowed value" in err
+    assert "Gauss points" in err
+    got = []
+    monkeypatch.setattr(cli_wear, "wear", lambda mech, s, *args, **kwargs: got.append(s.onsets) or _raise(_Stop()))
+    with pytest.raises(_Stop):
+        main(["wear", "--onsets", "step", "--updates", "1", "--out", str(tmp_path / "w")])
+    assert got == [jc.StepOnsets()]
+
+
+def _raise(err):
+    raise err

@@ -9,8 +9,9 @@ import textwrap
 from .._errors import ParameterError, check_range
 from ..integrate import revolutions_of
 from ..wearing import WearOptions, wear
-from ..wearing.service import MAX_NODES
+from ..wearing.service import MAX_NODES, ONSETS_WHY
 from .common import add_mechanism_file_option, add_mechanism_options, number_in
+from .settings import given_options
 from .simulate import add_integration_options, load, settings_from
 
 HELP = "wear a clearance joint's bearing over a long service (Archard), resumable"
@@ -64,6 +65,9 @@ def run(args) -> int:
     if args.model != "hybrid":
         raise ParameterError(f"jaxclear wear needs --model hybrid (got --model {args.model}): Archard's law needs "
                              "the contact pressure point by point")
+    if given_options(args).get("onsets") == "exact":
+        raise ParameterError(f"--onsets exact: jaxclear wear runs with step onsets (--onsets step, the only allowed "
+                             f"value here, and what it uses when --onsets is not given): {ONSETS_WHY}")
     if not args.harmonics < args.nodes / 2:
         raise ParameterError(f"--harmonics {args.harmonics} is outside the allowed range [1, --nodes / 2 = "
                              f"{args.nodes / 2:g})")

@@ -39,7 +39,7 @@ from .._checkpoint import Work, key as work_key
 from .._storage import atomic_write_json, atomic_write_text, fsync_append, jsonable
 from ..integrate import Settings
 from ..integrate import check_status, simulate
-from ..integrate import StepOnsets
+from ..integrate import ExactOnsets, StepOnsets
 from ..model.mechanism import Mechanism
 from .figures import plot_wear
 from .archard import WindowWear, wear_element, window_wear
@@ -47,6 +47,11 @@ from .profile import node_angles, prepare, worn
 
 #: A single update wearing more than this fraction of the clearance gets a warning.
 STEP_WARNING = 0.05
+#: Why wear runs with step onsets (:class:`~jaxclear.StepOnsets`), never exact ones: what
+#: :func:`wear` and ``jaxclear wear --onsets exact`` say.
+ONSETS_WHY = ("a worn bearing's contact flickers in and out at the hybrid law's Gauss points as they cross the worn "
+              "profile, and exact onsets retry a step at every flicker (a worn benchmark window reached max_steps); "
+              "the wear integral needs no onset timing")
 #: Most bearing nodes (checked before the node arrays are made).
 MAX_NODES = 100_000
 STATE_FILE = "wear.json"
@@ -307,16 +312,17 @@ def wear(mech: Mechanism, settings: Settings, options: WearOptions, out: str | N
     """Wear the bearing of one clearance joint of ``mech`` over ``options.updates`` windows of
     ``settings`` (see the module docstring). ``settings`` (:class:`~jaxclear.Settings`, whole,
     required: its ``[t_start, t_end]`` is a window) are every window's, the wear replacing only
-    what it owns: ``onsets`` (:class:`~jaxclear.StepOnsets`: a worn bearing's contact
-    flickers at the Gauss points, where exact onsets would retry a step at every flicker) and
-    ``throw`` (False: a failed window is reported by its status). ``out``: output folder
+    what it owns: ``onsets`` where left at ``Settings``' default (:class:`~jaxclear.ExactOnsets`,
+    which a run of wear cannot use and which cannot be told apart from the default, so it is
+    never an error here: :class:`~jaxclear.StepOnsets` replaces it, :data:`ONSETS_WHY`; another
+    onsets strategy is used as given; the command line refuses ``--onsets exact``) and ``throw``
+    (False: a failed window is reported by its status). ``out``: output folder
     (written as it goes, resumed if it holds a run of the same mechanism, settings and options;
     ``restart`` starts over)."""
     options.check(settings)
-    # A worn bearing's contact is resolved at the Gauss points, so it flickers in and out as points
-    # cross the profile; the exact-onset controller would retry a step at every flicker (measured:
-    # max_steps reached on a worn benchmark window). The wear integral does not need onset timing.
-    settings = dataclasses.replace(settings, onsets=StepOnsets())
+    # exact onsets (Settings' default) cannot serve a worn bearing (ONSETS_WHY): wear's own choice
+    if isinstance(settings.onsets, ExactOnsets):
+        settings = dataclasses.replace(settings, onsets=StepOnsets())
     index = wear_element(mech, options.joint)
     law = mech.elements[index].law
     if options.n_nodes > law.n_elements * law.n_gauss / 2:
