@@ -43,11 +43,14 @@ class AbstractResult(abc.ABC):
         ``path`` once the figure is saved there."""
 
 
-def deprecated(old: str, new: str) -> None:
+def deprecated(old: str, new: str, *, stacklevel: int = 2) -> None:
     """The :class:`DeprecationWarning` of an old spelling ``old`` (use ``new``), removed in the
-    next release (CHANGELOG.md lists each)."""
-    warnings.warn(f"{old} is deprecated: use {new}; it will be removed in the next release", DeprecationWarning,
-                  stacklevel=3)
+    next release (CHANGELOG.md lists each), in the one wording of every old spelling: "``old``
+    is deprecated and will be removed in the next release; use ``new``". ``stacklevel``: as
+    :func:`warnings.warn`'s, counted from the caller of this function (2, the default: the
+    caller's caller, whose line the warning names)."""
+    warnings.warn(f"{old} is deprecated and will be removed in the next release; use {new}", DeprecationWarning,
+                  stacklevel=stacklevel + 1)
 
 
 class SummaryTable(Mapping):

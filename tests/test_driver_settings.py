@@ -109,7 +109,7 @@ def test_sweep_file_settings_table_and_the_command_line_over_it():
     s = config_from_dict(doc, source="s.toml", settings_options={"rtol": 1e-9}).run_settings
     assert (s.rtol, s.derivatives) == (1e-9, jc.Sensitivity(0.5))
     old = {**doc, "run": {**doc["run"], "solver": "bosh3", "atol": 1e-12}, "settings": {}}
-    with pytest.warns(DeprecationWarning, match=r"s.toml: \['atol', 'solver'\] in \[run\] are deprecated"):
+    with pytest.warns(DeprecationWarning, match=r"s.toml: writing \['atol', 'solver'\] in \[run\] is deprecated.*; use a \[settings\] table"):
         s_old = config_from_dict(old, source="s.toml").run_settings
     s_new = config_from_dict({**old, "run": doc["run"], "settings": {"solver": "bosh3", "atol": 1e-12}},
                              source="s.toml").run_settings

@@ -79,8 +79,10 @@ def test_old_attributes_read_back_with_a_deprecation_warning():
                     sampling="block")
     expected = dict(adjoint="recursive", checkpoints=16, stages="unrolled", exact_onsets=False, sampling="block",
                     derivative_tolerance=0.1)
+    field = dict(adjoint="derivatives", checkpoints="derivatives", stages="solver", exact_onsets="onsets",
+                 sampling="output", derivative_tolerance="derivatives")
     for name, value in expected.items():
-        with pytest.warns(DeprecationWarning, match=rf"Settings\.{name} is deprecated"):
+        with pytest.warns(DeprecationWarning, match=rf"Settings\.{name} is deprecated.*; use Settings\.{field[name]}"):
             assert getattr(s, name) == value
     d = jc.settings(0.01, derivative_tolerance=0.25)
     with warnings.catch_warnings():

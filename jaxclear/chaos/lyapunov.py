@@ -11,7 +11,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-import warnings
 from typing import Sequence
 
 import equinox as eqx
@@ -22,6 +21,7 @@ import numpy as np
 from .. import params
 from .._checkpoint import Work, key as work_key
 from .._errors import JaxclearError, ParameterError, is_concrete
+from .._results import deprecated
 from ..analysis.channels import channel
 from ..integrate import Settings, Solution, State, stored_solution
 from ..integrate import default_settings
@@ -184,8 +184,7 @@ def _renamed(driver: str, settings: Settings | None, s: Settings | None, require
     if s is not None:
         if settings is not None:
             raise ParameterError(f"{driver}: both settings= and s= (its old name) given; give settings= only")
-        warnings.warn(f"{driver}(s=...) is deprecated and will be removed in the next release: pass settings=...",
-                      DeprecationWarning, stacklevel=3)
+        deprecated(f"{driver}(s=...)", "settings=...", stacklevel=3)
         settings = s
     if settings is None:
         if required:

@@ -4,7 +4,6 @@ contact onsets (:class:`Settings`; the strategy objects of :mod:`.strategies`)."
 from __future__ import annotations
 
 import dataclasses
-import warnings
 from typing import Mapping
 
 import diffrax
@@ -13,6 +12,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._errors import JaxclearError, ParameterError, is_concrete
+from .._results import deprecated
 from .._types import Array, Float
 from ._dynamics import Baumgarte
 from ._solvers import UnrolledExplicitRK
@@ -49,8 +49,7 @@ class _OldName:
     def __get__(self, obj, owner=None):
         if obj is None:
             return self.default
-        warnings.warn(f"Settings.{self.name} is deprecated and will be removed in the next release: read "
-                      f"Settings.{self.field}", DeprecationWarning, stacklevel=2)
+        deprecated(f"Settings.{self.name}", f"Settings.{self.field}", stacklevel=3)  # past equinox's __getattribute__
         return self.read(obj)
 
 
@@ -274,7 +273,6 @@ def deprecated_keywords(driver: str, settings: Settings | None, stacklevel: int 
     if settings is not None:
         raise ParameterError(f"{driver}: both settings= and {keywords} given; give the settings only, e.g. "
                              f"settings=jc.settings(t_end, {spelled}) (t_end and n_out are the driver's own)")
-    warnings.warn(f"{driver}({keywords}...) is deprecated and will be removed in the next release: pass "
-                  f"settings=jc.settings(t_end, {spelled}) (t_end and n_out are the driver's own)",
-                  DeprecationWarning, stacklevel=stacklevel)
+    deprecated(f"{driver}({keywords}...)", f"settings=jc.settings(t_end, {spelled}) (t_end and n_out are the "
+               "driver's own)", stacklevel=stacklevel)
     return given

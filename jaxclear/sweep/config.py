@@ -12,7 +12,6 @@ import dataclasses
 import inspect
 import math
 import os
-import warnings
 from dataclasses import dataclass, field
 
 import equinox as eqx
@@ -23,6 +22,7 @@ import numpy as np
 from .. import params
 from .._storage import fingerprint, json_text, jsonable, read_toml
 from .._errors import JaxclearError, ParameterError
+from .._results import deprecated
 from ..model import Mechanism
 from ..mechanisms.files import load_mechanism
 from ..mechanisms.presets import PRESETS, preset
@@ -277,7 +277,7 @@ class SweepConfig:
             if key in old:
                 _number(f"{src}: run.{key}", old[key])
         try:
-            old = deprecated_keywords("SweepConfig", self.settings, **old)
+            old = deprecated_keywords("SweepConfig", self.settings, stacklevel=7, **old)  # the line that builds the config
         except ParameterError as err:
             raise ParameterError(f"{src}: {err}") from None
         base = self.settings if self.settings is not None else Settings(t_end=jnp.asarray(1.0), max_steps=MAX_STEPS)
@@ -451,8 +451,7 @@ def settings_table(doc: dict, run: dict, source: str, given: dict | None = None)
     if both:
         raise ParameterError(f"{source}: {both} given both in [run] and in [settings]; keep [settings]")
     if old:
-        warnings.warn(f"{source}: {sorted(old)} in [run] are deprecated and will be removed in the next release: "
-                      "write them in a [settings] table", DeprecationWarning, stacklevel=3)
+        deprecated(f"{source}: writing {sorted(old)} in [run]", "a [settings] table (the same keys)", stacklevel=3)
     options = {**old, **table, **(given or {})}
     if not options:
         return None
