@@ -2,8 +2,8 @@
 its fields (``PARAMETERS``), :mod:`jaxclear.params` composes them, and a new force element is one
 class in one file. The toy element here is defined in this file only and registered nowhere
 (not in the mechanism files' ``CONNECTORS``): names, values, ranges (eager and inside ``jit``),
-the differentiable names, ``jax.grad`` of a run, the structure check and the drawing all find it
-through its declaration."""
+the differentiable names, ``jax.grad`` of a run, the structure check, the drawing, a sweep and a
+fit all find it through its declaration."""
 
 from __future__ import annotations
 
