@@ -15,7 +15,6 @@ Layer 0: no import of jaxclear.
 
 from __future__ import annotations
 
-import functools
 from typing import Any, Callable, NamedTuple
 
 
@@ -98,9 +97,3 @@ def nested(part: str, table: dict[str, Parameter]) -> dict[str, Parameter]:
             limit=None if p.limit is None else (lambda owner, f=p.limit: f(at(owner))))
 
     return {name: through(p) for name, p in table.items()}
-
-
-def leaf(owner, p: Parameter, key: str | None = None):
-    """The leaf of ``p`` in ``owner`` (the dict entry ``key`` of a keyed leaf)."""
-    value = functools.reduce(getattr, p.field.split("."), owner)
-    return value[key] if p.keyed else value

@@ -90,6 +90,7 @@ parameter raises :class:`~jaxclear.ParameterError` naming the laws that have it.
 
 from __future__ import annotations
 
+import functools
 import warnings
 from dataclasses import dataclass
 from typing import Any, Callable, NamedTuple
@@ -99,7 +100,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._errors import JaxclearError, ParameterError, check_range, closest
-from .._parameters import Parameter, declared, leaf
+from .._parameters import Parameter, declared
 from ..contact.base import FRICTION_PARAMETERS, AbstractFriction, AbstractNormalLaw
 from ..contact.friction import FRICTION_MODELS
 from ..contact.friction_laws import KarnoppFriction
@@ -199,35 +200,40 @@ def parameter_names() -> list[str]:
     return sorted(INFO)
 
 
+def leaf(owner, p: Parameter, key: str | None = None):
+    """The leaf of ``p`` in ``owner`` (the dict entry ``key`` of a keyed leaf)."""
+    value = functools.reduce(getattr, p.field.split("."), owner)
+    return value[key] if p.keyed else value
+
+
 class _Owner(NamedTuple):
     scope: str
     key: Any  # joint index, None (crank), body name, load index as text, element name
     where: Callable  # mech -> the owner
     obj: Any
+    table: dict  # what it declares (declared(obj)), read once
 
 
 def _owners(mech: Mechanism) -> list[_Owner]:
     """Everything in ``mech`` that declares parameters, in the order :func:`names` lists them."""
-    out = [_Owner("joint", k, lambda m, k=k: m.clearance_joints[k], j) for k, j in enumerate(mech.clearance_joints)]
+    out = [("joint", k, lambda m, k=k: m.clearance_joints[k], j) for k, j in enumerate(mech.clearance_joints)]
     found = crank_driver(mech)
     if found is not None:
-        out.append(_Owner("crank", None, lambda m, i=found[0]: m.drivers[i], found[1]))
-    out += [_Owner("body", b.name, lambda m, i=i: m.bodies[i], b) for i, b in enumerate(mech.bodies)]
-    out.append(_Owner("body", GROUND, lambda m: m, mech))
-    for i, load in enumerate(mech.loads):
-        if isinstance(load, AbstractConnector):
-            out.append(_Owner("element", load.name, lambda m, i=i: m.loads[i], load))
-        elif declared(load):
-            out.append(_Owner("load", str(i), lambda m, i=i: m.loads[i], load))
-    return out
+        out.append(("crank", None, lambda m, i=found[0]: m.drivers[i], found[1]))
+    out += [("body", b.name, lambda m, i=i: m.bodies[i], b) for i, b in enumerate(mech.bodies)]
+    out.append(("body", GROUND, lambda m: m, mech))
+    out += [("element", ld.name, lambda m, i=i: m.loads[i], ld) if isinstance(ld, AbstractConnector) else
+            ("load", str(i), lambda m, i=i: m.loads[i], ld) for i, ld in enumerate(mech.loads)]
+    return [o for o in (_Owner(*o, declared(o[3])) for o in out) if o.scope != "load" or o.table]
 
 
-def _entries(mech: Mechanism | None) -> dict[str, _Entry]:
-    """The catalogue, plus the names declared by the classes in ``mech`` that are not registered."""
+def _entries(mech: Mechanism | None, owners: list[_Owner] | None = None) -> dict[str, _Entry]:
+    """The catalogue, plus the names declared by the classes in ``mech`` (``owners``) that are not registered."""
     if mech is None:
         return _CATALOGUE
-    extra = {type(o.obj) for o in _owners(mech)} - set(REGISTERED)
-    extra |= {type(getattr(o.obj, part)) for o in _owners(mech) if o.scope == "joint" for part in ("law", "friction")
+    owners = _owners(mech) if owners is None else owners
+    extra = {type(o.obj) for o in owners} - set(REGISTERED)
+    extra |= {type(getattr(o.obj, part)) for o in owners if o.scope == "joint" for part in ("law", "friction")
               if getattr(o.obj, part, None) is not None}
     extra -= set(REGISTERED)
     return {**_compose(sorted(extra, key=lambda c: c.__qualname__)), **_CATALOGUE} if extra else _CATALOGUE
@@ -246,7 +252,7 @@ def names(mech: Mechanism) -> list[str]:
     from the declarations of what ``mech`` holds."""
     out = []
     for o in _owners(mech):
-        table = declared(o.obj)
+        table = o.table
         plain = [n for n, p in table.items() if not p.keyed]
         out += [_suffixed(o, n) for n in (sorted(plain) if o.scope == "joint" else plain)]
         keyed = [n for n, p in table.items() if p.keyed]
@@ -345,8 +351,8 @@ def _missing(mech: Mechanism, name: str, base: str, entry: _Entry, k: int) -> Ja
 def _lookup(mech: Mechanism, name: str) -> Address:
     """:func:`address` without the closest names (what :func:`check_name` adds them to)."""
     base, k, suffix = split_name(name, mech)
-    entry = _entries(mech)[base]
     owners = _owners(mech)
+    entry = _entries(mech, owners)[base]
     key = None
     if entry.scope == "joint":
         if not mech.clearance_joints:
@@ -354,7 +360,7 @@ def _lookup(mech: Mechanism, name: str) -> Address:
         if not 0 <= k < len(mech.clearance_joints):
             raise ParameterError(f"parameter {name!r}: joint index {k} outside [0, {len(mech.clearance_joints) - 1}]")
         owner = owners[k]
-        if base not in declared(owner.obj):
+        if base not in owner.table:
             raise _missing(mech, name, base, entry, k)
     elif entry.scope == "crank":
         owner = next((o for o in owners if o.scope == "crank"), None)
@@ -364,7 +370,7 @@ def _lookup(mech: Mechanism, name: str) -> Address:
         body, key = suffix.split(".", 1) if entry.parameter.keyed else (suffix, None)
         mech.body_index(body)  # an unknown body: MechanismError
         owner = next(o for o in owners if o.scope == "body" and o.key == body)
-        table = declared(owner.obj)
+        table = owner.table
         if base not in table:
             raise ParameterError(f"parameter {name!r}: the ground has no {base}")
         points = leaf(owner.obj, table[base]._replace(keyed=False)) if key is not None else ()
@@ -375,15 +381,14 @@ def _lookup(mech: Mechanism, name: str) -> Address:
         if not i < len(mech.loads):
             raise ParameterError(f"parameter {name!r}: load index {i} outside [0, {len(mech.loads) - 1}] "
                                  f"({len(mech.loads)} loads)")
-        load = mech.loads[i]
-        if base not in declared(load):
-            raise ParameterError(f"parameter {name!r}: load {i} is a {type(load).__name__}, which has no "
+        owner = next((o for o in owners if o.scope == "load" and o.key == str(i)), None)
+        if owner is None or base not in owner.table:
+            raise ParameterError(f"parameter {name!r}: load {i} is a {type(mech.loads[i]).__name__}, which has no "
                                  f"{entry.parameter.field!r}")
-        owner = _Owner("load", suffix, lambda m: m.loads[i], load)
     else:
         i = connector_index(mech.loads, base, suffix)
-        owner = _Owner("element", suffix, lambda m: m.loads[i], mech.loads[i])
-    return Address(name, owner.obj, owner.where, declared(owner.obj)[base], key)
+        owner = next(o for o in owners if o.scope == "element" and o.key == mech.loads[i].name)  # names are unique
+    return Address(name, owner.obj, owner.where, owner.table[base], key)
 
 
 def address(mech: Mechanism, name: str) -> Address:
