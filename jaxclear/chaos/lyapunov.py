@@ -198,7 +198,7 @@ def _renamed(driver: str, settings: Settings | None, s: Settings | None, require
 
 def check_convergence(result: LyapunovResult, tol: float | None) -> None:
     """:class:`LyapunovError` for a concrete result whose spread exceeds ``tol`` (its status is
-    checked first by :func:`~jaxclear.integrate.simulate.raise_for_status`)."""
+    checked first by :func:`~jaxclear.integrate.raise_for_status`)."""
     if tol is not None:
         spread = float(jnp.max(result.spread))
         if not spread <= tol:
@@ -210,7 +210,7 @@ def check_convergence(result: LyapunovResult, tol: float | None) -> None:
 
 def _raise_for_status(result: LyapunovResult, s: Settings, tol: float | None = None,
                       mech: Mechanism | None = None) -> None:
-    """The one :func:`~jaxclear.integrate.simulate.raise_for_status` (the status, a
+    """The one :func:`~jaxclear.integrate.raise_for_status` (the status, a
     :class:`~jaxclear.RESULTS` code; :class:`LyapunovError` for a failed run or an overflow),
     then :func:`check_convergence`."""
     _raise_run_status(result, s, f" (lyapunov, renormalisation interval {float(result.interval):g} s)", mech=mech,
@@ -219,13 +219,13 @@ def _raise_for_status(result: LyapunovResult, s: Settings, tol: float | None = N
 
 
 def __getattr__(name: str):
-    """``raise_for_status`` of this module, deprecated: :func:`jaxclear.integrate.simulate.raise_for_status`
+    """``raise_for_status`` of this module, deprecated: :func:`jaxclear.integrate.raise_for_status`
     (any result with a ``status``) and :func:`check_convergence`."""
     if name == "raise_for_status":
         import warnings
 
         warnings.warn("jaxclear.chaos.lyapunov.raise_for_status is deprecated: use "
-                      "jaxclear.integrate.simulate.raise_for_status(result, s, error=LyapunovError) and "
+                      "jaxclear.integrate.raise_for_status(result, s, error=LyapunovError) and "
                       "check_convergence(result, tol); it will be removed in the next release",
                       DeprecationWarning, stacklevel=2)
         return _raise_for_status

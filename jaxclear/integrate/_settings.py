@@ -62,7 +62,7 @@ class Settings(eqx.Module):
         n_out: number of output samples on the uniform grid ``[t_start, t_end]`` (default 1001).
         solver: a diffrax Runge-Kutta solver instance (default ``diffrax.Tsit5()``); a name of
             :data:`~.strategies.SOLVERS` is accepted. Its stages run in diffrax's stage loop; an explicit
-            solver in :class:`~jaxclear.integrate.solvers.UnrolledExplicitRK` runs them unrolled
+            solver in :class:`~jaxclear.integrate.UnrolledExplicitRK` runs them unrolled
             (the same step; ``stages="unrolled"``).
         rtol, atol: tolerances of the adaptive PID step controller (relative [-], absolute [SI];
             defaults 1e-6, 1e-9).
@@ -93,7 +93,7 @@ class Settings(eqx.Module):
     sensitivities' tolerance): ``benchmarks/README.md``, "Settings' measured choices".
 
     The keywords of before the strategy objects are still accepted and converted
-    (:func:`~jaxclear.integrate.strategies.from_names`): ``adjoint`` (``"sensitivity"``,
+    (:func:`~jaxclear.integrate.from_names`): ``adjoint`` (``"sensitivity"``,
     ``"recursive"``, ``"forward"``, ``"direct"``), ``derivative_tolerance``, ``checkpoints``,
     ``stages`` (``"loop"``, ``"unrolled"``), ``exact_onsets`` (bool), ``sampling`` (``"loop"``,
     ``"block"``); each replaces its part of the field it now belongs to (so
@@ -215,7 +215,7 @@ def settings_from_options(options: Mapping, base: Settings | None = None, *, sou
     ``options`` replaced, each given by name (:data:`OPTION_KEYS`, the command line's and the
     files' spelling): the one conversion of the integration options written as text, through
     :class:`Settings` itself (names to strategy objects:
-    :func:`~jaxclear.integrate.strategies.from_names`). A key outside :data:`OPTION_KEYS`, a
+    :func:`~jaxclear.integrate.from_names`). A key outside :data:`OPTION_KEYS`, a
     value of the wrong kind or outside its range is a :class:`~jaxclear.ParameterError`
     beginning with ``source``."""
     unknown = sorted(set(options) - set(OPTION_KEYS))

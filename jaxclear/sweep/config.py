@@ -260,7 +260,7 @@ class SweepConfig:
         if n_out > MAX_OUT_SAMPLES:
             raise ParameterError(f"{src}: run.revolutions x run.samples_per_revolution + 1 = {n_out} output samples "
                                  f"per run, outside the allowed range [2, {MAX_OUT_SAMPLES}] "
-                                 "(jaxclear.integrate.settings.MAX_OUT_SAMPLES); use fewer revolutions or samples")
+                                 "(jaxclear.integrate.MAX_OUT_SAMPLES); use fewer revolutions or samples")
         self._settings = self._run_settings()
 
     def _run_settings(self) -> Settings:
@@ -425,8 +425,8 @@ def load_config(path, *, settings_options: dict | None = None, **overrides) -> S
     Tables: ``[mechanism]`` (``preset`` and preset keyword overrides, or ``file = "M.toml"``, a
     mechanism file relative to the configuration's folder), ``[grid]`` or ``[list]``
     (the swept parameters), ``[run]`` (:data:`RUN_KEYS`), ``[settings]`` (how every run is
-    integrated: :data:`~jaxclear.integrate.settings.OPTION_KEYS`, ``Settings``' fields by name,
-    converted by :func:`~jaxclear.integrate.settings.settings_from_options` as the command line's
+    integrated: :data:`~jaxclear.integrate.OPTION_KEYS`, ``Settings``' fields by name,
+    converted by :func:`~jaxclear.integrate.settings_from_options` as the command line's
     are), ``[output]`` (:data:`OUTPUT_KEYS`). ``solver``, ``rtol``, ``atol``, ``max_steps`` in
     ``[run]`` are deprecated (a ``DeprecationWarning``, one release): write them in
     ``[settings]``. Unknown tables or keys are errors. ``overrides`` replace
