@@ -122,3 +122,43 @@ def test_the_check_catches_each_kind(source, rel, expected):
 def test_the_check_allows_own_and_shared_private_names(source, rel):
     assert violations(ROOT / rel, source) == []
 
+
+
+def test_old_integrate_module_paths_warn_and_give_the_same_objects():
+    """``jaxclear.integrate``'s modules are private; their old paths import for one release, each
+    name read through them with a DeprecationWarning naming the public spelling."""
+    import importlib
+    import warnings
+
+    import jaxclear as jc
+
+    with pytest.warns(DeprecationWarning, match=r"jaxclear\.integrate\.settings is private now.*import "
+                                                r"MAX_OUT_SAMPLES from jaxclear\.integrate"):
+        from jaxclear.integrate.settings import MAX_OUT_SAMPLES
+    assert MAX_OUT_SAMPLES == jc.integrate.MAX_OUT_SAMPLES
+    with pytest.warns(DeprecationWarning, match="raise_for_status"):
+        assert importlib.import_module("jaxclear.integrate.simulate").raise_for_status is jc.integrate.raise_for_status
+    with pytest.warns(DeprecationWarning, match="runs is private"):
+        assert jc.integrate.runs.revolution_settings is jc.integrate.revolution_settings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert jc.integrate.simulate is jc.simulate and jc.integrate.settings is jc.settings  # the functions
+
+
+def test_moved_modules_keep_their_old_names_without_warning():
+    """The loose modules that found a package are the same module objects under their old names."""
+    import importlib
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        import jaxclear as jc
+        for old, new in [("caches", "integrate.caches"), ("derivatives", "params.derivatives"),
+                         ("presets", "mechanisms.presets"), ("mechanism_files", "mechanisms.files"),
+                         ("profile_tables", "mechanisms.tables"), ("drawing", "plot.drawing"),
+                         ("profile_figures", "plot.profiles")]:
+            module = importlib.import_module(f"jaxclear.{new}")
+            assert importlib.import_module(f"jaxclear.{old}") is module and getattr(jc, old) is module
+        assert jc.params.replace is importlib.import_module("jaxclear.params.registry").replace
+        assert jc.plot.plot_simulation is importlib.import_module("jaxclear.plot.figures").plot_simulation
+        assert jc.io.write_json is importlib.import_module("jaxclear.io.timeseries").write_json

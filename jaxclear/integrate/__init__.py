@@ -74,9 +74,10 @@ class _OldPath(_types.ModuleType):
     def __getattr__(self, attr: str):
         if attr.startswith("__") and attr.endswith("__"):
             raise AttributeError(attr)
-        _warnings.warn(f"{self.__name__} is private now ({object.__getattribute__(self, '_target')}): import "
-                       f"{attr} from jaxclear.integrate (or jaxclear); the old path will be removed in the next "
-                       "release", DeprecationWarning, stacklevel=2)
+        use = (f"import {attr} from jaxclear.integrate" if attr in __all__ else
+               f"{attr} is private, with no public spelling")
+        _warnings.warn(f"{self.__name__} is private now ({object.__getattribute__(self, '_target')}): {use}; the "
+                       "old path will be removed in the next release", DeprecationWarning, stacklevel=2)
         return getattr(self._module(), attr)
 
     def __setattr__(self, attr: str, value):
