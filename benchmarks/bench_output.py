@@ -31,7 +31,7 @@ sys.path.insert(0, str(ROOT))
 import jaxclear as jc  # noqa: E402
 from jaxclear.integrate._compile import jit  # noqa: E402
 from jaxclear.integrate._runs import revolution_settings  # noqa: E402
-from jaxclear.integrate._simulate import _postprocess  # noqa: E402
+from jaxclear.integrate._solve import _postprocess  # noqa: E402
 from jaxclear.integrate._state import State  # noqa: E402
 
 
