@@ -132,13 +132,13 @@ def test_old_integrate_module_paths_warn_and_give_the_same_objects():
 
     import jaxclear as jc
 
-    with pytest.warns(DeprecationWarning, match=r"jaxclear\.integrate\.settings is private now.*import "
-                                                r"MAX_OUT_SAMPLES from jaxclear\.integrate"):
+    with pytest.warns(DeprecationWarning, match=r"jaxclear\.integrate\.settings\.MAX_OUT_SAMPLES is deprecated "
+                                                r".*; use jaxclear\.integrate\.MAX_OUT_SAMPLES$"):
         from jaxclear.integrate.settings import MAX_OUT_SAMPLES
     assert MAX_OUT_SAMPLES == jc.integrate.MAX_OUT_SAMPLES
     with pytest.warns(DeprecationWarning, match="raise_for_status"):
         assert importlib.import_module("jaxclear.integrate.simulate").raise_for_status is jc.integrate.raise_for_status
-    with pytest.warns(DeprecationWarning, match="runs is private"):
+    with pytest.warns(DeprecationWarning, match=r"integrate\.runs\.revolution_settings is deprecated"):
         assert jc.integrate.runs.revolution_settings is jc.integrate.revolution_settings
     with warnings.catch_warnings():
         warnings.simplefilter("error")

@@ -10,7 +10,8 @@ one release, with a ``DeprecationWarning`` on use."""
 import importlib as _importlib
 import sys as _sys
 import types as _types
-import warnings as _warnings
+
+from .. import _results
 
 from ._assembly import RANK_TOL, Assembly, assemble, check_assembly, initial_state, minimum_norm_correction
 from ._compile import compiler_options, jit, on_trace
@@ -62,7 +63,8 @@ _MOVED = ("assembly", "compile", "dynamics", "element_outputs", "kinematics", "p
 
 class _OldPath(_types.ModuleType):
     """``jaxclear.integrate.NAME`` (the old public module): reads and writes go to the private
-    module ``jaxclear.integrate._NAME``, each read with a DeprecationWarning."""
+    module ``jaxclear.integrate._NAME``, each read with the one DeprecationWarning
+    (:func:`jaxclear._results.deprecated`) naming the public spelling."""
 
     def __init__(self, name: str):
         super().__init__(f"{__name__}.{name}")
@@ -74,10 +76,9 @@ class _OldPath(_types.ModuleType):
     def __getattr__(self, attr: str):
         if attr.startswith("__") and attr.endswith("__"):
             raise AttributeError(attr)
-        use = (f"import {attr} from jaxclear.integrate" if attr in __all__ else
-               f"{attr} is private, with no public spelling")
-        _warnings.warn(f"{self.__name__} is private now ({object.__getattribute__(self, '_target')}): {use}; the "
-                       "old path will be removed in the next release", DeprecationWarning, stacklevel=2)
+        target = object.__getattribute__(self, "_target")
+        _results.deprecated(f"{self.__name__}.{attr}", f"jaxclear.integrate.{attr}" if attr in __all__ else
+                   f"{target}.{attr} (private: its module is)", stacklevel=2)
         return getattr(self._module(), attr)
 
     def __setattr__(self, attr: str, value):
