@@ -8,8 +8,9 @@ user's cache folder, so that a new process skips tracing and compilation (``jaxc
 This module only re-exports the public API (``__all__``, each name documented in the API
 reference); the implementation lives in subpackages by layer: ``model`` (what a mechanism is)
 -> ``contact`` (force laws) -> ``elements`` (force elements with state) -> ``integrate``
-(equations of motion, solvers, ``simulate``) -> ``analysis``, ``io``, ``plot`` -> ``sweep``,
-``fitting``, ``designing`` -> ``cli``. See docs/architecture.md.
+(equations of motion, solvers, ``simulate``) -> ``params`` (named parameters, derivatives),
+``mechanisms`` (files, presets), ``analysis``, ``io``, ``plot`` -> ``sweep``, ``fitting``,
+``designing``, ``tolerance``, ``wearing``, ``chaos`` -> ``cli``. See docs/architecture.md.
 """
 
 from importlib.metadata import PackageNotFoundError as _PackageNotFoundError
