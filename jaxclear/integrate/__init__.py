@@ -78,7 +78,7 @@ class _OldPath(_types.ModuleType):
             raise AttributeError(attr)
         target = object.__getattribute__(self, "_target")
         _results.deprecated(f"{self.__name__}.{attr}", f"jaxclear.integrate.{attr}" if attr in __all__ else
-                   f"{target}.{attr} (private: its module is)", stacklevel=2)
+                            f"{target}.{attr} (private: its module is)", stacklevel=2)
         return getattr(self._module(), attr)
 
     def __setattr__(self, attr: str, value):
