@@ -338,7 +338,7 @@ def test_fit_refuses_zero_or_nonfinite_start_loss():
 
     stages = [SimpleNamespace(name="velocity 0.25"), SimpleNamespace(name="acceleration 1")]
     problem = SimpleNamespace(meas=SimpleNamespace(path="rig.csv"), stages=stages, free=("restitution",),
-                              win=SimpleNamespace(scale=1.0))
+                              win=SimpleNamespace(scale=1.0), mech=None)
     for loss in (math.nan, math.inf):
         with pytest.raises(jc.FitDataError, match=r"rig.csv.*not finite.*restitution"):
             check_start_loss(problem, stages[1], loss, np.zeros(1))
