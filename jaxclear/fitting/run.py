@@ -23,9 +23,9 @@ from .solver import (
     stage_arguments,
 )
 from .state import Checkpoint, FitState
-from .way_in import WAY_IN_HORIZON, find_start
+from .way_in import CHAINED_POLISH, CHAINED_SEEDS, WAY_IN_HORIZON, find_start
 from .window import evaluate_window_jit
-from .window_start import state_to_z
+from .window_start import approach_candidates, state_to_z
 
 
 def fresh_state(problem: FitProblem) -> FitState:
@@ -65,7 +65,7 @@ def window_end(problem: FitProblem, st: FitState, k: int):
     return np.asarray(q1), np.asarray(qd1), np.asarray(end)
 
 
-def begin_stage(problem: FitProblem, st: FitState) -> FitState:
+def begin_stage(problem: FitProblem, opt: Optimizer, st: FitState) -> FitState:
     """Starting values of a stage not yet begun: its start, the best start after the starts, or
     (window-state stages) the end of the previous window's simulation."""
     stage = problem.stages[st.stage]
@@ -82,12 +82,19 @@ def begin_stage(problem: FitProblem, st: FitState) -> FitState:
         longer = None
         if WAY_IN_HORIZON > stage.horizon:
             longer = (problem.window_input(k, WAY_IN_HORIZON, False, st.guesses), WAY_IN_HORIZON)
-        ranked, report = find_start(problem.model, problem.mech, st.theta, win, stage.horizon, longer)
+        ranked, report = find_start(problem.model, problem.mech, st.theta, win, stage.horizon, longer,
+                                    chained_seeds(problem, st, k))
         rank = _first_that_runs(problem, st.theta, ranked, win)
+        start, seed = ranked[rank], report.pop("seed", None)
+        if seed is not None:  # the previous window's end, polished: chosen where it follows the longer part better
+            polished, loss = polish(problem, opt, st, k, np.asarray(seed), longer[1] if longer else stage.horizon)
+            report["chained_loss"] = loss
+            if loss < report["best_loss"]:
+                start, report["chosen"] = polished, "chained"
         states = list(st.states)
-        states[k] = ranked[rank].tolist()
+        states[k] = np.asarray(start).tolist()
         st = st.replace(states=states, way_in=st.way_in + ({"window": k, **report, "rank": rank},))
-    elif not stage.theta and stage.states:
+    elif not problem.anywhere and not stage.theta and stage.states:
         k = stage.states[0]
         q1, qd1, end = window_end(problem, st, k - 1)
         guesses, states = list(st.guesses), list(st.states)
@@ -95,6 +102,48 @@ def begin_stage(problem: FitProblem, st: FitState) -> FitState:
         states[k] = state_to_z(end, problem.start_scales, problem.velocity_scale).tolist()
         st = st.replace(guesses=guesses, states=states)
     return st
+
+
+def chained_seeds(problem: FitProblem, st: FitState, k: int) -> np.ndarray | None:
+    """Starts of window ``k`` from the end of window ``k - 1`` simulated at the current values
+    (its start fitted to its end first: the plan's state stages), one per approach speed of
+    the way in's grid (``(n, S)``); None for the first window or where that run fails. Back-to-back
+    windows: the end of a window fitted over its whole length is the data's own estimate of the
+    next one's start (a smoother's), close to it where a grid of starts is far (a start at a
+    rebound, whose basin is narrower than the grid's spacing)."""
+    if k == 0 or problem.win.starts[k] - problem.win.starts[k - 1] > problem.win.length * (1 + 1e-9):
+        return None
+    q1, qd1, end = window_end(problem, st, k - 1)
+    if not np.all(np.isfinite(end)):
+        return None
+    z = state_to_z(end, problem.start_scales, problem.velocity_scale,
+                   [1.0] * len(problem.start_scales))
+    return approach_candidates(z, problem.mech, CHAINED_SEEDS)
+
+
+def polish(problem: FitProblem, opt: Optimizer, st: FitState, k: int, z: np.ndarray, horizon: float,
+           steps: int = CHAINED_POLISH) -> tuple[np.ndarray, float]:
+    """Window ``k``'s start ``z`` ``(S,)`` after at most ``steps`` accepted steps of the stages'
+    own solver on that start alone (the parameters held) over ``horizon`` of the window, and its
+    loss there (mean squares of the normalised residual; inf where the window cannot run)."""
+    stage = Stage(f"window {k + 1} chained start", (k,), horizon, False, (k,), -1, False)
+    states = list(st.states)
+    states[k] = np.asarray(z, dtype=float).tolist()
+    trial = st.replace(states=states, x=None, solver=None, column_scale=None)
+    n_fit = max(float(problem.win.residual_mask(k, horizon).sum()), 1.0)
+    loss0, jac = stage_jacobian(problem, trial, stage)
+    if not (np.isfinite(loss0) and np.all(np.isfinite(jac))):
+        return np.asarray(z, dtype=float), float("inf")
+    run, trial = stage_run(problem, opt, trial, stage, jac)
+    best, loss, accepted = np.asarray(z, dtype=float), loss0, 0
+    for i in range(4 * steps):  # a rejected trial is a step too
+        rep = run.step(accepted, steps, 1e-3, problem.settings["xtol"])
+        if np.isfinite(rep.loss) and rep.loss < loss:
+            best, loss = split(problem, trial, stage, rep.x)[1][k], rep.loss
+        accepted += int(rep.counted)
+        if rep.reason or accepted >= steps:
+            break
+    return best, float(loss) / n_fit
 
 
 def _first_that_runs(problem: FitProblem, theta, ranked: np.ndarray, win) -> int:
@@ -187,7 +236,7 @@ def run_stage(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoin
     parameters act on nothing) is skipped, its reason kept in ``FitState.skipped``; the next
     stage starts from the same values. A final stage without influence is an error."""
     if st.iteration == 0 and st.x is None:
-        st = begin_stage(problem, st)
+        st = begin_stage(problem, opt, st)
     stage = problem.stages[st.stage]
     jac = None
     if st.x is None and opt.least_squares:

@@ -25,12 +25,21 @@ free-flight candidates move along the wall only, and a journal in flight towards
 (window 2 of an acceptance record of the independent simulator: 28 micrometres off the wall,
 closing at 4.4 omega c, striking it 0.02 ms into the window) is reached only so (best misfit
 0.21 of the data's mean square after the grid, 0.0143 after the search, 0.0115 from the true
-start). Tried and not kept: the end of the previous window's run (from the start its own way in
-found; the windows are back to back) as one more candidate of the first pass, the continuity
-that multiple shooting imposes offered as a candidate. It won the first pass on later windows
-and moved the fit to other basins: on acceptance record 2 of the independent simulator the
-misfit fell from 0.0121 to 0.0114 (stiffness -10.4 % for -11.8 %), on record 3 it rose from 0.0103
-to 0.0165 (stiffness -27 % for -13 %, the last stage on max_iter). The candidates are runs of the window model (values only; one after another on a CPU,
+start). **The window before, followed to its end.** The windows are back to back, so the end of
+window ``k - 1``, once that window is fitted over its whole length (the plan follows each window's
+start alone through the horizons before the next window's way in), is the record's own estimate
+of window ``k``'s start: a smoother's, where the grid has nothing near a narrow basin. A journal
+at a rebound (window 2 of acceptance record 3 of the independent simulator: 0.2 micrometres off
+the wall, leaving it at 2.4 omega c while sliding at 7.7; its basin 0.5 omega c and 5
+micrometres wide) is missed by the grid and the search (0.077 of the data's mean square over the
+first half, against the true start's 0.009). That end (:data:`CHAINED_SEEDS` copies at the grid's
+approach speeds) is scored with the candidates, and its best copy is **polished** by a few steps
+of the stages' own solver (:data:`CHAINED_POLISH`, :func:`jaxclear.fitting.run.polish`) and
+taken where it then follows the first half better than the way in's best (on that window: 0.009,
+the true basin; its raw score, 0.173 on the quarter, is no better than the grid's). An earlier
+trial, not kept, offered the end of window ``k - 1`` fitted on its first quarter only, unpolished,
+as one more candidate of the first pass: it won that pass on later windows and moved the fit to
+other basins (acceptance record 3: stiffness -27 % for -13 %). The candidates are runs of the window model (values only; one after another on a CPU,
 :func:`jaxclear.sweep.batch.over_lanes`), four passes of 1560; a window's start is the best of them whose whole window runs with its Jacobian
 (:func:`jaxclear.fitting.run.begin_stage`).
 
@@ -102,6 +111,18 @@ LONGER_ELITES = 48
 #: Geometries whose approach speeds are scored in the second pass (the best ones of the first),
 #: and elites of each round of the local search.
 APPROACH_GEOMETRIES = 12
+
+#: Starts of a window taken from the end of the window before it (``find_start``'s ``seeds``,
+#: :func:`~jaxclear.fitting.run.chained_seeds`): that end at this many approach speeds of the
+#: contact under way (the end's memory is not carried), in place of as many grid candidates.
+CHAINED_SEEDS = 8
+#: Accepted solver steps that polish the best chained seed (:func:`~jaxclear.fitting.run.polish`)
+#: before it is weighed against the way in's best start: the end of the window before lies in
+#: the basin of the true start where the grid has nothing, but its raw score is no better than
+#: the grid's (acceptance record 3 of the independent simulator, window 2: 0.173 of the data's
+#: mean square on the quarter against the grid's 0.168; polished, 0.009 on the half).
+CHAINED_POLISH = 6
+
 #: Spreads of the local search's rounds, in units of :func:`refine_scales`: the grid's spacing
 #: first (15 degrees of direction at the clearance is 0.13 of it; sliding speeds 1.5-7 apart),
 #: then half of it. The grid's free-flight candidates move along the wall only; a journal in
@@ -136,7 +157,8 @@ def scoring_model(model: WindowModel, horizon: float) -> WindowModel:
 
 
 def find_start(model: WindowModel, mech, theta_z, win: WindowInput, horizon: float = 1.0,
-               longer: tuple[WindowInput, float] | None = None) -> tuple[np.ndarray, dict]:
+               longer: tuple[WindowInput, float] | None = None,
+               seeds: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
     """The best candidate starts ``(APPROACH_GEOMETRIES, S)``, best first, of the window ``win``
     (its mask: the fitted samples of the first ``horizon``) at the parameters ``theta_z``, and a
     report: ``{"candidates": runs,
@@ -167,6 +189,9 @@ def find_start(model: WindowModel, mech, theta_z, win: WindowInput, horizon: flo
 
     score = scorer(win, horizon)
     cands = candidates(mech)
+    n_seeds = 0 if seeds is None else min(len(seeds), cands.shape[0])
+    if n_seeds:  # starts from elsewhere (the previous window's end), scored with the grid
+        cands = np.concatenate([np.asarray(seeds, dtype=float), cands])[: cands.shape[0]]
     m = cands.shape[0]
     scores = score(cands)
     order = np.argsort(scores)
@@ -207,4 +232,6 @@ def find_start(model: WindowModel, mech, theta_z, win: WindowInput, horizon: flo
               "best_loss": float(seen_scores[best]) / n_fit,
               "median_loss": float(np.median(scores[finite]) / n_first) if finite.any() else float("nan"),
               "passes": passes}
+    if n_seeds:  # the seed that scored best (its approach speed)
+        report["seed"] = cands[int(np.argmin(np.where(np.isfinite(scores[:n_seeds]), scores[:n_seeds], np.inf)))]
     return seen[ranked], report
