@@ -80,11 +80,6 @@ def test_free_start_plan_frees_every_window_and_the_parameters_last():
     stages = plan_free_starts(3, (0.25, 0.5, 1.0), 1, "velocity")
     way_in = [s for s in stages if s.way_in]
     assert [s.states for s in way_in] == [(0,), (1,), (2,)] and all(not s.theta and not s.integrate for s in way_in)
-    # every window but the last followed to its end (its state alone through the horizons) before the next
-    # window's way in, whose chained seed is that end (fitting.run.chained_seeds)
-    alone = [(s.states, s.horizon) for s in stages if not s.theta and not s.way_in]
-    assert alone == [((0,), 0.5), ((0,), 1.0), ((1,), 0.5), ((1,), 1.0)]
-    assert [i for i, s in enumerate(stages) if s.way_in] == [0, 3, 6]
     joint = [s for s in stages if s.theta]
     assert [s.horizon for s in joint] == [0.25, 0.5, 1.0] and all(s.states == (0, 1, 2) for s in joint)
     assert stages[-1].final and sum(s.final for s in stages) == 1
@@ -291,19 +286,19 @@ def test_the_previous_windows_end_finds_a_start_at_a_rebound(tmp_path):
     begins at a rebound: the journal 0.2 micrometres off the wall, leaving it at 2.4 omega c
     while sliding at 7.7 omega c, a basin 0.5 omega c and 5 micrometres wide that the way in's
     grid and local search miss (their best start leaves 0.077 of the data's mean square over the
-    window's first half, 8 times the true start's 0.009). Window 1 followed to its end (its start
-    found by the way in, then fitted alone through the horizons) ends close to it: that end,
-    polished by the stages' own solver (:func:`jaxclear.fitting.run.polish`), must follow the
-    first half within 1.5 times the true start (measured at the true parameters: 0.0084 against
-    0.0090), where the way in alone stays above 4 times it."""
+    window's first half, 8 times the true start's 0.009). Window 1 followed to its end (from the
+    start its way in found) ends close to it: that end, polished by the stages' own solver
+    (:func:`jaxclear.fitting.run.chained_start`), must follow the first half within 1.5 times the
+    true start (measured at the true parameters: 0.0084 against 0.0090), where the way in alone
+    stays above 4 times it."""
     import scipy_reference as ref
 
     from jaxclear.elements import start_states
     from jaxclear.fitting.parameters import z_vector
     from jaxclear.fitting.problem import build_problem
-    from jaxclear.fitting.run import chained_seeds, fresh_state, polish
+    from jaxclear.fitting.run import chained_start, fresh_state
     from jaxclear.fitting.solver import make_optimizer
-    from jaxclear.fitting.way_in import WAY_IN_HORIZON, find_start
+    from jaxclear.fitting.way_in import CHAIN_WHEN, WAY_IN_HORIZON, find_start
     from jaxclear.integrate import jit
 
     case = _acceptance_cases()[2]
@@ -332,14 +327,11 @@ def test_the_previous_windows_end_finds_a_start_at_a_rebound(tmp_path):
         w = win(k, h)
         return float(np.sum(np.asarray(residual(jnp.asarray(theta), jnp.asarray(z), w)) ** 2) / np.sum(np.asarray(w.mask)))
 
-    # window 1: the way in, then its start alone through the horizons (the plan's stages, here by polish)
+    # window 1: the way in's start, as the plan's first stage leaves it
     ranked, _ = find_start(problem.model, mech, jnp.asarray(theta), win(0, 0.25), 0.25, (win(0, WAY_IN_HORIZON),
                                                                                          WAY_IN_HORIZON))
-    z = ranked[0]
-    for h in (0.5, 1.0):
-        z, _ = polish(problem, opt, st.replace(states=[np.asarray(z).tolist()] + st.states[1:]), 0, z, h, steps=8)
-    st = st.replace(states=[np.asarray(z).tolist()] + st.states[1:])
-    # window 2: the true start (the simulator restarted there at rtol 1e-10), the way in alone, the chained seed
+    st = st.replace(states=[np.asarray(ranked[0]).tolist()] + st.states[1:])
+    # window 2: the true start (the simulator restarted there at rtol 1e-10), the way in alone, the chained start
     k = 1
     p = ref.params(c_r=case["c_r"], omega=truth["omega"])
     p["K"] = truth["stiffness"]
@@ -350,9 +342,10 @@ def test_the_previous_windows_end_finds_a_start_at_a_rebound(tmp_path):
     true_z = window_start.state_to_z(np.asarray(start_states(mech, jnp.asarray(sim["q"][0]), jnp.asarray(sim["qdot"][0]))),
                                      problem.start_scales, problem.velocity_scale, [0.3])
     true_loss = loss(k, true_z, WAY_IN_HORIZON)
-    seeds = chained_seeds(problem, st, k)
     ranked, report = find_start(problem.model, mech, jnp.asarray(theta), win(k, 0.25), 0.25,
-                                (win(k, WAY_IN_HORIZON), WAY_IN_HORIZON), seeds)
+                                (win(k, WAY_IN_HORIZON), WAY_IN_HORIZON))
     assert report["best_loss"] > 4.0 * true_loss, (report["best_loss"], true_loss)  # the grid's blind spot
-    _, chained = polish(problem, opt, st, k, report["seed"], WAY_IN_HORIZON)
+    assert report["best_loss"] > CHAIN_WHEN * loss(0, st.states[0], WAY_IN_HORIZON)  # so the chain is tried
+    z, chained = chained_start(problem, opt, st, k, WAY_IN_HORIZON)
+    assert chained == pytest.approx(loss(k, z, WAY_IN_HORIZON), rel=1e-6)
     assert chained < 1.5 * true_loss, (chained, true_loss, report["best_loss"])

@@ -93,21 +93,14 @@ def plan_free_starts(windows: int, horizons: tuple, starts: int, coarse: str | N
        (``coarse``) is not used here: the way in has placed the start already, and on records
        of the independent simulator a velocity stage added 15 iterations a window (trials with
        the journal pushed deep into its bearing cost up to 20,000 solver steps each) for a start
-       the acceleration stage reached as well; every window but the last then alone through the
-       further horizons to its end, which is the next window's chained contender
-       (:func:`jaxclear.fitting.run.chained_seeds`: the record's own estimate of that start);
+       the acceleration stage reached as well;
     2. all windows, the parameters and every start, through the horizons (the last is final);
        with ``starts > 1`` once from each start of the parameters (:func:`spread_starts`), each
        from the starts the way in found (at the first start's values), the best of them the
        result, so that "estimates change with the start" (:mod:`.verdict`) can be checked."""
     first = horizons[0]
-    stages = []
-    for k in range(windows):
-        stages.append(Stage(f"window {k + 1} start state (way in), acceleration, horizon {first:g}", (k,), first, False,
-                            (k,), -1, False, False, True))
-        if k < windows - 1:  # the window followed to its end: its end seeds the next window's way in
-            stages += [Stage(f"window {k + 1} start state, acceleration, horizon {hz:g}", (k,), hz, False, (k,), -1,
-                             False) for hz in horizons[1:]]
+    stages = [Stage(f"window {k + 1} start state (way in), acceleration, horizon {first:g}", (k,), first, False, (k,),
+                    -1, False, False, True) for k in range(windows)]
     every = tuple(range(windows))
     for j in range(starts):
         prefix = f"start {j + 1}/{starts}, " if starts > 1 else ""

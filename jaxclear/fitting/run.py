@@ -23,7 +23,7 @@ from .solver import (
     stage_arguments,
 )
 from .state import Checkpoint, FitState
-from .way_in import CHAINED_POLISH, CHAINED_SEEDS, WAY_IN_HORIZON, find_start
+from .way_in import CHAIN_WHEN, CHAINED_FOLLOW, CHAINED_POLISH, CHAINED_SEEDS, WAY_IN_HORIZON, find_start
 from .window import evaluate_window_jit
 from .window_start import approach_candidates, state_to_z
 
@@ -82,12 +82,12 @@ def begin_stage(problem: FitProblem, opt: Optimizer, st: FitState) -> FitState:
         longer = None
         if WAY_IN_HORIZON > stage.horizon:
             longer = (problem.window_input(k, WAY_IN_HORIZON, False, st.guesses), WAY_IN_HORIZON)
-        ranked, report = find_start(problem.model, problem.mech, st.theta, win, stage.horizon, longer,
-                                    chained_seeds(problem, st, k))
+        ranked, report = find_start(problem.model, problem.mech, st.theta, win, stage.horizon, longer)
         rank = _first_that_runs(problem, st.theta, ranked, win)
-        start, seed = ranked[rank], report.pop("seed", None)
-        if seed is not None:  # the previous window's end, polished: chosen where it follows the longer part better
-            polished, loss = polish(problem, opt, st, k, np.asarray(seed), longer[1] if longer else stage.horizon)
+        start = ranked[rank]
+        found = [w["best_loss"] for w in st.way_in] + [report["best_loss"]]
+        if k > 0 and report["best_loss"] > CHAIN_WHEN * min(found):  # the grid missed: the window before's end
+            polished, loss = chained_start(problem, opt, st, k, longer[1] if longer else stage.horizon)
             report["chained_loss"] = loss
             if loss < report["best_loss"]:
                 start, report["chosen"] = polished, "chained"
@@ -104,13 +104,38 @@ def begin_stage(problem: FitProblem, opt: Optimizer, st: FitState) -> FitState:
     return st
 
 
+def chained_start(problem: FitProblem, opt: Optimizer, st: FitState, k: int, horizon: float) -> tuple:
+    """Window ``k``'s start from the end of window ``k - 1`` and its loss over ``horizon`` of the
+    window (``(z (S,), loss)``; ``(None, inf)`` where there is none): window ``k - 1``'s start
+    followed to that window's end (:func:`polish` through the horizons after the first, the
+    parameters held, kept aside: the state of window ``k - 1`` is not changed), its end at
+    :data:`CHAINED_SEEDS` approach speeds (:func:`chained_seeds`), the best of them over
+    ``horizon`` polished (:data:`CHAINED_POLISH` steps). Back-to-back windows: the end of a
+    window followed over its whole length is the record's own estimate of the next one's start
+    (a smoother's), close to it where a grid of starts is far (a start at a rebound, whose basin
+    is narrower than the grid's spacing)."""
+    z = np.asarray(st.states[k - 1], dtype=float)
+    for h in problem.horizons[1:]:
+        z, _ = polish(problem, opt, st, k - 1, z, h, CHAINED_FOLLOW)
+    states = list(st.states)
+    states[k - 1] = z.tolist()
+    seeds = chained_seeds(problem, st.replace(states=states), k)
+    if seeds is None:
+        return None, float("inf")
+    wins = problem.window_input(k, horizon, False, st.guesses)
+    losses = [float(np.sum(np.asarray(evaluate_window_jit(problem.model, jnp.asarray(st.theta), jnp.asarray(s),
+                                                          wins)[0]) ** 2)) for s in seeds]
+    best = seeds[int(np.nanargmin(np.where(np.isfinite(losses), losses, np.nan)))] if np.isfinite(losses).any() else None
+    if best is None:
+        return None, float("inf")
+    return polish(problem, opt, st, k, best, horizon)
+
+
 def chained_seeds(problem: FitProblem, st: FitState, k: int) -> np.ndarray | None:
-    """Starts of window ``k`` from the end of window ``k - 1`` simulated at the current values
-    (its start fitted to its end first: the plan's state stages), one per approach speed of
-    the way in's grid (``(n, S)``); None for the first window or where that run fails. Back-to-back
-    windows: the end of a window fitted over its whole length is the data's own estimate of the
-    next one's start (a smoother's), close to it where a grid of starts is far (a start at a
-    rebound, whose basin is narrower than the grid's spacing)."""
+    """Starts of window ``k`` from the end of window ``k - 1`` simulated at the current values,
+    one per approach speed of the way in's grid at :data:`CHAINED_SEEDS` speeds (``(n, S)``; the
+    end's contact memory is not carried); None for the first window, windows not back to back,
+    or where that run fails."""
     if k == 0 or problem.win.starts[k] - problem.win.starts[k - 1] > problem.win.length * (1 + 1e-9):
         return None
     q1, qd1, end = window_end(problem, st, k - 1)

@@ -26,20 +26,24 @@ free-flight candidates move along the wall only, and a journal in flight towards
 closing at 4.4 omega c, striking it 0.02 ms into the window) is reached only so (best misfit
 0.21 of the data's mean square after the grid, 0.0143 after the search, 0.0115 from the true
 start). **The window before, followed to its end.** The windows are back to back, so the end of
-window ``k - 1``, once that window is fitted over its whole length (the plan follows each window's
-start alone through the horizons before the next window's way in), is the record's own estimate
-of window ``k``'s start: a smoother's, where the grid has nothing near a narrow basin. A journal
-at a rebound (window 2 of acceptance record 3 of the independent simulator: 0.2 micrometres off
-the wall, leaving it at 2.4 omega c while sliding at 7.7; its basin 0.5 omega c and 5
-micrometres wide) is missed by the grid and the search (0.077 of the data's mean square over the
-first half, against the true start's 0.009). That end (:data:`CHAINED_SEEDS` copies at the grid's
-approach speeds) is scored with the candidates, and its best copy is **polished** by a few steps
-of the stages' own solver (:data:`CHAINED_POLISH`, :func:`jaxclear.fitting.run.polish`) and
-taken where it then follows the first half better than the way in's best (on that window: 0.009,
-the true basin; its raw score, 0.173 on the quarter, is no better than the grid's). An earlier
-trial, not kept, offered the end of window ``k - 1`` fitted on its first quarter only, unpolished,
-as one more candidate of the first pass: it won that pass on later windows and moved the fit to
-other basins (acceptance record 3: stiffness -27 % for -13 %). The candidates are runs of the window model (values only; one after another on a CPU,
+window ``k - 1``, once that window's start is followed over its whole length, is the record's own
+estimate of window ``k``'s start: a smoother's, where the grid has nothing near a narrow basin.
+A journal at a rebound (window 2 of acceptance record 3 of the independent simulator: 0.2
+micrometres off the wall, leaving it at 2.4 omega c while sliding at 7.7; its basin 0.5 omega c
+and 5 micrometres wide) is missed by the grid and the search (0.077 of the data's mean square
+over the first half, against the true start's 0.009). Where a window's way in leaves more than
+:data:`CHAIN_WHEN` times the least misfit of the windows so far, window ``k - 1``'s start is
+followed to its end (the parameters held; :data:`CHAINED_FOLLOW` solver steps per horizon, set
+aside), that end (at :data:`CHAINED_SEEDS` approach speeds, the best kept) is **polished** by a
+few steps of the stages' own solver (:data:`CHAINED_POLISH`,
+:func:`jaxclear.fitting.run.chained_start`), and taken where it then follows the first half
+better than the way in's best (on that window: 0.009, the true basin; unpolished, its score is
+no better than the grid's: 0.173 on the quarter against 0.168). Only there: followed on every
+window (a plan stage per horizon), it cost record 2 twice the iterations (37 for 18) and moved its
+stiffness from -3.1 % to -5.0 %. An earlier trial, not kept, offered the end of window ``k - 1``
+fitted on its first quarter only, unpolished, as one more candidate of the first pass: it won that
+pass on later windows and moved the fit to other basins (acceptance record 3: stiffness -27 % for
+-13 %). The candidates are runs of the window model (values only; one after another on a CPU,
 :func:`jaxclear.sweep.batch.over_lanes`), four passes of 1560; a window's start is the best of them whose whole window runs with its Jacobian
 (:func:`jaxclear.fitting.run.begin_stage`).
 
@@ -112,11 +116,19 @@ LONGER_ELITES = 48
 #: and elites of each round of the local search.
 APPROACH_GEOMETRIES = 12
 
-#: Starts of a window taken from the end of the window before it (``find_start``'s ``seeds``,
-#: :func:`~jaxclear.fitting.run.chained_seeds`): that end at this many approach speeds of the
-#: contact under way (the end's memory is not carried), in place of as many grid candidates.
-CHAINED_SEEDS = 8
-#: Accepted solver steps that polish the best chained seed (:func:`~jaxclear.fitting.run.polish`)
+#: A window whose way in leaves more than this many times the least misfit the way in left on
+#: the windows so far (the first's, near the noise) gets the contender from the window before
+#: (:func:`~jaxclear.fitting.run.chained_start`). On the acceptance records of the independent
+#: simulator the way in's best over the first half was 1.0-1.4 times window 1's where it found
+#: the start and 3 and 7.7 times where it missed (record 1 window 2, record 3 window 2).
+CHAIN_WHEN = 2.0
+#: The window before's end at this many approach speeds of the contact under way (the end's
+#: memory is not carried; :func:`~jaxclear.fitting.run.chained_seeds`), spread over the grid's span.
+CHAINED_SEEDS = 3
+#: Accepted solver steps per horizon that follow the window before to its end (its start alone,
+#: the parameters held, through the horizons after the first).
+CHAINED_FOLLOW = 8
+#: Accepted solver steps that polish the best chained seed (:func:`~jaxclear.fitting.run.chained_start`)
 #: before it is weighed against the way in's best start: the end of the window before lies in
 #: the basin of the true start where the grid has nothing, but its raw score is no better than
 #: the grid's (acceptance record 3 of the independent simulator, window 2: 0.173 of the data's
@@ -157,8 +169,7 @@ def scoring_model(model: WindowModel, horizon: float) -> WindowModel:
 
 
 def find_start(model: WindowModel, mech, theta_z, win: WindowInput, horizon: float = 1.0,
-               longer: tuple[WindowInput, float] | None = None,
-               seeds: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
+               longer: tuple[WindowInput, float] | None = None) -> tuple[np.ndarray, dict]:
     """The best candidate starts ``(APPROACH_GEOMETRIES, S)``, best first, of the window ``win``
     (its mask: the fitted samples of the first ``horizon``) at the parameters ``theta_z``, and a
     report: ``{"candidates": runs,
@@ -189,9 +200,6 @@ def find_start(model: WindowModel, mech, theta_z, win: WindowInput, horizon: flo
 
     score = scorer(win, horizon)
     cands = candidates(mech)
-    n_seeds = 0 if seeds is None else min(len(seeds), cands.shape[0])
-    if n_seeds:  # starts from elsewhere (the previous window's end), scored with the grid
-        cands = np.concatenate([np.asarray(seeds, dtype=float), cands])[: cands.shape[0]]
     m = cands.shape[0]
     scores = score(cands)
     order = np.argsort(scores)
@@ -232,6 +240,4 @@ def find_start(model: WindowModel, mech, theta_z, win: WindowInput, horizon: flo
               "best_loss": float(seen_scores[best]) / n_fit,
               "median_loss": float(np.median(scores[finite]) / n_first) if finite.any() else float("nan"),
               "passes": passes}
-    if n_seeds:  # the seed that scored best (its approach speed)
-        report["seed"] = cands[int(np.argmin(np.where(np.isfinite(scores[:n_seeds]), scores[:n_seeds], np.inf)))]
     return seen[ranked], report
