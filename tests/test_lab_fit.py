@@ -199,6 +199,45 @@ def test_a_run_from_the_independent_simulators_in_contact_state_follows_its_reco
     assert np.sqrt(np.mean((acc[keep] - ref[keep]) ** 2)) < 1e-4 * rms
 
 
+def _acceptance_problem(i: int):
+    """Acceptance record ``i`` of the independent simulator as the fit's problem (4 free windows
+    of 2.99 ms, stiffness, restitution, sensor gain and bias free): ``(case, truth, mech, free,
+    problem)``."""
+    from jaxclear.fitting.problem import build_problem
+
+    case = _acceptance_cases()[i]
+    rec = _lab_record(**case)
+    truth = rec["truth"]
+    mech = jc.params.replace(jc.preset("flores-slider-crank"), "angle0", truth["start_angle"])
+    free = ("stiffness", "restitution", "sensor_gain", "sensor_bias")
+    settings = dict(max_iter=30, ftol=1e-6, xtol=1e-5, rtol=1e-8, atol=1e-11, max_steps=None, align="time",
+                    time_offset=0.0, optimizer="lm")
+    problem = build_problem({"time_s": rec["time_s"], "slider_acc_m_s2": rec["slider_acc_m_s2"]}, mech, free,
+                            {"restitution": 0.9}, jc.Accelerometer(10e3), 2.99e-3, 4, (0.25, 0.5, 1.0), None, 1,
+                            settings, start_state="free")
+    return case, truth, mech, free, problem
+
+
+def _true_start(case, truth, mech, problem, k: int):
+    """The simulator's state at window ``k``'s start (restarted from the record's first sample
+    at rtol 1e-10): its penetration [m] and its start numbers ``(S,)`` in the fit's anywhere
+    layout (approach speed 0.3 m/s over the hysteresis factor: a start in flight ignores it)."""
+    import scipy_reference as ref
+
+    from jaxclear.elements import start_states
+
+    p = ref.params(c_r=case["c_r"], omega=truth["omega"])
+    p["K"] = truth["stiffness"]
+    t_k = truth["start_time"] + problem.win.starts[k]
+    sim = ref.simulate(p, t_k, ts=[t_k], rtol=1e-10, atol=1e-13,
+                       start=(truth["start_time"], truth["state"],
+                              truth["deltadot0"] if truth["in_contact_at_start"] else p["floor"]))
+    chi = float(jc.params.replace(mech, "restitution", case["c_r"]).clearance_joints[0].law.hysteresis_factor())
+    state = np.asarray(start_states(mech, jnp.asarray(sim["q"][0]), jnp.asarray(sim["qdot"][0])))
+    return float(sim["delta"][0]), window_start.state_to_z(state, problem.start_scales, problem.velocity_scale,
+                                                           [0.3 / chi])
+
+
 @pytest.mark.slow
 def test_way_in_finds_a_start_in_flight_as_good_as_the_true_one():
     """The way in (:mod:`jaxclear.fitting.way_in`) on window 2 of acceptance record 1 of the
@@ -210,37 +249,14 @@ def test_way_in_finds_a_start_in_flight_as_good_as_the_true_one():
     5 to 50 times the noise floor (measured: the grid alone, whose free-flight candidates move
     along the wall only, scored 0.21 against the true start's 0.0115; with the local search
     0.0143, whole window 0.0129 against 0.0093)."""
-    import math
-
-    import scipy_reference as ref
-
-    from jaxclear.elements import start_states
     from jaxclear.fitting.parameters import z_vector
-    from jaxclear.fitting.problem import build_problem
     from jaxclear.fitting.way_in import find_start
     from jaxclear.integrate import jit
 
-    case = _acceptance_cases()[0]
-    rec = _lab_record(**case)
-    truth = rec["truth"]
-    mech = jc.params.replace(jc.preset("flores-slider-crank"), "angle0", truth["start_angle"])
-    free = ("stiffness", "restitution", "sensor_gain", "sensor_bias")
-    settings = dict(max_iter=30, ftol=1e-6, xtol=1e-5, rtol=1e-8, atol=1e-11, max_steps=None, align="time",
-                    time_offset=0.0, optimizer="lm")
-    problem = build_problem({"time_s": rec["time_s"], "slider_acc_m_s2": rec["slider_acc_m_s2"]}, mech, free,
-                            {"restitution": 0.9}, jc.Accelerometer(10e3), 2.99e-3, 4, (0.25, 0.5, 1.0), None, 1,
-                            settings, start_state="free")
+    case, truth, mech, free, problem = _acceptance_problem(0)
     k = 1
-    p = ref.params(c_r=case["c_r"], omega=truth["omega"])
-    p["K"] = truth["stiffness"]
-    t_k = truth["start_time"] + problem.win.starts[k]
-    sim = ref.simulate(p, t_k, ts=[t_k], rtol=1e-10, atol=1e-13,
-                       start=(truth["start_time"], truth["state"],
-                              truth["deltadot0"] if truth["in_contact_at_start"] else p["floor"]))
-    assert sim["delta"][0] < 0.0  # in flight at the window's start
-    chi = float(jc.params.replace(mech, "restitution", case["c_r"]).clearance_joints[0].law.hysteresis_factor())
-    true_z = window_start.state_to_z(np.asarray(start_states(mech, jnp.asarray(sim["q"][0]), jnp.asarray(sim["qdot"][0]))),
-                                     problem.start_scales, problem.velocity_scale, [0.3 / chi])
+    delta, true_z = _true_start(case, truth, mech, problem, k)
+    assert delta < 0.0  # in flight at the window's start
     theta = jnp.asarray(z_vector(free, {"stiffness": truth["stiffness"], "restitution": case["c_r"],
                                         "sensor_gain": truth["sensor"]["gain"], "sensor_bias": truth["sensor"]["bias"]},
                                  problem.win.scale))
@@ -285,32 +301,20 @@ def test_the_previous_windows_end_finds_a_start_at_a_rebound(tmp_path):
     """Window 2 of acceptance record 3 of the independent simulator (benchmarks/lab_record.py)
     begins at a rebound: the journal 0.2 micrometres off the wall, leaving it at 2.4 omega c
     while sliding at 7.7 omega c, a basin 0.5 omega c and 5 micrometres wide that the way in's
-    grid and local search miss (their best start leaves 0.077 of the data's mean square over the
+    grid and local search miss (their best start leaves 0.074 of the data's mean square over the
     window's first half, 8 times the true start's 0.009). Window 1 followed to its end (from the
-    start its way in found) ends close to it: that end, polished by the stages' own solver
-    (:func:`jaxclear.fitting.run.chained_start`), must follow the first half within 1.5 times the
-    true start (measured at the true parameters: 0.0084 against 0.0090), where the way in alone
-    stays above 4 times it."""
-    import scipy_reference as ref
-
-    from jaxclear.elements import start_states
+    start its way in found, fitted on its first quarter as the plan's first stage does) ends 4-10
+    micrometres and 0.1-0.7 omega c from it; the local search round that end and a few solver
+    steps (:func:`jaxclear.fitting.run.chained_start`) must follow the first half within 1.5 times
+    the true start (measured at the true parameters: 0.0084 against 0.0090; solver steps from
+    the end alone, 0.051), where the way in alone stays above 4 times it."""
     from jaxclear.fitting.parameters import z_vector
-    from jaxclear.fitting.problem import build_problem
-    from jaxclear.fitting.run import chained_start, fresh_state
+    from jaxclear.fitting.run import chained_start, fresh_state, polish
     from jaxclear.fitting.solver import make_optimizer
     from jaxclear.fitting.way_in import CHAIN_WHEN, WAY_IN_HORIZON, find_start
     from jaxclear.integrate import jit
 
-    case = _acceptance_cases()[2]
-    rec = _lab_record(**case)
-    truth = rec["truth"]
-    mech = jc.params.replace(jc.preset("flores-slider-crank"), "angle0", truth["start_angle"])
-    free = ("stiffness", "restitution", "sensor_gain", "sensor_bias")
-    settings = dict(max_iter=30, ftol=1e-6, xtol=1e-5, rtol=1e-8, atol=1e-11, max_steps=None, align="time",
-                    time_offset=0.0, optimizer="lm")
-    problem = build_problem({"time_s": rec["time_s"], "slider_acc_m_s2": rec["slider_acc_m_s2"]}, mech, free,
-                            {"restitution": 0.9}, jc.Accelerometer(10e3), 2.99e-3, 4, (0.25, 0.5, 1.0), None, 1,
-                            settings, start_state="free")
+    case, truth, mech, free, problem = _acceptance_problem(2)
     theta = z_vector(free, {"stiffness": truth["stiffness"], "restitution": case["c_r"],
                             "sensor_gain": truth["sensor"]["gain"], "sensor_bias": truth["sensor"]["bias"]},
                      problem.win.scale)
@@ -327,25 +331,21 @@ def test_the_previous_windows_end_finds_a_start_at_a_rebound(tmp_path):
         w = win(k, h)
         return float(np.sum(np.asarray(residual(jnp.asarray(theta), jnp.asarray(z), w)) ** 2) / np.sum(np.asarray(w.mask)))
 
-    # window 1: the way in's start, as the plan's first stage leaves it
+    # window 1: the way in's start, fitted on the first quarter as the plan's first stage does (its step limit)
     ranked, _ = find_start(problem.model, mech, jnp.asarray(theta), win(0, 0.25), 0.25, (win(0, WAY_IN_HORIZON),
                                                                                          WAY_IN_HORIZON))
-    st = st.replace(states=[np.asarray(ranked[0]).tolist()] + st.states[1:])
+    z0, _ = polish(problem, opt, st, 0, ranked[0], 0.25, steps=15)
+    st = st.replace(states=[np.asarray(z0).tolist()] + list(st.states[1:]))
     # window 2: the true start (the simulator restarted there at rtol 1e-10), the way in alone, the chained start
     k = 1
-    p = ref.params(c_r=case["c_r"], omega=truth["omega"])
-    p["K"] = truth["stiffness"]
-    t_k = truth["start_time"] + problem.win.starts[k]
-    sim = ref.simulate(p, t_k, ts=[t_k], rtol=1e-10, atol=1e-13,
-                       start=(truth["start_time"], truth["state"],
-                              truth["deltadot0"] if truth["in_contact_at_start"] else p["floor"]))
-    true_z = window_start.state_to_z(np.asarray(start_states(mech, jnp.asarray(sim["q"][0]), jnp.asarray(sim["qdot"][0]))),
-                                     problem.start_scales, problem.velocity_scale, [0.3])
+    _, true_z = _true_start(case, truth, mech, problem, k)
     true_loss = loss(k, true_z, WAY_IN_HORIZON)
     ranked, report = find_start(problem.model, mech, jnp.asarray(theta), win(k, 0.25), 0.25,
                                 (win(k, WAY_IN_HORIZON), WAY_IN_HORIZON))
     assert report["best_loss"] > 4.0 * true_loss, (report["best_loss"], true_loss)  # the grid's blind spot
     assert report["best_loss"] > CHAIN_WHEN * loss(0, st.states[0], WAY_IN_HORIZON)  # so the chain is tried
     z, chained = chained_start(problem, opt, st, k, WAY_IN_HORIZON)
-    assert chained == pytest.approx(loss(k, z, WAY_IN_HORIZON), rel=1e-6)
+    # the solver's loss and a plain run's: two compiled programs (with and without the Jacobian), whose
+    # step-size control at rtol 1e-8 differs in the last digits (measured: 1.5e-5 relative)
+    assert chained == pytest.approx(loss(k, z, WAY_IN_HORIZON), rel=1e-4)
     assert chained < 1.5 * true_loss, (chained, true_loss, report["best_loss"])

@@ -23,7 +23,7 @@ from .solver import (
     stage_arguments,
 )
 from .state import Checkpoint, FitState
-from .way_in import CHAIN_WHEN, CHAINED_FOLLOW, CHAINED_POLISH, CHAINED_SEEDS, WAY_IN_HORIZON, find_start
+from .way_in import CHAIN_WHEN, CHAINED_FOLLOW, CHAINED_POLISH, CHAINED_SEEDS, WAY_IN_HORIZON, find_start, search_around
 from .window import evaluate_window_jit
 from .window_start import approach_candidates, state_to_z
 
@@ -109,8 +109,9 @@ def chained_start(problem: FitProblem, opt: Optimizer, st: FitState, k: int, hor
     window (``(z (S,), loss)``; ``(None, inf)`` where there is none): window ``k - 1``'s start
     followed to that window's end (:func:`polish` through the horizons after the first, the
     parameters held, kept aside: the state of window ``k - 1`` is not changed), its end at
-    :data:`CHAINED_SEEDS` approach speeds (:func:`chained_seeds`), the best of them over
-    ``horizon`` polished (:data:`CHAINED_POLISH` steps). Back-to-back windows: the end of a
+    :data:`CHAINED_SEEDS` approach speeds (:func:`chained_seeds`), a local search round it
+    (:func:`~jaxclear.fitting.way_in.search_around`) and its best polished over ``horizon``
+    (:data:`CHAINED_POLISH` steps). Back-to-back windows: the end of a
     window followed over its whole length is the record's own estimate of the next one's start
     (a smoother's), close to it where a grid of starts is far (a start at a rebound, whose basin
     is narrower than the grid's spacing)."""
@@ -122,13 +123,11 @@ def chained_start(problem: FitProblem, opt: Optimizer, st: FitState, k: int, hor
     seeds = chained_seeds(problem, st.replace(states=states), k)
     if seeds is None:
         return None, float("inf")
-    wins = problem.window_input(k, horizon, False, st.guesses)
-    losses = [float(np.sum(np.asarray(evaluate_window_jit(problem.model, jnp.asarray(st.theta), jnp.asarray(s),
-                                                          wins)[0]) ** 2)) for s in seeds]
-    best = seeds[int(np.nanargmin(np.where(np.isfinite(losses), losses, np.nan)))] if np.isfinite(losses).any() else None
-    if best is None:
-        return None, float("inf")
-    return polish(problem, opt, st, k, best, horizon)
+    longer = (problem.window_input(k, horizon, False, st.guesses), horizon)
+    first = problem.horizons[0] if problem.horizons[0] < horizon else horizon
+    near, _ = search_around(problem.model, problem.mech, st.theta, seeds,
+                            problem.window_input(k, first, False, st.guesses), first, longer)
+    return polish(problem, opt, st, k, near, horizon)
 
 
 def chained_seeds(problem: FitProblem, st: FitState, k: int) -> np.ndarray | None:
