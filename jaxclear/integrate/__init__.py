@@ -11,7 +11,7 @@ import importlib as _importlib
 import sys as _sys
 import types as _types
 
-from .. import _results
+from .._results import deprecated
 
 from ._assembly import RANK_TOL, Assembly, assemble, check_assembly, initial_state, minimum_norm_correction
 from ._compile import compiler_options, jit, on_trace
@@ -77,8 +77,8 @@ class _OldPath(_types.ModuleType):
         if attr.startswith("__") and attr.endswith("__"):
             raise AttributeError(attr)
         target = object.__getattribute__(self, "_target")
-        _results.deprecated(f"{self.__name__}.{attr}", f"jaxclear.integrate.{attr}" if attr in __all__ else
-                            f"{target}.{attr} (private: its module is)", stacklevel=2)
+        deprecated(f"{self.__name__}.{attr}", f"jaxclear.integrate.{attr}" if attr in __all__ else
+                   f"{target}.{attr} (private: its module is)", stacklevel=2)
         return getattr(self._module(), attr)
 
     def __setattr__(self, attr: str, value):
