@@ -67,7 +67,10 @@ def window_end(problem: FitProblem, st: FitState, k: int):
 
 def begin_stage(problem: FitProblem, opt: Optimizer, st: FitState) -> FitState:
     """Starting values of a stage not yet begun: its start, the best start after the starts, or
-    (window-state stages) the end of the previous window's simulation."""
+    (window-state stages) the end of the previous window's simulation. A way-in stage (every
+    window's start free) takes the way in's best start, or the contender from the window before
+    (:func:`chained_start`) where the way in left more than :data:`~.way_in.CHAIN_WHEN` times the
+    least misfit of the windows so far and the contender follows the window's first half better."""
     stage = problem.stages[st.stage]
     before = problem.stages[st.stage - 1] if st.stage > 0 else None
     if stage.start >= 0 and (before is None or before.start != stage.start):  # a start's first stage
@@ -88,7 +91,7 @@ def begin_stage(problem: FitProblem, opt: Optimizer, st: FitState) -> FitState:
         found = [w["best_loss"] for w in st.way_in] + [report["best_loss"]]
         if k > 0 and report["best_loss"] > CHAIN_WHEN * min(found):  # the grid missed: the window before's end
             polished, loss = chained_start(problem, opt, st, k, longer[1] if longer else stage.horizon)
-            report["chained_loss"] = loss
+            report["chained_loss"] = loss if np.isfinite(loss) else None  # None: no end to start from
             if loss < report["best_loss"]:
                 start, report["chosen"] = polished, "chained"
         states = list(st.states)
@@ -160,7 +163,7 @@ def polish(problem: FitProblem, opt: Optimizer, st: FitState, k: int, z: np.ndar
         return np.asarray(z, dtype=float), float("inf")
     run, trial = stage_run(problem, opt, trial, stage, jac)
     best, loss, accepted = np.asarray(z, dtype=float), loss0, 0
-    for i in range(4 * steps):  # a rejected trial is a step too
+    for _ in range(4 * steps):  # a rejected trial is a step too
         rep = run.step(accepted, steps, 1e-3, problem.settings["xtol"])
         if np.isfinite(rep.loss) and rep.loss < loss:
             best, loss = split(problem, trial, stage, rep.x)[1][k], rep.loss
