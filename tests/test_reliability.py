@@ -379,7 +379,7 @@ def test_corrupt_checkpoint_is_a_named_error(tmp_path):
     with pytest.raises(jc.CheckpointError, match=r"fit_checkpoint.json.*--restart"):
         Checkpoint(tmp_path, "abc", {}).load()
     path.write_text(json.dumps({"key": "other", "state": {}}))
-    assert Checkpoint(tmp_path, "abc", {}).load() is None  # another fit's checkpoint: replaced
+    assert Checkpoint(tmp_path, "abc", {}).load() is None  # another fit's checkpoint: not this one (resume() refuses it)
 
 
 # ---- 6./7. interruption, names -----------------------------------------------------------
