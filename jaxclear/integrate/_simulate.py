@@ -7,13 +7,8 @@ diffrax with the element-state solver wrapper (:mod:`.solvers`) -> post-processi
 output grid -> :class:`~jaxclear.integrate.Solution` with a :class:`~jaxclear.RESULTS`
 status.
 
-Speed (the benchmark slider-crank takes a few thousand steps of a vector field with only a few
-dozen flops per kernel, so per-kernel overhead dominates): the solver integrates one packed
-vector rather than a pytree, the Runge-Kutta stages run in diffrax's stage loop (one copy of
-the vector field; :class:`~jaxclear.integrate.UnrolledExplicitRK` unrolls them, see
-``Settings.solver``), and XLA compiles with
-:func:`~jaxclear.integrate.compiler_options`. ``benchmarks/bench_engine.py --profile``
-measures each part.
+Speed: the module docstring of :mod:`jaxclear.integrate._solve` (one packed vector, diffrax's
+stage loop, XLA's options; ``benchmarks/bench_engine.py --profile`` measures each part).
 """
 
 from __future__ import annotations
