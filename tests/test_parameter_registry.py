@@ -226,6 +226,7 @@ def test_the_toy_stiffness_swept_gives_the_closed_form_deflection(tmp_path):
     deflection = -L0 - np.asarray(res.table["min__point_block_P_pos_y"])
     np.testing.assert_allclose(deflection, 2 * M * G / k, rtol=5e-5)
     np.testing.assert_allclose(res.table["max__point_block_P_pos_y"], -L0, atol=1e-9)  # it turns at the rest length
+    assert "poincare" not in sweep.open_dataset(cfg.out)  # no clearance joint: no Poincare variable, the file readable
     # the sweep checks the toy's declared range, and knows speed and the toy's name apart
     with pytest.raises(jc.ParameterError, match=r"toy_stiffness:t = -1 N/m is outside the allowed range \[0, inf\)"):
         sweep.SweepConfig(mechanism=mech, grid={"toy_stiffness:t": [-1.0, 1.0]}, ideal_reference=False)

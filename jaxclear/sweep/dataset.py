@@ -14,7 +14,8 @@ Layout of the dataset (CF-style attributes ``units`` and ``long_name`` on every 
   ``STAT__KEY`` with the channel's unit and ``long_name`` "STAT of CHANNEL", ``status``,
   ``status_message``, ``run``)
   and ``poincare`` with the extra dimensions ``section``, ``joint`` and ``coordinate``
-  (:data:`~jaxclear.sweep.store.POINCARE_COORDS`);
+  (:data:`~jaxclear.sweep.store.POINCARE_COORDS`), where the runs have Poincare points (a
+  mechanism without a clearance joint has none);
 * dataset attributes: the sweep's mode (``sweep_mode``: a global attribute ``mode`` would
   clash with scipy's NetCDF writer), preset, run settings and hash from the manifest.
 """
@@ -73,7 +74,9 @@ def to_dataset(table: dict, names, axes: dict, mode: str, poincare: np.ndarray, 
     columns = [c for c in table if c not in names]
     chan = manifest.get("channel_columns", {})
     points = np.asarray(poincare)
-    has_points = points.ndim == 4 and points.shape[0] == len(table.get("run", ()))
+    # no points (no clearance joint, or no whole revolution after the transient): no variable, as a
+    # dimension of length 0 is NetCDF 3's unlimited one, which scipy writes but cannot read back
+    has_points = points.ndim == 4 and points.shape[0] == len(table.get("run", ())) and points.size > 0
     if mode == "grid":
         dims = names
         shape = tuple(len(axes[n]) for n in names)
