@@ -211,7 +211,9 @@ def test_the_toy_stiffness_swept_gives_the_closed_form_deflection(tmp_path):
     point is ``-L0 - 2 M g / k`` (twice the static deflection: 0.196, 0.049, 0.012 m). Tolerance:
     the lowest sample lies within half a sample spacing (0.25 ms) of the true lowest point, so
     it misses the deflection by at most ``(omega dt / 2)^2 / 4`` of it, 2.5e-5 at the stiffest
-    (omega 40 rad/s); the runs' error at rtol 1e-9 is far below. Bounds 5e-5 relative."""
+    (omega 40 rad/s); the runs' error at rtol 1e-9 is far below. Bounds 5e-5 relative. The toy's
+    unit and description reach the results (``results.nc``, the DataFrame, the axis label) from the
+    registry asked with the mechanism, through the manifest."""
     from jaxclear import sweep
 
     mech = toy_on_a_crank()
@@ -226,7 +228,16 @@ def test_the_toy_stiffness_swept_gives_the_closed_form_deflection(tmp_path):
     deflection = -L0 - np.asarray(res.table["min__point_block_P_pos_y"])
     np.testing.assert_allclose(deflection, 2 * M * G / k, rtol=5e-5)
     np.testing.assert_allclose(res.table["max__point_block_P_pos_y"], -L0, atol=1e-9)  # it turns at the rest length
-    assert "poincare" not in sweep.open_dataset(cfg.out)  # no clearance joint: no Poincare variable, the file readable
+    # its unit and description in the results: results.nc as run_sweep wrote it (readable: no clearance
+    # joint, so no Poincare variable with a dimension of length 0), and the folder read back without the
+    # mechanism (res: the manifest keeps what the registry answered with it)
+    toy = {"units": "N/m", "long_name": "stiffness of the toy spring (toy_stiffness:NAME)"}  # params.info's
+    ds = sweep.open_dataset(cfg.out)
+    assert ds["toy_stiffness:t"].attrs == toy and "poincare" not in ds
+    assert res.to_xarray()["toy_stiffness:t"].attrs == toy
+    assert res.to_dataframe().attrs["units"]["toy_stiffness:t"] == "N/m"
+    label = sweep.axis_label("toy_stiffness:t", sweep.column_records(res.manifest))
+    assert label == (f"{toy['long_name']} [N/m]", 1.0)
     # the sweep checks the toy's declared range, and knows speed and the toy's name apart
     with pytest.raises(jc.ParameterError, match=r"toy_stiffness:t = -1 N/m is outside the allowed range \[0, inf\)"):
         sweep.SweepConfig(mechanism=mech, grid={"toy_stiffness:t": [-1.0, 1.0]}, ideal_reference=False)

@@ -101,7 +101,7 @@ from .store import (
     csv_columns,
     repair_csv,
 )
-from .labels import column_unit, long_name
+from .labels import column_records, column_unit, long_name
 from .values import RANGE_KEYS
 
 #: Names served by :mod:`jaxclear.sweep.figures`, imported on first access (matplotlib).
@@ -159,6 +159,7 @@ __all__ = [
     "write_netcdf",
     "NETCDF_NAME",
     "column_unit",
+    "column_records",
     "long_name",
     "TRACES",
     "TraceCounter",

@@ -29,14 +29,15 @@ import pandas as pd
 import xarray as xr
 
 from .._storage import atomic_write_netcdf, json_text
-from .labels import column_unit, long_name
+from .labels import column_records, column_unit, long_name
 from .store import NETCDF_NAME, POINCARE_COORDS
 
 _POINCARE_UNITS = ("m", "m", "m s-1", "m s-1")
 
 
 def _attrs(name: str, channels: dict | None = None) -> dict:
-    """CF attributes of a column (``channels``: the manifest's ``channel_columns``)."""
+    """CF attributes of a column (``channels``: the manifest's records of its columns,
+    :func:`~jaxclear.sweep.labels.column_records`)."""
     return {"units": column_unit(name, channels), "long_name": long_name(name, channels)}
 
 
@@ -72,7 +73,7 @@ def to_dataset(table: dict, names, axes: dict, mode: str, poincare: np.ndarray, 
     :class:`~jaxclear.sweep.SweepResult`."""
     names = list(names)
     columns = [c for c in table if c not in names]
-    chan = manifest.get("channel_columns", {})
+    chan = column_records(manifest)
     points = np.asarray(poincare)
     # no points (no clearance joint, or no whole revolution after the transient): no variable, as a
     # dimension of length 0 is NetCDF 3's unlimited one, which scipy writes but cannot read back
@@ -81,7 +82,7 @@ def to_dataset(table: dict, names, axes: dict, mode: str, poincare: np.ndarray, 
         dims = names
         shape = tuple(len(axes[n]) for n in names)
         idx = _grid_index(table, names, axes)
-        coords = {n: (n, np.asarray(axes[n], dtype=float), _attrs(n)) for n in names}
+        coords = {n: (n, np.asarray(axes[n], dtype=float), _attrs(n, chan)) for n in names}
         data = {c: (dims, _filled(shape, table[c], idx), _attrs(c, chan)) for c in columns}
         if "status_message" in data:
             data["status_message"] = (dims, data["status_message"][1].astype(str), _attrs("status_message"))
@@ -92,7 +93,7 @@ def to_dataset(table: dict, names, axes: dict, mode: str, poincare: np.ndarray, 
     else:
         dims = ["run"]
         coords = {"run": ("run", table["run"], _attrs("run"))}
-        coords.update({n: ("run", table[n], _attrs(n)) for n in names})
+        coords.update({n: ("run", table[n], _attrs(n, chan)) for n in names})
         data = {c: (dims, np.asarray(table[c]).astype(str) if c == "status_message" else table[c], _attrs(c, chan))
                 for c in columns if c != "run"}
     if has_points:
@@ -105,7 +106,7 @@ def to_dataset(table: dict, names, axes: dict, mode: str, poincare: np.ndarray, 
 
 def to_dataframe(table: dict, names, channels: dict | None = None) -> pd.DataFrame:
     """One row per run, indexed by the run index; ``df.attrs["units"]``: column -> unit
-    (``channels``: the manifest's ``channel_columns``)."""
+    (``channels``: the manifest's records of its columns, :func:`~jaxclear.sweep.labels.column_records`)."""
     df = pd.DataFrame({c: v for c, v in table.items() if c != "run"}, index=pd.Index(table["run"], name="run"))
     df.attrs["units"] = {c: column_unit(c, channels) for c in df.columns}
     df.attrs["parameters"] = list(names)

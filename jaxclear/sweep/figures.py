@@ -12,7 +12,7 @@ import numpy as np
 from .._errors import ParameterError
 from .._storage import json_text
 from ..plot import plot_bifurcation, plot_heatmap, plot_poincare
-from .labels import column_unit, long_name
+from .labels import column_records, column_unit, long_name
 from .store import POINCARE_COORDS
 
 if TYPE_CHECKING:  # only the annotations name it: results.py draws through this module
@@ -33,14 +33,15 @@ def _label(name: str, unit: str, text: str) -> tuple[str, float]:
     return f"{text} [{'-' if unit in ('', '1') else unit}]", 1.0
 
 
-def axis_label(name: str) -> tuple[str, float]:
-    """(label, scale) of a parameter or metric for plots: lengths in mm, others in SI."""
-    return _label(name, column_unit(name), _SHORT.get(name.split("@")[0], long_name(name)))
+def axis_label(name: str, channels: dict | None = None) -> tuple[str, float]:
+    """(label, scale) of a parameter or metric for plots: lengths in mm, others in SI
+    (``channels``: the manifest's records of its columns, :func:`~jaxclear.sweep.labels.column_records`)."""
+    return _label(name, column_unit(name, channels), _SHORT.get(name.split("@")[0], long_name(name, channels)))
 
 
 def metric_label(metric: str, channels: dict | None = None) -> str:
     """``peak_contact_force_n`` -> ``peak contact force [N]`` (the dataset's units; ``channels``:
-    the manifest's ``channel_columns``, for a named channel's statistic)."""
+    the manifest's records of its columns, :func:`~jaxclear.sweep.labels.column_records`)."""
     unit = column_unit(metric, channels)
     return f"{long_name(metric, channels)} [{'-' if unit in ('', '1') else unit}]"
 
@@ -72,9 +73,10 @@ def heatmap(res: SweepResult, metric: str, x: str, y: str, path=None, log: bool 
     if extra:
         raise ParameterError(f"the sweep also varies {extra}: pick one value of each with sel={{name: value}}")
     da = da.transpose(y, x)
-    (xl, xs), (yl, ys) = axis_label(x), axis_label(y)
+    records = column_records(res.manifest)
+    (xl, xs), (yl, ys) = axis_label(x, records), axis_label(y, records)
     fixed = _fixed(res)
-    label = metric_label(metric, res.manifest.get("channel_columns"))
+    label = metric_label(metric, records)
     title = f"{label} over {x} x {y}" + (f"\n{fixed}" if fixed else "")
     if sel:
         title += "; " + ", ".join(f"{k} = {v:g}" for k, v in sel.items())
@@ -87,7 +89,7 @@ def bifurcation(res: SweepResult, parameter: str, coordinate: str = "e_x", joint
     the eccentricity magnitude) of every section point of every successful run against
     ``parameter``."""
     values, label = poincare_coordinate(res.poincare, coordinate, joint)
-    pl, ps = axis_label(parameter)
+    pl, ps = axis_label(parameter, column_records(res.manifest))
     ok = res.table["status"] == 0
     return plot_bifurcation(path, res.table[parameter][ok] * ps, values[ok], xlabel=pl, ylabel=label,
                             title=f"bifurcation diagram over {parameter} (one point per crank revolution)")
@@ -116,7 +118,8 @@ def poincare_plot(res: SweepResult, runs=None, joint: int = 0, path=None, color_
     title names the fixed settings."""
     runs = np.arange(len(res.table["run"])) if runs is None else np.asarray(runs)
     color_by = color_by or res.names[0]
-    label, scale = axis_label(color_by)
+    records = column_records(res.manifest)
+    label, scale = axis_label(color_by, records)
     name = "clearance" if joint == 0 else f"clearance@{joint}"
     if name in res.table:
         clearance = res.table[name][runs]
@@ -128,7 +131,7 @@ def poincare_plot(res: SweepResult, runs=None, joint: int = 0, path=None, color_
     for r in runs:
         parts = []
         for n in res.names:
-            text, s = axis_label(n)
+            text, s = axis_label(n, records)
             unit = text[text.rfind("[") + 1: -1]
             parts.append(f"{_SHORT.get(n, n)} {res.table[n][r] * s:g}{'' if unit == '-' else ' ' + unit}")
         labels.append(", ".join(parts))

@@ -40,10 +40,28 @@ def channel_columns(channels: dict) -> dict:
             for s in CHANNEL_STATS}
 
 
+def parameter_columns(names, mech) -> dict:
+    """``{name: {"unit", "doc"}}`` of the swept parameters ``names`` (the manifest's
+    ``parameter_columns``), asked of the registry with the mechanism (:func:`jaxclear.params.info`
+    with ``mech``): a parameter of a class that the registry knows only through ``mech`` (a
+    user's force element) has its unit and description in the results too, also when the folder
+    is read back without the mechanism."""
+    infos = {n: params.info(n, mech) for n in names}
+    return {n: {"unit": i.unit, "doc": i.doc} for n, i in infos.items()}
+
+
+def column_records(manifest: dict) -> dict:
+    """The units and names a sweep's manifest records for its columns: its ``parameter_columns``
+    (:func:`parameter_columns`) and ``channel_columns`` (:func:`channel_columns`); the
+    ``channels`` of :func:`column_unit` and :func:`long_name`."""
+    return {**manifest.get("parameter_columns", {}), **manifest.get("channel_columns", {})}
+
+
 def column_unit(name: str, channels: dict | None = None) -> str:
     """Unit (CF spelling) of a ``runs.csv`` column: a metric, a parameter, or a bookkeeping column;
-    ``channels``: the manifest's ``channel_columns`` (:func:`channel_columns`) for the statistics
-    of named channels."""
+    ``channels``: the manifest's records of its columns (:func:`column_records`: the swept
+    parameters as the mechanism declares them, the statistics of named channels); a parameter
+    not recorded there is looked up in the registry's catalogue (without a mechanism)."""
     if channels and name in channels:
         return _cf(channels[name]["unit"])
     if name in _COLUMN_UNITS:
@@ -59,15 +77,19 @@ def column_unit(name: str, channels: dict | None = None) -> str:
 def long_name(name: str, channels: dict | None = None) -> str:
     """Readable name of a column: a parameter's description, a metric without its unit suffix,
     ``rms of joint:0:film_force`` for a channel statistic (``channels``: as in :func:`column_unit`)."""
-    if channels and name in channels:
-        return f"{channels[name]['stat']} of {channels[name]['channel']}"
-    if name in RUN_METRIC_KEYS:
+    entry = channels.get(name) if channels else None
+    if entry is not None:
+        if "stat" in entry:
+            return f"{entry['stat']} of {entry['channel']}"
+        doc = entry["doc"]
+    elif name in RUN_METRIC_KEYS:
         for suffix in ("_m_s2", "_n", "_m", "_j", "_s"):
             if name.endswith(suffix):
                 return name[: -len(suffix)].replace("_", " ")
         return name.replace("_", " ")
-    try:
-        doc = params.info(name).doc
-    except (JaxclearError, KeyError):
-        return name.replace("_", " ")
+    else:
+        try:
+            doc = params.info(name).doc
+        except (JaxclearError, KeyError):
+            return name.replace("_", " ")
     return doc if "@" not in name else f"{doc} ({name})"

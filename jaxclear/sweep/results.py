@@ -15,6 +15,7 @@ import numpy as np
 from .._errors import STATUS, CheckpointError, ParameterError
 from .._results import AbstractResult
 from .._storage import jsonable
+from .labels import column_records
 from .store import _INT_READ, CHUNK_DIR, CSV_NAME, MANIFEST_NAME, NETCDF_NAME, damaged, parse_rows, read_manifest
 
 
@@ -74,7 +75,7 @@ class SweepResult(AbstractResult):
     def to_dataframe(self):
         """The results as a :class:`pandas.DataFrame`: one row per run (index ``run``), the
         parameters and metrics as columns, ``df.attrs["units"]`` their units."""
-        return _dataset().to_dataframe(self.table, self.names, self.manifest.get("channel_columns"))
+        return _dataset().to_dataframe(self.table, self.names, column_records(self.manifest))
 
     def trajectories(self) -> dict:
         """The stored time series (``trajectories = true``): key -> (n_runs, ...) arrays."""

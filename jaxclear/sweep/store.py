@@ -27,7 +27,7 @@ from .._errors import CheckpointError, ParameterError
 from ..analysis.metrics import RUN_METRIC_KEYS
 from .._errors import STATUS
 from .config import SweepConfig
-from .labels import channel_columns
+from .labels import channel_columns, parameter_columns
 
 CSV_NAME = "runs.csv"
 MANIFEST_NAME = "manifest.json"
@@ -219,7 +219,8 @@ def _check_previous(out: str, sweep: Work, layout: dict):
 
 
 def manifest(cfg: SweepConfig, layout: dict) -> dict:
-    """The manifest: format, hash, definition, batch layout, status codes, Poincare layout."""
+    """The manifest: format, hash, definition, batch layout, status codes, Poincare layout, the
+    units and names of the channel and parameter columns (not hashed: rewritten on resume)."""
     return {
         "format_version": FORMAT_VERSION,
         "sweep_hash": cfg.sweep_hash(),
@@ -233,6 +234,7 @@ def manifest(cfg: SweepConfig, layout: dict) -> dict:
         "base_clearance_m": [float(c.clearance) for c in cfg.base_mechanism.clearance_joints],
         "section_samples": list(cfg.section),
         "channel_columns": channel_columns(cfg.channel_units),
+        "parameter_columns": parameter_columns(cfg.names, cfg.base_mechanism),
     }
 
 
