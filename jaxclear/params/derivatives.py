@@ -30,6 +30,7 @@ import numpy as np
 
 from . import registry as params
 from .._errors import ParameterError
+from .._results import deprecated
 from ..integrate import Settings, Solution, simulate
 from ..integrate import check_status
 from ..model import Mechanism
@@ -117,9 +118,8 @@ def sensitivities(mech: Mechanism, names: Sequence[str], s: Settings, output: Ca
         status and counts, are the run's).
     """
     if isinstance(names, Settings) and not isinstance(s, Settings):  # the old order (mech, s, names)
-        warnings.warn("jc.sensitivities(mech, settings, names) is deprecated: the order is now "
-                      "jc.sensitivities(mech, names, settings), as jc.parameter_grad(loss, mech, names, settings)",
-                      DeprecationWarning, stacklevel=2)
+        deprecated("jc.sensitivities(mech, settings, names)",
+                   "jc.sensitivities(mech, names, settings), the order of jc.parameter_grad(loss, mech, names, settings)")
         names, s = s, names
     names = check_names(mech, names)
     x = jnp.asarray([params.get(mech, n) for n in names], dtype=float)
