@@ -147,6 +147,40 @@ def test_cli_bad_config_exit_code_and_message(tmp_path, capsys):
     assert "Traceback" not in err and not (tmp_path / "o").exists()
 
 
+def test_cli_writes_the_dataset_once(tmp_path, monkeypatch, capsys):
+    """`jaxclear sweep` writes ``results.nc`` once (``run_sweep(..., write_dataset=False)``, then
+    the command's :meth:`SweepResult.write` with the figures), not once in the sweep and again at
+    the end. The folder holds a finished sweep made without computing anything (manifest, both
+    rows), so nothing is compiled and runs.csv is left as it was."""
+    import importlib
+
+    out = tmp_path / "out"
+    cfg_path = tmp_path / "s.toml"
+    cfg_path.write_text(f'[grid]\nclearance = [2e-4, 5e-4]\n[run]\nrevolutions = 1\n[output]\ndir = "{out}"\n')
+    cfg = sweep.load_config(cfg_path)
+    _, _, layout = sweep.driver._layout(cfg)
+    sweep.store.prepare_output(cfg, str(out), False, layout)
+    columns = sweep.csv_columns(cfg)
+    with open(out / "runs.csv", "a") as f:
+        for i, c in enumerate(cfg.values[:, 0]):
+            f.write(",".join([str(i), repr(float(c))] + ["0"] * (len(columns) - 3) + ["ok"]) + "\n")
+    rows = (out / "runs.csv").read_text()
+    dataset = importlib.import_module("jaxclear.sweep.dataset")
+    written = []
+
+    def counted(ds, path):
+        written.append(str(path))
+        return dataset.atomic_write_netcdf(path, ds)
+
+    monkeypatch.setattr(dataset, "write_netcdf", counted)
+    before = sweep.TRACES.value
+    assert main(["sweep", str(cfg_path), "--no-plots", "--no-progress"]) == 0
+    assert written == [str(out / sweep.NETCDF_NAME)]
+    assert sweep.TRACES.value == before and (out / "runs.csv").read_text() == rows
+    assert "(0 computed now)" in capsys.readouterr().out
+    np.testing.assert_array_equal(sweep.open_dataset(out)["clearance"].values, [2e-4, 5e-4])
+
+
 def test_grid_and_list_layout():
     cfg = sweep.config_from_dict({"grid": {"clearance": [1e-4, 2e-4, 3e-4],
                                            "restitution": {"start": 0.5, "stop": 0.9, "num": 2}}})

@@ -78,7 +78,7 @@ def run(args) -> int:
     print(f"jaxclear sweep: {cfg.n_runs} runs ({mode} over {', '.join(cfg.names)}), {cfg.revolutions:g} revolutions "
           f"each, on {mesh.size} {mesh.devices.flat[0].platform.upper()} device{'s' if mesh.size > 1 else ''}, "
           f"output {cfg.out}", flush=True)
-    res = run_sweep(cfg, restart=args.restart)
+    res = run_sweep(cfg, restart=args.restart, write_dataset=False)  # results.nc written once, below
     table = res.table
     failed = int(sum(1 for s in table["status"] if s != 0))
     files = res.write(cfg.out, plots=not args.no_plots)

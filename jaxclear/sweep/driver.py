@@ -49,7 +49,7 @@ def _compute(cfg: SweepConfig, plan: Plan, c: int, chunk: int) -> tuple[int, dic
 
 
 def run_sweep(cfg: SweepConfig, out: str | None = None, restart: bool = False,
-              progress: bool | None = None) -> SweepResult:
+              progress: bool | None = None, write_dataset: bool = True) -> SweepResult:
     """Run (or resume) a sweep; returns its results read back from disk. When it finishes,
     ``OUT/results.nc`` holds them as a labelled dataset (:meth:`SweepResult.to_xarray`).
 
@@ -58,16 +58,21 @@ def run_sweep(cfg: SweepConfig, out: str | None = None, restart: bool = False,
         out: output folder (default ``cfg.out``).
         restart: discard results of a previous sweep in ``out`` instead of resuming.
         progress: tqdm bar over the chunks (default ``cfg.progress``).
+        write_dataset: write ``OUT/results.nc`` when it finishes (default). ``False`` leaves it to
+            the caller's :meth:`SweepResult.write` (``jaxclear sweep``: the dataset and the
+            figures, once); what the runs write as they go (``runs.csv``, ``manifest.json``,
+            ``chunks/``, from which a killed sweep resumes) is the same either way.
     """
     out = os.fspath(out if out is not None else cfg.out)
     progress = cfg.progress if progress is None else progress
     lead = jax.process_index() == 0
     # one writer per folder: a second sweep into it fails at once (no row written twice)
     with locked(out if lead else None, "sweep"):
-        return _run_sweep(cfg, out, restart, progress, lead)
+        return _run_sweep(cfg, out, restart, progress, lead, write_dataset)
 
 
-def _run_sweep(cfg: SweepConfig, out: str, restart: bool, progress: bool, lead: bool) -> SweepResult:
+def _run_sweep(cfg: SweepConfig, out: str, restart: bool, progress: bool, lead: bool,
+               write_dataset: bool) -> SweepResult:
     """:func:`run_sweep` inside the folder's lock."""
     mesh, chunk, layout = _layout(cfg)
     done = prepare_output(cfg, out, restart, layout) if lead else set()
@@ -97,5 +102,6 @@ def _run_sweep(cfg: SweepConfig, out: str, restart: bool, progress: bool, lead: 
                            computed)
     res = read_results(out)
     res.computed = computed
-    res.write(out, plots=False)  # results.nc (the CSV, manifest and chunks were written as it ran)
+    if write_dataset:
+        res.write(out, plots=False)  # results.nc (the CSV, manifest and chunks were written as it ran)
     return res
