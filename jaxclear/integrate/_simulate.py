@@ -29,7 +29,9 @@ from ._compile import jit
 from ._sensitivity import tangent_run
 from ._settings import Settings
 from ._solution import Solution
-from ._solve import POSTPROCESS_BATCH, output_grid  # noqa: F401  (re-exported: tests, kinematics)
+# not used here, read from here: by _kinematics.py, tests/test_output.py, tests/test_sampling.py, and through the
+# deprecated old path jaxclear.integrate.simulate (this package's _OldPath) for one release
+from ._solve import POSTPROCESS_BATCH, output_grid  # noqa: F401
 from ._state import State
 
 
