@@ -35,7 +35,7 @@ import pytest
 
 import jaxclear as jc
 from jaxclear._xla_flags import loop_kernels_active
-from jaxclear import params, sweep
+from jaxclear import sweep
 from jaxclear.analysis import metrics
 from jaxclear.integrate._state import element_states
 from jaxclear.cli import main
