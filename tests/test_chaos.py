@@ -368,20 +368,24 @@ def test_only_the_memory_the_motion_reads_is_carried():
     and out of contact (the journal centred at the start), nothing is read. Carried by the
     renormalisations' R^-1 without acting back, an unread entry grew like e^(-lambda_min t) and
     overflowed (the work's tangent: 1e117, then inf, after 20-35 revolutions)."""
+    import equinox as eqx
     import jax
 
     from jaxclear.chaos import manifold
     from jaxclear.integrate import State, _solve as solve
 
+    # compiled once per law for both of its points (called eagerly, each call compiled its own
+    # derivative of the vector field: twice the compilation)
+    live_memory = eqx.filter_jit(manifold.live_memory)
     for law, expected in (("lankarani-nikravesh", [1, 0, 0, 0, 0, 0]), ("hertz", [0] * 6)):
         mech = jc.preset("flores-slider-crank", law=law, speed_rpm=1000.0, friction=0.2, restitution=0.3)
         s = jc.settings(0.12, n_out=1201)
         begin = solve.start_run(mech, s, None)
-        np.testing.assert_array_equal(np.asarray(manifold.live_memory(mech, s.baumgarte, 0.0, begin.packed)), [0] * 6)
+        np.testing.assert_array_equal(np.asarray(live_memory(mech, s.baumgarte, jnp.zeros(()), begin.packed)), [0] * 6)
         # the deepest sample of the second revolution: inside a contact
         sol = jc.simulate(mech, s)
         k = 600 + int(np.argmax(np.asarray(sol.penetration[600:, 0])))
         assert float(sol.penetration[k, 0]) > 1e-7
         y = State(sol.q[k], sol.qdot[k], jax.tree_util.tree_map(lambda x: x[k], sol.element_states)).pack()
-        live = manifold.live_memory(mech, s.baumgarte, sol.ts[k], y)
+        live = live_memory(mech, s.baumgarte, sol.ts[k], y)
         np.testing.assert_array_equal(np.asarray(live), expected)
