@@ -139,7 +139,9 @@ def _counting(monkeypatch, stop_at=None):
 
 
 def test_lyapunov_map_resumes_after_a_kill(slider_crank, tmp_path, monkeypatch):
-    whole = _fields(_map(slider_crank))  # all rows at once, nothing written
+    # uninterrupted, nothing written, in the chunks of the resumed map: one compiled program for
+    # the three maps (that the chunks do not change the rows: test_chunked_equals_unchunked)
+    whole = _fields(_map(slider_crank, chunk=1))
     assert not np.any(whole["status"]) and np.all(np.isfinite(whole["exponents"]))
     out = tmp_path / "map"
     stop_at = [2]
