@@ -259,8 +259,11 @@ def _design(out, monkeypatch, stop_at=None):
         if len(seen) == stop_at:
             raise KeyboardInterrupt
 
+    # the programs of tests/test_design.py's balanced four-bar and of notebooks/design.ipynb's first
+    # design (the same objective, variables and samples): one compilation for the three, through
+    # the session's compilation cache
     res = jc.design(jc.preset("four-bar").ideal(), FOUR_BAR, _shaking, out=out, callback=stop, max_iter=4,
-                    samples_per_revolution=32, revolutions=0.25, check_chaos=False, plots=False, progress=False)
+                    samples_per_revolution=64, check_chaos=False, plots=False, progress=False)
     computed = res.evaluations["values"] + res.evaluations["gradients"] - res.evaluations["replayed"]
     return res.history[-1]["objective"], computed, None
 
