@@ -33,8 +33,8 @@ estimate, starts that disagree; see jaxclear.fitting.verdict) is reported as FAI
 reasons first, and fit.json says "ok": false with the "failures". Exit status: 0 (also for a
 failed fit, unless --strict), 3 with --strict when the fit failed (after writing fit.json and
 printing the reasons), 2 for bad input, 130 on Ctrl-C.
-With --posterior also the Bayesian posterior of the free parameters and the noise level (NUTS
-chains started from the fit's optimum; see jaxclear.fitting.posterior):
+With --posterior also the Bayesian posterior of the free parameters and the noise level (random-walk
+or NUTS chains started from the fit's optimum; see jaxclear.fitting.posterior):
   posterior.nc, posterior.json, posterior_summary.csv, posterior_pair.png,
   posterior_predictive.png/.csv, posterior_checkpoint.npz (the same command resumes it)
 By default the first sample is the preset's start (crank angle 0, journal centred, velocities
@@ -129,16 +129,21 @@ def configure(p: argparse.ArgumentParser):
                    help="model grid points per record sample, >= 1 (default: 4)")
     b = p.add_argument_group("posterior (Bayesian identification)")
     b.add_argument("--posterior", action="store_true",
-                   help="after the fit, sample the posterior of the free parameters and the noise level (NUTS, "
-                   "windows = 1 only) (default: off)")
+                   help="after the fit, sample the posterior of the free parameters and the noise level (windows = 1 "
+                   "only) (default: off)")
+    b.add_argument("--sampler", choices=("random-walk", "nuts"), default="random-walk",
+                   help="random-walk Metropolis (one simulation a draw, indifferent to the jumps of the likelihood at "
+                   "the default window) or NUTS (gradients; for many free parameters and a smooth likelihood) "
+                   "(default: random-walk)")
     b.add_argument("--chains", type=number_in(int, 1), default=4, metavar="N", help="chains, >= 1 (default: 4)")
-    b.add_argument("--draws", type=number_in(int, 1), default=500, metavar="N",
-                   help="kept draws per chain, >= 1, rounded up to a multiple of --chunk (default: 500)")
-    b.add_argument("--warmup", type=number_in(int, 0), default=200, metavar="N",
-                   help="warm-up draws per chain (step-size tuning, discarded), >= 0, rounded up to a multiple of --chunk "
-                   "(default: 200)")
-    b.add_argument("--chunk", type=number_in(int, 1), default=50, metavar="N",
-                   help="draws per checkpointed chunk, >= 1 (default: 50)")
+    b.add_argument("--draws", type=number_in(int, 1), metavar="N",
+                   help="kept draws per chain, >= 1, rounded up to a multiple of --chunk (default: 2000 random-walk, "
+                   "500 NUTS)")
+    b.add_argument("--warmup", type=number_in(int, 0), metavar="N",
+                   help="warm-up draws per chain (step tuning, discarded), >= 0, rounded up to a multiple of --chunk "
+                   "(default: 500 random-walk, 200 NUTS)")
+    b.add_argument("--chunk", type=number_in(int, 1), metavar="N",
+                   help="draws per checkpointed chunk, >= 1 (default: 250 random-walk, 50 NUTS)")
     b.add_argument("--prior", type=name_prior, action="append", default=[], metavar="NAME=KIND:A[:B]",
                    help="prior of a free parameter or of noise_sigma: normal:MEAN:SD, lognormal:MEDIAN:FACTOR, "
                    "uniform:LOW:HIGH, halfnormal:SCALE, repeatable (default: lognormal with a factor 10 around the "
@@ -236,14 +241,16 @@ def _settings(args):
 def _posterior(args, mech, free, channels, sensor, res):
     """``--posterior``: sample, write the files, print the summary (flagged when not converged)."""
     from ..fitting import posterior
+    from ..fitting.posterior import DEFAULT_COUNTS
 
-    print(f"jaxclear fit: posterior, {args.chains} chain(s) x ({args.warmup} warm-up + {args.draws} draws), NUTS from "
-          "the least-squares optimum", flush=True)
+    n = {k: DEFAULT_COUNTS[args.sampler][k] if getattr(args, k) is None else getattr(args, k) for k in ("draws", "warmup")}
+    print(f"jaxclear fit: posterior, {args.chains} chain(s) x ({n['warmup']} warm-up + {n['draws']} draws), "
+          f"{'NUTS' if args.sampler == 'nuts' else 'random-walk Metropolis'} from the least-squares optimum", flush=True)
     with warnings.catch_warnings():  # the diagnostics' warnings are printed by the summary
         warnings.simplefilter("ignore", UserWarning)
         post = posterior(args.data, mech, free, dict(args.start), fit_result=res, priors=dict(args.prior),
                          noise_sigma=args.noise_sigma, chains=args.chains, draws=args.draws, warmup=args.warmup,
-                         chunk=args.chunk, seed=args.seed, channels=channels, sensor=sensor, windows=args.windows,
+                         chunk=args.chunk, sampler=args.sampler, seed=args.seed, channels=channels, sensor=sensor, windows=args.windows,
                          settings=_settings(args), align=args.align, out=args.out, resume=not args.restart,
                          progress=not args.no_progress)
     print(f"posterior in {post.wall_time_s:.1f} s wall ({post.gradient_evaluations} gradient evaluations); "

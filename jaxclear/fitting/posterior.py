@@ -7,10 +7,11 @@ What it does, in order:
    optimum and Gauss-Newton covariance start the chains and set their metric;
 2. the log posterior: the fit's own residual model and sensor model as a Gaussian likelihood with
    an unknown (or given) noise level, and stated priors (:mod:`.posterior_model`, :mod:`.priors`);
-   its gradient is ``jax.grad`` through :func:`~jaxclear.simulate`, i.e. the transpose of the
+   NUTS's gradient is ``jax.grad`` through :func:`~jaxclear.simulate`, i.e. the transpose of the
    error-controlled forward sensitivities (one tangent per free parameter);
-3. ``chains`` chains of the No-U-Turn sampler (:mod:`.sampler`), each started from the optimum
-   plus a Gauss-Newton-distributed jitter, ``warmup`` draws tuning the step size (discarded),
+3. ``chains`` chains of the random-walk Metropolis sampler (default) or of the No-U-Turn sampler
+   (:mod:`.sampler`; which one when: :func:`posterior`'s ``sampler``), each started from the
+   optimum plus a Gauss-Newton-distributed jitter, ``warmup`` draws tuning the step (discarded),
    then ``draws`` draws in compiled chunks of ``chunk``, the chains' states and every draw so far
    written to ``out/posterior_checkpoint.npz`` after the warm-up and after every chunk; the same
    call resumes from it (a chunk's random key is derived from the seed, chain and chunk index, so
@@ -49,7 +50,8 @@ from .posterior_result import PosteriorResult, build_result
 from .priors import check_support, default_prior, noise_prior, parse_prior
 from .problem import MAX_STEPS, build_problem, given_settings, settings_record
 from .result import FitResult
-from .sampler import ChainState, StepSize, init_states, init_step_size, nuts_chunk
+from .sampler import (RANDOM_WALK_ACCEPT, SAMPLERS, TARGET_ACCEPT, ChainState, StepSize, init_states,
+                      init_step_size, nuts_chunk, random_walk_chunk)
 from .window import evaluate_window_jit
 
 #: The posterior's checkpoint in the output folder.
@@ -60,11 +62,22 @@ FORMAT = 1
 NOISE = "noise_sigma"
 #: Retries of a chain's start whose density is not finite (the jitter halved each time).
 _START_TRIES = 6
+#: A start whose log density lies this far below the Gauss-Newton approximation's is moved in
+#: (:func:`_starts`): a Gaussian's own draws never do (the difference is 0 for a Gaussian), a
+#: non-quadratic misfit over one Gauss-Newton std changes it by a few units at most.
+START_DROP = 20.0
+#: Draws, warm-up draws and chunk per chain where not given, per sampler: the random walk's draws
+#: are cheaper (one simulation, no derivative) and less independent (about 0.07-0.1 effective
+#: draws a draw in 3 dimensions, measured) than NUTS's; either gives a few hundred effective
+#: draws of each quantity with 4 chains, and a checkpoint every 10-60 s at the default window.
+DEFAULT_COUNTS = {"random-walk": dict(draws=2000, warmup=500, chunk=250),
+                  "nuts": dict(draws=500, warmup=200, chunk=50)}
 
 
 def posterior(data, mech: Mechanism, free: Sequence[str] = DEFAULT_FREE, start: dict | None = None, *,
               fit_result: FitResult | None = None, priors: dict | None = None, noise_sigma: float | None = None,
-              chains: int = 4, draws: int = 500, warmup: int = 200, chunk: int = 50, max_tree_depth: int = 8,
+              chains: int = 4, draws: int | None = None, warmup: int | None = None, chunk: int | None = None,
+              sampler: str = "random-walk", max_tree_depth: int = 8, target_accept: float | None = None,
               seed: int = 0, predictive_draws: int = 100, channels=None, sensor: Accelerometer | None = None,
               window: float | None = None, windows: int = 1, rtol: float | None = None, atol: float | None = None,
               max_steps: int | None = None, settings: Settings | None = None, align: str = "time",
@@ -91,8 +104,19 @@ def posterior(data, mech: Mechanism, free: Sequence[str] = DEFAULT_FREE, start: 
             (then it is not sampled); default None: sampled.
         chains: chains; ``draws``: kept draws per chain; ``warmup``: warm-up draws per chain
             (step-size tuning, discarded); ``chunk``: draws per compiled chunk (``draws`` and
-            ``warmup`` are rounded up to a multiple); ``max_tree_depth``: NUTS's largest number
-            of trajectory doublings.
+            ``warmup`` are rounded up to a multiple); None: the sampler's defaults
+            (:data:`DEFAULT_COUNTS`: 2000, 500, 250 for the random walk, 500, 200, 50 for NUTS).
+        sampler: ``"random-walk"`` (default) or ``"nuts"``, both in the Gauss-Newton-whitened
+            coordinates. The random walk (Metropolis, its step scale tuned in the warm-up) needs
+            one simulation a draw and no derivative; at the default window the likelihood jumps
+            where a contact appears or vanishes inside the window as a parameter moves, and there it
+            was measured 10-100 times faster per effective draw than NUTS, whose step size the
+            jumps drive down and whose trees they drive to the depth cap (docs/theory/uncertainty.md,
+            "Sampler"; benchmarks/README.md). NUTS (BlackJAX, the gradient through the simulation)
+            for a smooth likelihood with many free parameters, where a random walk's efficiency
+            falls like 1 / dimension. ``max_tree_depth``: NUTS's largest number of trajectory
+            doublings; ``target_accept``: the acceptance rate the warm-up tunes the step towards
+            (None: 0.8 for NUTS, 0.3 for the random walk), in (0, 1).
         seed: random seed; ``predictive_draws``: posterior draws for the predictive band.
         windows: must be 1 (see the module docstring).
         out: folder for the checkpoint and the files (:meth:`PosteriorResult.write`; None: nothing
@@ -111,6 +135,9 @@ def posterior(data, mech: Mechanism, free: Sequence[str] = DEFAULT_FREE, start: 
     t_wall = time.perf_counter()
     integration, steps = given_settings("posterior", settings, rtol, atol, max_steps)
     require_extra("uncertainty", "posterior")
+    target_accept = _check_sampler(sampler, target_accept)
+    given = dict(draws=draws, warmup=warmup, chunk=chunk)
+    draws, warmup, chunk = (DEFAULT_COUNTS[sampler][k] if v is None else v for k, v in given.items())
     _check_counts(chains=chains, draws=draws, warmup=warmup, chunk=chunk, max_tree_depth=max_tree_depth,
                   predictive_draws=predictive_draws)
     if windows != 1:
@@ -131,7 +158,7 @@ def posterior(data, mech: Mechanism, free: Sequence[str] = DEFAULT_FREE, start: 
                          **common, **fit_options)
     lp, info = _log_posterior(data, mech, tuple(free), fit_result, priors or {}, noise_sigma, common)
     settings = dict(chains=chains, draws=draws, warmup=warmup, chunk=chunk, max_tree_depth=max_tree_depth,
-                    seed=seed, noise_fixed=noise_sigma is not None)
+                    sampler=sampler, target_accept=target_accept, seed=seed, noise_fixed=noise_sigma is not None)
     key = work_key(info["problem_key"], np.asarray(lp.x0), np.asarray(lp.chol), json.dumps(info["priors"]),
                    json.dumps({k: v for k, v in settings.items() if k != "draws"}), length=32)
     with locked(out, "posterior"):
@@ -152,6 +179,18 @@ def check_priors(free: tuple, priors: dict) -> dict:
         raise ParameterError(f"posterior: priors given for {unknown}, which are not free parameters (free: "
                              f"{list(free)}, and {NOISE!r} for the noise level)")
     return {name: parse_prior(spec, f"prior of {name!r}") for name, spec in priors.items()}
+
+
+def _check_sampler(sampler, target_accept) -> float:
+    """The target acceptance rate of ``sampler`` (given, or its default); a named error for an
+    unknown sampler or a rate outside (0, 1)."""
+    if sampler not in SAMPLERS:
+        raise ParameterError(f"posterior: sampler = {sampler!r}: expected one of {list(SAMPLERS)}")
+    if target_accept is None:
+        return TARGET_ACCEPT if sampler == "nuts" else RANDOM_WALK_ACCEPT
+    if isinstance(target_accept, bool) or not isinstance(target_accept, (int, float)) or not 0 < target_accept < 1:
+        raise ParameterError(f"posterior: target_accept = {target_accept!r}: expected a number in (0, 1)")
+    return float(target_accept)
 
 
 def _check_counts(**counts):
@@ -209,18 +248,25 @@ def _log_posterior(data, mech, free, fit_result: FitResult, priors: dict, noise_
     return lp, info
 
 
-def _starts(lp: LogPosterior, chains: int, seed: int) -> np.ndarray:
+def _starts(lp: LogPosterior, chains: int, seed: int, gradient: bool = True) -> np.ndarray:
     """Chain starts ``(C, D)`` in ``u``: standard normal (the optimum plus a Gauss-Newton jitter),
-    halved where the density is not finite; an optimum without finite density is an error."""
+    halved where the density is not finite or lies more than :data:`START_DROP` below what the
+    Gauss-Newton approximation gives there (``log p(0) - |u|^2 / 2``: a start beyond a jump of the
+    likelihood, a contact gained or lost, where the density may even rise away from the optimum
+    and a chain of NUTS cannot cross back); an optimum without finite density is an error.
+    ``gradient``: whether the density's derivative is compiled (NUTS needs it anyway)."""
     d = int(lp.x0.shape[0])
     u = np.random.default_rng(seed).standard_normal((chains, d))
+    at = lambda v: np.asarray(init_states(lp, jnp.asarray(v), gradient).logdensity)  # noqa: E731
+    top = at(np.zeros((chains, d)))[0]  # the optimum (the chains' shape: one compilation)
     for _ in range(_START_TRIES):
-        ok = np.isfinite(np.asarray(init_states(lp, jnp.asarray(u)).logdensity))
+        v = at(u)
+        ok = np.isfinite(v) & ~(v < top - 0.5 * np.sum(u**2, axis=1) - START_DROP)
         if ok.all():
             return u
         u[~ok] *= 0.5
     u[~ok] = 0.0
-    if not np.isfinite(np.asarray(init_states(lp, jnp.asarray(u)).logdensity)).all():
+    if not np.isfinite(at(u)).all():
         raise ParameterError("posterior: the log posterior is not finite at the least-squares optimum (a prior "
                              "without support there, or a run that fails)")
     return u
@@ -261,13 +307,16 @@ def _sample(lp: LogPosterior, s: dict, key: str, out, resume: bool, progress: bo
     path = work.path(POSTERIOR_CHECKPOINT)
     saved = _load(work, resume)
     chains, chunk, depth = s["chains"], s["chunk"], s["max_tree_depth"]
+    nuts = s.get("sampler", "nuts") == "nuts"
+    target = s.get("target_accept") or (TARGET_ACCEPT if nuts else RANDOM_WALK_ACCEPT)
     n_warm = s["warmup"] // chunk  # warm-up chunks (warmup is a multiple of chunk)
+    d = int(lp.x0.shape[0])
     if saved is None:
-        states = init_states(lp, jnp.asarray(_starts(lp, chains, s["seed"])))
-        d = int(lp.x0.shape[0])
+        states = init_states(lp, jnp.asarray(_starts(lp, chains, s["seed"], nuts)), nuts)
+        step0 = 0.5 if nuts else 2.38 / math.sqrt(d)  # NUTS: BlackJAX's; the walk: Roberts et al.'s scale
         saved = dict(position=np.asarray(states.position), logdensity=np.asarray(states.logdensity),
                      grad=np.asarray(states.grad), **{f: np.asarray(a) for f, a in
-                                                      zip(StepSize._fields, init_step_size(0.5, chains))},
+                                                      zip(StepSize._fields, init_step_size(step0, chains))},
                      warmup_divergences=np.zeros(chains), warm_done=np.asarray(0),
                      x=np.zeros((chains, 0, d)), **{f: np.zeros((chains, 0)) for f in _DRAW_FIELDS[1:]},
                      wall_s=np.asarray(0.0))
@@ -286,8 +335,11 @@ def _sample(lp: LogPosterior, s: dict, key: str, out, resume: bool, progress: bo
                 states = ChainState(*(jnp.asarray(saved[f]) for f in ("position", "logdensity", "grad")))
                 step = StepSize(*(jnp.asarray(saved[f]) for f in StepSize._fields))
                 adapt = done < n_warm
-                states, step, draws_ = nuts_chunk(lp, states, step, _chain_keys(s["seed"], chains, done + 1),
-                                                  jnp.asarray(adapt), chunk, depth)
+                keys = _chain_keys(s["seed"], chains, done + 1)
+                if nuts:
+                    states, step, draws_ = nuts_chunk(lp, states, step, keys, jnp.asarray(adapt), chunk, depth, target)
+                else:
+                    states, step, draws_ = random_walk_chunk(lp, states, step, keys, jnp.asarray(adapt), chunk, target)
                 saved.update(position=np.asarray(states.position), logdensity=np.asarray(states.logdensity),
                              grad=np.asarray(states.grad), **{f: np.asarray(a) for f, a in zip(StepSize._fields, step)})
                 if adapt:

@@ -4,7 +4,8 @@ predictive band over the record, and the files.
 
 Diagnostics (ArviZ; Vehtari et al., *Rank-normalization, folding, and localization: an improved
 R-hat*, Bayesian Analysis 16, 2021): the rank-normalised split R-hat and the bulk and tail
-effective sample sizes of every sampled quantity, and the divergent transitions of NUTS. A
+effective sample sizes of every sampled quantity, and the divergent transitions of NUTS (none
+for the random walk, which has no trajectory to diverge). A
 result is ``converged`` when every R-hat is at most :data:`RHAT_LIMIT`; otherwise every summary
 it prints or writes says NOT CONVERGED first. Divergences and effective sample sizes below
 :data:`MIN_ESS` are warnings.
@@ -81,7 +82,8 @@ class PosteriorResult(AbstractResult):
         predictive: ``t`` [s], ``measured``, ``model_q05/q50/q95`` (the model's signal over the
             posterior), ``pred_q05/q95`` (with the noise), ``coverage`` (fraction of measured
             samples inside the 90 % predictive band), first fitted column.
-        step_size: per chain, in whitened units. wall_time_s, sampling_wall_s: total (fit,
+        step_size: per chain, in whitened units (NUTS's leapfrog step; the random walk's
+            proposal standard deviation). wall_time_s, sampling_wall_s: total (fit,
             compilation, sampling, outputs) and the chunks' own time [s].
     """
 
@@ -100,6 +102,11 @@ class PosteriorResult(AbstractResult):
     wall_time_s: float = 0.0
     sampling_wall_s: float = 0.0
     gn: dict = field(default_factory=dict)
+
+    @property
+    def sampler_name(self) -> str:
+        """``NUTS`` or ``random-walk Metropolis`` (``settings["sampler"]``; NUTS for results of before)."""
+        return "random-walk Metropolis" if self.settings.get("sampler") == "random-walk" else "NUTS"
 
     @property
     def gradient_evaluations(self) -> int:
@@ -122,7 +129,7 @@ class PosteriorResult(AbstractResult):
                  "tree_depth": self.stats["tree_depth"]}
         return az.from_dict(posterior=dict(self.samples), sample_stats=stats,
                             attrs={"converged": int(self.converged), "divergences": self.divergences,
-                                   "source": "jaxclear.fitting.posterior (BlackJAX NUTS)"})
+                                   "source": f"jaxclear.fitting.posterior (BlackJAX {self.sampler_name})"})
 
     def summary_frame(self):
         """:attr:`statistics` as a :class:`pandas.DataFrame` (index: the sampled quantities)."""
@@ -218,7 +225,7 @@ class PosteriorResult(AbstractResult):
                                 reference_values=ref or None, scatter_kwargs={"alpha": 0.5, "s": 10, "color": "C0"},
                                 textsize=9, figsize=(2.6 * len(self.samples),) * 2)
         fig = np.ravel(axes)[0].figure
-        title = "posterior (NUTS)" + ("" if self.converged else " - NOT CONVERGED")
+        title = f"posterior ({self.sampler_name})" + ("" if self.converged else " - NOT CONVERGED")
         fig.suptitle(title + "; reference (green): least-squares optimum", fontsize=10, y=1.0)
         if path is None:
             return fig
@@ -237,7 +244,7 @@ class PosteriorResult(AbstractResult):
             ax.axvline(ref[name], color="C2", label="least-squares optimum")
             ax.legend(fontsize=8)
         ax.set_xlabel(name)
-        ax.set_title("posterior (NUTS)" + ("" if self.converged else " - NOT CONVERGED"), fontsize=10)
+        ax.set_title(f"posterior ({self.sampler_name})" + ("" if self.converged else " - NOT CONVERGED"), fontsize=10)
         if path is None:
             return fig
         fig.savefig(path, dpi=110, bbox_inches="tight")

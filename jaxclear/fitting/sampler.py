@@ -1,7 +1,15 @@
-r"""Markov chains on a log density: the No-U-Turn sampler of BlackJAX (Hoffman and Gelman, *The
-No-U-Turn sampler*, JMLR 15, 2014) with its step size tuned by dual averaging during warm-up,
-and a random-walk Metropolis baseline (for the speed benchmark), run in compiled chunks of draws
-(warm-up and draws alike) whose end states are returned, so that a driver can checkpoint between chunks and resume.
+r"""Markov chains on a log density, run in compiled chunks of draws (warm-up and draws alike)
+whose end states are returned, so that a driver can checkpoint between chunks and resume:
+
+* the No-U-Turn sampler of BlackJAX (Hoffman and Gelman, *The No-U-Turn sampler*, JMLR 15,
+  2014), its step size tuned by dual averaging during the warm-up (:func:`nuts_chunk`);
+* random-walk Metropolis (:func:`random_walk_chunk`): Gaussian steps in the whitened
+  coordinates, their scale tuned by the same dual averaging during the warm-up towards
+  :data:`RANDOM_WALK_ACCEPT` (from ``2.38 / sqrt(D)``, the optimal scaling of Roberts, Gelman
+  and Gilks, Ann. Appl. Probab. 7, 1997). It needs no gradient and one simulation a draw, and
+  a log density with jumps (a contact that appears or vanishes inside the window as a parameter
+  moves) costs it rejected proposals only, where it drives NUTS's step size down and its
+  trees to the depth cap (docs/theory/uncertainty.md, "Sampler").
 
 Several chains run one after another on a CPU device with single-kernel loops (``jax.lax.map``:
 there the lanes of a ``vmap`` would run one after another inside the loop's kernel anyway, and a
@@ -22,8 +30,13 @@ import jax.numpy as jnp
 
 from ..sweep.lanes import over_lanes
 
-#: Acceptance rate the warm-up's dual averaging aims at (Stan's and BlackJAX's default).
+#: Acceptance rate NUTS's warm-up aims at (Stan's and BlackJAX's default).
 TARGET_ACCEPT = 0.8
+#: Acceptance rate the random walk's warm-up aims at: about the optimum of a Gaussian target in
+#: 2-5 dimensions (0.44 in one, 0.35 in three, 0.234 in many: Gelman, Roberts and Gilks 1996).
+RANDOM_WALK_ACCEPT = 0.3
+#: The samplers of :func:`jaxclear.posterior` (its ``sampler``).
+SAMPLERS = ("random-walk", "nuts")
 
 
 class ChainState(NamedTuple):
@@ -37,9 +50,12 @@ class ChainState(NamedTuple):
 
 
 @eqx.filter_jit
-def init_states(logdensity, positions) -> ChainState:
-    """The chains' states at ``positions`` ``(C, D)`` (log density and its gradient)."""
+def init_states(logdensity, positions, gradient: bool = True) -> ChainState:
+    """The chains' states at ``positions`` ``(C, D)`` (log density and its gradient; without
+    ``gradient`` zeros, and no derivative program is compiled)."""
     def one(u):
+        if not gradient:
+            return ChainState(u, logdensity(u), jnp.zeros_like(u))
         v, g = jax.value_and_grad(logdensity)(u)
         return ChainState(u, v, g)
     return over_lanes(one, positions)
@@ -73,33 +89,38 @@ class StepSize(NamedTuple):
     mu: jax.Array
 
 
-def _dual_averaging():
-    return _blackjax().adaptation.step_size.dual_averaging_adaptation(TARGET_ACCEPT)
+def _dual_averaging(target: float):
+    return _blackjax().adaptation.step_size.dual_averaging_adaptation(target)
 
 
 def init_step_size(step0: float, chains: int) -> StepSize:
     """The dual averaging's start (Hoffman and Gelman 2014, section 3.2.1: ``mu = log(10 step0)``)."""
-    da = _dual_averaging()[0](step0)
+    da = _dual_averaging(TARGET_ACCEPT)[0](step0)
     return StepSize(*(jnp.broadcast_to(jnp.asarray(a, dtype=float), (chains,)) for a in da))
 
 
+def _tuned(da: StepSize, acceptance, adapt, target: float) -> StepSize:
+    """One dual-averaging update of ``da`` by a draw's acceptance rate where ``adapt``, else ``da``."""
+    state = _blackjax().adaptation.step_size.DualAveragingAdaptationState(*da)
+    new = StepSize(*_dual_averaging(target)[1](state, acceptance))
+    return jax.tree.map(lambda a, b: jnp.where(adapt, a, b), new, da)
+
+
 @eqx.filter_jit
-def nuts_chunk(logdensity, states: ChainState, step: StepSize, keys, adapt, n_draws: int, max_doublings: int):
+def nuts_chunk(logdensity, states: ChainState, step: StepSize, keys, adapt, n_draws: int, max_doublings: int,
+               target: float = TARGET_ACCEPT):
     """``n_draws`` NUTS draws per chain. With ``adapt`` (a traced bool: warm-up and draws share one
     compilation, the expensive part when the density runs a simulation and its derivative) the
-    step size is tuned by dual averaging (Hoffman and Gelman 2014, section 3.2.1) towards
-    :data:`TARGET_ACCEPT`; without it the tuned step (``log_step_size_avg``) is used and not
+    step size is tuned by dual averaging (Hoffman and Gelman 2014, section 3.2.1) towards the
+    acceptance rate ``target``; without it the tuned step (``log_step_size_avg``) is used and not
     changed. Returns the end states, the step-size states and per draw ``(C, n_draws)``:
     positions ``(C, n, D)``, log density, divergence, acceptance rate, leapfrog steps, tree depth."""
-    _, da_update, _ = _dual_averaging()
-
     def chain(state, da, key):
         def body(carry, k):
             st, da = carry
             eps = jnp.exp(jnp.where(adapt, da.log_step_size, da.log_step_size_avg))
             st, info = _nuts_step(logdensity, k, st, eps, max_doublings)
-            new = StepSize(*da_update(_blackjax().adaptation.step_size.DualAveragingAdaptationState(*da), info.acceptance_rate))
-            da = jax.tree.map(lambda a, b: jnp.where(adapt, a, b), new, da)
+            da = _tuned(da, info.acceptance_rate, adapt, target)
             return (st, da), (st.position, st.logdensity, info.is_divergent, info.acceptance_rate,
                               info.num_integration_steps, info.num_trajectory_expansions)
         (st, da), out = jax.lax.scan(body, (state, da), jax.random.split(key, n_draws))
@@ -109,23 +130,30 @@ def nuts_chunk(logdensity, states: ChainState, step: StepSize, keys, adapt, n_dr
 
 
 @eqx.filter_jit
-def random_walk_chunk(logdensity, states: ChainState, keys, scale, n_draws: int):
-    """``n_draws`` random-walk Metropolis draws per chain (Gaussian steps of standard deviation
-    ``scale`` in the whitened coordinates; ``2.38 / sqrt(D)`` is the optimal scaling of Roberts,
-    Gelman and Gilks, Ann. Appl. Probab. 7, 1997, for a Gaussian target). Returns the end
-    states, positions ``(C, n, D)`` and acceptance ``(C, n)``; the gradient is not used (zeros)."""
+def random_walk_chunk(logdensity, states: ChainState, step: StepSize, keys, adapt, n_draws: int,
+                      target: float = RANDOM_WALK_ACCEPT):
+    """``n_draws`` random-walk Metropolis draws per chain: Gaussian steps in the whitened
+    coordinates whose standard deviation is the step-size state's (``log_step_size`` during the
+    warm-up, tuned by the dual averaging of :func:`nuts_chunk` towards the acceptance rate
+    ``target`` where ``adapt``; ``log_step_size_avg`` after it, not changed). One log density a
+    draw, no gradient (the states' ``grad`` is passed through). Returns what :func:`nuts_chunk`
+    returns: the end states, the step-size states and per draw ``(C, n_draws)``: positions
+    ``(C, n, D)``, log density, divergence (always False), the acceptance probability
+    ``min(1, p(proposal) / p(current))``, gradient evaluations (0) and tree depth (0)."""
     blackjax = _blackjax()
     kernel = blackjax.mcmc.random_walk.build_additive_step()
 
-    def step_fn(key, x):
-        return scale * jax.random.normal(key, x.shape, x.dtype)
-
-    def chain(state, key):
-        def body(st, k):
+    def chain(state, da, key):
+        def body(carry, k):
+            st, da = carry
+            scale = jnp.exp(jnp.where(adapt, da.log_step_size, da.log_step_size_avg))
             rw = blackjax.mcmc.random_walk.RWState(st.position, st.logdensity)
-            new, info = kernel(k, rw, logdensity, step_fn)
+            new, info = kernel(k, rw, logdensity, lambda kk, x: scale * jax.random.normal(kk, x.shape, x.dtype))
             st = ChainState(new.position, new.logdensity, st.grad)
-            return st, (st.position, info.is_accepted)
-        return jax.lax.scan(body, state, jax.random.split(key, n_draws))
+            da = _tuned(da, info.acceptance_rate, adapt, target)
+            zero = jnp.zeros((), dtype=int)
+            return (st, da), (st.position, st.logdensity, jnp.zeros((), dtype=bool), info.acceptance_rate, zero, zero)
+        (st, da), out = jax.lax.scan(body, (state, da), jax.random.split(key, n_draws))
+        return st, da, out
 
-    return over_lanes(chain, states, keys)
+    return over_lanes(chain, states, step, keys)
