@@ -10,12 +10,20 @@
    ``--free stiffness,restitution`` calibrates the contact parameters instead (the true stiffness
    and restitution drawn per record too); that costs minutes per record on a laptop CPU.
 2. Speed (``--speed``): effective samples per second (ArviZ bulk ESS of the slowest quantity over
-   the sampling wall time, compilation excluded; NUTS's time includes its warm-up, the random
-   walk's its burn-in, the first half of its draws) of NUTS and of a random-walk Metropolis baseline
-   (Gaussian steps of 2.38 / sqrt(D) in the same Gauss-Newton-whitened coordinates, Roberts, Gelman
-   and Gilks 1997) on the same log posterior: stiffness, restitution and the noise level from the
-   benchmark record.
-3. Tolerance runs per second (``--tolerance-speed``, ``--tolerance-runs 64``): a tolerance study
+   the sampling wall time, compilation excluded, warm-up included) of ``jc.posterior``'s two
+   samplers, NUTS and the random walk (``--rw-factor`` times the draws, warm-up and chunk), on the
+   same log posterior: stiffness, restitution and the noise level from the benchmark record of
+   ``--t-rec`` (engine-made).
+3. Samplers at the fit's own window (``--samplers``, issue 39 point 6): records made by the
+   independent simulator (``lab_record.py``, the truths of ``bench_profile.py``: start state known,
+   one default window of 3 ms, 200 kHz, 20 kHz sensor, 20 dB) are fitted at the default window
+   and their posterior sampled by each method of ``--methods`` (``NAME:SAMPLER:DEPTH:TARGET``)
+   with ``--chains``, ``--warmup``, ``--draws``; per method and record: the first call's extra
+   time (compilation: one chunk's call minus that chunk at the steady rate), the sampling wall
+   time, the slowest quantity's bulk ESS and ESS/s, the largest R-hat, divergences, gradient
+   evaluations, and whether the 90 % interval holds the truth. ``--max-seconds`` stops a method
+   after the chunk that passes it (the row then says how far it came).
+4. Tolerance runs per second (``--tolerance-speed``, ``--tolerance-runs 64``): a tolerance study
    against the serial loop on the same samples (:func:`tolerance_speed`).
 
 Run from the repository root: ``PYTHONPATH=. python benchmarks/bench_uncertainty.py [--records 30]
@@ -27,7 +35,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import platform
 import time
@@ -138,49 +145,173 @@ def _coverage_table(free, rows) -> dict:
 
 
 def speed(args) -> dict:
-    """NUTS vs random-walk Metropolis, ESS per second on the same log posterior."""
-    import arviz as az
-
-    from jaxclear.fitting.posterior import _chain_keys, _log_posterior, _starts
-    from jaxclear.fitting.sampler import init_states, random_walk_chunk
-
+    """NUTS vs random-walk Metropolis through ``jc.posterior`` on the same log posterior: per
+    sampler the first call of one chunk (compilation), then warm-up and draws; ESS/s over the
+    sampling wall time (warm-up included)."""
     mech = jc.preset("flores-slider-crank")
     rec = _record(mech, {}, 7, args.t_rec, args.rate, args.snr_db)
     free = ("stiffness", "restitution")
     start = {"stiffness": float(params.get(mech, "stiffness")) * 1.3, "restitution": 0.8}
+    out = {}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         fr = jc.fit(rec, mech, free, start, sensor=SENSOR, window=args.t_rec, progress=False)
-        # NUTS: the compilation is left out by timing a second call of the same draws
-        kw = dict(fit_result=fr, sensor=SENSOR, chains=args.chains, warmup=args.warmup, chunk=args.chunk,
-                  predictive_draws=0, progress=False)
-        jc.posterior(rec, mech, free, start, draws=args.chunk, **kw)
-        nuts = jc.posterior(rec, mech, free, start, draws=args.draws, **kw)
-    ess_n = nuts.min_ess()
-    common = dict(channels=None, sensor=SENSOR, rtol=1e-8, atol=1e-11, max_steps=200_000, align="time",
-                  time_offset=0.0)
-    lp, _ = _log_posterior(rec, mech, free, fr, {}, None, common)
-    states = init_states(lp, jnp.asarray(_starts(lp, args.chains, 0)))
-    d = int(lp.x0.shape[0])
-    scale = 2.38 / math.sqrt(d)
-    n_rw = args.draws * args.rw_factor
-    random_walk_chunk(lp, states, _chain_keys(0, args.chains, 0), scale, args.chunk)  # compile
-    t0 = time.perf_counter()
-    st, (pos, acc) = random_walk_chunk(lp, states, _chain_keys(0, args.chains, 1), scale, n_rw)
-    pos = np.asarray(pos)
-    t_rw = time.perf_counter() - t0
-    half = n_rw // 2  # the first half is the random walk's burn-in
-    ess_rw = min(float(az.ess(pos[:, half:, j], method="bulk")) for j in range(d))
-    out = {"nuts": {"draws_per_chain": args.draws, "chains": args.chains, "min_bulk_ess": ess_n,
-                    "sampling_s": nuts.sampling_wall_s, "ess_per_s": ess_n / nuts.sampling_wall_s,
-                    "gradient_evaluations": nuts.gradient_evaluations, "converged": nuts.converged},
-           "random_walk": {"draws_per_chain": n_rw, "kept": n_rw - half, "chains": args.chains, "min_bulk_ess": ess_rw,
-                           "sampling_s": t_rw, "ess_per_s": ess_rw / t_rw,
-                           "acceptance": float(np.mean(np.asarray(acc)))}}
-    print("\nESS/s (min bulk ESS over stiffness, restitution, log noise / sampling wall time):")
+        for sampler, factor in (("nuts", 1), ("random-walk", args.rw_factor)):
+            kw = dict(fit_result=fr, sensor=SENSOR, chains=args.chains, chunk=args.chunk * factor, sampler=sampler,
+                      predictive_draws=0, progress=False)
+            t0 = time.perf_counter()
+            first = jc.posterior(rec, mech, free, start, draws=args.chunk * factor, warmup=0, **kw)
+            first_s = time.perf_counter() - t0
+            post = jc.posterior(rec, mech, free, start, draws=args.draws * factor, warmup=args.warmup * factor, **kw)
+            chunks = (args.draws + args.warmup) / args.chunk
+            out[sampler] = {"draws_per_chain": args.draws * factor, "warmup": args.warmup * factor,
+                            "chains": args.chains, "min_bulk_ess": post.min_ess(), "sampling_s": post.sampling_wall_s,
+                            "ess_per_s": post.min_ess() / post.sampling_wall_s, "first_call_s": first_s,
+                            "compile_s": max(first.sampling_wall_s - post.sampling_wall_s / chunks, 0.0),
+                            "max_rhat": max(v["r_hat"] for v in post.statistics.values()),
+                            "gradient_evaluations": post.gradient_evaluations, "converged": post.converged,
+                            "acceptance": float(np.mean(post.stats["acceptance_rate"]))}
+    print(f"\nESS/s at {args.t_rec * 1e3:g} ms (min bulk ESS over stiffness, restitution, noise / sampling wall time):")
     for k, v in out.items():
-        print(f"  {k:<12} ESS {v['min_bulk_ess']:8.1f} in {v['sampling_s']:7.1f} s: {v['ess_per_s']:.3g} /s")
+        print(f"  {k:<12} ESS {v['min_bulk_ess']:8.1f} in {v['sampling_s']:7.1f} s: {v['ess_per_s']:.3g} /s; "
+              f"compile {v['compile_s']:.0f} s, R-hat {v['max_rhat']:.3f}")
     return out
+
+
+def _lab_case(index: int) -> dict:
+    """``bench_profile.py``'s record ``index`` (its truths, seed 100) and its data."""
+    import sys
+
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    import bench_profile
+    import lab_record
+
+    case = bench_profile.truths(index + 1, 100)[index]
+    rec = lab_record.make_record(**case, revolutions_before=0, start_angle_deg=0.0, duration=3e-3, fs=200e3,
+                                 cutoff_hz=20e3, order=2, gain=1.0, bias=0.0, snr_db=20.0)
+    truth = {"stiffness": rec["truth"]["stiffness"], "restitution": case["c_r"], "noise_sigma": rec["truth"]["noise_std"]}
+    return {"data": {"time_s": rec["time_s"], "slider_acc_m_s2": rec["slider_acc_m_s2"]}, "truth": truth, "case": case}
+
+
+def _method(spec: str) -> dict:
+    name, sampler, depth, target = spec.split(":")
+    return dict(name=name, sampler=sampler, max_tree_depth=int(depth), target_accept=float(target) if target else None)
+
+
+def samplers(args, save=None, rows=()) -> dict:
+    """The samplers on the same records at the default window (module docstring, item 3)."""
+    import shutil
+    import signal
+    import tempfile
+
+    mech = jc.preset("flores-slider-crank")
+    free = ("stiffness", "restitution")
+    methods = [_method(m) for m in args.methods.split(",")]
+    rows = list(rows)  # done by an earlier run of the same settings
+    done = {(r["record"], r["method"]) for r in rows}
+    for index in (int(i) for i in args.lab_records.split(",")):
+        if all((index, m["name"]) in done for m in methods):
+            continue
+        case = _lab_case(index)
+        t0 = time.perf_counter()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            fr = jc.fit(case["data"], mech, list(free), sensor=SENSOR, progress=False)
+        fit_s = time.perf_counter() - t0
+        print(f"record {index}: fit {fit_s:.0f} s, window {fr.window_length_s * 1e3:.3f} ms, {fr.estimates}", flush=True)
+        for m in methods:
+            if (index, m["name"]) in done:
+                continue
+            kw = dict(fit_result=fr, sensor=SENSOR, chains=args.chains, chunk=args.chunk, sampler=m["sampler"],
+                      max_tree_depth=m["max_tree_depth"], target_accept=m["target_accept"], seed=index,
+                      predictive_draws=0, progress=False)
+            folder = tempfile.mkdtemp(prefix="bench_samplers_")
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                t1 = time.perf_counter()
+                first = jc.posterior(case["data"], mech, free, draws=args.chunk, warmup=0, **kw)
+                first_s = time.perf_counter() - t1
+                stopped = False
+
+                def stop(*_):
+                    raise KeyboardInterrupt
+
+                old = signal.signal(signal.SIGALRM, stop)
+                signal.alarm(int(args.max_seconds)) if args.max_seconds else None
+                t1 = time.perf_counter()
+                try:
+                    post = jc.posterior(case["data"], mech, free, draws=args.draws, warmup=args.warmup, out=folder,
+                                        **kw)
+                except KeyboardInterrupt:
+                    stopped, post = True, None
+                finally:
+                    signal.alarm(0)
+                    signal.signal(signal.SIGALRM, old)
+                wall = time.perf_counter() - t1
+            per_draw = first.sampling_wall_s  # one chunk, compilation included
+            row = {"record": index, "method": m["name"], **m, "chains": args.chains, "warmup": args.warmup,
+                   "draws": args.draws, "fit_s": fit_s, "truth": case["truth"], "first_chunk_s": per_draw,
+                   "first_call_s": first_s, "stopped": stopped, "wall_s": wall}
+            if post is not None:
+                steady_chunk = post.sampling_wall_s / ((args.warmup + args.draws) / args.chunk)
+                row.update(compile_s=max(per_draw - steady_chunk, 0.0), sampling_s=post.sampling_wall_s,
+                           min_ess_bulk=post.min_ess(), ess_per_s=post.min_ess() / post.sampling_wall_s,
+                           max_rhat=max(v["r_hat"] for v in post.statistics.values()), converged=post.converged,
+                           divergences=post.divergences, warmup_divergences=post.warmup_divergences,
+                           gradient_evaluations=post.gradient_evaluations, step_size=post.step_size,
+                           acceptance=float(np.mean(post.stats["acceptance_rate"])),
+                           mean_tree_depth=float(np.mean(post.stats["tree_depth"])),
+                           at_depth_cap=float(np.mean(post.stats["tree_depth"] >= m["max_tree_depth"])))
+                for n in (*free, "noise_sigma"):
+                    lo, hi = post.interval(n)
+                    row[n] = {"interval": [lo, hi], "covers": bool(lo <= case["truth"][n] <= hi),
+                              "median": post.statistics[n]["q50"], "sd": post.statistics[n]["sd"]}
+                    if n != "noise_sigma":
+                        glo, ghi = post.interval(n, gauss_newton=True)
+                        row[n]["gn_covers"] = bool(glo <= case["truth"][n] <= ghi)
+            else:  # how far it came: the checkpoint's draws, their diagnostics, the step sizes
+                ck = dict(np.load(os.path.join(folder, "posterior_checkpoint.npz")))
+                row.update(warm_chunks_done=int(ck["warm_done"]), draws_done=int(ck["x"].shape[1]),
+                           sampling_s=float(ck["wall_s"]), step_size=np.exp(ck["log_step_size_avg"]).tolist(),
+                           warmup_divergences=int(ck["warmup_divergences"].sum()))
+                if ck["x"].shape[1] >= 4:
+                    row.update(_partial_diagnostics(ck, m["max_tree_depth"]))
+            shutil.rmtree(folder, ignore_errors=True)
+            rows.append(row)
+            _print_sampler_row(row)
+            if save is not None:
+                save({"complete": False, "rows": rows})
+    return {"complete": True, "rows": rows}
+
+
+def _partial_diagnostics(ck: dict, depth: int) -> dict:
+    """A stopped run's diagnostics from its checkpoint's draws (ArviZ's bulk ESS and R-hat are
+    rank-based: the unconstrained draws give the values' own)."""
+    from jaxclear.fitting.posterior_result import _summaries
+
+    x = ck["x"]
+    summary = _summaries({f"x{j}": x[..., j] for j in range(x.shape[-1])})
+    out = {"min_ess_bulk": min(v["ess_bulk"] for v in summary.values()),
+           "max_rhat": max(v["r_hat"] for v in summary.values()), "divergences": int(ck["diverging"].sum()),
+           "gradient_evaluations": int(ck["n_steps"].sum()), "acceptance": float(ck["acceptance_rate"].mean()),
+           "mean_tree_depth": float(ck["tree_depth"].mean()), "at_depth_cap": float(np.mean(ck["tree_depth"] >= depth))}
+    out["ess_per_s"] = out["min_ess_bulk"] / float(ck["wall_s"])
+    return out
+
+
+def _print_sampler_row(r: dict):
+    if r["stopped"]:
+        print(f"  {r['method']:<10} record {r['record']}: STOPPED after {r['sampling_s']:.0f} s: "
+              f"{r['warm_chunks_done']} warm-up chunks, {r['draws_done']} draws; step {r['step_size']}, "
+              + (f"ESS {r['min_ess_bulk']:.0f}, R-hat {r['max_rhat']:.3f}, div {r['divergences']}+"
+                 f"{r['warmup_divergences']}, acc {r['acceptance']:.2f}, depth {r['mean_tree_depth']:.1f} "
+                 f"({100 * r['at_depth_cap']:.0f} % capped)" if "max_rhat" in r else ""), flush=True)
+        return
+    cov = " ".join(f"{n[:5]} {'in' if r[n]['covers'] else 'OUT'}" for n in ("stiffness", "restitution", "noise_sigma"))
+    print(f"  {r['method']:<10} record {r['record']}: compile {r['compile_s']:5.0f} s, sampling {r['sampling_s']:6.0f} s, "
+          f"ESS {r['min_ess_bulk']:6.0f}, ESS/s {r['ess_per_s']:6.3f}, R-hat {r['max_rhat']:.3f}, div "
+          f"{r['divergences']}+{r['warmup_divergences']}, grads {r['gradient_evaluations']}, acc {r['acceptance']:.2f}, "
+          f"depth {r['mean_tree_depth']:.1f} ({100 * r['at_depth_cap']:.0f} % capped), {cov}", flush=True)
 
 
 def tolerance_speed(args) -> dict:
@@ -268,6 +399,12 @@ def main():
     p.add_argument("--tolerance-speed", action="store_true",
                    help="runs per second of a tolerance study against the serial loop (issue 31, point 6)")
     p.add_argument("--tolerance-runs", type=int, default=64)
+    p.add_argument("--samplers", action="store_true",
+                   help="the samplers on independent-simulator records at the default window (issue 39, point 6)")
+    p.add_argument("--lab-records", default="0,1,2,18", help="--samplers: bench_profile.py's records (0-based)")
+    p.add_argument("--methods", default="nuts8:nuts:8:,nuts5:nuts:5:0.9,rw:random-walk:8:",
+                   help="--samplers: NAME:SAMPLER:MAX_TREE_DEPTH:TARGET_ACCEPT (empty: the sampler's default), ...")
+    p.add_argument("--max-seconds", type=float, default=0, help="--samplers: stop a method after this long (0: never)")
     p.add_argument("--json", default="benchmarks/results/uncertainty.json")
     args = p.parse_args()
     t0 = time.perf_counter()
@@ -275,16 +412,31 @@ def main():
            "device": str(jax.devices()[0])}
     if args.records:
         def save(partial):
-            atomic_write_json(args.json, {**res, "calibration": partial}, indent=1, default=float)
+            atomic_write_json(args.json, {**res, "calibration": partial}, indent=1)
 
         with locked_folder(os.path.dirname(args.json) or ".", "results folder"):
             res["calibration"] = calibration(args, save)
+    if args.samplers:
+        rows = []
+        try:
+            with open(args.json) as f:
+                old = json.load(f)
+            keep = ("chains", "warmup", "draws", "chunk", "max_seconds")
+            if all(old["settings"].get(k) == getattr(args, k) for k in keep):
+                rows = old.get("samplers", {}).get("rows", [])
+        except (OSError, ValueError, KeyError):
+            pass
+
+        def save_samplers(partial):
+            atomic_write_json(args.json, {**res, "samplers": partial}, indent=1)
+
+        res["samplers"] = samplers(args, save_samplers, rows)
     if args.speed:
         res["speed"] = speed(args)
     if args.tolerance_speed:
         res["tolerance_speed"] = tolerance_speed(args)
     res["wall_s"] = time.perf_counter() - t0
-    atomic_write_json(args.json, res, indent=1, default=float)
+    atomic_write_json(args.json, res, indent=1)
     print(f"wrote {args.json} ({res['wall_s']:.0f} s)")
 
 
