@@ -60,7 +60,7 @@ def _record(mech, truth: dict, seed: int, t_rec: float, rate: float, snr_db: flo
     return jc.synthetic_record(m, t_rec, rate, sensor, snr_db=snr_db, seed=seed, rtol=1e-10, atol=1e-13)
 
 
-_CALIBRATION_KEYS = ("free", "chains", "draws", "warmup", "chunk", "t_rec", "rate", "snr_db", "seed")
+_CALIBRATION_KEYS = ("free", "chains", "draws", "warmup", "chunk", "t_rec", "rate", "snr_db", "seed", "sampler")
 
 
 def _resumed_rows(args) -> list:
@@ -73,7 +73,7 @@ def _resumed_rows(args) -> list:
             old = json.load(f)
     except (OSError, ValueError):
         return []
-    same = all(old.get("settings", {}).get(k) == getattr(args, k) for k in _CALIBRATION_KEYS)
+    same = all(old.get("settings", {}).get(k) == getattr(args, k, None) for k in _CALIBRATION_KEYS)
     return list(old.get("calibration", {}).get("records", [])) if same else []
 
 
@@ -106,7 +106,7 @@ def calibration(args, save=None) -> dict:
             fr = jc.fit(rec, mech, free, start, sensor=sensor, window=args.t_rec, progress=False)
             post = jc.posterior(rec, mech, free, start, fit_result=fr, sensor=sensor, chains=args.chains,
                                 draws=args.draws, warmup=args.warmup, chunk=args.chunk, seed=i, predictive_draws=0,
-                                progress=False)
+                                sampler=getattr(args, "sampler", "nuts"), progress=False)
         sigma = float(rec.metadata["noise_sigma_m_s2"])
         row = {"record": i, "wall_s": time.perf_counter() - t0, "converged": post.converged,
                "divergences": post.divergences, "truth": {**{n: truth[n] for n in free}, "noise_sigma": sigma}}
@@ -394,6 +394,9 @@ def main():
     p.add_argument("--rate", type=float, default=200e3)
     p.add_argument("--snr-db", type=float, default=20.0)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--sampler", default="nuts", choices=("nuts", "random-walk"),
+                   help="calibration: the posterior's sampler (default nuts, what the documented calibration used; "
+                   "the random walk wants about 10x the draws)")
     p.add_argument("--speed", action="store_true")
     p.add_argument("--rw-factor", type=int, default=10, help="random-walk draws per NUTS draw")
     p.add_argument("--tolerance-speed", action="store_true",

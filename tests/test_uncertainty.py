@@ -192,7 +192,7 @@ def test_linear_gaussian_posterior_small(linear_case):
     mech, rec, sigma, priors, mean, cov, folder = linear_case
     res = posterior(rec, mech, ("sensor_gain", "sensor_bias"), {"sensor_gain": 1.0, "sensor_bias": 0.0},
                     sensor=SENSOR, priors=priors, noise_sigma=sigma, chains=2, draws=200, warmup=100, chunk=100,
-                    predictive_draws=20, progress=False, out=folder / "small")
+                    sampler="nuts", predictive_draws=20, progress=False, out=folder / "small")
     assert res.converged and res.divergences == 0 and "noise_sigma" not in res.samples
     _check_linear(res, mean, cov, 0.25, 0.15, 0.15)
     # the fit's Gauss-Newton std of a linear model, rescaled from the fit's noise estimate to the
@@ -218,7 +218,7 @@ def test_linear_gaussian_posterior_to_two_digits(linear_case):
     mech, rec, sigma, priors, mean, cov, folder = linear_case
     res = posterior(rec, mech, ("sensor_gain", "sensor_bias"), {"sensor_gain": 1.0, "sensor_bias": 0.0},
                     sensor=SENSOR, priors=priors, noise_sigma=sigma, chains=4, draws=2000, warmup=200, chunk=500,
-                    predictive_draws=0, progress=False)
+                    sampler="nuts", predictive_draws=0, progress=False)
     assert res.converged and res.min_ess() > 2000
     _check_linear(res, mean, cov, 0.03, 0.03, 0.03)
 
