@@ -48,19 +48,22 @@ def _cliff():
     return _Cliff(jnp.zeros(2), jnp.eye(2))
 
 
-def test_random_walk_samples_a_density_with_a_jump():
+def test_random_walk_samples_a_density_with_a_jump(tmp_path):
     """4 chains x 6000 draws (about 2500 effective): the truncated coordinate's mean, sd, 5 % and
     95 % quantiles against scipy.stats.truncnorm within 4 Monte Carlo standard errors (mean
     sd/sqrt(ESS) = 0.02 sd, quantile sqrt(p(1-p))/(f(q) sqrt(ESS)) <= 0.05 sd: tolerances 0.08 sd
     and 0.15 sd), the free coordinate's sd within 8 % (4 x 1/sqrt(2 ESS)); no draw beyond the jump;
-    R-hat within 1.01; the warm-up tuned the acceptance to about its target 0.3. Half the chains
-    start beyond the jump (seed 0) and are moved in before sampling (posterior._starts); seconds."""
+    R-hat within 1.01; the warm-up tuned the acceptance to about its target 0.3. Chains whose
+    start lands beyond the jump are moved in before sampling (posterior._starts). Stopped after
+    the warm-up and 2 chunks and resumed from its checkpoint, it draws the same numbers; seconds."""
     from scipy import stats
 
     from jaxclear.fitting.posterior import _sample, _starts
 
+    jitter = np.random.default_rng(0).standard_normal((4, 2))  # _starts' jitter of seed 0
+    assert jitter[3, 0] > CLIFF  # chain 3 would start beyond the jump (at 1.3)
     starts = _starts(_cliff(), 4, 0, gradient=False)
-    assert np.all(starts[:, 0] < CLIFF)
+    assert np.all(starts[:, 0] < CLIFF) and starts[3, 0] == 0.5 * jitter[3, 0]
     s = dict(chains=4, chunk=1000, draws=6000, warmup=1000, max_tree_depth=1, seed=0, sampler="random-walk")
     run = _sample(_cliff(), s, "k", None, True, False)
     x = run["x"]
@@ -77,6 +80,10 @@ def test_random_walk_samples_a_density_with_a_jump():
     assert min(v["ess_bulk"] for v in summary.values()) > 1500
     assert abs(run["acceptance_rate"].mean() - 0.3) < 0.05
     assert run["diverging"].sum() == 0 and run["n_steps"].sum() == 0
+    short = _sample(_cliff(), {**s, "draws": 2000}, "k", tmp_path, True, False)
+    resumed = _sample(_cliff(), s, "k", tmp_path, True, False)
+    assert resumed["resumed"] and not short["resumed"]
+    np.testing.assert_array_equal(resumed["x"], x)
 
 
 def test_sampler_and_target_accept_are_checked():

@@ -302,7 +302,8 @@ def _load(work: Work, resume: bool):
 
 def _sample(lp: LogPosterior, s: dict, key: str, out, resume: bool, progress: bool) -> dict:
     """Warm-up and draws in chunks of ``chunk`` with a checkpoint after each (one compilation serves
-    both: :func:`.sampler.nuts_chunk`); returns the draws (``x`` ``(C, draws, D)``, ...)."""
+    both: :func:`.sampler.random_walk_chunk` or :func:`.sampler.nuts_chunk`, by ``s["sampler"]``,
+    NUTS where it is absent); returns the draws (``x`` ``(C, draws, D)``, ...)."""
     work = Work(out, "posterior", key, {k: v for k, v in s.items() if k != "draws"}, version=FORMAT)
     path = work.path(POSTERIOR_CHECKPOINT)
     saved = _load(work, resume)
