@@ -109,9 +109,10 @@ def posterior(data, mech: Mechanism, free: Sequence[str] = DEFAULT_FREE, start: 
         sampler: ``"random-walk"`` (default) or ``"nuts"``, both in the Gauss-Newton-whitened
             coordinates. The random walk (Metropolis, its step scale tuned in the warm-up) needs
             one simulation a draw and no derivative; at the default window the likelihood jumps
-            where a contact appears or vanishes inside the window as a parameter moves, and there it
-            was measured 10-100 times faster per effective draw than NUTS, whose step size the
-            jumps drive down and whose trees they drive to the depth cap (docs/theory/uncertainty.md,
+            where a contact appears or vanishes inside the window as a parameter moves, which
+            costs it rejected proposals only, where NUTS's trajectories diverge (half of them on
+            such a record). Measured on records of the independent simulator at 3 ms: 7-17 times
+            NUTS's effective draws a second, and 2.3 times at 0.6 ms (docs/theory/uncertainty.md,
             "Sampler"; benchmarks/README.md). NUTS (BlackJAX, the gradient through the simulation)
             for a smooth likelihood with many free parameters, where a random walk's efficiency
             falls like 1 / dimension. ``max_tree_depth``: NUTS's largest number of trajectory

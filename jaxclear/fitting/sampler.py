@@ -8,8 +8,8 @@ whose end states are returned, so that a driver can checkpoint between chunks an
   :data:`RANDOM_WALK_ACCEPT` (from ``2.38 / sqrt(D)``, the optimal scaling of Roberts, Gelman
   and Gilks, Ann. Appl. Probab. 7, 1997). It needs no gradient and one simulation a draw, and
   a log density with jumps (a contact that appears or vanishes inside the window as a parameter
-  moves) costs it rejected proposals only, where it drives NUTS's step size down and its
-  trees to the depth cap (docs/theory/uncertainty.md, "Sampler").
+  moves) costs it rejected proposals only, where NUTS's trajectories diverge and its step-size
+  adaptation suffers (docs/theory/uncertainty.md, "Sampler").
 
 Several chains run one after another on a CPU device with single-kernel loops (``jax.lax.map``:
 there the lanes of a ``vmap`` would run one after another inside the loop's kernel anyway, and a
