@@ -115,8 +115,9 @@ def test_posterior_at_the_default_window_of_a_record_with_a_jump():
     a few hundredths about 1; a chain stuck beyond the jump gives 1.5 and more), no draw beyond the
     jump, and the truth where the posterior puts it: restitution and noise level in the 90 %
     interval (the truth lies 0.6 and 0.3 std from the estimate), the stiffness (truth +0.23 %,
-    just below the jump, which cuts the posterior's upper tail: its 95 % quantile lies near the
-    truth, measured 0.94 in 2 x 2000 draws) between the 5 % quantile and the largest draw."""
+    just below the jump, which cuts the posterior's upper tail: its 95 % quantile lay only 0.015-
+    0.03 % above the truth in the benchmark's runs, 49.629 and 49.636 against 49.621 GN/m^1.5, too
+    close for so short a chain) between the 5 % quantile and the largest draw."""
     import bench_profile  # benchmarks/ (on sys.path by conftest.py)
     import lab_record
 
