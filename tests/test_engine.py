@@ -335,11 +335,14 @@ def test_unrolled_stages_equal_diffrax(name):
     y0 = jc.initial_state(mech, s).pack()
     args = (mech, s.baumgarte)
     term = diffrax.ODETerm(flat_vector_field)
+    # times as arrays: flat_vector_field (an equinox.filter_jit) takes a Python float as a static
+    # argument, so every stage's own time compiled it again (22 times for the three solvers)
+    t0, t1, t2 = jnp.asarray(0.0), jnp.asarray(1e-5), jnp.asarray(2.5e-5)
     results = []
     for solver in (jc.SOLVERS[name](), UnrolledExplicitRK(jc.SOLVERS[name]())):
-        state = solver.init(term, 0.0, 1e-5, y0, args)
-        y, _, _, state, _ = solver.step(term, 0.0, 1e-5, y0, args, state, False)
-        results.append(solver.step(term, 1e-5, 2.5e-5, y, args, state, False))
+        state = solver.init(term, t0, t1, y0, args)
+        y, _, _, state, _ = solver.step(term, t0, t1, y0, args, state, False)
+        results.append(solver.step(term, t1, t2, y, args, state, False))
     (y_ref, err_ref, dense_ref, _, _), (y_new, err_new, dense_new, _, _) = results
     size = float(jnp.max(jnp.abs(y_ref)))
     np.testing.assert_allclose(np.asarray(y_new), np.asarray(y_ref), rtol=1e-12, atol=1e-15 * size)
