@@ -107,6 +107,9 @@ FIT = {"stiffness": 49505857036.81609, "restitution": 0.7832941219238165}
 FIT_STD = {"stiffness": 216446338.58743525, "restitution": 0.0002485032656895633}
 
 
+# slow (95 s on 2 cores, 60 of them the posterior's setup); the sampler at a jump is checked fast by
+# test_random_walk_samples_a_density_with_a_jump against scipy.stats.truncnorm
+@pytest.mark.slow
 def test_posterior_at_the_default_window_of_a_record_with_a_jump():
     """The likelihood of this record drops by more than 1000 log units between +0.3 % and +0.5 %
     of the fitted stiffness (a contact of the 3 ms window appears); the default sampler (the random
