@@ -75,6 +75,75 @@ def test_unkeyable_arguments_are_traced_as_usual(store):
     assert programs.program_key("p", (np.zeros(3), "name", 1.5)) is not None
 
 
+def _user_norm(x):  # a module-level function of a module the key does not cover (this test's)
+    return x
+
+
+def test_a_library_function_is_keyed_by_its_name_and_a_users_is_not():
+    """optimistix's ``max_norm`` (a field of its solvers; a wrapper its module makes at import)
+    is keyed by its module and name; a lambda, a function made inside another and a function of
+    a module outside :data:`TRUSTED_MODULES` stay unkeyable."""
+    import optimistix as optx
+
+    norm = optx.LevenbergMarquardt(rtol=1e-6, atol=1e-6).norm
+    assert programs.program_key("p", (norm,)) is not None
+    assert programs.program_key("p", (norm,)) != programs.program_key("p", (optx.rms_norm,))
+
+    def inner(x):
+        return x
+
+    for fun in (lambda x: x, inner, _user_norm):
+        assert programs.program_key("p", (fun,)) is None
+
+
+def test_the_lanes_rule_of_the_process_is_in_the_key(monkeypatch):
+    """Whether XLA's single-kernel loops are on decides, while tracing, ``jax.lax.map`` or
+    ``jax.vmap`` (the run's post-processing, the lanes of a batch): a program traced under one
+    answer is never served under the other."""
+    args = (np.zeros(3), "name")
+    monkeypatch.setattr(programs, "loop_kernels_active", lambda: True)
+    on = programs.program_key("p", args)
+    monkeypatch.setattr(programs, "loop_kernels_active", lambda: False)
+    assert programs.program_key("p", args)[0] != on[0]
+
+
+def test_an_output_structure_other_than_the_callers_is_not_stored(store):
+    """The caller's ``out_structure`` is checked against the traced program's output: a wrong one
+    stores nothing and the call runs as usual (``None``: the caller's plain jit)."""
+    before = programs.counts()["mismatched"]
+    out = programs.call("pair", lambda x: (x, 2 * x), (np.ones(3),), lambda: jax.tree_util.tree_structure(0))
+    assert out is None and programs.counts()["mismatched"] == before + 1 and _files(store) == []
+    out = programs.call("pair", lambda x: (x, 2 * x), (np.ones(3),), lambda: jax.tree_util.tree_structure((0, 0)))
+    np.testing.assert_array_equal(out[1], 2 * np.ones(3))
+    assert len(_files(store)) == 1
+
+
+def test_a_stored_program_compiles_once_for_its_own_outputs(store):
+    """A stored program's outputs come back committed to their device; called on them (a solver
+    step on the step before's unknowns) it is not compiled again: every argument is committed
+    alike (before, the fit's solver step compiled twice, 41 s each on 2 cores)."""
+    from jax import monitoring
+
+    compiled = []
+
+    def listener(event, duration, **kw):
+        if event == "/jax/core/compile/backend_compile_duration" and kw.get("fun_name") == "jit(stored_program)":
+            compiled.append(duration)
+
+    monitoring.register_event_duration_secs_listener(listener)
+    try:
+        def step(x, y):
+            return x + y, x * y
+
+        x = jax.numpy.asarray(np.arange(3.0))
+        for _ in range(3):
+            x, y = programs.call("step", step, (x, np.ones(3)), lambda: jax.tree_util.tree_structure((0, 0)))
+    finally:
+        monitoring.unregister_event_duration_listener(listener)
+    assert len(compiled) == 1, compiled
+    np.testing.assert_array_equal(x, np.arange(3.0) + 3)
+
+
 def test_damaged_file_is_traced_again_and_replaced(store):
     mech = jc.preset("flores-slider-crank")
     s = dataclasses.replace(revolution_settings(mech, 0.05, n_out=51), throw=False)
@@ -172,3 +241,20 @@ def test_on_trace_reports_cache_misses_only():
         jax.jit(lambda x: double(x) + 1)(np.ones(5))  # inside a user's jit: inlined, not a program of its own
     double(np.ones(6))
     assert heard == ["double", "double"]
+
+
+def test_on_trace_hears_a_miss_of_the_store_and_not_a_load(store):
+    """A program traced for the store (a miss) is told to the ``on_trace`` listeners as a plain
+    jit's trace is (the fit's "compiling ..."); a call served by the store is not."""
+    from jaxclear.integrate._compile import jit, on_trace
+
+    @jit
+    def triple(x):
+        return 3.0 * x
+
+    heard = []
+    with on_trace(heard.append):
+        out = triple.stored("triple", lambda: jax.tree_util.tree_structure(0), np.ones(3))
+        triple.stored("triple", lambda: jax.tree_util.tree_structure(0), np.zeros(3))  # the same program
+    assert heard == ["triple"] and len(_files(store)) == 1
+    np.testing.assert_array_equal(out, 3.0 * np.ones(3))

@@ -53,31 +53,39 @@ def on_trace(listener):
         _TRACE_LISTENERS.remove(listener)
 
 
+def _telling(fun):
+    """``fun``, calling the :func:`on_trace` listeners with its name first: the function that a
+    top-level trace runs (of JAX's jit, or of the store of traced programs on a miss). Its module
+    and qualified name are ``fun``'s (the store's key reads them)."""
+    name = getattr(fun, "__name__", "program")
+
+    @functools.wraps(fun)
+    def traced(*args, **kwargs):  # runs only while a top-level program is traced
+        for listener in tuple(_TRACE_LISTENERS):
+            listener(name)
+        return fun(*args, **kwargs)
+
+    return traced
+
+
 class jit:  # noqa: N801 (used like a decorator, as eqx.filter_jit)
     """``eqx.filter_jit`` with :func:`compiler_options` at top level, created on the first call
     (so that importing jaxclear compiles nothing). Inside another transformation (``jax.jit``,
     ``vmap``, ``grad`` of a user's function) JAX accepts compiler options only on the outermost
     jit, so there it is a plain ``eqx.filter_jit``, inlined like any nested jit. A trace of the
-    top-level program calls the :func:`on_trace` listeners."""
+    top-level program (also :meth:`stored`'s, on a miss of the store) calls the :func:`on_trace`
+    listeners."""
 
     def __init__(self, fun):
         functools.update_wrapper(self, fun)
         self._fun = fun
+        self._traced = _telling(fun)
         self._plain = eqx.filter_jit(fun)
         self._top = None
 
     def _get(self):
         if self._top is None:
-            options = compiler_options()
-            fun, name = self._fun, getattr(self._fun, "__name__", "program")
-
-            @functools.wraps(fun)
-            def traced(*args, **kwargs):  # runs only while JAX traces the top-level program
-                for listener in tuple(_TRACE_LISTENERS):
-                    listener(name)
-                return fun(*args, **kwargs)
-
-            self._top = eqx.filter_jit(traced, compiler_options=options)
+            self._top = eqx.filter_jit(self._traced, compiler_options=compiler_options())
         return self._top
 
     def __call__(self, *args, **kwargs):
@@ -100,7 +108,7 @@ class jit:  # noqa: N801 (used like a decorator, as eqx.filter_jit)
         be keyed. ``out_structure()`` returns the output's pytree structure without tracing."""
         if not is_concrete(args):
             return self(*args)
-        out = programs.call(name, self._fun, args, out_structure, compiler_options=compiler_options())
+        out = programs.call(name, self._traced, args, out_structure, compiler_options=compiler_options())
         return self(*args) if out is None else out
 
     def prepare(self, name: str, *args) -> None:
@@ -109,7 +117,7 @@ class jit:  # noqa: N801 (used like a decorator, as eqx.filter_jit)
         it (JAX keeps the trace for the call). Nothing under a transformation."""
         if not is_concrete(args):
             return
-        if not programs.prepare(name, self._fun, args, compiler_options=compiler_options()):
+        if not programs.prepare(name, self._traced, args, compiler_options=compiler_options()):
             self.lower(*args)
 
 

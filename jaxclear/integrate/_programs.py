@@ -11,23 +11,33 @@ key of everything the trace depends on; a later process of the same structure de
 The key (SHA-256) covers: the program's name and its function's qualified name; the versions of jax, jaxlib, diffrax, equinox,
 optimistix and lineax; the bytes of every jaxclear source file (any code change is a miss);
 JAX's options that change a trace (:data:`KEYED_OPTIONS`: x64, default matmul precision, dtype
-and rank promotion); the structure of the arguments with every non-array value in it (static fields
+and rank promotion); what else a trace reads of the process (:func:`_process_digest`: JAX's
+default backend, and whether XLA's single-kernel loops are on, which :func:`jaxclear.integrate.simulate`'s
+post-processing and :func:`jaxclear.sweep.lanes.over_lanes` read while tracing to pick
+``jax.lax.map`` or ``jax.vmap``); the structure of the arguments with every non-array value in it (static fields
 of the mechanism and the settings: names, laws, tolerances, sample counts) by its ``repr``, and
 the module and name of every type in it; and the shape and dtype of every array leaf. Array
 *values* (masses, clearance, stiffness, end time) are the program's inputs and do not enter the
-key.
+key. A plain function among the non-array values (optimistix's ``norm`` of a solver) is keyed by
+its module and qualified name where that names it exactly: a module of :data:`TRUSTED_MODULES`
+(whose code, run at import, made it: the key covers it) has the function itself as its attribute of
+that name (:func:`_by_name`).
 
 Only what the key can describe is stored; anything else makes the call unkeyable, traced as
 usual and never served a program traced for another value: an argument whose ``repr`` does not
-show its value in full (a Python callable such as a ``FunctionDriver``'s function, or any object
-shown by address, ``<... at 0x...>``; an abbreviated array, ``...``), and any type defined
-outside jaxclear and the libraries above (:data:`TRUSTED_MODULES`: a user's own law or element
-class, whose code the key does not cover). A program that cannot be serialized (one with a host
-callback: a progress bar) is run as usual too.
+show its value in full (a Python callable such as a ``FunctionDriver``'s function, a lambda, a
+function made inside another, or any other object shown by address, ``<... at 0x...>``; an
+abbreviated array, ``...``), and any type defined outside jaxclear and the libraries above
+(:data:`TRUSTED_MODULES`: a user's own law or element class, whose code the key does not cover).
+A program that cannot be serialized (one with a host callback: a progress bar; one calling a
+kernel of jaxlib outside JAX's stable ones and :data:`UNVERSIONED_CUSTOM_CALLS`) is run as usual
+too.
 
 :mod:`jax.export` does not serialize equinox modules as pytree nodes, so the program takes and
 returns flat lists of arrays; the caller gives the output's structure (``out_structure``), which
-it knows without tracing.
+it knows without tracing. Where the program is traced (a miss), the structure its output has is
+compared with ``out_structure()``: a program whose caller would rebuild its output wrongly is
+not stored (counted ``mismatched``) and runs as usual.
 
 A file holds the serialized program behind its SHA-256: a file whose bytes changed (a bad disk,
 a partial copy) is a miss, traced again and replaced, even where the damaged bytes would still
@@ -48,16 +58,20 @@ import functools
 import hashlib
 import importlib.metadata
 import os
+import sys
 import tempfile
 import threading
+import types
 import warnings
 from pathlib import Path
 from typing import Callable
 
 import equinox as eqx
 import jax
+import jax.numpy as jnp
 
 from .._errors import JaxclearError
+from .._xla_flags import loop_kernels_active
 
 #: Suffix of the stored programs' file names.
 SUFFIX = ".jaxexport"
@@ -74,12 +88,19 @@ KEYED_OPTIONS = ("jax_enable_x64", "jax_default_matmul_precision", "jax_numpy_dt
 #: A type from anywhere else (a user's law class) makes the call unkeyable.
 TRUSTED_MODULES = frozenset({"jaxclear", "builtins", "numpy", "collections", "jax", "jaxlib", "equinox", "diffrax",
                              "lineax", "optimistix"})
+#: Kernels of jaxlib that a program may call although :mod:`jax.export` does not promise to keep
+#: them from one jaxlib to the next (it refuses to serialize them by default): LAPACK's
+#: multiplication by the Q of a QR factorisation, which lineax's QR solve (the fit's
+#: Levenberg-Marquardt step) calls on a CPU. A stored program is only loaded by the jaxlib and
+#: backend that wrote it (both are in the key), so that promise is not needed. Python host
+#: callbacks stay refused: they name objects of the process that traced them.
+UNVERSIONED_CUSTOM_CALLS = ("lapack_sormqr_ffi", "lapack_dormqr_ffi", "lapack_cunmqr_ffi", "lapack_zunmqr_ffi")
 
 _FOLDER: list[Path | None] = [None]
 _LIMIT: list[int | None] = [None]
 _RUNNERS: dict[str, Callable] = {}
 _LOCK = threading.Lock()
-_COUNTS = {"loaded": 0, "traced": 0, "unkeyable": 0, "unserializable": 0, "removed": 0}
+_COUNTS = {"loaded": 0, "traced": 0, "unkeyable": 0, "unserializable": 0, "mismatched": 0, "removed": 0}
 
 
 def enable(folder: Path | str | None, max_bytes: int | None = None) -> Path | None:
@@ -105,8 +126,9 @@ def enable(folder: Path | str | None, max_bytes: int | None = None) -> Path | No
 
 def counts() -> dict[str, int]:
     """How many programs this process ``loaded`` from the store, ``traced`` (and wrote) on a
-    miss, ran as usual because their arguments could not be keyed (``unkeyable``) or the program
-    could not be serialized (``unserializable``), and ``removed`` to keep the size limit."""
+    miss, ran as usual because their arguments could not be keyed (``unkeyable``), the program
+    could not be serialized (``unserializable``) or its output's structure was not the one its
+    caller gave (``mismatched``, a bug of the caller), and ``removed`` to keep the size limit."""
     with _LOCK:
         return dict(_COUNTS)
 
@@ -136,6 +158,42 @@ def _environment_digest() -> str:
         h.update(str(path.relative_to(root)).encode())
         h.update(path.read_bytes())
     return h.hexdigest()
+
+
+def _process_digest() -> str:
+    """What a trace reads of this process beyond JAX's options: the default backend (a program
+    lowered for one platform does not run on another) and whether XLA's single-kernel loops are
+    on (:func:`jaxclear._xla_flags.loop_kernels_active`: the lanes rule and the run's
+    post-processing choose ``jax.lax.map`` or ``jax.vmap`` by it while tracing)."""
+    return f"backend={jax.default_backend()};loop_kernels={loop_kernels_active()}"
+
+
+class _FunctionName:
+    """A plain function in a key, by its module and qualified name (:func:`_by_name`)."""
+
+    def __init__(self, name: str):
+        self.name = name
+
+    def __repr__(self) -> str:
+        return f"function({self.name})"
+
+
+def _by_name(value):
+    """``value`` as a :class:`_FunctionName` where it is a plain function that its module and
+    qualified name identify, and whose code the key covers: its module is one of
+    :data:`TRUSTED_MODULES` and that module's attribute of that name is ``value`` itself (made by
+    the module's code at import: optimistix's ``max_norm`` is such a function, a wrapper made by a
+    module-level call); else ``value`` unchanged (a user's function, a lambda, a function made
+    inside another: shown by address, unkeyable)."""
+    if not isinstance(value, types.FunctionType):
+        return value
+    module, qualname = value.__module__ or "", value.__qualname__
+    if module.split(".")[0] not in TRUSTED_MODULES or "<" in qualname:
+        return value
+    found = sys.modules.get(module)
+    for part in qualname.split("."):
+        found = getattr(found, part, None)
+    return _FunctionName(f"{module}.{qualname}") if found is value else value
 
 
 def _faithful(text: str) -> bool:
@@ -180,6 +238,7 @@ def program_key(name: str, args) -> tuple[str, list] | None:
     arguments' static part cannot be keyed faithfully (see the module's docstring)."""
     leaves, treedef, static = _split(args)
     flat, static_def = jax.tree_util.tree_flatten(static)
+    flat = [_by_name(x) for x in flat]
     text = repr((flat, static_def))
     if not _faithful(text):
         return None
@@ -189,7 +248,7 @@ def program_key(name: str, args) -> tuple[str, list] | None:
         return None
     options = ";".join(f"{o}={getattr(jax.config, o, None)}" for o in KEYED_OPTIONS)
     h = hashlib.sha256()
-    h.update(f"{name}\n{_environment_digest()}\n{options}\n".encode())
+    h.update(f"{name}\n{_environment_digest()}\n{options}\n{_process_digest()}\n".encode())
     h.update(",".join(sorted(f"{t.__module__}.{t.__qualname__}" for t in found)).encode())
     h.update(text.encode())
     h.update(repr(treedef).encode())
@@ -198,16 +257,22 @@ def program_key(name: str, args) -> tuple[str, list] | None:
     return h.hexdigest(), leaves
 
 
-def _export(fun: Callable, args) -> jax.export.Exported:
+def _export(fun: Callable, args) -> tuple[jax.export.Exported, jax.tree_util.PyTreeDef]:
     """``fun`` traced and lowered on the shapes of ``args``' arrays, taking and returning flat
-    lists of arrays (:mod:`jax.export` serializes no equinox module as a pytree node)."""
+    lists of arrays (:mod:`jax.export` serializes no equinox module as a pytree node), and the
+    structure of its output."""
     leaves, treedef, static = _split(args)
+    structure = []
 
     def flat(*xs):
         out = fun(*eqx.combine(jax.tree_util.tree_unflatten(treedef, xs), static))
+        structure.append(jax.tree_util.tree_structure(out))
         return jax.tree_util.tree_leaves(out)
 
-    return jax.export.export(jax.jit(flat))(*[jax.ShapeDtypeStruct(x.shape, x.dtype) for x in leaves])
+    allowed = [jax.export.DisabledSafetyCheck.custom_call(target) for target in UNVERSIONED_CUSTOM_CALLS]
+    exp = jax.export.export(jax.jit(flat), disabled_checks=allowed)(
+        *[jax.ShapeDtypeStruct(x.shape, x.dtype) for x in leaves])
+    return exp, structure[0]
 
 
 def _write(path: Path, blob: bytes) -> None:
@@ -266,9 +331,10 @@ def _evict(folder: Path, limit: int | None) -> None:
         total -= size
 
 
-def _load(key: str, fun: Callable, args) -> jax.export.Exported | None:
+def _load(key: str, fun: Callable, args, out_structure: Callable | None) -> jax.export.Exported | None:
     """The program ``key`` from its file, or traced, exported and written on a miss; None when
-    the program cannot be serialized (a host callback in it: the caller runs it as usual)."""
+    the program cannot be serialized (a host callback in it: the caller runs it as usual) or
+    its output's structure is not ``out_structure()`` (when given)."""
     exp = None
     path = _FOLDER[0] / f"{key}{SUFFIX}"  # type: ignore[operator]
     blob = None
@@ -286,11 +352,15 @@ def _load(key: str, fun: Callable, args) -> jax.export.Exported | None:
                 pass
     if exp is None:
         try:
-            blob = _export(fun, args).serialize()
+            exported, structure = _export(fun, args)
+            blob = exported.serialize()
         except JaxclearError:  # the user's error, found while tracing: said as in a plain call
             raise
         except Exception:  # a program JAX cannot export (a host callback: a progress bar): run as usual
             _count("unserializable")
+            return None
+        if out_structure is not None and structure != out_structure():  # its output would be rebuilt wrongly
+            _count("mismatched")
             return None
         _write(path, blob)
         _count("traced")
@@ -314,7 +384,7 @@ def call(name: str, fun: Callable, args: tuple, out_structure: Callable[[], jax.
         out_structure: returns the pytree structure of ``fun``'s output without tracing it.
         compiler_options: XLA options of the compilation (:func:`~jaxclear.integrate.compiler_options`).
     """
-    prepared = _prepared(name, fun, args, compiler_options)
+    prepared = _prepared(name, fun, args, compiler_options, out_structure)
     if prepared is None:
         return None
     run, leaves = prepared
@@ -335,7 +405,7 @@ def prepare(name: str, fun: Callable, args: tuple, *, compiler_options: dict | N
     return True
 
 
-def _prepared(name, fun, args, compiler_options):
+def _prepared(name, fun, args, compiler_options, out_structure=None):
     """``(jitted caller, array leaves)`` of the stored program for this call, or None when the
     store is off or the arguments cannot be keyed."""
     if _FOLDER[0] is None:
@@ -345,17 +415,28 @@ def _prepared(name, fun, args, compiler_options):
         _count("unkeyable")
         return None
     key, leaves = keyed
-    run = _runner(key, fun, args, compiler_options or {})
-    return None if run is None else (run, leaves)
+    run = _runner(key, fun, args, compiler_options or {}, out_structure)
+    return None if run is None else (run, _placed(leaves))
 
 
-def _runner(key: str, fun: Callable, args, options: dict) -> Callable | None:
+def _placed(leaves: list) -> list:
+    """The array leaves, each committed to the device it is on (:func:`jax.device_put` with its
+    own sharding; a NumPy array first to JAX's default device, where it would go). A stored
+    program's outputs come back committed, and ``jax.jit`` lowers and compiles a program anew
+    when an argument's commitment changes: the fit's solver step, called first on fresh unknowns
+    and then on its own outputs, was compiled twice (41 s each on 2 cores for a small fit), as
+    two entries of JAX's compilation cache. Committed alike on every call, it compiles once."""
+    arrays = [jnp.asarray(x) for x in leaves]
+    return [jax.device_put(x, x.sharding) for x in arrays]
+
+
+def _runner(key: str, fun: Callable, args, options: dict, out_structure: Callable | None = None) -> Callable | None:
     """The jitted caller of the stored program ``key`` (one per program and process, so its
     compiled executable is reused by later calls); None when it cannot be stored."""
     with _LOCK:
         run = _RUNNERS.get(key)
     if run is None:
-        exp = _load(key, fun, args)
+        exp = _load(key, fun, args, out_structure)
         if exp is None:
             return None
         kwargs = {"compiler_options": dict(options)} if options else {}
@@ -369,5 +450,5 @@ def _runner(key: str, fun: Callable, args, options: dict) -> Callable | None:
     return run
 
 
-__all__ = ["KEYED_OPTIONS", "KEYED_PACKAGES", "SUFFIX", "TRUSTED_MODULES", "call", "counts", "enable", "folder",
-           "prepare", "program_key"]
+__all__ = ["KEYED_OPTIONS", "KEYED_PACKAGES", "SUFFIX", "TRUSTED_MODULES", "UNVERSIONED_CUSTOM_CALLS", "call", "counts",
+           "enable", "folder", "prepare", "program_key"]
