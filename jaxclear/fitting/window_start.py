@@ -49,6 +49,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..integrate import ASSEMBLY_TEMPLATE, assemble, jit
+
 #: Offset of a contact-free window start as a fraction of the element's start scale: the map keeps it inside.
 OFFSET_RADIUS = 1.0
 #: Deepest start of the anywhere layout beyond the clearance, as a fraction of it: 0.12 of the
@@ -225,6 +227,8 @@ def candidates(mech) -> np.ndarray:
 #: Largest crank-angle step [rad] between two assemblies of :func:`crank_guesses` (15 degrees):
 #: Newton's iteration from the last configuration then stays on the same assembly branch.
 GUESS_STEP = math.radians(15.0)
+#: :func:`crank_guesses`' assembly, compiled once per process, through the store of traced programs.
+_assemble = jit(assemble)
 
 
 def crank_guesses(mech, driver: int, angles: Sequence[float]) -> list:
@@ -234,16 +238,13 @@ def crank_guesses(mech, driver: int, angles: Sequence[float]) -> list:
     :data:`GUESS_STEP`, so that every window's assembly starts on the branch of the first."""
     import equinox as eqx
 
-    from ..integrate import assemble, jit
-
-    run = jit(assemble)
     n_b = len(mech.bodies)
 
     def at(m, angle, q, qd):
         m = eqx.tree_at(lambda x: x.drivers[driver].angle0, m, jnp.asarray(angle, dtype=float))
         m = eqx.tree_at(lambda x: [b.position for b in x.bodies], m, [q[3 * i: 3 * i + 3] for i in range(n_b)])
         m = eqx.tree_at(lambda x: [b.velocity for b in x.bodies], m, [qd[3 * i: 3 * i + 3] for i in range(n_b)])
-        asm = run(m, 0.0)
+        asm = _assemble.stored("fit-crank-guess", lambda: jax.tree_util.tree_structure(ASSEMBLY_TEMPLATE), m, 0.0)
         return np.asarray(asm.q), np.asarray(asm.qdot)
 
     q, qd = (np.asarray(a) for a in mech.guess())

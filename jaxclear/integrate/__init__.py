@@ -13,7 +13,8 @@ import types as _types
 
 from .._results import deprecated
 
-from ._assembly import RANK_TOL, Assembly, assemble, check_assembly, initial_state, minimum_norm_correction
+from ._assembly import (ASSEMBLY_TEMPLATE, RANK_TOL, Assembly, assemble, check_assembly, initial_state,
+                        minimum_norm_correction)
 from ._compile import compiler_options, jit, on_trace
 from ._dynamics import Baumgarte, accelerations, energy, flat_vector_field, spd_solve, vector_field
 from ._kinematics import is_kinematic, kinematic_solution
@@ -42,8 +43,8 @@ __all__ = [
     "revolution_settings", "revolutions_of", "SAMPLES_PER_REVOLUTION", "simulate_with_ideal", "RunWithIdeal",
     "timed_simulate", "is_kinematic", "kinematic_solution",
     # assembly and the equations of motion
-    "assemble", "initial_state", "check_assembly", "Assembly", "RANK_TOL", "minimum_norm_correction", "Baumgarte",
-    "accelerations", "energy", "vector_field", "flat_vector_field", "spd_solve",
+    "assemble", "initial_state", "check_assembly", "Assembly", "ASSEMBLY_TEMPLATE", "RANK_TOL",
+    "minimum_norm_correction", "Baumgarte", "accelerations", "energy", "vector_field", "flat_vector_field", "spd_solve",
     # solver wrappers
     "ImpactMemorySolver", "OnsetController", "UnrolledExplicitRK",
     # runs of a system from a start (the Lyapunov exponents' tangents, chaos/)
