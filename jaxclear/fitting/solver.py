@@ -25,11 +25,15 @@ The solver works in scaled unknowns ``u = D x`` (:func:`column_scale`: ``D_j = s
 ``lambda = 1``, acts like Marquardt's scale-invariant ``mu diag(J^T J)`` with ``mu = 1e-3``.
 
 The loop calls ``solver.step`` and ``solver.terminate`` itself (compiled with
-:class:`jaxclear.solve.jit`, an ``equinox.filter_jit``), so that the fit's state, including the
+:class:`jaxclear.integrate.jit`, an ``equinox.filter_jit``), so that the fit's state, including the
 solver state's array leaves, is checkpointed after every step, and a killed fit resumes bit for
-bit. An optax first-order optimiser can be used instead through
-:class:`optimistix.OptaxMinimiser` on ``0.5 |r|^2`` (with ``D = 1``: the learning rate is in
-the transformed parameters).
+bit. Both programs (:func:`_init`, :func:`_step`) go through the store of traced programs
+(:meth:`jaxclear.integrate.jit.stored`), so that a new process fitting a record of the same
+structure loads them instead of tracing them (10-15 s each on 2 cores): their outputs' structures,
+which the store needs without tracing the model, come from the same programs traced on a stand-in
+of the stage's residual that returns zeros of its shapes (:class:`_Shapes`, milliseconds). An optax
+first-order optimiser can be used instead through :class:`optimistix.OptaxMinimiser` on ``0.5
+|r|^2`` (with ``D = 1``: the learning rate is in the transformed parameters).
 
 Stopping (per stage, besides optimistix's own Cauchy criterion): ``max_iter`` iterations
 (accepted steps); an accepted step lowering the loss by less than ``ftol`` (relative); an
@@ -42,6 +46,7 @@ variances.
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import NamedTuple
 
@@ -116,10 +121,28 @@ class StageResidual(eqx.Module):
         return (jnp.reshape(r, (-1,)), stack_jacobian([jt[k] for k in rows], [js[k] for k in rows], self.theta_free,
                                                       self.free_rows), y)
 
+    def shapes(self, x, args: StageArgs) -> tuple:
+        """The shapes of :meth:`evaluate`'s outputs, without running the model: residual
+        ``(W_s C n_pad,)``, Jacobian ``(W_s C n_pad, len(x))``, signals ``(W_s, C, n_pad)``."""
+        n_w, n_c, n_pad = args.windows.data.shape
+        n, dtype = n_w * n_c * n_pad, jnp.result_type(x, args.windows.data)
+        return (jax.ShapeDtypeStruct((n,), dtype), jax.ShapeDtypeStruct((n, x.shape[0]), dtype),
+                jax.ShapeDtypeStruct((n_w, n_c, n_pad), dtype))
+
     def __call__(self, u, args: StageArgs):
         u0 = jax.lax.stop_gradient(u)
         r, jac, ys = self.evaluate(u0 / self.column_scale, args)
         return r + (jac / self.column_scale) @ (u - u0), ys
+
+
+class _Shapes(StageResidual):
+    """A :class:`StageResidual` whose :meth:`evaluate` is zeros of its shapes
+    (:meth:`StageResidual.shapes`), running nothing of the model: a solver's state and step on it
+    have the structures of the real stage's (``__call__``'s linear model is the same) for
+    milliseconds of tracing instead of the model's (:func:`_structure`)."""
+
+    def evaluate(self, x, args: StageArgs):
+        return tuple(jnp.zeros(s.shape, s.dtype) for s in self.shapes(x, args))
 
 
 def column_scale(jac: np.ndarray, damping: float = 1e-3) -> np.ndarray:
@@ -223,6 +246,22 @@ def _objective(opt: Optimizer, fn: StageResidual):
     return fn if opt.least_squares else HalfSquares(fn)
 
 
+def _stand_in(fn):
+    """The objective ``fn`` (a :class:`StageResidual`, or :class:`HalfSquares` of one) on
+    :class:`_Shapes`."""
+    if isinstance(fn, HalfSquares):
+        return HalfSquares(_stand_in(fn.residual))
+    return _Shapes(fn.model, fn.column_scale, fn.theta_free, fn.free_rows)
+
+
+def _structure(program, solver, fn, *rest):
+    """The pytree structure of ``program(solver, fn, *rest)``'s output (:func:`_init`,
+    :func:`_step`) without tracing the model: the program traced for shapes on the stand-in of
+    ``fn`` (:func:`_stand_in`). The store of traced programs checks it against the real
+    program's output where it traces that (a miss), and stores nothing that differs."""
+    return jax.tree_util.tree_structure(eqx.filter_eval_shape(program, solver, _stand_in(fn), *rest))
+
+
 def _template(solver, fn, y, args):
     f_struct, aux_struct = eqx.filter_eval_shape(fn, y, args)
     return solver.init(fn, y, args, _OPTIONS, f_struct, aux_struct, _TAGS)
@@ -286,13 +325,17 @@ class StageRun:
         self.opt = opt._replace(solver=with_scale(opt.solver, fn.column_scale))
         self.scale = np.asarray(fn.column_scale)
         self.y = jnp.asarray(u, dtype=float)
-        arrays = _init(opt.solver, self.fn, self.y, args)
+        fresh = (opt.solver, self.fn, self.y, args)
+        arrays = _init.stored("fit-solver-init", functools.cache(lambda: _structure(_init, *fresh)), *fresh)
         self.arrays = arrays if leaves is None else restore(arrays, leaves)
+        self._step_structure = functools.cache(lambda: _structure(_step, self.opt.solver, self.fn, self.y, self.args,
+                                                                  self.arrays))
 
     def step(self, iteration: int, limit: int, tol_f: float, xtol: float) -> StepReport:
         """One solver step; ``iteration``: iterations so far in this stage, ``limit`` their most."""
         before, old = np.asarray(self.y), self.arrays
-        y, arrays, aux, done, predicted = _step(self.opt.solver, self.fn, self.y, self.args, self.arrays)
+        y, arrays, aux, done, predicted = _step.stored("fit-solver-step", self._step_structure, self.opt.solver,
+                                                       self.fn, self.y, self.args, self.arrays)
         self.y, self.arrays = y, arrays
         u = np.asarray(y)
         if not self.opt.least_squares:

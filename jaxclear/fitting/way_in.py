@@ -70,6 +70,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -92,6 +93,8 @@ def _scores(model: WindowModel, theta_z, states, win: WindowInput):
 
 
 _scores_jit = jit(_scores)
+#: The structure of :func:`_scores`' output, one array (the store of traced programs rebuilds it).
+_SCORES_STRUCTURE = jax.tree_util.tree_structure(0)
 
 
 #: The part of a window the way in integrates, beyond its scored horizon, as a fraction of the
@@ -248,7 +251,8 @@ def find_start(model: WindowModel, mech, theta_z, win: WindowInput, horizon: flo
 def _scorer(model: WindowModel, theta_z, w: WindowInput, h: float):
     """Scores (sums of squares; inf: failed) of starts ``(m, S)`` over the first ``h`` of ``w``."""
     run, theta = scoring_model(model, h), jnp.asarray(theta_z)
-    return lambda states: np.asarray(_scores_jit(run, theta, jnp.asarray(states), w))
+    return lambda states: np.asarray(_scores_jit.stored("way-in-scores", lambda: _SCORES_STRUCTURE, run, theta,
+                                                        jnp.asarray(states), w))
 
 
 def _in_span(starts: np.ndarray, mech) -> np.ndarray:

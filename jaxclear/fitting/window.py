@@ -150,8 +150,17 @@ def evaluate_window(model: WindowModel, theta_z, state_z, win: WindowInput):
     return r, jnp.where(ok, jt, 0.0), jnp.where(ok, js, 0.0), y, extra
 
 
-#: :func:`evaluate_window` compiled (outside the solver's step: start states, uncertainty, plot).
-evaluate_window_jit = jit(evaluate_window)
+_evaluate_window = jit(evaluate_window)
+#: The structure of :func:`evaluate_window`'s output: ``r``, the two Jacobians, ``y`` and the end
+#: ``(q, qdot, start states, status)``, arrays all (the store of traced programs rebuilds it).
+_EVALUATE_STRUCTURE = jax.tree_util.tree_structure((0, 0, 0, 0, (0, 0, 0, 0)))
+
+
+def evaluate_window_jit(model: WindowModel, theta_z, state_z, win: WindowInput):
+    """:func:`evaluate_window` compiled (outside the solver's step: start states, uncertainty,
+    plot), through the store of traced programs (:meth:`jaxclear.integrate.jit.stored`): a new
+    process of the same structure loads the program instead of tracing it."""
+    return _evaluate_window.stored("fit-window", lambda: _EVALUATE_STRUCTURE, model, theta_z, state_z, win)
 
 
 @dataclass(frozen=True)
