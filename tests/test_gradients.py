@@ -117,7 +117,7 @@ def check_finite_gradients_through_contact_onset(compiled):
     """Windows ending just before, at and just after the impact onset (t_end is an array leaf:
     no recompilation): the gradient stays finite and continuous across the onset."""
     mech, x0, _, rev, _ = compiled
-    sol = jc.simulate(mech, jc.settings(1.0e-3, n_out=3, rtol=1e-10, atol=1e-14))
+    sol = jc.simulate(mech, jc.settings(1.0e-3, n_out=401, rtol=1e-10, atol=1e-14))  # the first check's program
     onset = float(sol.memory.contact_start[-1, 0])
     assert 0.5e-3 < onset < 0.8e-3
     grads = [np.asarray(rev(mech, jnp.asarray(x0), jnp.asarray(onset + dt))) for dt in (-1e-7, -1e-10, 1e-10, 1e-7,
@@ -135,7 +135,7 @@ def check_finite_gradients_through_the_centre(compiled):
     _, x0, f, rev, _ = compiled
     mech = free_journal(restitution=0.8, friction=jc.Friction(0.1), offset=(-0.25e-3, 0.0))
     t = jnp.asarray(1.0e-3)
-    sol = jc.simulate(mech, jc.settings(1.0e-3, n_out=301, rtol=1e-10, atol=1e-14))
+    sol = jc.simulate(mech, jc.settings(1.0e-3, n_out=401, rtol=1e-10, atol=1e-14))  # the first check's program
     ex = np.asarray(sol.ecc[:, 0, 0])
     assert ex.min() < 0 < ex.max() and float(sol.impacts[0]) == 1  # crossed the centre, then impact
     g = np.asarray(rev(mech, jnp.asarray(x0), t))
