@@ -27,6 +27,11 @@ def oscillator(stiffness=K, damping=C, preload=0.0, y0=-(L0 + 0.01), gravity=0.0
                         gravity=(0.0, -gravity), name="oscillator")
 
 
+#: Samples of the oscillator's runs below (five damped periods at 400 a period): one compiled
+#: program for all of them (their spans differ only in t_end, a traced value).
+SAMPLES = 5 * 400 + 1
+
+
 def crossings(t, x):
     """Times where ``x`` changes sign (linear interpolation between samples)."""
     i = np.nonzero(np.signbit(x[:-1]) != np.signbit(x[1:]))[0]
@@ -46,7 +51,7 @@ def test_mass_on_a_spring_damper_has_the_closed_form_frequency_and_logarithmic_d
     td = 2 * np.pi / wd
     n_per = 400
     mech = oscillator()
-    sol = jc.simulate(mech, jc.settings(5 * td, n_out=5 * n_per + 1, **TIGHT))
+    sol = jc.simulate(mech, jc.settings(5 * td, n_out=SAMPLES, **TIGHT))
     assert int(sol.status) == 0
     t, x = np.asarray(sol.ts), np.asarray(sol.q[:, 1]) + L0  # deflection from the rest length
     zeros = crossings(t, x)
@@ -143,7 +148,7 @@ def test_a_preloaded_spring_holds_the_block_at_the_static_equilibrium():
     for f0 in (5.0, 30.0):
         length = L0 + (M * g - f0) / K
         mech = oscillator(preload=f0, y0=-length, gravity=g)
-        sol = jc.simulate(mech, jc.settings(0.5, n_out=11, **TIGHT))
+        sol = jc.simulate(mech, jc.settings(0.5, n_out=SAMPLES, **TIGHT))
         np.testing.assert_allclose(np.asarray(sol.q[:, 1]), -length, rtol=0, atol=1e-12)
         np.testing.assert_allclose(np.asarray(channel(mech, sol, "load:s:force")), M * g, rtol=1e-10)
     assert length < L0
@@ -156,9 +161,10 @@ def test_derivative_with_respect_to_a_spring_constant_against_central_difference
     of 5e-6 m: 2e-7): to 1e-6 relative (measured 2.5e-8 and 3.4e-9)."""
     mech = oscillator()
     s = jc.settings(0.4, n_out=2, **TIGHT)
+    runs = jc.settings(0.4, n_out=SAMPLES, **TIGHT)  # (the same end state as on 2 samples)
 
     def y_end(m):
-        return float(jc.simulate(m, s).q[-1, 1])
+        return float(jc.simulate(m, runs).q[-1, 1])
 
     _, d = jc.sensitivities(mech, ["spring_stiffness:s", "spring_damping:s"], s,
                             output=lambda sol, m: sol.q[-1, 1])
