@@ -46,7 +46,10 @@ def _solve(mech, s, block=None):
 
 @pytest.fixture(scope="module")
 def four_bar():
-    return jc.preset("four-bar"), jc.settings(0.02, n_out=401)
+    """The four-bar, its settings and diffrax's own saving of its run (the reference of both
+    tests below, compiled once)."""
+    mech, s = jc.preset("four-bar"), jc.settings(0.02, n_out=401)
+    return mech, s, jax.jit(lambda m: _solve(m, s))(mech)
 
 
 def test_block_samples_equal_diffrax_saving(four_bar):
@@ -54,8 +57,7 @@ def test_block_samples_equal_diffrax_saving(four_bar):
     sample (coordinates, velocities and the impact memory of the clearance joint, onsets
     included) equals diffrax's own saving to rounding (1e-12 relative; the interpolant is
     evaluated vectorised instead of one time at a time)."""
-    mech, s = four_bar
-    ref, steps_ref = jax.jit(lambda m: _solve(m, s))(mech)
+    mech, s, (ref, steps_ref) = four_bar
     out, steps = jax.jit(lambda m: _solve(m, s, block=s.n_out))(mech)
     assert int(steps) == int(steps_ref)
     ref, out = np.asarray(ref), np.asarray(out)
@@ -68,8 +70,7 @@ def test_a_step_holds_at_most_a_block(four_bar):
     """With a block of 4 samples (a grid 100x denser than the steps would need) every sample is
     written, the run takes at least (T - 1) / 4 accepted steps, and the samples agree with the
     uncut run to the integration's tolerance (rtol 1e-6 on positions of ~0.1 m; measured 2e-8)."""
-    mech, s = four_bar
-    ref, _ = jax.jit(lambda m: _solve(m, s))(mech)
+    mech, s, (ref, _) = four_bar
     out, steps = jax.jit(lambda m: _solve(m, s, block=4))(mech)
     n = mech.n_coordinates
     assert int(steps) >= (s.n_out - 1) / 4
