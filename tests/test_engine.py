@@ -12,7 +12,6 @@ from conftest import clearance_pendulum, free_journal, slider_crank_exact
 from scipy.optimize import brentq
 
 import jaxclear as jc
-from jaxclear.contact import HYSTERESIS_FACTORS
 from jaxclear.integrate import energy
 
 OMEGA = 5000 * 2 * math.pi / 60
