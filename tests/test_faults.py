@@ -11,8 +11,6 @@ they reuse. Every test here is cheap: nothing is integrated.
 
 from __future__ import annotations
 
-import dataclasses
-import json
 import math
 import re
 import time
@@ -233,10 +231,28 @@ def test_stored_program_with_flipped_bytes_is_a_miss(store):
     bad = bytearray(good)
     bad[len(good) // 2] ^= 0x01
     path.write_bytes(bytes(bad))
-    programs.enable(store)  # a new process: nothing loaded yet
+    programs.enable(None)  # a new process: nothing loaded yet (enabling the same folder again keeps
+    programs.enable(store)  # what was loaded)
     np.testing.assert_array_equal(_call(x)["y"], 2 * x)
     again = path.read_bytes()
     assert again != bytes(bad) and programs._unpack(again) is not None  # replaced by a sound file
+
+
+def test_enabling_the_same_store_again_keeps_the_loaded_programs(store):
+    """The command line's ``main`` enables the store on every call: in one process (the tests
+    call it in-process) the same folder keeps the programs it loaded (not read and compiled
+    again); another folder forgets them."""
+    x = np.arange(3.0)
+    _call(x)
+    before = programs.counts()
+    for folder in (store, store):
+        programs.enable(folder)
+        np.testing.assert_array_equal(_call(x)["y"], 2 * x)
+    assert programs.counts() == before  # nothing loaded, nothing traced
+    other = programs.enable(store.parent / "other")
+    assert programs.folder() == other
+    _call(x)
+    assert programs.counts()["traced"] == before["traced"] + 1  # a new folder: read (here: traced) anew
 
 
 def test_unwritable_program_store_goes_on_without_it(store, monkeypatch):

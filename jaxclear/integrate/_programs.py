@@ -108,18 +108,19 @@ def enable(folder: Path | str | None, max_bytes: int | None = None) -> Path | No
     store off. ``max_bytes``: the most the store's files may hold together (``None``: no limit);
     the least recently used are removed after a write that exceeds it. Returns the folder in use
     (None if off or if it cannot be created). Programs already loaded in this process are
-    forgotten (the next call reads ``folder``)."""
-    with _LOCK:
-        _RUNNERS.clear()
+    kept when the folder is the one in use (the command line's ``main``, called again in one
+    process, enables the same folder each time: the programs are not loaded and compiled again),
+    and forgotten otherwise (the next call reads the new ``folder``)."""
     _LIMIT[0] = max_bytes
-    if folder is None:
-        _FOLDER[0] = None
-        return None
-    folder = Path(folder).expanduser()
-    try:
-        folder.mkdir(parents=True, exist_ok=True, mode=0o700)
-    except OSError:
-        folder = None
+    if folder is not None:
+        folder = Path(folder).expanduser()
+        try:
+            folder.mkdir(parents=True, exist_ok=True, mode=0o700)
+        except OSError:
+            folder = None
+    if folder is None or folder != _FOLDER[0]:
+        with _LOCK:
+            _RUNNERS.clear()
     _FOLDER[0] = folder
     return folder
 
