@@ -105,6 +105,34 @@ def test_fit_levenberg_marquardt_on_rosenbrock(extend, cap):
         y = y_new
 
 
+def test_the_solver_step_is_traced_once_from_a_fresh_state():
+    """The solver state's array leaves keep their types from ``_init`` through ``_step`` (the
+    damping's scalars were weakly typed at the start, strongly after a step), so that with the
+    store of traced programs off (or arguments it cannot key) the fit's step is traced and
+    compiled once, not twice, per stage structure."""
+    import equinox as eqx
+    import jax.numpy as jnp
+    from jaxclear.fitting import solver as fit_solver
+    from jaxclear.integrate import on_trace
+
+    class Rosenbrock(eqx.Module):
+        def __call__(self, u, args):
+            r = jnp.stack([10 * (u[1] - u[0] ** 2), 1 - u[0]])
+            return r, r
+
+    opt = fit_solver.make_optimizer()
+    fn, y = Rosenbrock(), jnp.array([-1.2, 1.0])
+    arrays = fit_solver._init(opt.solver, fn, y, None)
+    traced = []
+    with on_trace(traced.append):
+        for _ in range(4):
+            out = fit_solver._step(opt.solver, fn, y, None, arrays)
+            assert [x.weak_type for x in jax.tree_util.tree_leaves(out[1])] == \
+                [x.weak_type for x in jax.tree_util.tree_leaves(arrays)]
+            y, arrays = out[0], out[1]
+    assert traced == ["_step"], traced
+
+
 def test_column_scale_of_a_stage_without_influence():
     """A stage whose unknowns do not change its samples (a horizon before the first contact) has a
     zero Jacobian: its scale is 1, not a subnormal floor that XLA on CPU flushes to zero (which

@@ -51,7 +51,10 @@ class NielsenTrustRegion(optx.AbstractSearch):
 
     def init(self, y, f_info_struct) -> NielsenState:
         del y, f_info_struct
-        return NielsenState(step_size=jnp.array(1.0), nu=jnp.array(2.0), ext=jnp.array(0))
+        # strongly typed, as :meth:`step` returns them: a weakly typed scalar (``jnp.array(1.0)``)
+        # made the solver's step a new program after its first call (traced and compiled twice)
+        return NielsenState(step_size=jnp.asarray(1.0, dtype=float), nu=jnp.asarray(2.0, dtype=float),
+                            ext=jnp.asarray(0, dtype=int))
 
     def predict_reduction(self, y_diff, f_info):
         """Predicted change of ``0.5 |r|^2`` (negative for a decrease) along ``y_diff`` (the
