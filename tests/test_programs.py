@@ -17,7 +17,7 @@ import pytest
 
 import jaxclear as jc
 from jaxclear.integrate import _programs as programs
-from jaxclear.integrate._compile import compiler_options
+from jaxclear.integrate._compile import compiler_options, on_trace
 from jaxclear.integrate._runs import revolution_settings
 
 simulate_module = importlib.import_module("jaxclear.integrate._simulate")
@@ -55,6 +55,12 @@ def test_stored_program_equals_the_jitted_run_and_serves_every_value(store):
     # one program: the run, which also returns the assembly that the eager checks read
     assert len(_files(store)) == 1
     _assert_same(sol, _plain(mech, s))
+    # without throw (the checks skipped, the status reported): the same program, nothing traced
+    heard = []
+    with on_trace(heard.append):
+        quiet = jc.simulate(mech, dataclasses.replace(s, throw=False))
+    assert heard == [] and len(_files(store)) == 1
+    _assert_same(quiet, sol)
     # another clearance (an array value): same programs, no new file, the other value's result
     wider = jc.preset("flores-slider-crank", clearance=0.4e-3)
     sol2 = jc.simulate(wider, s)

@@ -90,7 +90,7 @@ def prepare_simulate(mech: Mechanism, s: Settings) -> None:
     without compiling it: :func:`~jaxclear.integrate.simulate_with_ideal` does this before
     it starts the ideal-joint run in a second thread, so that run's tracing overlaps this run's
     XLA compilation (which releases Python's lock) rather than its tracing."""
-    if s.throw and is_concrete((mech, s)):
+    if is_concrete((mech, s)):
         program, name, _, args = _concrete_call(mech, s)
         program.prepare(name, *args)
 
@@ -126,7 +126,8 @@ def simulate(mech: Mechanism, s: Settings, y0: State | None = None) -> Solution:
     ``jax.jit`` or ``jax.vmap`` the same entry through ``equinox.error_if`` in the user's program
     (:func:`check_status`). The compiled run itself never holds that check, so JAX's persistent
     compilation cache can keep it. With ``s.throw`` False the status is reported in
-    ``Solution.status`` and nothing raises (sweeps).
+    ``Solution.status`` and nothing raises (sweeps); with concrete inputs the run is the same
+    compiled program as with ``s.throw`` (one compilation for both, the same numbers).
 
     Args:
         mech: the mechanism (structure + parameters).
@@ -134,17 +135,20 @@ def simulate(mech: Mechanism, s: Settings, y0: State | None = None) -> Solution:
         y0: optional start :class:`~jaxclear.integrate.State`; default: assembled by
             :func:`~jaxclear.assemble`.
     """
-    if not (s.throw and is_concrete((mech, s, y0))):
+    if not is_concrete((mech, s, y0)):
         sol = _simulate(mech, s, y0)
         return check_status(sol, sol.status, s, mech=mech)
+    # concrete: one program whatever s.throw (the checks run here, after it)
     if y0 is None:
         program, name, structure, args = _concrete_call(mech, s)
         sol, asm = program.stored(name, structure, *args)
-        check_assembly(mech, s, asm)  # its detailed messages take precedence over the run's status
+        if s.throw:
+            check_assembly(mech, s, asm)  # its detailed messages take precedence over the run's status
     else:
-        s = dataclasses.replace(s, throw=False)
-        sol = _simulate.stored("simulate-from-state", lambda: solution_structure(mech), mech, s, y0)
-    raise_for_status(sol, s, mech=mech)
+        quiet = dataclasses.replace(s, throw=False)
+        sol = _simulate.stored("simulate-from-state", lambda: solution_structure(mech), mech, quiet, y0)
+    if s.throw:
+        raise_for_status(sol, s, mech=mech)
     return sol
 
 
