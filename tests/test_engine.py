@@ -336,8 +336,7 @@ def test_unrolled_stages_equal_diffrax(name):
     y0 = jc.initial_state(mech, s).pack()
     args = (mech, s.baumgarte)
     term = diffrax.ODETerm(flat_vector_field)
-    # times as arrays: flat_vector_field (an equinox.filter_jit) takes a Python float as a static
-    # argument, so every stage's own time compiled it again (22 times for the three solvers)
+    # times as arrays (flat_vector_field makes a Python number one too: test below)
     t0, t1, t2 = jnp.asarray(0.0), jnp.asarray(1e-5), jnp.asarray(2.5e-5)
     results = []
     for solver in (jc.SOLVERS[name](), UnrolledExplicitRK(jc.SOLVERS[name]())):
@@ -351,6 +350,27 @@ def test_unrolled_stages_equal_diffrax(name):
                                atol=1e-10 * float(jnp.max(jnp.abs(dense_ref["k"]))))
     np.testing.assert_allclose(np.asarray(err_new), np.asarray(err_ref), rtol=0,
                                atol=1e-10 * float(jnp.max(jnp.abs(dense_ref["k"]))))
+
+
+def test_flat_vector_field_compiles_once_for_python_times(monkeypatch):
+    """A time given as a Python number is an array input of the jitted vector field, not a
+    static argument: distinct times (each Runge-Kutta stage's, stepping a solver by hand) trace
+    it once, not once per value (22 compilations for the three solvers of the test above), and
+    give the bits of the same time as an array."""
+    from jaxclear.integrate import _dynamics, flat_vector_field
+
+    mech = jc.preset("flores-slider-crank")
+    s = jc.settings(0.01)
+    y0 = jc.initial_state(mech, s).pack()
+    args = (mech, s.baumgarte)
+    traced = []
+    field = _dynamics.vector_field
+    monkeypatch.setattr(_dynamics, "vector_field", lambda *a: traced.append(1) or field(*a))
+    times = (1.25e-5, 2.5e-5, 3.75e-5)
+    rates = [np.asarray(flat_vector_field(t, y0, args)) for t in times]
+    assert len(traced) <= 1, len(traced)  # none where an earlier test traced this structure
+    for t, rate in zip(times, rates):
+        np.testing.assert_array_equal(rate, np.asarray(flat_vector_field(jnp.asarray(t, dtype=float), y0, args)))
 
 
 def test_unrolled_solver_rejects_implicit():

@@ -159,13 +159,21 @@ def vector_field(t, y: State, args) -> State:
     return State(y.qdot, qdd, rates)
 
 
-@eqx.filter_jit
 def flat_vector_field(t, v, args):
     """:func:`vector_field` on the packed state (:meth:`State.pack`); ``args = (mechanism,
     baumgarte)``.
 
     Jitted so that the several calls of one solver step (one per Runge-Kutta stage) are traced
-    and lowered once; XLA inlines the calls."""
+    and lowered once; XLA inlines the calls. A time given as a Python number is made an array
+    first: ``equinox.filter_jit`` would take it as a static argument, one compilation per
+    value (every stage time of a solver stepped by hand)."""
+    if isinstance(t, (int, float)):
+        t = jnp.asarray(t, dtype=float)
+    return _flat_vector_field(t, v, args)
+
+
+@eqx.filter_jit
+def _flat_vector_field(t, v, args):
     mech = args[0]
     y = State.unpack(v, mech)
     return vector_field(t, y, args).pack()
