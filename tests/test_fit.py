@@ -133,6 +133,48 @@ def test_the_solver_step_is_traced_once_from_a_fresh_state():
     assert traced == ["_step"], traced
 
 
+def _primitives(jaxpr) -> set:
+    """Names of the primitives of ``jaxpr`` and of every jaxpr inside it."""
+    names = set()
+    for eqn in jaxpr.eqns:
+        names.add(eqn.primitive.name)
+        for value in eqn.params.values():
+            for sub in value if isinstance(value, (list, tuple)) else (value,):
+                inner = getattr(sub, "jaxpr", sub)
+                if hasattr(inner, "eqns"):
+                    names |= _primitives(inner)
+    return names
+
+
+def test_the_solver_step_holds_no_model_and_follows_the_evaluation_it_is_given():
+    """The fit's compiled step receives the model's residual and Jacobian at its trial point
+    (``StageArgs``, evaluated outside it) and holds no copy of the model: its program has no
+    loop (an integration is a ``while``). Given the evaluation of Rosenbrock's residual at each
+    step's ``y_eval`` (the protocol of :class:`~jaxclear.fitting.solver.StageRun`), the steps
+    reach its minimum (1, 1) to 1e-8 from the classical start (-1.2, 1)."""
+    import jax.numpy as jnp
+    from jaxclear.fitting import solver as fit_solver
+
+    opt = fit_solver.make_optimizer()
+    fn = fit_solver.StageResidual()
+
+    def evaluation(u):
+        u = jnp.asarray(u)
+        r = jnp.stack([10.0 * (u[1] - u[0] ** 2), 1.0 - u[0]])
+        jac = jnp.array([[-20.0 * u[0], 10.0], [-1.0, 0.0]])
+        return fit_solver.StageArgs(r, jac, u, jnp.zeros((1, 1, 2)))
+
+    y = jnp.array([-1.2, 1.0])
+    arrays = fit_solver._init(opt.solver, fn, y, evaluation(y))
+    jaxpr = jax.make_jaxpr(lambda y, args, arrays: fit_solver._step(opt.solver, fn, y, args, arrays))(
+        y, evaluation(y), arrays)
+    assert "while" not in _primitives(jaxpr.jaxpr), sorted(_primitives(jaxpr.jaxpr))
+    for _ in range(60):
+        y, arrays, _, done, _ = fit_solver._step(opt.solver, fn, y, evaluation(arrays.y_eval), arrays)
+    exact = np.array([1.0, 1.0])
+    assert np.max(np.abs(np.asarray(y) - exact)) < 1e-8, (np.asarray(y), exact)
+
+
 def test_column_scale_of_a_stage_without_influence():
     """A stage whose unknowns do not change its samples (a horizon before the first contact) has a
     zero Jacobian: its scale is 1, not a subnormal floor that XLA on CPU flushes to zero (which

@@ -27,8 +27,8 @@ The walk: from the estimate outwards on each side, in the fit's transformed coor
 (log of a stiffness, logit of a restitution; :mod:`.parameters`), at most :data:`MAX_POINTS`
 points spaced geometrically from 1.5 Gauss-Newton std (:data:`FIRST_STEP`, at least :data:`MIN_STEP`) to
 :data:`SPAN`, each point fitted from the one before (warm start) by the fit's own final stage
-with the parameter held (:class:`~jaxclear.fitting.solver.StageArgs` ``keep``: one compiled
-program with the fit). A side whose walk reaches :data:`SPAN` below the threshold, or whose model
+with the parameter held (its Jacobian column zero: :func:`~jaxclear.fitting.run.stage_evaluation`;
+the solver's compiled step is the fit's own). A side whose walk reaches :data:`SPAN` below the threshold, or whose model
 fails, is open: the record does not bound the parameter there, and the std is infinite. A point
 whose loss lies below the estimate's by more than :data:`BETTER` (in :math:`s^2`) is a better
 fit: the estimate is a local minimum (:mod:`.verdict` fails it).

@@ -14,13 +14,11 @@ from .plan import Stage, final_stage
 from .problem import FitProblem
 from .solver import (
     Optimizer,
-    StageResidual,
     StageRun,
     column_scale,
     influences,
     solver_leaves,
     stack_jacobian,
-    stage_arguments,
 )
 from .state import Checkpoint, FitState
 from .way_in import CHAIN_WHEN, CHAINED_FOLLOW, CHAINED_POLISH, CHAINED_SEEDS, WAY_IN_HORIZON, find_start, search_around
@@ -60,7 +58,7 @@ def join(st: FitState, stage: Stage) -> np.ndarray:
 def window_end(problem: FitProblem, st: FitState, k: int):
     """``(q, qdot, journal state)`` at the end of window ``k`` simulated at the current values."""
     win = problem.window_input(k, 1.0, False, st.guesses)
-    _, _, _, _, (q1, qd1, end, _) = evaluate_window_jit(problem.model, jnp.asarray(st.theta),
+    _, _, _, _, (q1, qd1, end, *_) = evaluate_window_jit(problem.model, jnp.asarray(st.theta),
                                                          jnp.asarray(st.states[k]), win)
     return np.asarray(q1), np.asarray(qd1), np.asarray(end)
 
@@ -158,10 +156,11 @@ def polish(problem: FitProblem, opt: Optimizer, st: FitState, k: int, z: np.ndar
     states[k] = np.asarray(z, dtype=float).tolist()
     trial = st.replace(states=states, x=None, solver=None, column_scale=None)
     n_fit = max(float(problem.win.residual_mask(k, horizon).sum()), 1.0)
-    loss0, jac = stage_jacobian(problem, trial, stage)
-    if not (np.isfinite(loss0) and np.all(np.isfinite(jac))):
+    first = stage_evaluation(problem, trial, stage)
+    loss0 = float(np.sum(first[0] ** 2))
+    if not (np.isfinite(loss0) and np.all(np.isfinite(first[1]))):
         return np.asarray(z, dtype=float), float("inf")
-    run, trial = stage_run(problem, opt, trial, stage, jac)
+    run, trial = stage_run(problem, opt, trial, stage, first)
     best, loss, accepted = np.asarray(z, dtype=float), loss0, 0
     for _ in range(4 * steps):  # a rejected trial is a step too
         rep = run.step(accepted, steps, 1e-3, problem.settings["xtol"])
@@ -185,39 +184,48 @@ def _first_that_runs(problem: FitProblem, theta, ranked: np.ndarray, win) -> int
     return 0
 
 
-def stage_jacobian(problem: FitProblem, st: FitState, stage: Stage) -> tuple[float, np.ndarray]:
-    """Loss ``|r|^2`` and Jacobian of the stage's residual over its unknowns at the state's values."""
-    rs, jts, jss = [], [], []
+def stage_evaluation(problem: FitProblem, st: FitState, stage: Stage, x=None) -> tuple:
+    """The stage's residual ``(N,)`` (its windows' samples stacked), its Jacobian over the
+    stage's unknowns ``(N, len(x))`` (a held parameter's column zero) and the windows' signals
+    ``(W_s, C, n_pad)``, at the stage's unknowns ``x`` put in place
+    (:func:`split`; None: the state's values). Each window runs its compiled program
+    (:func:`~jaxclear.fitting.window.evaluate_window_jit`), one after another."""
+    if x is None:
+        theta, states = np.asarray(st.theta, dtype=float), np.asarray(st.states, dtype=float)
+    else:
+        theta, states = split(problem, st, stage, x)
+    rs, jts, jss, ys = [], [], [], []
     for k in stage.windows:
         win = problem.window_input(k, stage.horizon, stage.integrate, st.guesses)
-        r, jt, js, _, _ = evaluate_window_jit(problem.model, jnp.asarray(st.theta), jnp.asarray(st.states[k]), win)
+        r, jt, js, y, _ = evaluate_window_jit(problem.model, jnp.asarray(theta), jnp.asarray(states[k]), win)
         rs.append(np.asarray(r))
         jts.append(jt)
         jss.append(js)
+        ys.append(np.asarray(y))
     jac = np.array(stack_jacobian(jts, jss, stage.theta, _free_rows(stage)))
     if stage.held and stage.theta:
-        jac[:, list(stage.held)] = 0.0  # held parameters are no unknowns (as in the solver's StageResidual)
-    return float(np.sum(np.concatenate(rs) ** 2)), jac
+        jac[:, list(stage.held)] = 0.0  # held parameters are no unknowns: the step leaves them
+    return np.concatenate(rs), jac, np.stack(ys)
 
 
 def _free_rows(stage: Stage) -> tuple:
     return tuple(stage.windows.index(k) for k in stage.states)
 
 
-def stage_run(problem: FitProblem, opt: Optimizer, st: FitState, stage: Stage, jac=None) -> tuple[StageRun, FitState]:
+def stage_run(problem: FitProblem, opt: Optimizer, st: FitState, stage: Stage, first=None) -> tuple[StageRun, FitState]:
     """The solver run of the stage: fresh (its unknowns scaled by :func:`column_scale` of the
-    Jacobian ``jac`` at the start; 1 for first-order optimisers) or from the state's saved solver leaves."""
+    Jacobian of ``first``, the stage's :func:`stage_evaluation` at its start; 1 for first-order
+    optimisers) or from the state's saved solver leaves."""
     if st.x is None:
         x = join(st, stage)
-        scale = column_scale(jac) if jac is not None else np.ones_like(x)
+        scale = column_scale(first[1]) if first is not None else np.ones_like(x)
         st = st.replace(column_scale=scale.tolist())
         u = x * scale
     else:
-        u = np.asarray(st.x, dtype=float)
-    wins = [problem.window_input(k, stage.horizon, stage.integrate, st.guesses) for k in stage.windows]
-    fn = StageResidual(problem.model, jnp.asarray(st.column_scale, dtype=float), stage.theta, _free_rows(stage))
-    args = stage_arguments(st.theta, [st.states[k] for k in stage.windows], wins, stage.held)
-    return StageRun(opt, fn, args, u, st.solver), st
+        u, first = np.asarray(st.x, dtype=float), None
+    at_start = st
+    return StageRun(opt, lambda x: stage_evaluation(problem, at_start, stage, x), np.asarray(st.column_scale, dtype=float),
+                    u, st.solver, first), st
 
 
 def _cannot_simulate(problem: FitProblem, theta) -> FitDataError:
@@ -265,15 +273,16 @@ def run_stage(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoin
     if st.iteration == 0 and st.x is None:
         st = begin_stage(problem, opt, st)
     stage = problem.stages[st.stage]
-    jac = None
+    first = None
     if st.x is None and opt.least_squares:
-        loss0, jac = stage_jacobian(problem, st, stage)
+        first = stage_evaluation(problem, st, stage)
+        loss0, jac = float(np.sum(first[0] ** 2)), first[1]
         check_start_loss(problem, stage, loss0, np.asarray(st.theta, dtype=float))
         if not influences(jac):
             reason = _no_influence(problem, stage, st.theta)
             return _end_stage(st.replace(skipped=st.skipped + (f"{stage.name}: {reason}",)), stage, loss0, reason,
                               ckpt, problem.anywhere)
-    run, st = stage_run(problem, opt, st, stage, jac)
+    run, st = stage_run(problem, opt, st, stage, first)
     s = problem.settings
     limit, tol_f = stage.max_iter(s["max_iter"]), stage.ftol(s["ftol"])
     n_fit = max(float(sum(problem.win.residual_mask(k, stage.horizon).sum() for k in stage.windows)), 1.0)

@@ -14,11 +14,17 @@ acceptance records before the fit's model ran without exact onsets: 18, 12, 19, 
 against Nielsen's 15, 12, 21, 21; benchmarks/README.md, "Fitting: acceptance").
 
 The Jacobian ``J = dr/dx`` is computed in forward mode (``jax.jacfwd``: a handful of columns,
-hundreds of rows) and handed to optimistix materialised: the residual function returns
-``r(x0) + J(x0) (x - x0)`` with ``x0 = stop_gradient(x)``, whose value is ``r(x)`` and whose
-linearisation (which optimistix takes with ``jax.linearize``) is the matrix ``J``. So one
-Levenberg-Marquardt step costs one forward-mode simulation per window, and the linear solves
-(QR) and trust-region updates act on an ``N x P`` matrix.
+hundreds of rows), by the compiled program of one window
+(:func:`jaxclear.fitting.window.evaluate_window_jit`) window after window, **outside** the
+solver's compiled step: before each step the model runs at the point the step evaluates (the
+trial point ``y_eval`` of Levenberg-Marquardt), and the step receives ``r`` and ``J`` there as
+arrays, with the residual function ``r(u_e) + J(u_e) (u - u_e)`` (:class:`StageResidual`),
+whose value at ``u_e`` is ``r`` and whose linearisation (which optimistix takes with
+``jax.linearize``) is ``J``. So one Levenberg-Marquardt step costs one forward-mode simulation
+per window, the linear solves (QR) and trust-region updates act on an ``N x P`` matrix, and the
+model is compiled once, in the window's program, not a second time inside the step (on a small
+fit of the test suite the step's program had taken 21-37 s of compilation of its own; it is
+now a program of linear algebra, shared by every stage of the same sizes).
 
 The solver works in scaled unknowns ``u = D x`` (:func:`column_scale`: ``D_j = sqrt(1e-3)
 |J_{:,j}|`` at the stage's start), so that optimistix's ``lambda I`` damping, which starts at
@@ -29,9 +35,7 @@ The loop calls ``solver.step`` and ``solver.terminate`` itself (compiled with
 solver state's array leaves, is checkpointed after every step, and a killed fit resumes bit for
 bit. Both programs (:func:`_init`, :func:`_step`) go through the store of traced programs
 (:meth:`jaxclear.integrate.jit.stored`), so that a new process fitting a record of the same
-structure loads them instead of tracing them (10-15 s each on 2 cores): their outputs' structures,
-which the store needs without tracing the model, come from the same programs traced on a stand-in
-of the stage's residual that returns zeros of its shapes (:class:`_Shapes`, milliseconds). An optax
+sizes loads them instead of tracing them. An optax
 first-order optimiser can be used instead through :class:`optimistix.OptaxMinimiser` on ``0.5
 |r|^2`` (with ``D = 1``: the learning rate is in the transformed parameters).
 
@@ -60,7 +64,6 @@ import optimistix as optx
 from .._errors import ParameterError
 from ..integrate import jit
 from .lm import levenberg_marquardt, with_scale
-from .window import WindowInput, WindowModel, evaluate_window
 
 #: Extension trials after an accepted Gauss-Newton step, and the step cap in the unknowns ``x``
 #: (:func:`jaxclear.fitting.lm.levenberg_marquardt`). On the four acceptance records they take
@@ -80,69 +83,26 @@ _TAGS = frozenset()
 
 
 class StageArgs(eqx.Module):
-    """Data of a stage: the fixed ``theta`` ``(P,)``, the start states of its windows ``(W_s,
-    S)`` (fixed rows used, free rows replaced by ``x``), the windows' inputs, stacked along a
-    leading window axis (one :class:`WindowInput` whose leaves are ``(W_s, ...)``), and ``keep``
-    ``(P,)``: a parameter whose entry is 0 is held (its Jacobian column is zero, so the
-    Levenberg-Marquardt step leaves it where it is: the points of a profile likelihood,
-    :mod:`jaxclear.fitting.profile`). An array, not a static field, so a profile point shares
-    the compiled program of the stage it repeats."""
+    """The stage's model evaluated where the solver's step evaluates it (:meth:`StageRun.step`):
+    the residual ``(N,)``, its Jacobian ``(N, len(u))`` in the solver's unknowns ``u``, the point
+    ``u`` ``(len(u),)`` and the signals ``(W_s, C, n_pad)``. Arrays all: every step of every
+    stage of the same sizes shares one compiled step, which holds no copy of the model."""
 
-    theta: jax.Array
-    states: jax.Array
-    windows: tuple
-    keep: jax.Array  # (P,): 1 for a free parameter, 0 for one held at its value (a profile point)
+    residual: jax.Array
+    jacobian: jax.Array
+    at: jax.Array
+    signals: jax.Array
 
 
 class StageResidual(eqx.Module):
-    """``u -> (r, y)`` of a stage: residual ``(W_s n_pad,)`` and signals ``(W_s, n_pad)`` of the
-    solver's unknowns ``u = D x`` (``D = column_scale``, see :func:`column_scale`)."""
-
-    model: WindowModel
-    column_scale: jax.Array
-    theta_free: bool = eqx.field(static=True)
-    free_rows: tuple = eqx.field(static=True)  # rows (into the stage's windows) whose state is free
-
-    def evaluate(self, x, args: StageArgs):
-        """Residual, Jacobian ``(N, len(x))`` and signals at ``x`` (forward mode). The windows
-        are one ``jax.vmap`` of :func:`evaluate_window` (one copy of the model in the program
-        whatever the number of windows: a stage of four 3 ms windows compiled in 137 s as four
-        copies)."""
-        p = args.theta.shape[0]
-        n_state = args.states.shape[1]
-        theta = x[:p] if self.theta_free else args.theta
-        offset = p if self.theta_free else 0
-        states = args.states
-        for j, row in enumerate(self.free_rows):
-            states = states.at[row].set(x[offset + j * n_state: offset + (j + 1) * n_state])
-        r, jt, js, y, _ = jax.vmap(evaluate_window, in_axes=(None, None, 0, 0))(self.model, theta, states, args.windows)
-        jt = jt * args.keep
-        rows = range(r.shape[0])
-        return (jnp.reshape(r, (-1,)), stack_jacobian([jt[k] for k in rows], [js[k] for k in rows], self.theta_free,
-                                                      self.free_rows), y)
-
-    def shapes(self, x, args: StageArgs) -> tuple:
-        """The shapes of :meth:`evaluate`'s outputs, without running the model: residual
-        ``(W_s C n_pad,)``, Jacobian ``(W_s C n_pad, len(x))``, signals ``(W_s, C, n_pad)``."""
-        n_w, n_c, n_pad = args.windows.data.shape
-        n, dtype = n_w * n_c * n_pad, jnp.result_type(x, args.windows.data)
-        return (jax.ShapeDtypeStruct((n,), dtype), jax.ShapeDtypeStruct((n, x.shape[0]), dtype),
-                jax.ShapeDtypeStruct((n_w, n_c, n_pad), dtype))
+    """``u -> (r, y)`` of a stage, linear about the point the step evaluates: ``r(u_e) + J(u_e)
+    (u - u_e)``, whose value at ``u_e`` is the residual there and whose linearisation (which
+    optimistix takes with ``jax.linearize``) is the Jacobian: all that a Levenberg-Marquardt
+    step reads of the model (it evaluates ``fn`` once, at its trial point ``y_eval``), and, at
+    the current point, all that a first-order step reads (the loss and its gradient)."""
 
     def __call__(self, u, args: StageArgs):
-        u0 = jax.lax.stop_gradient(u)
-        r, jac, ys = self.evaluate(u0 / self.column_scale, args)
-        return r + (jac / self.column_scale) @ (u - u0), ys
-
-
-class _Shapes(StageResidual):
-    """A :class:`StageResidual` whose :meth:`evaluate` is zeros of its shapes
-    (:meth:`StageResidual.shapes`), running nothing of the model: a solver's state and step on it
-    have the structures of the real stage's (``__call__``'s linear model is the same) for
-    milliseconds of tracing instead of the model's (:func:`_structure`)."""
-
-    def evaluate(self, x, args: StageArgs):
-        return tuple(jnp.zeros(s.shape, s.dtype) for s in self.shapes(x, args))
+        return args.residual + args.jacobian @ (u - args.at), args.signals
 
 
 def column_scale(jac: np.ndarray, damping: float = 1e-3) -> np.ndarray:
@@ -246,20 +206,12 @@ def _objective(opt: Optimizer, fn: StageResidual):
     return fn if opt.least_squares else HalfSquares(fn)
 
 
-def _stand_in(fn):
-    """The objective ``fn`` (a :class:`StageResidual`, or :class:`HalfSquares` of one) on
-    :class:`_Shapes`."""
-    if isinstance(fn, HalfSquares):
-        return HalfSquares(_stand_in(fn.residual))
-    return _Shapes(fn.model, fn.column_scale, fn.theta_free, fn.free_rows)
-
-
 def _structure(program, solver, fn, *rest):
     """The pytree structure of ``program(solver, fn, *rest)``'s output (:func:`_init`,
-    :func:`_step`) without tracing the model: the program traced for shapes on the stand-in of
-    ``fn`` (:func:`_stand_in`). The store of traced programs checks it against the real
-    program's output where it traces that (a miss), and stores nothing that differs."""
-    return jax.tree_util.tree_structure(eqx.filter_eval_shape(program, solver, _stand_in(fn), *rest))
+    :func:`_step`), traced for shapes only (milliseconds: the stage's residual holds no model).
+    The store of traced programs checks it against the real program's output where it traces
+    that (a miss), and stores nothing that differs."""
+    return jax.tree_util.tree_structure(eqx.filter_eval_shape(program, solver, fn, *rest))
 
 
 def _template(solver, fn, y, args):
@@ -318,24 +270,44 @@ class StepReport(NamedTuple):
 
 class StageRun:
     """The steps of one stage from the solver unknowns ``u`` (fresh, or the saved solver leaves
-    of a killed run): :meth:`step` until a stop reason."""
+    of a killed run): :meth:`step` until a stop reason. ``evaluate(x)`` runs the model: the
+    stage's residual ``(N,)``, its Jacobian in ``x = u / D`` ``(N, len(x))`` and the signals,
+    NaN residuals where the model fails (:func:`jaxclear.fitting.run.stage_evaluation`);
+    ``first``: its value at the start ``u / D`` where already computed."""
 
-    def __init__(self, opt: Optimizer, fn: StageResidual, args: StageArgs, u, leaves=None):
-        self.fn, self.args = _objective(opt, fn), args
-        self.opt = opt._replace(solver=with_scale(opt.solver, fn.column_scale))
-        self.scale = np.asarray(fn.column_scale)
+    def __init__(self, opt: Optimizer, evaluate, column_scale, u, leaves=None, first=None):
+        self.fn = _objective(opt, StageResidual())
+        self.opt = opt._replace(solver=with_scale(opt.solver, column_scale))
+        self.scale = np.asarray(column_scale, dtype=float)
+        self.evaluate = evaluate
         self.y = jnp.asarray(u, dtype=float)
+        self._last = (np.asarray(self.y), first) if first is not None else None
+        args = self._args(self.y)
         fresh = (opt.solver, self.fn, self.y, args)
         arrays = _init.stored("fit-solver-init", functools.cache(lambda: _structure(_init, *fresh)), *fresh)
         self.arrays = arrays if leaves is None else restore(arrays, leaves)
-        self._step_structure = functools.cache(lambda: _structure(_step, self.opt.solver, self.fn, self.y, self.args,
-                                                                  self.arrays))
+
+    def _args(self, point) -> StageArgs:
+        """:class:`StageArgs`: the model evaluated at the solver unknowns ``point``."""
+        point = np.asarray(point, dtype=float)
+        if self._last is not None and np.array_equal(self._last[0], point):
+            r, jac, ys = self._last[1]
+        else:
+            r, jac, ys = self.evaluate(point / self.scale)
+            self._last = (point, (r, jac, ys))
+        return StageArgs(jnp.asarray(r, dtype=float), jnp.asarray(np.asarray(jac) / self.scale, dtype=float),
+                         jnp.asarray(point), jnp.asarray(ys, dtype=float))
 
     def step(self, iteration: int, limit: int, tol_f: float, xtol: float) -> StepReport:
-        """One solver step; ``iteration``: iterations so far in this stage, ``limit`` their most."""
+        """One solver step; ``iteration``: iterations so far in this stage, ``limit`` their most.
+        The model runs first, outside the compiled step, where the step evaluates it: at the
+        trial point ``y_eval`` of Levenberg-Marquardt, at the current point for first-order
+        optimisers."""
         before, old = np.asarray(self.y), self.arrays
-        y, arrays, aux, done, predicted = _step.stored("fit-solver-step", self._step_structure, self.opt.solver,
-                                                       self.fn, self.y, self.args, self.arrays)
+        args = self._args(old.y_eval if self.opt.least_squares else self.y)
+        step_in = (self.opt.solver, self.fn, self.y, args, self.arrays)
+        y, arrays, aux, done, predicted = _step.stored("fit-solver-step",
+                                                       functools.cache(lambda: _structure(_step, *step_in)), *step_in)
         self.y, self.arrays = y, arrays
         u = np.asarray(y)
         if not self.opt.least_squares:
@@ -380,13 +352,3 @@ class StageRun:
         elif iteration + 1 >= limit:
             reason = "max_iter"
         return StepReport(u, u / self.scale, loss, True, reason, arrays)
-
-
-def stage_arguments(theta, states, windows: list[WindowInput], held: tuple = ()) -> StageArgs:
-    """:class:`StageArgs` from ``theta`` ``(P,)``, the stage windows' states and inputs (stacked)
-    and the indices of the parameters ``held`` at their values."""
-    stacked = jax.tree_util.tree_map(lambda *leaves: jnp.stack(leaves), *windows)
-    theta = jnp.asarray(theta, dtype=float)
-    keep = jnp.ones_like(theta).at[jnp.asarray(held, dtype=int)].set(0.0) if held else jnp.ones_like(theta)
-    return StageArgs(theta, jnp.asarray(np.asarray(states, dtype=float)), stacked, keep)
-
