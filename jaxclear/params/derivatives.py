@@ -61,20 +61,43 @@ def check_names(mech: Mechanism, names: Sequence[str]) -> tuple:
     return names
 
 
-@eqx.filter_jit
-def _linearized(mech, s, names, x, output):
-    """``(value, tangents, status)``: the run's status is returned, not raised here (``s``
-    without ``throw``), so that the program holds no host callback and JAX's persistent
-    compilation cache keeps it; :func:`sensitivities` raises for it after the program returns."""
-    quiet = dataclasses.replace(s, throw=False)
+def _directions(mech: Mechanism, names: tuple, x):
+    """The mechanism with the named numbers and every derived value set (arrays), and the
+    tangents of its floating-point leaves along each name, stacked ``(k, ...)`` (a leaf's change
+    per unit change of ``names[i]``, derived values following their sources:
+    :func:`jaxclear.params.replace_following`). Every derived value is set, asked or not, so
+    the mechanism's structure, hence the compiled run of :func:`_linearized`, does not depend
+    on which names are asked: a new set of as many names reuses the program."""
+    derived = {n: params.get(mech, n) for n in params.names(mech) if n not in names and params.is_derived(mech, n)}
 
-    def f(v):
-        m = params.replace_following(mech, dict(zip(names, v)), dict(zip(names, x)))
+    def put(v):
+        return params.replace_following(mech, {**dict(zip(names, v)), **derived}, {**dict(zip(names, x)), **derived})
+
+    def floats(v):
+        return eqx.filter(put(v), eqx.is_inexact_array)
+
+    tangents = jax.vmap(lambda e: jax.jvp(floats, (x,), (e,))[1])(jnp.eye(x.shape[0], dtype=x.dtype))
+    return put(x), tangents
+
+
+@eqx.filter_jit
+def _linearized(mech, s, directions, output):
+    """``(value, tangents, status)`` of the run of ``mech`` and its derivatives along the stacked
+    ``directions`` of its floating-point leaves (:func:`_directions`): tangent directions are
+    arguments, so one program serves every set of as many names. The run's status is returned,
+    not raised here (``s`` without ``throw``), so that the program holds no host callback and
+    JAX's persistent compilation cache keeps it; :func:`sensitivities` raises for it after the
+    program returns."""
+    quiet = dataclasses.replace(s, throw=False)
+    dynamic, static = eqx.partition(mech, eqx.is_inexact_array)
+
+    def f(d):
+        m = eqx.combine(d, static)
         sol = simulate(m, quiet)
         return (sol if output is None else output(sol, m)), sol.status
 
-    value, lin, status = jax.linearize(f, x, has_aux=True)
-    return value, jax.vmap(lin)(jnp.eye(x.shape[0], dtype=x.dtype)), status
+    value, lin, status = jax.linearize(f, dynamic, has_aux=True)
+    return value, jax.vmap(lin)(directions), status
 
 
 def _is_float(x) -> bool:
@@ -123,7 +146,8 @@ def sensitivities(mech: Mechanism, names: Sequence[str], s: Settings, output: Ca
         names, s = s, names
     names = check_names(mech, names)
     x = jnp.asarray([params.get(mech, n) for n in names], dtype=float)
-    value, tangents, status = _linearized(mech, s, names, x, output)
+    at, directions = _directions(mech, names, x)
+    value, tangents, status = _linearized(at, s, directions, output)
     # a failed run (or sensitivity solve) raises here, after the program (or, inside a user's
     # jit or vmap, through equinox.error_if in the user's program): never a silent NaN
     value, tangents = check_status((value, tangents), status, s, " (the run of jaxclear.sensitivities)", mech)
