@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Callable, Sequence
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -22,13 +23,19 @@ def parameter_grad(loss: Callable, mech: Mechanism, names: Sequence[str], s: Set
     parameters (:mod:`jaxclear.params`).
 
     With ``s.derivatives = Sensitivity()`` (the default) both modes give the error-controlled
-    sensitivities (:mod:`jaxclear.integrate._sensitivity`): ``mode="forward"`` by ``jax.jacfwd``,
-    ``mode="reverse"`` by ``jax.grad`` (their transpose), the same numbers. Through diffrax's loop
-    (:class:`~jaxclear.ThroughLoop`), ``mode="reverse"`` uses ``s.derivatives``' adjoint
-    (``"forward"`` is replaced by ``"recursive"``) and ``mode="forward"`` uses ``"forward"``
-    (:meth:`~jaxclear.integrate._strategies.AbstractDerivatives.for_mode`). Returns ``(value, {name: d
-    loss / d name})``. Compiles on every call: for repeated use, build your own
-    ``eqx.filter_jit`` of the same function.
+    sensitivities (:mod:`jaxclear.integrate._sensitivity`): ``mode="forward"`` by
+    ``jax.linearize``, ``mode="reverse"`` by ``jax.grad`` (their transpose), the same numbers.
+    Through diffrax's loop (:class:`~jaxclear.ThroughLoop`), ``mode="reverse"`` uses
+    ``s.derivatives``' adjoint (``"forward"`` is replaced by ``"recursive"``) and
+    ``mode="forward"`` uses ``"forward"``
+    (:meth:`~jaxclear.integrate._strategies.AbstractDerivatives.for_mode`). Returns ``(value,
+    {name: d loss / d name})``. Each derivative means what :func:`jaxclear.sensitivities`'
+    does: the change of the loss as that one number changes, derived values (a stiffness left to
+    the preset) following their sources, whichever other names are asked
+    (:func:`jaxclear.params.directions`). The names are tangent directions given to one
+    compiled program per ``loss`` function, settings and mode: in reverse mode the gradient with
+    respect to every floating-point leaf of the mechanism, projected on the directions after the
+    program (any set of names), in forward mode one tangent per name (any set of as many names).
     """
     names = tuple(names)
     for n in names:
@@ -36,18 +43,42 @@ def parameter_grad(loss: Callable, mech: Mechanism, names: Sequence[str], s: Set
     if mode not in ("reverse", "forward"):
         raise ParameterError(f"mode = {mode!r}; valid: 'reverse', 'forward'")
     s = dataclasses.replace(s, derivatives=s.derivatives.for_mode(mode))
-    x0 = jnp.asarray([params.get(mech, n) for n in names], dtype=float)
-
-    def f(x):
-        m = params.replace_many(mech, dict(zip(names, x)))
-        value = loss(simulate(m, s), m)
-        return value, value
-
+    at, along = params.directions(mech, names)
     if mode == "reverse":
-        g, value = jit(jax.grad(f, has_aux=True))(x0)
+        value, grad = _value_and_grad(loss, at, s)
+        g = sum(np.tensordot(np.asarray(t), np.asarray(d), axes=np.ndim(d)) for t, d in
+                zip(jax.tree_util.tree_leaves(along), jax.tree_util.tree_leaves(grad)))
     else:
-        g, value = jit(jax.jacfwd(f, has_aux=True))(x0)
+        value, g = _value_and_tangents(loss, at, s, along)
     return float(value), {n: float(g[i]) for i, n in enumerate(names)}
+
+
+def _loss_of_leaves(loss, mech, s):
+    """``(the mechanism's floating-point leaves -> loss of its run, those leaves)``."""
+    dynamic, static = eqx.partition(mech, eqx.is_inexact_array)
+
+    def f(d):
+        m = eqx.combine(d, static)
+        return loss(simulate(m, s), m)
+
+    return f, dynamic
+
+
+@jit
+def _value_and_grad(loss, mech, s):
+    """The loss and its gradient over every floating-point leaf of the mechanism (a pytree of
+    ``eqx.filter(mech, eqx.is_inexact_array)``'s structure): one program for any set of names."""
+    f, dynamic = _loss_of_leaves(loss, mech, s)
+    return jax.value_and_grad(f)(dynamic)
+
+
+@jit
+def _value_and_tangents(loss, mech, s, along):
+    """The loss and its derivatives ``(k,)`` along the stacked directions ``along`` of the
+    mechanism's floating-point leaves: one program for any set of ``k`` names."""
+    f, dynamic = _loss_of_leaves(loss, mech, s)
+    value, lin = jax.linearize(f, dynamic)
+    return value, jax.vmap(lin)(along)
 
 
 def slider_power_loss(mech: Mechanism, names: Sequence[str], units, s: Settings, slider: str = "slider",

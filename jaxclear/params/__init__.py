@@ -12,7 +12,7 @@ from .registry import (BODY_NAMES, COMPONENTS, CONNECTOR_NAMES, DEPRECATED, DERI
                        get, info, is_derived, names, parameter_names, replace, replace_following, replace_many,
                        split_name, to_unconstrained, validate)
 from .derivatives import (DerivativeHorizonWarning, amplification, check_names, derivative_horizon,
-                          differentiable_names, sensitivities)
+                          differentiable_names, directions, sensitivities)
 
 __all__ = [
     # the registry
@@ -21,6 +21,6 @@ __all__ = [
     "get", "info", "is_derived", "names", "parameter_names", "replace", "replace_following", "replace_many",
     "split_name", "to_unconstrained", "validate",
     # derivatives with respect to named parameters
-    "sensitivities", "differentiable_names", "check_names", "amplification", "derivative_horizon",
+    "sensitivities", "differentiable_names", "check_names", "directions", "amplification", "derivative_horizon",
     "DerivativeHorizonWarning",
 ]

@@ -61,13 +61,18 @@ def check_names(mech: Mechanism, names: Sequence[str]) -> tuple:
     return names
 
 
-def _directions(mech: Mechanism, names: tuple, x):
-    """The mechanism with the named numbers and every derived value set (arrays), and the
-    tangents of its floating-point leaves along each name, stacked ``(k, ...)`` (a leaf's change
+def directions(mech: Mechanism, names: Sequence[str], x=None):
+    """The mechanism with the named numbers (at ``x`` ``(k,)``; None: their values) and every
+    derived value set (arrays), and the tangents of its floating-point leaves along each name,
+    stacked ``(k, ...)`` (``eqx.filter(mech, eqx.is_inexact_array)``'s structure: a leaf's change
     per unit change of ``names[i]``, derived values following their sources:
     :func:`jaxclear.params.replace_following`). Every derived value is set, asked or not, so
-    the mechanism's structure, hence the compiled run of :func:`_linearized`, does not depend
-    on which names are asked: a new set of as many names reuses the program."""
+    the mechanism's structure, hence a compiled derivative of its run (:func:`sensitivities`,
+    :func:`jaxclear.parameter_grad`), does not depend on which names are asked: the names are
+    tangent directions given to the program, and a new set of as many names reuses it."""
+    names = tuple(names)
+    if x is None:
+        x = jnp.asarray([params.get(mech, n) for n in names], dtype=float)
     derived = {n: params.get(mech, n) for n in params.names(mech) if n not in names and params.is_derived(mech, n)}
 
     def put(v):
@@ -81,9 +86,9 @@ def _directions(mech: Mechanism, names: tuple, x):
 
 
 @eqx.filter_jit
-def _linearized(mech, s, directions, output):
+def _linearized(mech, s, along, output):
     """``(value, tangents, status)`` of the run of ``mech`` and its derivatives along the stacked
-    ``directions`` of its floating-point leaves (:func:`_directions`): tangent directions are
+    directions ``along`` of its floating-point leaves (:func:`directions`): tangent directions are
     arguments, so one program serves every set of as many names. The run's status is returned,
     not raised here (``s`` without ``throw``), so that the program holds no host callback and
     JAX's persistent compilation cache keeps it; :func:`sensitivities` raises for it after the
@@ -97,7 +102,7 @@ def _linearized(mech, s, directions, output):
         return (sol if output is None else output(sol, m)), sol.status
 
     value, lin, status = jax.linearize(f, dynamic, has_aux=True)
-    return value, jax.vmap(lin)(directions), status
+    return value, jax.vmap(lin)(along), status
 
 
 def _is_float(x) -> bool:
@@ -146,8 +151,8 @@ def sensitivities(mech: Mechanism, names: Sequence[str], s: Settings, output: Ca
         names, s = s, names
     names = check_names(mech, names)
     x = jnp.asarray([params.get(mech, n) for n in names], dtype=float)
-    at, directions = _directions(mech, names, x)
-    value, tangents, status = _linearized(at, s, directions, output)
+    at, along = directions(mech, names, x)
+    value, tangents, status = _linearized(at, s, along, output)
     # a failed run (or sensitivity solve) raises here, after the program (or, inside a user's
     # jit or vmap, through equinox.error_if in the user's program): never a silent NaN
     value, tangents = check_status((value, tangents), status, s, " (the run of jaxclear.sensitivities)", mech)
