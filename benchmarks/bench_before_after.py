@@ -143,13 +143,9 @@ def _imported(t0: float) -> tuple:
     return jax, jc, time.perf_counter() - t0, where
 
 
-def child_engine(args) -> dict:
-    t0 = time.perf_counter()
-    jax, jc, import_s, where = _imported(t0)
-    import numpy as np
-
-    mech = jc.preset(PRESET)
-    s = jc.settings(args.revolutions * 60.0 / RPM, n_out=args.n_out)
+def _timed_calls(jax, jc, mech, s, args):
+    """``(first solution, first call [s], the steady calls [s])``: one call, ``args.warmup``
+    discarded, ``args.repeats`` timed, each ``jax.block_until_ready``-ed."""
     t = time.perf_counter()
     sol = jax.block_until_ready(jc.simulate(mech, s))
     first = time.perf_counter() - t
@@ -160,18 +156,20 @@ def child_engine(args) -> dict:
         t = time.perf_counter()
         jax.block_until_ready(jc.simulate(mech, s))
         times.append(time.perf_counter() - t)
+    return sol, first, times
+
+
+def child_engine(args) -> dict:
+    t0 = time.perf_counter()
+    jax, jc, import_s, where = _imported(t0)
+    import numpy as np
+
+    mech = jc.preset(PRESET)
+    s = jc.settings(args.revolutions * 60.0 / RPM, n_out=args.n_out)
+    sol, first, times = _timed_calls(jax, jc, mech, s, args)
     # the same program (t_end is an array leaf) over a short run: the fixed cost of a call
     short = jc.settings(args.short_revolutions * 60.0 / RPM, n_out=args.n_out)
-    t = time.perf_counter()
-    sol_short = jax.block_until_ready(jc.simulate(mech, short))
-    short_first = time.perf_counter() - t
-    for _ in range(args.warmup):
-        jax.block_until_ready(jc.simulate(mech, short))
-    short_times = []
-    for _ in range(args.repeats):
-        t = time.perf_counter()
-        jax.block_until_ready(jc.simulate(mech, short))
-        short_times.append(time.perf_counter() - t)
+    sol_short, short_first, short_times = _timed_calls(jax, jc, mech, short, args)
     names = [getattr(b, "name", "") for b in mech.bodies]
     i = names.index("slider") if "slider" in names else len(names) - 1
     q = np.asarray(sol.q)
