@@ -30,6 +30,7 @@ import dataclasses
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+from jax import monitoring
 import numpy as np
 import pytest
 from conftest import free_journal
@@ -221,6 +222,17 @@ def test_parameter_grad_helper():
     assert v1 == pytest.approx(v2, rel=1e-12)
     for n in g1:
         assert g1[n] == pytest.approx(g2[n], rel=1e-6)
+    # reverse mode: one program for any set of names (the gradient over every leaf, projected
+    # after); only single operations of the directions' eager arithmetic are traced again
+    traces = []
+    listening = [True]
+    monitoring.register_event_duration_secs_listener(
+        lambda event, duration, **kw: listening[0] and event.endswith("jaxpr_trace_duration") and traces.append(
+            (str(kw.get("fun_name")), duration)))
+    _, g3 = jc.parameter_grad(loss, mech, ["stiffness"], s, mode="reverse")
+    listening[0] = False
+    assert not [t for t in traces if "grad" in t[0] or t[1] > 0.5], traces
+    assert g3["stiffness"] == pytest.approx(g1["stiffness"], rel=1e-12)
     with pytest.raises(jc.ParameterError, match="stifness"):
         jc.parameter_grad(loss, mech, ["stifness"], s)
 

@@ -35,7 +35,9 @@ def parameter_grad(loss: Callable, mech: Mechanism, names: Sequence[str], s: Set
     (:func:`jaxclear.params.directions`). The names are tangent directions given to one
     compiled program per ``loss`` function, settings and mode: in reverse mode the gradient with
     respect to every floating-point leaf of the mechanism, projected on the directions after the
-    program (any set of names), in forward mode one tangent per name (any set of as many names).
+    program (any set of names), in forward mode :func:`jaxclear.sensitivities`' own program with
+    ``loss`` as its output (one tangent per name; any set of as many names, shared with
+    ``jc.sensitivities(mech, names, settings, output=loss)``).
     """
     names = tuple(names)
     for n in names:
@@ -43,42 +45,27 @@ def parameter_grad(loss: Callable, mech: Mechanism, names: Sequence[str], s: Set
     if mode not in ("reverse", "forward"):
         raise ParameterError(f"mode = {mode!r}; valid: 'reverse', 'forward'")
     s = dataclasses.replace(s, derivatives=s.derivatives.for_mode(mode))
+    if mode == "forward":  # the program of jc.sensitivities with ``loss`` as its output: shared with it
+        value, derivatives = params.sensitivities(mech, names, s, output=loss, warn=False)
+        return float(value), {n: float(derivatives[n]) for n in names}
     at, along = params.directions(mech, names)
-    if mode == "reverse":
-        value, grad = _value_and_grad(loss, at, s)
-        g = sum(np.tensordot(np.asarray(t), np.asarray(d), axes=np.ndim(d)) for t, d in
-                zip(jax.tree_util.tree_leaves(along), jax.tree_util.tree_leaves(grad)))
-    else:
-        value, g = _value_and_tangents(loss, at, s, along)
+    value, grad = _value_and_grad(loss, at, s)
+    g = sum(np.tensordot(np.asarray(t), np.asarray(d), axes=np.ndim(d)) for t, d in
+            zip(jax.tree_util.tree_leaves(along), jax.tree_util.tree_leaves(grad)))
     return float(value), {n: float(g[i]) for i, n in enumerate(names)}
-
-
-def _loss_of_leaves(loss, mech, s):
-    """``(the mechanism's floating-point leaves -> loss of its run, those leaves)``."""
-    dynamic, static = eqx.partition(mech, eqx.is_inexact_array)
-
-    def f(d):
-        m = eqx.combine(d, static)
-        return loss(simulate(m, s), m)
-
-    return f, dynamic
 
 
 @jit
 def _value_and_grad(loss, mech, s):
     """The loss and its gradient over every floating-point leaf of the mechanism (a pytree of
     ``eqx.filter(mech, eqx.is_inexact_array)``'s structure): one program for any set of names."""
-    f, dynamic = _loss_of_leaves(loss, mech, s)
+    dynamic, static = eqx.partition(mech, eqx.is_inexact_array)
+
+    def f(d):
+        m = eqx.combine(d, static)
+        return loss(simulate(m, s), m)
+
     return jax.value_and_grad(f)(dynamic)
-
-
-@jit
-def _value_and_tangents(loss, mech, s, along):
-    """The loss and its derivatives ``(k,)`` along the stacked directions ``along`` of the
-    mechanism's floating-point leaves: one program for any set of ``k`` names."""
-    f, dynamic = _loss_of_leaves(loss, mech, s)
-    value, lin = jax.linearize(f, dynamic)
-    return value, jax.vmap(lin)(along)
 
 
 def slider_power_loss(mech: Mechanism, names: Sequence[str], units, s: Settings, slider: str = "slider",
