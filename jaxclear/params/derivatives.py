@@ -61,18 +61,16 @@ def check_names(mech: Mechanism, names: Sequence[str]) -> tuple:
     return names
 
 
-def directions(mech: Mechanism, names: Sequence[str], x=None):
-    """The mechanism with the named numbers (at ``x`` ``(k,)``; None: their values) and every
-    derived value set (arrays), and the tangents of its floating-point leaves along each name,
-    stacked ``(k, ...)`` (``eqx.filter(mech, eqx.is_inexact_array)``'s structure: a leaf's change
+def directions(mech: Mechanism, names: Sequence[str]):
+    """The mechanism with the named numbers and every derived value set (arrays, at their
+    values), and the tangents of its floating-point leaves along each name, stacked ``(k, ...)`` (``eqx.filter(mech, eqx.is_inexact_array)``'s structure: a leaf's change
     per unit change of ``names[i]``, derived values following their sources:
     :func:`jaxclear.params.replace_following`). Every derived value is set, asked or not, so
     the mechanism's structure, hence a compiled derivative of its run (:func:`sensitivities`,
     :func:`jaxclear.parameter_grad`), does not depend on which names are asked: the names are
     tangent directions given to the program, and a new set of as many names reuses it."""
     names = tuple(names)
-    if x is None:
-        x = jnp.asarray([params.get(mech, n) for n in names], dtype=float)
+    x = jnp.asarray([params.get(mech, n) for n in names], dtype=float)
     derived = {n: params.get(mech, n) for n in params.names(mech) if n not in names and params.is_derived(mech, n)}
 
     def put(v):
@@ -150,8 +148,7 @@ def sensitivities(mech: Mechanism, names: Sequence[str], s: Settings, output: Ca
                    "jc.sensitivities(mech, names, settings), the order of jc.parameter_grad(loss, mech, names, settings)")
         names, s = s, names
     names = check_names(mech, names)
-    x = jnp.asarray([params.get(mech, n) for n in names], dtype=float)
-    at, along = directions(mech, names, x)
+    at, along = directions(mech, names)
     value, tangents, status = _linearized(at, s, along, output)
     # a failed run (or sensitivity solve) raises here, after the program (or, inside a user's
     # jit or vmap, through equinox.error_if in the user's program): never a silent NaN
