@@ -63,8 +63,9 @@ def check_names(mech: Mechanism, names: Sequence[str]) -> tuple:
 
 def directions(mech: Mechanism, names: Sequence[str]):
     """The mechanism with the named numbers and every derived value set (arrays, at their
-    values), and the tangents of its floating-point leaves along each name, stacked ``(k, ...)`` (``eqx.filter(mech, eqx.is_inexact_array)``'s structure: a leaf's change
-    per unit change of ``names[i]``, derived values following their sources:
+    values), and the tangents of its floating-point leaves along each name, stacked ``(k, ...)``
+    (``eqx.filter(mech, eqx.is_inexact_array)``'s structure: a leaf's change per unit change of
+    ``names[i]``, derived values following their sources:
     :func:`jaxclear.params.replace_following`). Every derived value is set, asked or not, so
     the mechanism's structure, hence a compiled derivative of its run (:func:`sensitivities`,
     :func:`jaxclear.parameter_grad`), does not depend on which names are asked: the names are
