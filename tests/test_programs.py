@@ -102,6 +102,63 @@ def test_a_library_function_is_keyed_by_its_name_and_a_users_is_not():
         assert programs.program_key("p", (fun,)) is None
 
 
+def test_a_remembered_key_is_the_key_built_anew(store):
+    """:func:`program_key` remembers the key of a structure met before (building it took a tenth of
+    a warm call): what it returns equals the key built from the arguments, for the run's own
+    arguments and after a change of a static value (another contact law, another sample count),
+    which gets its own key."""
+    import jax.numpy as jnp
+
+    mech = jc.preset("flores-slider-crank")
+    s = revolution_settings(mech, 0.05, n_out=51)
+    other = jc.preset("flores-slider-crank", law="flores")
+    calls = [(mech, s), (mech, dataclasses.replace(s, n_out=52)), (other, s), (mech, s),
+             (jax.tree_util.tree_map(lambda x: x + 1.0 if eqx_is_float(x) else x, mech), s)]
+    keys = []
+    for args in calls:
+        options = ";".join(f"{o}={getattr(jax.config, o, None)}" for o in programs.KEYED_OPTIONS)
+        built = programs._key("p", args, options)
+        for _ in range(2):  # built, then remembered
+            key, leaves = programs.program_key("p", args)
+            assert key == built
+            assert len(leaves) == len([x for x in jax.tree_util.tree_leaves(args) if isinstance(x, (jax.Array, np.ndarray))])
+        keys.append(key)
+    assert len(set(keys[:3])) == 3 and keys[3] == keys[0] == keys[4]
+    # a Python number among the leaves is keyed by its type and value
+    assert programs.program_key("p", (jnp.ones(2), 1))[0] != programs.program_key("p", (jnp.ones(2), 1.0))[0]
+
+
+def eqx_is_float(x):
+    return isinstance(x, jax.Array) and jax.numpy.issubdtype(x.dtype, jax.numpy.floating)
+
+
+def test_a_mechanism_passed_again_is_not_transferred_again(monkeypatch):
+    """The committed copy of an uncommitted array is kept while the array lives: the second call
+    transfers nothing, and the copy goes with the array."""
+    import gc
+
+    import jax.numpy as jnp
+
+    moved = []
+    real = jax.device_put
+
+    def counting(x, *a, **k):
+        moved.append(len(x) if isinstance(x, list) else 1)
+        return real(x, *a, **k)
+
+    monkeypatch.setattr(jax, "device_put", counting)
+    x, y = jnp.arange(3.0), jnp.ones(2)
+    first = programs._placed([x, y])
+    assert moved == [2] and all(a.committed for a in first)
+    second = programs._placed([x, y])
+    assert moved == [2] and all(a is b for a, b in zip(first, second))
+    ident = id(x)
+    assert ident in programs._COPIES
+    del x, first, second
+    gc.collect()
+    assert ident not in programs._COPIES
+
+
 def test_the_lanes_rule_of_the_process_is_in_the_key(monkeypatch):
     """Whether XLA's single-kernel loops are on decides, while tracing, ``jax.lax.map`` or
     ``jax.vmap`` (the run's post-processing, the lanes of a batch): a program traced under one

@@ -63,6 +63,7 @@ import tempfile
 import threading
 import types
 import warnings
+import weakref
 from pathlib import Path
 from typing import Callable
 
@@ -239,7 +240,59 @@ def _trusted(types) -> bool:
 
 def program_key(name: str, args) -> tuple[str, list] | None:
     """``(key, array leaves)`` of a call of program ``name`` on ``args``, or None when the
-    arguments' static part cannot be keyed faithfully (see the module's docstring)."""
+    arguments' static part cannot be keyed faithfully (see the module's docstring).
+
+    The key of a structure met before is remembered (:func:`_memo`): building it (the ``repr``
+    of the arguments' static part, the walk over its types, the SHA-256) took a tenth of a warm
+    call of the benchmark's run."""
+    flat, treedef = jax.tree_util.tree_flatten(args)
+    leaves = [x for x in flat if eqx.is_array(x)]
+    options = ";".join(f"{o}={getattr(jax.config, o, None)}" for o in KEYED_OPTIONS)
+    memo = _memo(name, treedef, flat, options)
+    if memo is not None:
+        with _LOCK:
+            known = _KEYS.get(memo, _MISSING)
+        if known is not _MISSING:
+            return None if known is None else (known, leaves)
+    key = _key(name, args, options)
+    if memo is not None:
+        with _LOCK:
+            if len(_KEYS) >= MEMO_SIZE:
+                _KEYS.clear()
+            _KEYS[memo] = key
+    return None if key is None else (key, leaves)
+
+
+#: How many keys :func:`program_key` remembers (all are forgotten when it is full).
+MEMO_SIZE = 512
+_KEYS: dict = {}
+_MISSING = object()
+
+
+def _memo(name: str, treedef, flat: list, options: str):
+    """What decides a call's key, cheaply and hashable: the name, JAX's options and the
+    process's (:func:`_process_digest`), the arguments' tree structure (with every static field
+    of their modules, compared by equality as :func:`jax.jit`'s own cache compares them), the
+    shape and dtype of each array leaf, and each other leaf by its type and ``repr``. None when
+    something in it cannot be hashed (its key is then built every time)."""
+    parts = []
+    for x in flat:
+        if eqx.is_array(x):
+            parts.append((x.shape, str(x.dtype)))
+        elif isinstance(x, (bool, int, float, complex, str, type(None))):
+            parts.append((type(x), repr(x)))
+        else:
+            parts.append((type(x), x))
+    memo = (name, options, _process_digest(), treedef, tuple(parts))
+    try:
+        hash(memo)
+    except TypeError:
+        return None
+    return memo
+
+
+def _key(name: str, args, options: str) -> str | None:
+    """The key of :func:`program_key`, built from the arguments (None: unkeyable)."""
     leaves, treedef, static = _split(args)
     flat, static_def = jax.tree_util.tree_flatten(static)
     flat = [_by_name(x) for x in flat]
@@ -250,7 +303,6 @@ def program_key(name: str, args) -> tuple[str, list] | None:
     _types([flat, static_def, treedef], found)
     if not _trusted(found):
         return None
-    options = ";".join(f"{o}={getattr(jax.config, o, None)}" for o in KEYED_OPTIONS)
     h = hashlib.sha256()
     h.update(f"{name}\n{_environment_digest()}\n{options}\n{_process_digest()}\n".encode())
     h.update(",".join(sorted(f"{t.__module__}.{t.__qualname__}" for t in found)).encode())
@@ -258,7 +310,7 @@ def program_key(name: str, args) -> tuple[str, list] | None:
     h.update(repr(treedef).encode())
     for x in leaves:
         h.update(f"{x.shape}{x.dtype};".encode())
-    return h.hexdigest(), leaves
+    return h.hexdigest()
 
 
 def _export(fun: Callable, args) -> tuple[jax.export.Exported, jax.tree_util.PyTreeDef]:
@@ -435,14 +487,40 @@ def _placed(leaves: list) -> list:
     program's outputs come back committed, and ``jax.jit`` lowers and compiles a program anew
     when an argument's commitment changes: the fit's solver step, called first on fresh unknowns
     and then on its own outputs, was compiled twice (41 s each on 2 cores for a small fit), as
-    two entries of JAX's compilation cache. Committed alike on every call, it compiles once."""
-    arrays = [jnp.asarray(x) for x in leaves]
-    loose = [i for i, x in enumerate(arrays) if not x.committed]
+    two entries of JAX's compilation cache. Committed alike on every call, it compiles once.
+
+    The committed copy of an uncommitted array is kept while the array lives (:data:`_COPIES`, by
+    identity: a JAX array never changes), so a mechanism passed again is not transferred again
+    (its 42 transfers took a tenth of a warm call of the benchmark's run)."""
+    arrays = [x if isinstance(x, jax.Array) else jnp.asarray(x) for x in leaves]
+    loose = []
+    for i, x in enumerate(arrays):
+        if isinstance(x, jax.core.Tracer) or x.committed:
+            continue
+        known = _COPIES.get(id(x))
+        if known is not None and known[0]() is x:
+            arrays[i] = known[1]
+        else:
+            loose.append(i)
     if loose:  # one batched transfer (42 single ones took 40 % of a warm call of the benchmark's run)
         placed = jax.device_put([arrays[i] for i in loose], [arrays[i].sharding for i in loose])
-        for i, x in zip(loose, placed):
-            arrays[i] = x
+        for i, copy in zip(loose, placed):
+            x, arrays[i] = arrays[i], copy
+            if x is not leaves[i]:  # made here from a NumPy value: nobody passes it again
+                continue
+            with _LOCK:
+                _COPIES[id(x)] = (weakref.ref(x, functools.partial(_forget, id(x))), copy)
     return arrays
+
+
+#: Committed copies of uncommitted arrays (:func:`_placed`): id -> (weak reference, copy).
+_COPIES: dict[int, tuple] = {}
+
+
+def _forget(ident: int, _ref) -> None:
+    """Drop the copy of an array that no longer lives."""
+    with _LOCK:
+        _COPIES.pop(ident, None)
 
 
 def _runner(key: str, fun: Callable, args, options: dict, out_structure: Callable | None = None) -> Callable | None:
