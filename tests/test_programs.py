@@ -157,6 +157,15 @@ def test_a_mechanism_passed_again_is_not_transferred_again(monkeypatch):
     del x, first, second
     gc.collect()
     assert ident not in programs._COPIES
+    # a read-only NumPy array that owns its data is kept too; a writable one is converted anew
+    constant, loose = np.array(2.0), np.array(3.0)
+    constant.flags.writeable = False
+    moved.clear()
+    programs._placed([constant, loose])
+    programs._placed([constant, loose])
+    assert moved == [2, 1]
+    loose += 1.0  # a writable array may change between calls: the new value goes in
+    assert float(programs._placed([constant, loose])[1]) == 4.0
 
 
 def test_the_lanes_rule_of_the_process_is_in_the_key(monkeypatch):

@@ -98,8 +98,10 @@ def _numpy_material(young: float, poisson: float) -> Material:
     creating a JAX array at import would start JAX's backends, after which XLA no longer reads
     ``XLA_FLAGS`` (``jaxclear/_xla_flags.py``); JAX converts the leaves when it traces them."""
     material = object.__new__(Material)
-    object.__setattr__(material, "young", np.asarray(young, dtype=np.float64))
-    object.__setattr__(material, "poisson", np.asarray(poisson, dtype=np.float64))
+    for name, value in (("young", young), ("poisson", poisson)):
+        leaf = np.array(value, dtype=np.float64)
+        leaf.flags.writeable = False  # a constant: the store of programs keeps its device copy
+        object.__setattr__(material, name, leaf)
     return material
 
 

@@ -29,7 +29,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .. import params
+from ..params.registry import replace_many
 from .._errors import ParameterError
 from ..integrate import Settings, simulate
 from ..integrate import jit
@@ -153,12 +153,14 @@ class DesignProblem(eqx.Module):
 
     def design_mechanism(self, x) -> Mechanism:
         """The mechanism at design values ``x`` (values, not unit coordinates)."""
-        return params.replace_many(self.mech, {n: x[i] for i, n in enumerate(self.names)})
+        return replace_many(self.mech, {n: x[i] for i, n in enumerate(self.names)})
 
     def member_mechanism(self, x, k) -> Mechanism:
         """Member ``k``'s mechanism: the design, its operating point, start angle, guesses, offsets."""
         mb = self.members
-        m = params.replace_many(self.design_mechanism(x), {n: mb.values[k, i] for i, n in enumerate(mb.names)})
+        values = {n: x[i] for i, n in enumerate(self.names)}  # the design's values, then the member's
+        values.update({n: mb.values[k, i] for i, n in enumerate(mb.names)})
+        m = replace_many(self.mech, values)
         return _start(m, mb.shift[k], mb.offset[k], mb.guess_q[k], mb.guess_qd[k])
 
     def settings_of(self, m: Mechanism, throw: bool = False) -> Settings:
@@ -249,7 +251,7 @@ def build_members(mech: Mechanism, points: tuple[OperatingPoint, ...], ensemble:
     rows, shifts, offsets, weights, gq, gqd = [], [], [], [], [], []
     periodic = ensemble.kind == "angles" and k > 1
     for p in points:
-        m = params.replace_many(mech, p.values)
+        m = replace_many(mech, p.values)
         q, qd = _start_guesses(m, k) if periodic else _own_guesses(m)
         sign = 1.0 if float(crank_driver(m)[1].speed) >= 0 else -1.0
         disc = _offsets(ensemble) if ensemble.kind == "offsets" else np.zeros((k, 2))

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import params
+from ..params.registry import replace_many
 from ..analysis import channels
 from ..integrate import is_kinematic, kinematic_solution
 from ..integrate import revolution_settings
@@ -98,7 +98,7 @@ def comparison_runs(problem, start: Mechanism, optimum: Mechanism, revolutions: 
         channels.default_channels(start)[2]
     out = []
     for m in (start, optimum):
-        m = params.replace_many(m, values)
+        m = replace_many(m, values)
         s = revolution_settings(m, revolutions, samples_per_revolution=per_revolution, rtol=problem.rtol,
                                 atol=problem.atol, max_steps=problem.max_steps, throw=False)
         sol = kinematic_solution(m, s) if is_kinematic(m) else simulate(m, s)

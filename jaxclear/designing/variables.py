@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import jax.numpy as jnp
 import numpy as np
 
-from .. import params
+from ..params.registry import check_name, replace_many
 from .._errors import ParameterError
 from ..params.derivatives import differentiable_names
 from ..model import Mechanism
@@ -84,21 +84,21 @@ def check_variables(mech: Mechanism, variables: dict, start: dict | None = None)
     out = []
     for name, bounds in variables.items():
         # why, then the closest names (params.closest)
-        params.check_name(mech, name, context=f"design variable {name!r} is not a number of mechanism {mech.name!r}")
+        at = check_name(mech, name, context=f"design variable {name!r} is not a number of mechanism {mech.name!r}")
         low, high = _interval(name, bounds)
         try:
-            params.validate(mech, name, [low, high])
+            at.check([low, high])
         except ParameterError as err:
             raise ParameterError(f"design variable {name!r}: the range [{low:g}, {high:g}] leaves the parameter's own "
                                  f"range ({err})") from None
-        value = float(start[name]) if name in start else float(np.asarray(params.get(mech, name)))
+        value = float(start[name]) if name in start else float(np.asarray(at.value()))
         if math.isfinite(value) and abs(value - min(max(value, low), high)) <= 1e-9 * (high - low):
             value = min(max(value, low), high)  # a bound written in other digits (0.5e-3 against R - r)
         if not (math.isfinite(value) and low <= value <= high):
             where = "the start value given" if name in start else "its value in the mechanism (the start)"
             raise ParameterError(f"design variable {name!r}: {where}, {value:g}, lies outside its range [{low:g}, "
                                  f"{high:g}]; widen the range or give a start inside it")
-        unit = params.info(name, mech).unit
+        unit = at.parameter.unit
         out.append(Variable(name, low, high, value, "" if unit == "law unit" else unit))
     return tuple(out)
 
@@ -106,7 +106,7 @@ def check_variables(mech: Mechanism, variables: dict, start: dict | None = None)
 def apply(mech: Mechanism, variables: tuple[Variable, ...], x) -> Mechanism:
     """``mech`` with variable ``i`` set to ``x[i]`` (values, not unit-cube coordinates;
     traceable: ``x`` may be a tracer under ``grad``/``vmap``)."""
-    return params.replace_many(mech, {v.name: x[i] for i, v in enumerate(variables)})
+    return replace_many(mech, {v.name: x[i] for i, v in enumerate(variables)})
 
 
 def to_unit(variables: tuple[Variable, ...], x) -> np.ndarray:

@@ -70,6 +70,7 @@ from typing import Callable
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from .._errors import JaxclearError
 from .._xla_flags import loop_kernels_active
@@ -278,7 +279,7 @@ def _memo(name: str, treedef, flat: list, options: str):
     parts = []
     for x in flat:
         if eqx.is_array(x):
-            parts.append((x.shape, str(x.dtype)))
+            parts.append((x.shape, x.dtype))
         elif isinstance(x, (bool, int, float, complex, str, type(None))):
             parts.append((type(x), repr(x)))
         else:
@@ -490,26 +491,30 @@ def _placed(leaves: list) -> list:
     two entries of JAX's compilation cache. Committed alike on every call, it compiles once.
 
     The committed copy of an uncommitted array is kept while the array lives (:data:`_COPIES`, by
-    identity: a JAX array never changes), so a mechanism passed again is not transferred again
-    (its 42 transfers took a tenth of a warm call of the benchmark's run)."""
-    arrays = [x if isinstance(x, jax.Array) else jnp.asarray(x) for x in leaves]
-    loose = []
-    for i, x in enumerate(arrays):
-        if isinstance(x, jax.core.Tracer) or x.committed:
+    identity: a JAX array never changes, nor does a read-only NumPy array that owns its data, such
+    as the leaves of :data:`jaxclear.contact.STEEL`), so a mechanism passed again is not transferred
+    again (its transfers took a tenth of a warm call of the benchmark's run, a quarter of a short
+    one)."""
+    arrays, loose = list(leaves), []
+    for i, x in enumerate(leaves):
+        if isinstance(x, jax.core.Tracer) or (isinstance(x, jax.Array) and x.committed):
             continue
         known = _COPIES.get(id(x))
         if known is not None and known[0]() is x:
             arrays[i] = known[1]
         else:
+            arrays[i] = jnp.asarray(x)
             loose.append(i)
     if loose:  # one batched transfer (42 single ones took 40 % of a warm call of the benchmark's run)
         placed = jax.device_put([arrays[i] for i in loose], [arrays[i].sharding for i in loose])
         for i, copy in zip(loose, placed):
-            x, arrays[i] = arrays[i], copy
-            if x is not leaves[i]:  # made here from a NumPy value: nobody passes it again
-                continue
-            with _LOCK:
-                _COPIES[id(x)] = (weakref.ref(x, functools.partial(_forget, id(x))), copy)
+            x = leaves[i]
+            arrays[i] = copy
+            # a JAX array never changes; a NumPy array only where it may be written (the module
+            # constants of jaxclear are read-only: STEEL's leaves)
+            if isinstance(x, jax.Array) or (isinstance(x, np.ndarray) and not x.flags.writeable and x.base is None):
+                with _LOCK:
+                    _COPIES[id(x)] = (weakref.ref(x, functools.partial(_forget, id(x))), copy)
     return arrays
 
 

@@ -323,6 +323,22 @@ class Address(NamedTuple):
         p, value = self.parameter, leaf(self.owner, self.parameter, self.key)
         return p.read(self.owner) if p.read is not None else value if p.component is None else value[p.component]
 
+    def check(self, values, context: str | None = None) -> np.ndarray:
+        """:func:`validate` at this address (concrete ``values``; a float array back)."""
+        p, arr = self.parameter, np.asarray(values, dtype=float)
+        unit = "" if p.unit in ("", "law unit") else p.unit
+        try:
+            check_range(self.name, arr, low=p.low, high=p.high, low_open=p.low_open, high_open=p.high_open, unit=unit)
+            if p.limit is not None:
+                bound, what = p.limit(self.owner)
+                if np.any(arr >= bound):
+                    raise ParameterError(f"{self.name} = {arr.max():g} {unit} must be smaller than {what} {bound:g} {unit}")
+        except ParameterError as err:
+            if context is None:
+                raise
+            raise ParameterError(f"{context}: {err}") from None
+        return arr
+
     def new_leaf(self, value):
         """The leaf that sets the parameter to ``value``."""
         p = self.parameter
@@ -401,12 +417,13 @@ def address(mech: Mechanism, name: str) -> Address:
         raise type(err)(f"{err}{closest(name, names(mech), 'jc.params.names(mech)')}") from None
 
 
-def check_name(mech: Mechanism, name: str, context: str | None = None) -> None:
+def check_name(mech: Mechanism, name: str, context: str | None = None) -> Address:
     """The one check of a name: raise the error of :func:`get` unless ``name`` addresses a number
     of ``mech`` (why, then the closest names, :func:`closest`). With ``context`` (``"design
-    variable 'x'"``), a :class:`~jaxclear.ParameterError` whose message is ``context: why``."""
+    variable 'x'"``), a :class:`~jaxclear.ParameterError` whose message is ``context: why``.
+    Returns the name's :class:`Address` (its value, its declaration: unit and range)."""
     try:
-        address(mech, name)
+        return address(mech, name)
     except JaxclearError as err:
         if context is None:
             raise
@@ -422,8 +439,7 @@ def replace(mech: Mechanism, name: str, value) -> Mechanism:
     """A new mechanism with parameter ``name`` set to ``value`` (a float, array or tracer).
     No validation here (``value`` may be traced): see :func:`validate`."""
     at = address(mech, name)
-    new = at.new_leaf(jnp.asarray(value, dtype=float))
-    return eqx.tree_at(at.where, mech, new, is_leaf=lambda x: x is None)
+    return eqx.tree_at(at.where, mech, at.new_leaf(jnp.asarray(value, dtype=float)), is_leaf=lambda x: x is None)
 
 
 def replace_many(mech: Mechanism, values: dict) -> Mechanism:
@@ -460,25 +476,10 @@ def replace_following(mech: Mechanism, values: dict, base: dict) -> Mechanism:
 
 
 def validate(mech: Mechanism, name: str, values, context: str | None = None) -> np.ndarray:
-    """Check concrete ``values`` of parameter ``name`` against its declared range (and a bound
-    that depends on the mechanism: a clearance below the bearing radius). Returns them as a
-    float array. With ``context``, errors read ``context: why`` (:func:`check_name`)."""
-    check_name(mech, name, context)
-    at = address(mech, name)
-    p = at.parameter
-    arr = np.asarray(values, dtype=float)
-    unit = "" if p.unit in ("", "law unit") else p.unit
-    try:
-        check_range(name, arr, low=p.low, high=p.high, low_open=p.low_open, high_open=p.high_open, unit=unit)
-        if p.limit is not None:
-            bound, what = p.limit(at.owner)
-            if np.any(arr >= bound):
-                raise ParameterError(f"{name} = {arr.max():g} {unit} must be smaller than {what} {bound:g} {unit}")
-    except ParameterError as err:
-        if context is None:
-            raise
-        raise ParameterError(f"{context}: {err}") from None
-    return arr
+    """Check concrete ``values`` of parameter ``name`` against its declared range and a bound that
+    depends on the mechanism (a clearance below the bearing radius); a float array back. With
+    ``context``, errors read ``context: why`` (:func:`check_name`)."""
+    return check_name(mech, name, context).check(values, context)
 
 
 def to_unconstrained(name: str, value, mech: Mechanism | None = None):
