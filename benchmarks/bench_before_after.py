@@ -67,7 +67,7 @@ ROOT = HERE.parent
 DEFAULT_BEFORE = "1f4f1a4"
 PRESET = "flores-slider-crank"
 RPM = 5000.0
-KINDS = ("engine", "sweep")
+KINDS = ("engine", "sweep", "fit")
 
 #: (key in a child's record, label, unit, scale): the rows of the table, in order
 ROWS = (
@@ -81,6 +81,8 @@ ROWS = (
     ("sweep", "first_s", "sweep: first run_sweep (compile + runs + files)", "s", 1.0),
     ("sweep", "steady_median_s", "sweep: steady run_sweep, median", "s", 1.0),
     ("sweep", "runs_per_s", "sweep: throughput, steady", "runs/s", 1.0),
+    ("fit", "first_s", "fit: the README's fit, first (compile included)", "s", 1.0),
+    ("fit", "iterations", "fit: iterations", "", 1.0),
 )
 
 
@@ -101,7 +103,7 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--chunk", type=int, default=16, help="sweep: runs per chunk (default 16)")
     p.add_argument("--sweep-repeats", type=int, default=3, help="sweep: timed steady sweeps (default 3)")
     p.add_argument("--timeout", type=float, default=600.0, help="seconds a child may take (default 600)")
-    p.add_argument("--kinds", default="engine,sweep", help="what to measure (default engine,sweep)")
+    p.add_argument("--kinds", default="engine,sweep", help="what to measure, among engine, sweep and fit (default engine,sweep)")
     p.add_argument("--json", default=str(HERE / "results" / "before_after.json"), help="JSON output ('' for none)")
     p.add_argument("--keep", action="store_true", help="keep the temporary folder (worktrees, caches, sweeps)")
     p.add_argument("--child", choices=KINDS, help=argparse.SUPPRESS)
@@ -226,8 +228,27 @@ def child_sweep(args) -> dict:
             "traces_after_all": int(sweep.TRACES.value), "columns": _read_csv(work / "sweep-0" / "runs.csv")}
 
 
+def child_fit(args) -> dict:
+    """The fit of the README (both commits have it): a record of the benchmark from start-up,
+    3.2 ms at 200 kHz through a 20 kHz accelerometer with 20 dB noise (``jc.synthetic_record``,
+    seed 0), stiffness and restitution from 2e11 and 0.6; its estimates, std and iterations."""
+    t0 = time.perf_counter()
+    jax, jc, import_s, where = _imported(t0)
+    work = Path(args.child_dir)
+    mech = jc.preset(PRESET)
+    jc.synthetic_record(mech, 3.2e-3, 200e3, jc.Accelerometer(20e3), path=str(work / "data.csv"))
+    t = time.perf_counter()
+    res = jc.fit(str(work / "data.csv"), mech, free=["stiffness", "restitution"],
+                 start={"stiffness": 2e11, "restitution": 0.6}, sensor=jc.Accelerometer(cutoff_hz=20e3),
+                 progress=False)
+    first = time.perf_counter() - t
+    return {"jaxclear": where, "import_s": import_s, "first_s": first, "iterations": int(res.iterations),
+            "estimates": {k: float(v) for k, v in res.estimates.items()},
+            "std": {k: float(v) for k, v in res.std.items()}, "loss": float(res.loss)}
+
+
 def child_main(args) -> int:
-    record = (child_engine if args.child == "engine" else child_sweep)(args)
+    record = {"engine": child_engine, "sweep": child_sweep, "fit": child_fit}[args.child](args)
     Path(args.child_out).write_text(json.dumps(record))
     return 0
 
@@ -357,6 +378,13 @@ def agreement(records: list[dict]) -> dict:
                         "worst_column": worst, "per_column": diffs,
                         "only_before": sorted(set(sb["columns"]) - set(sa["columns"])),
                         "only_after": sorted(set(sa["columns"]) - set(sb["columns"]))}
+    fb, fa = first.get(("fit", "before")), first.get(("fit", "after"))
+    if fb and fa:
+        out["fit"] = {"iterations": [fb["iterations"], fa["iterations"]],
+                      "estimates_before": fb["estimates"], "estimates_after": fa["estimates"],
+                      "estimates_max_rel_diff": max(_rel(fb["estimates"][k], fa["estimates"][k]) for k in fb["estimates"]),
+                      "std_max_rel_diff": max(_rel(fb["std"][k], fa["std"][k]) for k in fb["std"]),
+                      "loss": [fb["loss"], fa["loss"]]}
     return out
 
 
@@ -383,7 +411,7 @@ def main(argv=None) -> int:
                 for label in ("before", "after"):
                     rec = run_child(args, kind, label, trees[label], tmp, rnd)
                     records.append(rec)
-                    main_key = "steady_median_s" if kind == "engine" else "runs_per_s"
+                    main_key = {"engine": "steady_median_s", "sweep": "runs_per_s", "fit": "iterations"}[kind]
                     print(f"round {rnd} {kind:6s} {label:6s} first {rec['first_s']:7.2f} s  "
                           f"{main_key} {rec[main_key]:.4g}  (process {rec['process_s']:.1f} s, load {rec['load_before'][0]:.2f})",
                           flush=True)
@@ -417,6 +445,10 @@ def main(argv=None) -> int:
         s = agree["sweep"]
         print(f"sweep agreement: {s['columns_compared']} runs.csv columns, largest rel diff "
               f"{s['max_rel_diff']:.2e} ({s['worst_column']}); only before: {s['only_before']}; only after: {s['only_after']}")
+    if "fit" in agree:
+        f = agree["fit"]
+        print(f"fit agreement: iterations {f['iterations'][0]} vs {f['iterations'][1]}; estimates largest rel diff "
+              f"{f['estimates_max_rel_diff']:.2e}, std {f['std_max_rel_diff']:.2e}; after: {f['estimates_after']}")
     print(f"load average at end: {load_end}; total {time.perf_counter() - t_all:.0f} s")
     if args.json:
         for r in records:

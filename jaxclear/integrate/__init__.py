@@ -25,7 +25,7 @@ from ._settings import (MAX_OUT_SAMPLES, OPTION_KEYS, Settings, default_settings
                         settings, settings_from_options)
 from ._strategies import (ADJOINTS, ONSETS, OUTPUTS, SOLVERS, ExactOnsets, SampleBlock, SampleLoop, Sensitivity,
                           StepOnsets, ThroughLoop, from_names)
-from ._simulate import check_status, raise_for_status, simulate
+from ._simulate import check_status, raise_for_status, simulate, solution_structure
 from ._solution import Solution
 from ._solve import integrate_system, mechanism_system, start_run, stored_solution
 from ._solvers import ImpactMemorySolver, OnsetController, UnrolledExplicitRK
@@ -38,7 +38,7 @@ __all__ = [
     "OPTION_KEYS", "MAX_OUT_SAMPLES", "SOLVERS", "ADJOINTS", "OUTPUTS", "ONSETS", "from_names", "Sensitivity",
     "ThroughLoop", "SampleLoop", "SampleBlock", "ExactOnsets", "StepOnsets",
     # a run and its result
-    "simulate", "check_status", "raise_for_status", "Solution", "State",
+    "simulate", "check_status", "raise_for_status", "Solution", "State", "solution_structure",
     # runs by crank revolutions, the ideal-joint companion, kinematic runs
     "revolution_settings", "revolutions_of", "SAMPLES_PER_REVOLUTION", "simulate_with_ideal", "RunWithIdeal",
     "timed_simulate", "is_kinematic", "kinematic_solution",

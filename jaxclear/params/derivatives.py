@@ -20,6 +20,7 @@ give the error-controlled sensitivities (``Settings(adjoint="sensitivity")``, th
 from __future__ import annotations
 
 import dataclasses
+import functools
 import warnings
 from typing import Callable, Sequence
 
@@ -31,7 +32,7 @@ import numpy as np
 from . import registry as params
 from .._errors import ParameterError
 from .._results import deprecated
-from ..integrate import Settings, Solution, simulate
+from ..integrate import Settings, Solution, jit, simulate, solution_structure
 from ..integrate import check_status
 from ..model import Mechanism
 
@@ -84,14 +85,15 @@ def directions(mech: Mechanism, names: Sequence[str]):
     return put(x), tangents
 
 
-@eqx.filter_jit
+@jit
 def _linearized(mech, s, along, output):
     """``(value, tangents, status)`` of the run of ``mech`` and its derivatives along the stacked
     directions ``along`` of its floating-point leaves (:func:`directions`): tangent directions are
     arguments, so one program serves every set of as many names. The run's status is returned,
     not raised here (``s`` without ``throw``), so that the program holds no host callback and
     JAX's persistent compilation cache keeps it; :func:`sensitivities` raises for it after the
-    program returns."""
+    program returns. Without ``output`` it goes through the store of traced programs
+    (:func:`_linearized_run`): a new process loads it instead of tracing it."""
     quiet = dataclasses.replace(s, throw=False)
     dynamic, static = eqx.partition(mech, eqx.is_inexact_array)
 
@@ -102,6 +104,23 @@ def _linearized(mech, s, along, output):
 
     value, lin, status = jax.linearize(f, dynamic, has_aux=True)
     return value, jax.vmap(lin)(along), status
+
+
+def _linearized_run(mech, s, along, output):
+    """:func:`_linearized`, through the store of traced programs where its output's structure is
+    known without tracing (the whole solution: ``output`` None), else as a plain call."""
+    if output is not None:
+        return _linearized(mech, s, along, output)
+    sol = solution_structure(mech)
+    structure = lambda: jax.tree_util.treedef_tuple([sol, sol, jax.tree_util.tree_structure(0)])  # noqa: E731
+    return _linearized.stored("sensitivities", structure, mech, s, along, None)
+
+
+@functools.partial(jax.jit, static_argnums=1)
+def _unstacked(stacked: list, k: int) -> list:
+    """``[[x[i] for x in stacked] for i in range(k)]`` in one program (one per shapes, whatever
+    the names: eagerly, each slice compiled a program of its own in a new process)."""
+    return [[x[i] for x in stacked] for i in range(k)]
 
 
 def _is_float(x) -> bool:
@@ -150,13 +169,19 @@ def sensitivities(mech: Mechanism, names: Sequence[str], s: Settings, output: Ca
         names, s = s, names
     names = check_names(mech, names)
     at, along = directions(mech, names)
-    value, tangents, status = _linearized(at, s, along, output)
+    value, tangents, status = _linearized_run(at, s, along, output)
     # a failed run (or sensitivity solve) raises here, after the program (or, inside a user's
     # jit or vmap, through equinox.error_if in the user's program): never a silent NaN
     value, tangents = check_status((value, tangents), status, s, " (the run of jaxclear.sensitivities)", mech)
+    flat, treedef = jax.tree_util.tree_flatten(value)
+    floats = [i for i, v in enumerate(flat) if _is_float(v)]
+    per_name = _unstacked([treedef.flatten_up_to(tangents)[i] for i in floats], len(names))
     derivatives = {}
-    for i, name in enumerate(names):
-        derivatives[name] = jax.tree_util.tree_map(lambda t, v: t[i] if _is_float(v) else v, tangents, value)
+    for name, leaves in zip(names, per_name):
+        mixed = list(flat)  # the value's integer leaves (status, counts), the derivative's float ones
+        for i, t in zip(floats, leaves):
+            mixed[i] = t
+        derivatives[name] = jax.tree_util.tree_unflatten(treedef, mixed)
     if warn and output is None and isinstance(value, Solution):
         for name in names:
             size = abs(float(params.get(mech, name)))
@@ -182,11 +207,17 @@ def amplification(sol: Solution, tangent: Solution, scale: float = 1.0):
     :math:`\bar\theta` the parameter's size (its value). Dimensionless: the relative change of
     the state per relative change of the parameter. Once :math:`A\,\mathrm{rtol} > 0.1`, a
     change as small as the solver's own relative error moves the state by a tenth of its size."""
+    return _amplification(sol.q, sol.qdot, tangent.q, tangent.qdot, scale)
+
+
+@jax.jit
+def _amplification(q, qdot, dq, dqdot, scale):
+    """:func:`amplification` of the coordinates and velocities, in one program."""
     def ratio(y, dy):
         size = jnp.max(jnp.sqrt(jnp.mean(y**2, axis=-1)))
         return jnp.max(jnp.sqrt(jnp.mean((scale * dy) ** 2, axis=-1))) / jnp.where(size > 0, size, 1.0)
 
-    return jnp.maximum(ratio(sol.q, tangent.q), ratio(sol.qdot, tangent.qdot))
+    return jnp.maximum(ratio(q, dq), ratio(qdot, dqdot))
 
 
 def derivative_horizon(sol: Solution, tangent: Solution, rtol: float, scale: float = 1.0) -> float:
