@@ -142,7 +142,8 @@ def _imported(t0: float) -> tuple:
     where = os.path.realpath(jc.__file__)
     if not tree or not where.startswith(os.path.realpath(tree) + os.sep):
         raise RuntimeError(f"jaxclear imported from {where}, not from the worktree {tree!r}")
-    return jax, jc, time.perf_counter() - t0, where
+    # recorded relative to the worktree (checked above): no temporary path of this machine in the JSON
+    return jax, jc, time.perf_counter() - t0, os.path.relpath(where, os.path.realpath(tree))
 
 
 def _timed_calls(jax, jc, mech, s, args):
