@@ -257,3 +257,49 @@ def test_a_derived_stiffness_follows_the_clearance_whatever_else_is_asked():
     assert alone == pytest.approx(central(mech), rel=1e-5)
     assert held == pytest.approx(central(fixed), rel=1e-5)
     assert abs(held - alone) > 0.02 * abs(alone)
+
+
+SENSITIVITIES_CHILD = """
+import json
+from jax import monitoring
+traces = []
+monitoring.register_event_duration_secs_listener(
+    lambda e, d, **kw: e.endswith("jaxpr_trace_duration") and traces.append((str(kw.get("fun_name")), d)))
+import numpy as np
+import jaxclear as jc  # nothing configured: the caches jaxclear keeps by default
+from jaxclear.integrate import _programs as programs
+mech = jc.preset("flores-slider-crank")
+value, d = jc.sensitivities(mech, ["stiffness", "restitution", "clearance"], jc.settings(2e-3))
+print(json.dumps(dict(counts=programs.counts(), traced_s=sum(t for _, t in traces), traces=[n for n, _ in traces],
+                      dx=[float(np.asarray(d[n].q)[-1, 3]) for n in ("stiffness", "restitution", "clearance")])))
+"""
+
+
+@pytest.mark.slow
+def test_a_second_process_loads_the_sensitivities_program(tmp_path):
+    """Issue 41, item 3: ``jc.sensitivities`` (the whole solution, no ``output``) goes through the
+    store of traced programs. Two fresh processes with one cache folder: the first traces
+    ``_linearized`` and stores it; the second loads it and traces nothing of it (what it still
+    traces, the tiny eager helpers, takes under 1 s), with the same derivatives to the last bit
+    (the same program on the same inputs)."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    env = dict(os.environ, PYTHONPATH=root + os.pathsep + os.environ.get("PYTHONPATH", ""),
+               JAXCLEAR_CACHE_DIR=str(tmp_path / "cache"))
+    env.pop("JAX_COMPILATION_CACHE_DIR", None)
+    runs = []
+    for _ in range(2):
+        proc = subprocess.run([sys.executable, "-c", SENSITIVITIES_CHILD], env=env, capture_output=True, text=True,
+                              timeout=900)
+        assert proc.returncode == 0, proc.stderr[-3000:]
+        runs.append(json.loads(proc.stdout.strip().splitlines()[-1]))
+    cold, warm = runs
+    assert cold["counts"]["traced"] >= 1 and any(t in ("flat", "_linearized") for t in cold["traces"])
+    assert warm["counts"]["traced"] == 0 and warm["counts"]["loaded"] >= 1, warm["counts"]
+    assert not [t for t in warm["traces"] if t in ("flat", "_linearized")], warm["traces"]
+    assert warm["traced_s"] < 1.0, warm
+    assert warm["dx"] == cold["dx"]

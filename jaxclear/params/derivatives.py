@@ -111,8 +111,10 @@ def _linearized_run(mech, s, along, output):
     known without tracing (the whole solution: ``output`` None), else as a plain call."""
     if output is not None:
         return _linearized(mech, s, along, output)
-    sol = solution_structure(mech)
-    structure = lambda: jax.tree_util.treedef_tuple([sol, sol, jax.tree_util.tree_structure(0)])  # noqa: E731
+    def structure():  # found once per program (an eval_shape of the state's layout)
+        sol = solution_structure(mech)
+        return jax.tree_util.treedef_tuple([sol, sol, jax.tree_util.tree_structure(0)])
+
     return _linearized.stored("sensitivities", structure, mech, s, along, None)
 
 
