@@ -19,7 +19,7 @@ import jaxclear as jc
 from jaxclear import ParameterError
 from jaxclear.analysis.sensor import Accelerometer
 from jaxclear.fitting import posterior
-from jaxclear.fitting.posterior_result import RHAT_LIMIT, build_result
+from jaxclear.fitting.posterior_result import RHAT_LIMIT
 from jaxclear.fitting.priors import HalfNormal, LogNormal, Normal, Uniform, make_prior, parse_prior
 from jaxclear.fitting.records import sensor_signal
 from conftest import assert_strict_json

@@ -103,7 +103,7 @@ class jit:  # noqa: N801 (used like a decorator, as eqx.filter_jit)
 
     def stored(self, name: str, out_structure, *args):
         """Call on concrete ``args`` through the store of traced programs
-        (:mod:`~jaxclear.integrate._programs`, enabled by the command line), so that a new
+        (:mod:`~jaxclear.integrate._programs`, on by default: :mod:`jaxclear.caches`), so that a new
         process skips tracing; as a plain call when the store is off or the arguments cannot
         be keyed. ``out_structure()`` returns the output's pytree structure without tracing."""
         if not is_concrete(args):
