@@ -28,31 +28,6 @@ if SESSION_CACHE is not None and jax.config.jax_compilation_cache_dir != SESSION
     jc.enable_cache(SESSION_CACHE)
 
 ROOT = Path(__file__).resolve().parents[1]
-
-#: The longest tests of the fast suite (about 30-300 s each on 2 cores), longest first: they are
-#: collected first, so that ``pytest -n 2`` starts them early and the short tests fill the other
-#: worker, instead of one long test running alone at the end (longest processing time first).
-#: Only tests that use no module-scoped fixture are moved (a module's block stays whole).
-LONG_FIRST = (
-    "tests/test_lab_fit.py::test_laboratory_record_notebook_runs",
-    "tests/test_notebooks.py::test_design_notebook_runs",
-    "tests/test_notebooks.py::test_contact_models_notebook_runs",
-    "tests/test_sensitivities.py::test_a_derived_stiffness_follows_the_clearance_whatever_else_is_asked",
-    "tests/test_tutorial_notebook.py::test_mechanism_files_tutorial_runs",
-    "tests/test_lyapunov_benchmark.py::test_periodic_point_exponent_is_its_floquet_multiplier",
-    "tests/test_fit_statistics.py::test_fit_of_a_short_record_of_the_independent_simulator",
-    "tests/test_sweep.py::test_runs_one_after_another_or_side_by_side",
-    "tests/test_programs.py::test_stored_program_equals_the_jitted_run_and_serves_every_value",
-    "tests/test_channel_fit.py::test_fit_of_a_window_before_the_first_contact_is_refused",
-    "tests/test_notebooks.py::test_wear_notebook_runs",
-    "tests/test_fit.py::test_identification_notebook_runs",
-    "tests/test_notebooks.py::test_joints_notebook_runs",
-)
-
-
-def pytest_collection_modifyitems(config, items):
-    rank = {nodeid: k for k, nodeid in enumerate(LONG_FIRST)}
-    items.sort(key=lambda item: rank.get(item.nodeid.split("[")[0], len(rank)))  # stable: the rest in order
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import time
 from pathlib import Path
 
 import equinox as eqx
@@ -420,7 +421,11 @@ def test_ctrl_c_inside_a_gc_callback_is_not_lost():
         with pytest.raises(KeyboardInterrupt):
             with stop_at_safe_points() as interrupt:
                 armed.append(True)
-                gc.collect()
+                for _ in range(200):  # a collection under way in another thread (a notebook's client
+                    gc.collect()      # threads, JAX's) makes gc.collect() return at once, or runs the
+                    if interrupt.requested:  # callback there: the flag is then set at the main thread's
+                        break                # next bytecode
+                    time.sleep(0.01)
                 assert interrupt.requested
                 interrupt.check()
         assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
