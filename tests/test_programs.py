@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 import jaxclear as jc
+from jaxclear.integrate import _program_keys as keys
 from jaxclear.integrate import _programs as programs
 from jaxclear.integrate._compile import compiler_options, on_trace
 from jaxclear.integrate._runs import revolution_settings
@@ -114,16 +115,16 @@ def test_a_remembered_key_is_the_key_built_anew(store):
     other = jc.preset("flores-slider-crank", law="flores")
     calls = [(mech, s), (mech, dataclasses.replace(s, n_out=52)), (other, s), (mech, s),
              (jax.tree_util.tree_map(lambda x: x + 1.0 if eqx_is_float(x) else x, mech), s)]
-    keys = []
+    found = []
     for args in calls:
         options = ";".join(f"{o}={getattr(jax.config, o, None)}" for o in programs.KEYED_OPTIONS)
-        built = programs._key("p", args, options)
+        built = keys._key("p", args, options)
         for _ in range(2):  # built, then remembered
             key, leaves = programs.program_key("p", args)
             assert key == built
             assert len(leaves) == len([x for x in jax.tree_util.tree_leaves(args) if isinstance(x, (jax.Array, np.ndarray))])
-        keys.append(key)
-    assert len(set(keys[:3])) == 3 and keys[3] == keys[0] == keys[4]
+        found.append(key)
+    assert len(set(found[:3])) == 3 and found[3] == found[0] == found[4]
     # a Python number among the leaves is keyed by its type and value
     assert programs.program_key("p", (jnp.ones(2), 1))[0] != programs.program_key("p", (jnp.ones(2), 1.0))[0]
 
@@ -173,9 +174,9 @@ def test_the_lanes_rule_of_the_process_is_in_the_key(monkeypatch):
     ``jax.vmap`` (the run's post-processing, the lanes of a batch): a program traced under one
     answer is never served under the other."""
     args = (np.zeros(3), "name")
-    monkeypatch.setattr(programs, "loop_kernels_active", lambda: True)
+    monkeypatch.setattr(keys, "loop_kernels_active", lambda: True)
     on = programs.program_key("p", args)
-    monkeypatch.setattr(programs, "loop_kernels_active", lambda: False)
+    monkeypatch.setattr(keys, "loop_kernels_active", lambda: False)
     assert programs.program_key("p", args)[0] != on[0]
 
 
