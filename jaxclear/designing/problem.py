@@ -151,14 +151,18 @@ class DesignProblem(eqx.Module):
     def needs_ideal(self) -> bool:
         return bool(self.objective.needs_ideal) and bool(self.mech.clearance_joints)
 
+    def design_values(self, x) -> dict:
+        """``{name: value}`` of design values ``x`` (values, not unit coordinates)."""
+        return {n: x[i] for i, n in enumerate(self.names)}
+
     def design_mechanism(self, x) -> Mechanism:
         """The mechanism at design values ``x`` (values, not unit coordinates)."""
-        return replace_many(self.mech, {n: x[i] for i, n in enumerate(self.names)})
+        return replace_many(self.mech, self.design_values(x))
 
     def member_mechanism(self, x, k) -> Mechanism:
         """Member ``k``'s mechanism: the design, its operating point, start angle, guesses, offsets."""
         mb = self.members
-        values = {n: x[i] for i, n in enumerate(self.names)}  # the design's values, then the member's
+        values = self.design_values(x)  # the design's values, then the member's (one replace_many)
         values.update({n: mb.values[k, i] for i, n in enumerate(mb.names)})
         m = replace_many(self.mech, values)
         return _start(m, mb.shift[k], mb.offset[k], mb.guess_q[k], mb.guess_qd[k])

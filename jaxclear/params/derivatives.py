@@ -111,6 +111,7 @@ def _linearized_run(mech, s, along, output):
     known without tracing (the whole solution: ``output`` None), else as a plain call."""
     if output is not None:
         return _linearized(mech, s, along, output)
+
     def structure():  # found once per program (an eval_shape of the state's layout)
         sol = solution_structure(mech)
         return jax.tree_util.treedef_tuple([sol, sol, jax.tree_util.tree_structure(0)])
@@ -177,7 +178,8 @@ def sensitivities(mech: Mechanism, names: Sequence[str], s: Settings, output: Ca
     value, tangents = check_status((value, tangents), status, s, " (the run of jaxclear.sensitivities)", mech)
     flat, treedef = jax.tree_util.tree_flatten(value)
     floats = [i for i, v in enumerate(flat) if _is_float(v)]
-    per_name = _unstacked([treedef.flatten_up_to(tangents)[i] for i in floats], len(names))
+    stacked = treedef.flatten_up_to(tangents)
+    per_name = _unstacked([stacked[i] for i in floats], len(names))
     derivatives = {}
     for name, leaves in zip(names, per_name):
         mixed = list(flat)  # the value's integer leaves (status, counts), the derivative's float ones
