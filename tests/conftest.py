@@ -13,12 +13,21 @@ from pathlib import Path
 # (nor a JAX cache the user configured: JAX_COMPILATION_CACHE_DIR is dropped). Child processes
 # (the command line, tests/test_programs.py) inherit the folder. JAXCLEAR_CACHE_DIR=off in the
 # environment runs the suite without caches.
+# One folder for the whole run: pytest-xdist's workers are started by the controlling process after
+# it has read this file, inherit its environment and find the folder it made (marked by
+# JAXCLEAR_TEST_SESSION_CACHE), so a program traced and compiled by one worker is loaded by the
+# other and by every notebook's kernel instead of being traced and compiled again. The process
+# that made the folder removes it.
 os.environ.pop("JAX_COMPILATION_CACHE_DIR", None)
 SESSION_CACHE = None
 if os.environ.get("JAXCLEAR_CACHE_DIR", "x").strip().lower() not in {"", "0", "off", "none", "false", "no"}:
-    SESSION_CACHE = tempfile.mkdtemp(prefix="jaxclear-test-cache-")
-    os.environ["JAXCLEAR_CACHE_DIR"] = SESSION_CACHE
-    atexit.register(shutil.rmtree, SESSION_CACHE, ignore_errors=True)
+    inherited = os.environ.get("JAXCLEAR_TEST_SESSION_CACHE")
+    if inherited and inherited == os.environ.get("JAXCLEAR_CACHE_DIR") and os.path.isdir(inherited):
+        SESSION_CACHE = inherited
+    else:
+        SESSION_CACHE = tempfile.mkdtemp(prefix="jaxclear-test-cache-")
+        os.environ["JAXCLEAR_CACHE_DIR"] = os.environ["JAXCLEAR_TEST_SESSION_CACHE"] = SESSION_CACHE
+        atexit.register(shutil.rmtree, SESSION_CACHE, ignore_errors=True)
 
 import jax  # noqa: E402
 
