@@ -152,7 +152,9 @@ def test_fit_of_a_laboratory_record(tmp_path, case):
 
 def test_laboratory_record_notebook_runs(tmp_path):
     """notebooks/laboratory_record.ipynb with JAXCLEAR_QUICK=1 (a record 1 revolution after
-    start-up, 3 ms, one window): runs, writes its three figures, reports the verdict."""
+    start-up, 1.2 ms, one 1 ms window, 6 iterations a stage: the notebook's steps, not a
+    converged fit; the committed outputs are the full run's): runs, writes its three figures,
+    reports the verdict."""
     from test_notebooks import run_notebook
 
     figures, text = run_notebook("laboratory_record.ipynb", tmp_path)
