@@ -192,6 +192,7 @@ class Switches(eqx.Module):
     excursion: Scalar
 
 
+@jax.jit  # traced once per shape, reused at each call of a trace (see integrate/_dynamics._gauss_jordan)
 def contact_switches(p0, p1, r0, r1, h, accel=None) -> Switches:
     r"""Sign changes of the penetration inside a step: the cubic Hermite interpolant of
     :math:`\delta` (values ``p0, p1`` [m], rates ``r0, r1`` [m/s] at the ends, step ``h`` [s];

@@ -7,11 +7,13 @@ few dozen flops per kernel, so kernel count sets its cost).
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 
 from .._types import Scalar, Vec2
 
 
+@jax.jit  # traced once per shape and reused (called hundreds of times in one program's trace)
 def rotate(phi: Scalar, v: Vec2) -> Vec2:
     r""":math:`A(\phi) v` with :math:`A(\phi) = [[\cos\phi, -\sin\phi], [\sin\phi, \cos\phi]]`."""
     c, s = jnp.cos(phi), jnp.sin(phi)
