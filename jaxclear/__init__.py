@@ -117,6 +117,7 @@ from .model import (  # noqa: E402
     AngleDriver,
     Body,
     Bushing,
+    DiscreteBeam,
     Fixed,
     ConstantProfile,
     FunctionDriver,
@@ -135,6 +136,7 @@ from .model import (  # noqa: E402
     Translational,
     TranslationalSpringDamper,
     crank_period,
+    flexible_link,
 )
 from .mechanisms.presets import preset, preset_file, preset_names  # noqa: E402
 from . import integrate, mechanisms, params, plot  # noqa: E402
@@ -193,7 +195,8 @@ __all__ = [
     # Model (docs/api/model.md)
     "Body", "Revolute", "Translational", "Fixed", "PointOnLine", "AngleDriver", "FunctionDriver", "ProfileDriver",
     "ConstantProfile", "RampProfile", "HarmonicProfile", "TableProfile", "PointForce", "Torque",
-    "TranslationalSpringDamper", "PolynomialCurve", "TableCurve", "RotationalSpringDamper", "Bushing", "Mechanism",
+    "TranslationalSpringDamper", "PolynomialCurve", "TableCurve", "RotationalSpringDamper", "Bushing", "DiscreteBeam", "flexible_link",
+    "Mechanism",
     "GROUND", "crank_period", "AbstractConstraint", "AbstractJoint", "AbstractDriver", "AbstractLoad",
     "AbstractConnector", "AbstractCurve",
     # Contact laws (contact.md)

@@ -57,8 +57,9 @@ def assemble(mech: Mechanism, t0=0.0) -> Assembly:
     r"""Consistent ``(q, qdot)`` at ``t0``.
 
     Positions: Newton iterations :math:`q \leftarrow q - D^+\Phi` (minimum-norm steps, so
-    coordinates the constraints leave free stay at their guesses) on the joints, the drivers
-    and every clearance joint held at its ``initial_offset`` (centred by default).
+    coordinates the constraints leave free stay at their guesses) on the joints, the drivers,
+    every clearance joint held at its ``initial_offset`` (centred by default) and every flexible
+    link held undeformed (``Mechanism.held_at_start``).
     Velocities: the guess corrected (minimum-norm) to :math:`D\dot q = -\Phi_t` on joints and
     drivers and to the prescribed relative velocity ``initial_velocity`` on every clearance
     joint (zero by default: the ideal-joint kinematics, journal moving with its bearing).
@@ -66,7 +67,7 @@ def assemble(mech: Mechanism, t0=0.0) -> Assembly:
     """
     q, qd = mech.guess()
     t0 = jnp.asarray(t0, q.dtype)
-    extra = mech.clearance_joints
+    extra = mech.held_at_start
 
     def newton(_, q):
         r = constraints.phi(mech, q, t0, extra)
@@ -79,7 +80,7 @@ def assemble(mech: Mechanism, t0=0.0) -> Assembly:
     r = constraints.phi(mech, q, t0, extra)
     d = constraints.jacobian(mech, q, t0, extra)
     phit = constraints.time_derivative(mech, q, t0, extra)
-    # clearance joints: prescribed relative journal velocity (zero by default)
+    # clearance joints: prescribed relative journal velocity (zero by default); flexible links: none
     target = jnp.concatenate([jnp.zeros(mech.n_constraints, q.dtype)] + [c.assembly_velocity() for c in extra])
     for _ in range(2):  # one projection and one refinement step
         qd = qd - minimum_norm_correction(d, d @ qd + phit - target)
@@ -113,7 +114,7 @@ def check_assembly(mech: Mechanism, s: Settings, asm: Assembly | None = None) ->
     if asm is None:
         asm = _assemble_jit.stored("assemble", lambda: jax.tree_util.tree_structure(ASSEMBLY_TEMPLATE), mech,
                                    s.t_start)
-    extra = mech.clearance_joints
+    extra = mech.held_at_start
     d = np.asarray(asm.jacobian)
     m, n = d.shape
     if m > n:  # never assembled: named before Newton's failure, which it causes

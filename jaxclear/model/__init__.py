@@ -13,6 +13,8 @@ from .curves import AbstractCurve, PolynomialCurve, TableCurve
 from .spring_damper import TranslationalSpringDamper
 from .rotational_spring import RotationalSpringDamper
 from .bushing import Bushing
+from .discrete_beam import DiscreteBeam
 from .profiles import (PROFILE_KINDS, AbstractProfile, ConstantProfile, HarmonicProfile, RampProfile,
                        TableProfile)
 from .mechanism import Mechanism, point_acceleration, point_load, point_position, point_velocity
+from .flexible_link import flexible_link

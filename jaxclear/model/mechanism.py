@@ -109,6 +109,13 @@ class Mechanism(eqx.Module):
         return sum(c.n_equations for c in self.constraints)
 
     @property
+    def held_at_start(self) -> tuple:
+        """What the start's assembly holds besides the joints and drivers: every force element
+        (at its initial offset) and every load that has equations of its own (``n_equations``:
+        a flexible link's spring-damping elements at rest, so a link starts undeformed)."""
+        return (*self.clearance_joints, *(ld for ld in self.loads if getattr(ld, "n_equations", 0)))
+
+    @property
     def elements(self) -> tuple:
         """The force elements (same as ``clearance_joints``)."""
         return self.clearance_joints

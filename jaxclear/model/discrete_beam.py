@@ -1,0 +1,213 @@
+r"""The elastic part of a flexible link made of rigid finite elements: the spring-damping
+elements between a chain of rigid bodies (the rigid finite element method of Kruszewski and
+Wittbrodt; Wittbrodt, Adamiec-Wojcik and Wojciech, "Dynamics of Flexible Multibody Systems: Rigid
+Finite Element Method", Springer 2006, chapters 2-3; the "discrete flexible link" of MSC Adams).
+
+A link of length :math:`L` is cut into :math:`m` equal parts of length :math:`\Delta = L/m`; a
+spring-damping element (sde) sits at the middle of each part, at the node
+:math:`s_k = (k - \tfrac12)\Delta`, :math:`k = 1..m`, and the rigid elements lie between the nodes
+(the two end elements :math:`\Delta/2` long, the others :math:`\Delta`): Wittbrodt's secondary
+division, whose :math:`m` sdes carry the bending of the parts they stand for. Each sde's
+coordinates are those of a planar bushing between the two elements it joins, at their common node
+(:class:`~jaxclear.model.bushing.Bushing`'s :math:`d`, in the first element's axes),
+
+.. math:: d_k = \begin{bmatrix} A_{k-1}^T (p_k^{(k)} - p_k^{(k-1)}) \\ \phi_k - \phi_{k-1} \end{bmatrix},
+          \qquad f_k = K\,(d_k + \eta\,\dot d_k),
+          \qquad K = \mathrm{diag}\!\left(\frac{EA}{\Delta}, \frac{\kappa G A}{\Delta}, \frac{EI}{\Delta}\right)
+
+(:math:`E` Young's modulus [Pa], :math:`G` the shear modulus [Pa], :math:`\kappa` the shear factor,
+:math:`A` [m^2], :math:`I` [m^4] the section's area and second moment, :math:`\eta` [s] the
+Kelvin-Voigt material damping: a mode of frequency :math:`\omega` is damped at
+:math:`\zeta = \eta\omega/2`). With ``axial="rigid"`` the elements are pinned at the nodes by ideal
+revolute joints (an inextensible Euler-Bernoulli link, what slender connecting rods are) and
+:math:`d_k` is the relative angle only. The generalized forces follow by virtual work
+(:class:`~jaxclear.model.connectors.AbstractConnector`: :math:`Q = -J^T f`); the strain energy is
+:math:`\tfrac12\sum_k d_k^T K d_k`.
+
+For a cantilever of this model under a tip load :math:`P` the tip deflection is, in closed form,
+:math:`\frac{P}{EI}\sum_k (L - s_k)^2\Delta = \frac{PL^3}{3EI}\left(1 - \frac{1}{4m^2}\right)`
+(the midpoint rule of :math:`\int_0^L (L-s)^2 ds`): the model converges to the Euler-Bernoulli beam
+at second order in :math:`1/m`, and so do its natural frequencies (``tests/test_flexible_link.py``).
+
+:func:`~jaxclear.flexible_link` turns a rigid body of a mechanism into such a chain; this class is
+its elastic part, one force element among the loads whose constants are named parameters
+(``beam_modulus:NAME``, ...): swept, differentiated and fitted like any other.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from .._errors import ParameterError
+from .._parameters import NONNEGATIVE, POSITIVE, Parameter
+from .._types import Array, Float, Scalar
+from .connectors import AbstractConnector, scalar
+from .geometry import cross2, rotate
+
+AXIAL = ("rigid", "elastic")
+
+
+def node_name(k: int) -> str:
+    """The name of node ``k`` (1-based, the sde between rigid elements ``k - 1`` and ``k``) as a
+    point of both elements."""
+    return f"node{k}"
+
+
+class DiscreteBeam(AbstractConnector):
+    """The spring-damping elements of a flexible link of rigid finite elements (module docstring).
+
+    Attributes:
+        name: unique among the loads (parameters ``beam_*:NAME``, channels ``load:NAME:*``).
+        segments: the rigid elements' body names, in order from end ``a`` to end ``b`` (static).
+        end_a, end_b, middle: ``(body, point)`` of the link's two ends and of its middle (static;
+            the outputs' chord and midpoint).
+        axial: ``"rigid"`` (the elements pinned at the nodes; bending only) or ``"elastic"``
+            (axial and shear springs too), static.
+        spacing: Delta = L / m [m], the length each sde stands for.
+        youngs_modulus: E [Pa] > 0 (``beam_modulus``).
+        second_moment: I [m^4] > 0 of the section (``beam_second_moment``).
+        area: A [m^2] > 0 (``beam_area``; axial and shear stiffness, ``axial="elastic"`` only).
+        shear_modulus: G [Pa] > 0 (``beam_shear_modulus``; ``"elastic"`` only).
+        shear_factor: kappa > 0 (``beam_shear_factor``; 5/6 for a rectangle, 0.9 for a circle).
+        damping: eta [s] >= 0, Kelvin-Voigt (``beam_damping``).
+
+    Outputs: ``deflection`` [m] (the middle's distance from the chord through the ends, positive
+    to the left of the chord from end ``a`` to end ``b``), ``moment_middle`` [N m] (the bending
+    moment at the middle: the mean of the one or two nodes nearest it), ``moment_max`` [N m] (the
+    largest absolute bending moment over the nodes), ``energy`` [J] (strain energy), ``power`` [W]
+    (of the sdes' forces on the mechanism)."""
+
+    name: str = eqx.field(static=True)
+    segments: tuple[str, ...] = eqx.field(static=True)
+    end_a: tuple[str, str] = eqx.field(static=True)
+    end_b: tuple[str, str] = eqx.field(static=True)
+    middle: tuple[str, str] = eqx.field(static=True)
+    axial: str = eqx.field(static=True)
+    spacing: Scalar
+    youngs_modulus: Scalar
+    second_moment: Scalar
+    area: Scalar
+    shear_modulus: Scalar
+    shear_factor: Scalar
+    damping: Scalar
+
+    OUTPUTS: ClassVar[dict[str, str]] = {"deflection": "m", "moment_middle": "N m", "moment_max": "N m",
+                                         "energy": "J", "power": "W"}
+    PARAMETERS: ClassVar[dict[str, Parameter]] = {
+        "beam_modulus": Parameter("youngs_modulus", "Pa", **POSITIVE, doc="Young's modulus E of a flexible link"),
+        "beam_second_moment": Parameter("second_moment", "m^4", **POSITIVE,
+                                        doc="second moment of area I of a flexible link's section"),
+        "beam_area": Parameter("area", "m^2", **POSITIVE, doc="section area A of a flexible link (axial, shear)"),
+        "beam_shear_modulus": Parameter("shear_modulus", "Pa", **POSITIVE, doc="shear modulus G of a flexible link"),
+        "beam_shear_factor": Parameter("shear_factor", "-", **POSITIVE, doc="shear factor kappa of a flexible link"),
+        "beam_damping": Parameter("damping", "s", **NONNEGATIVE,
+                                  doc="Kelvin-Voigt damping eta of a flexible link (zeta = eta omega / 2)"),
+    }
+    SKETCH_STYLE: ClassVar[dict] = {"color": "tab:purple", "lw": 2.0, "marker": "o", "ms": 3}
+
+    def __init__(self, name, segments, end_a, end_b, middle, spacing, youngs_modulus, second_moment, area=1.0,
+                 shear_modulus=1.0, shear_factor=5.0 / 6.0, damping=0.0, axial="rigid"):
+        if axial not in AXIAL:
+            raise ParameterError(f"DiscreteBeam {name!r}: axial = {axial!r} is not allowed; allowed: {list(AXIAL)}")
+        segments = tuple(segments)
+        if len(segments) < 2:
+            raise ParameterError(f"DiscreteBeam {name!r}: segments needs at least 2 rigid elements, got {len(segments)}")
+        self.name, self.segments, self.axial = name, segments, axial
+        self.end_a, self.end_b, self.middle = tuple(end_a), tuple(end_b), tuple(middle)
+        self.spacing = scalar(f"DiscreteBeam {name!r}", "spacing", spacing)
+        for field, value in (("youngs_modulus", youngs_modulus), ("second_moment", second_moment), ("area", area),
+                             ("shear_modulus", shear_modulus), ("shear_factor", shear_factor), ("damping", damping)):
+            setattr(self, field, scalar(f"DiscreteBeam {name!r}", field, value))
+        self._validate()
+        if not float(self.spacing) > 0.0:
+            raise ParameterError(f"DiscreteBeam {name!r}: spacing = {float(self.spacing)!r} m is outside the allowed "
+                                 "range (0, inf) m")
+
+    # ---- structure ----------------------------------------------------------------
+    @property
+    def body_a(self) -> str:
+        return self.segments[0]
+
+    @property
+    def body_b(self) -> str:
+        return self.segments[-1]
+
+    @property
+    def n_nodes(self) -> int:
+        """m, the number of sdes."""
+        return len(self.segments) - 1
+
+    def bodies(self):
+        return self.segments
+
+    def points(self):
+        nodes = [(self.segments[k + j], node_name(k + 1)) for k in range(self.n_nodes) for j in (0, 1)]
+        return (self.end_a, self.end_b, self.middle, *nodes)
+
+    # ---- the start: the link undeformed (Mechanism.held_at_start) ----------------------
+    @property
+    def n_equations(self) -> int:
+        """The sdes' coordinates, held at rest by the start's assembly."""
+        return self.n_nodes if self.axial == "rigid" else 3 * self.n_nodes
+
+    def equations(self, mech, q, t):
+        """:math:`d(q) = 0`: every sde at rest (the link straight)."""
+        return self.coordinates(mech, q)
+
+    def assembly_velocity(self):
+        """:math:`\\dot d = 0` at the start: the link moves rigidly."""
+        return jnp.zeros((self.n_equations,), dtype=self.spacing.dtype)
+
+    # ---- the force element --------------------------------------------------------
+    def stiffness(self) -> Float[Array, " k"]:
+        """The sdes' stiffnesses, in the order of :meth:`coordinates`: ``(m,)`` EI / Delta [N m/rad]
+        (``"rigid"``) or ``(3 m,)`` EA / Delta, kappa G A / Delta [N/m], EI / Delta."""
+        bend = self.youngs_modulus * self.second_moment / self.spacing
+        if self.axial == "rigid":
+            return jnp.full((self.n_nodes,), bend)
+        one = jnp.stack([self.youngs_modulus * self.area, self.shear_factor * self.shear_modulus * self.area,
+                         self.youngs_modulus * self.second_moment]) / self.spacing
+        return jnp.tile(one, self.n_nodes)
+
+    def coordinates(self, mech, q) -> Float[Array, " k"]:
+        out = []
+        for k in range(self.n_nodes):
+            a, b = self.segments[k], self.segments[k + 1]
+            phi_a = mech.angle(q, a)
+            turn = mech.angle(q, b) - phi_a
+            if self.axial == "rigid":
+                out.append(turn[None])
+                continue
+            node = node_name(k + 1)
+            local = rotate(-phi_a, mech.point_position(q, b, node) - mech.point_position(q, a, node))
+            out.append(jnp.stack([local[0], local[1], turn]))
+        return jnp.concatenate(out)
+
+    def law(self, d, ddot):
+        return self.stiffness() * (d + self.damping * ddot)
+
+    def moments(self, f) -> Float[Array, " m"]:
+        """The bending moments [N m] at the nodes from the law's tension ``f``."""
+        return f if self.axial == "rigid" else f[2::3]
+
+    def outputs(self, mech, t, q, qdot) -> dict[str, Array]:
+        d, ddot, f, power, _ = self.evaluate(mech, q, qdot)
+        a = mech.point_position(q, *self.end_a)
+        chord = mech.point_position(q, *self.end_b) - a
+        deflection = cross2(chord, mech.point_position(q, *self.middle) - a) / jnp.sqrt(jnp.sum(chord**2))
+        moments = self.moments(f)
+        m = self.n_nodes
+        nearest = [m // 2] if m % 2 else [m // 2 - 1, m // 2]  # node (m + 1) / 2, or nodes m / 2 and m / 2 + 1
+        return {"deflection": deflection, "moment_middle": jnp.mean(moments[jnp.asarray(nearest)]),
+                "moment_max": jnp.max(jnp.abs(moments)), "energy": 0.5 * jnp.sum(self.stiffness() * d**2),
+                "power": power}
+
+    def sketch(self, points: dict, size: float) -> np.ndarray:
+        """The centre line: end a, the nodes, end b."""
+        nodes = [points[self.segments[k]][node_name(k + 1)] for k in range(self.n_nodes)]
+        return np.array([points[self.end_a[0]][self.end_a[1]], *nodes, points[self.end_b[0]][self.end_b[1]]],
+                        dtype=float)
