@@ -102,3 +102,12 @@ def test_chaos_notebook_runs(tmp_path):
     figures, text = run_notebook("chaos.ipynb", tmp_path)
     assert figures == ["chaos_bifurcation.png", "chaos_points.png"]
     assert "lambda_1 =" in text and "0-1 test K =" in text and ("e-folding time" in text or "no horizon" in text)
+
+
+def test_flexible_links_notebook_runs(tmp_path):
+    """notebooks/flexible_links.ipynb (issue 43: the benchmark slider-crank with its rod rigid,
+    steel and ten times softer; one crank revolution each with JAXCLEAR_QUICK=1, 3 moduli): runs,
+    writes its four figures, and the flexible rods bend while the rigid one has no deflection."""
+    figures, text = run_notebook("flexible_links.ipynb", tmp_path)
+    assert figures == ["flexible_drawing.png", "flexible_force_deflection.png", "flexible_shape.png", "flexible_sweep.png"]
+    assert "midpoint deflection" in text and "20.7 GPa: largest deflection" in text

@@ -77,7 +77,6 @@ def flexible_link(mech: Mechanism, body: str, *, youngs_modulus, second_moment, 
     m = int(elements)
     label = body if name is None else name
     a_name, b_name, pa, axis, length = _ends(rigid, ends)
-    normal = np.array([-axis[1], axis[0]])
     bounds = np.concatenate([[0.0], (np.arange(1, m + 1) - 0.5) * length / m, [length]])
     centres = 0.5 * (bounds[:-1] + bounds[1:])
     lengths = np.diff(bounds)
@@ -90,7 +89,7 @@ def flexible_link(mech: Mechanism, body: str, *, youngs_modulus, second_moment, 
     def element_of(s: float) -> int:
         return int(np.clip(np.searchsorted(bounds, s, side="right") - 1, 0, m))
 
-    mass, inertia = float(rigid.mass), float(rigid.inertia)
+    mass = float(rigid.mass)
     along = {p: float(np.dot(np.asarray(v) - pa, axis)) for p, v in rigid.points.items()}
     _warn_not_uniform(body, rigid, pa, axis, length)
     centre_points = [pa + c * axis for c in centres]  # in the body's frame (about its centroid)
