@@ -25,7 +25,6 @@ Usage: python benchmarks/bench_flexible_link.py [--revolutions 5] [--measured 3]
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import time

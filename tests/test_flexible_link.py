@@ -166,3 +166,20 @@ def test_joints_and_roles_move_to_the_elements_that_hold_their_points():
     with pytest.raises(jc.ParameterError, match="youngs_modulus"):
         jc.flexible_link(mech, "rod", youngs_modulus=-1.0, second_moment=4e-9)
     assert "beam_modulus:rod" in jc.differentiable_names(link)
+
+
+def test_axial_and_shear_springs_give_the_pinned_link_its_timoshenko_correction():
+    """``axial="elastic"``: the elements joined by axial (EA/Delta), shear (kappa G A/Delta) and
+    bending springs instead of pins. The pinned beam's first bending frequency is the
+    inextensible link's lowered by shear, which Timoshenko's beam puts at a relative
+    (1/2) (n pi r/L)^2 (1 + E/(kappa G)) for the first mode (r^2 = I/A; Timoshenko, Phil. Mag. 41
+    (1921) 744; the rotary inertia's share, (1/2)(n pi r/L)^2, is not modelled: the elements'
+    inertia is the bar's, not the section's): here 3.56e-4 (measured 3.55e-4 with 4 elements).
+    Asserted: the elastic link's first frequency below the pinned one's by that within 5 %."""
+    g, kappa = E / (2 * 1.3), 0.9
+    support = beam("pinned")
+    pinned = frequencies(jc.flexible_link(support, "beam", youngs_modulus=E, second_moment=SECOND, elements=4))[0]
+    elastic = frequencies(jc.flexible_link(support, "beam", youngs_modulus=E, second_moment=SECOND, elements=4,
+                                           axial="elastic", area=AREA, shear_modulus=g, shear_factor=kappa))[0]
+    shear = 0.5 * (np.pi / L) ** 2 * SECOND / AREA * E / (kappa * g)
+    assert 1 - elastic / pinned == pytest.approx(shear, rel=0.05)
