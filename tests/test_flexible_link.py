@@ -183,3 +183,18 @@ def test_axial_and_shear_springs_give_the_pinned_link_its_timoshenko_correction(
                                            axial="elastic", area=AREA, shear_modulus=g, shear_factor=kappa))[0]
     shear = 0.5 * (np.pi / L) ** 2 * SECOND / AREA * E / (kappa * g)
     assert 1 - elastic / pinned == pytest.approx(shear, rel=0.05)
+
+
+def test_a_flexible_mechanism_is_saved_and_read_back_leaf_by_leaf(tmp_path):
+    """Mechanism files hold the link: its elements as bodies, the pins as joints, the sdes as a
+    ``discrete-beam`` load; read back equal leaf by leaf; a broken end pair is named."""
+    link = jc.flexible_link(jc.preset("flores-slider-crank"), "rod", youngs_modulus=207e9, second_moment=4e-9,
+                            elements=3, damping=1e-6, axial="elastic", area=2e-4, shear_modulus=8e10)
+    path = tmp_path / "flexible.toml"
+    jc.save_mechanism(link, path)
+    assert eqx.tree_equal(jc.load_mechanism(path), link)
+    text = path.read_text()
+    start = text.index("end_b = [")
+    path.write_text(text[:start] + 'end_b = ["rod_3"]\n' + text[text.index("]", start) + 2:])
+    with pytest.raises(jc.ParameterError, match=r"loads\[0\].*end_b must be a \(body, point\) pair"):
+        jc.load_mechanism(path)

@@ -38,6 +38,7 @@ from ..contact.registry import LAWS, law_names
 from ..elements import FILMS, IDEALS, ClearanceJoint, LubricatedJoint, PinSlotJoint, TranslationalClearanceJoint
 from ..model import AngleDriver, Body, Fixed, Mechanism, PointForce, ProfileDriver, Revolute, Torque, Translational
 from ..model.connectors import CONNECTORS
+from ..model.discrete_beam import AXIAL
 from .tables import PROFILE_KINDS, load_tables, read_curve, read_profile
 from ..model.mechanism import check_sizes
 
@@ -76,7 +77,7 @@ ELEMENT_TYPES = {
 #: lubricated joint's film width is its ``length``, as for every journal joint)
 DEPRECATED_KEYS = {"lubricated": {"width": "length"}}
 #: keys whose value is one of a few strings
-CHOICES = {"film": FILMS, "ideal": IDEALS}
+CHOICES = {"film": FILMS, "ideal": IDEALS, "axial": AXIAL}
 #: keys whose value is a string (every other value is a number or an array of numbers)
 STRING_KEYS = {"name", "body", "point", "body_i", "point_i", "body_j", "point_j", "bearing_body", "bearing_point",
                "journal_body", "journal_point", "guide_body", "guide_point", "slider_body", "slider_point",
@@ -101,8 +102,9 @@ def _number(value):
     return np.asarray(arr, dtype=float).tolist()
 
 
-def _plain(value):
-    return value if isinstance(value, (str, bool, int, float)) else _number(value)
+def _plain(value):  # a tuple of names (a flexible link's elements, its ends' (body, point)) as an array of strings
+    return value if isinstance(value, (str, bool, int, float)) else (
+        list(value) if isinstance(value, tuple) and all(isinstance(v, str) for v in value) else _number(value))
 
 
 def _fields(module, keys) -> dict:
@@ -304,6 +306,8 @@ class _Reader:
             return self.vector(key, value, 2)
         if name in INTEGER_KEYS:
             return self.integer(key, value)
+        if isinstance(value, list) and value and all(isinstance(v, str) for v in value):
+            return value  # names (a flexible link's elements and ends), checked by the class
         return self.number(key, value)
 
 

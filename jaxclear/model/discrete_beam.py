@@ -45,7 +45,7 @@ import numpy as np
 from .._errors import ParameterError
 from .._parameters import NONNEGATIVE, POSITIVE, Parameter
 from .._types import Array, Float, Scalar
-from .connectors import AbstractConnector, scalar
+from .connectors import CONNECTORS, AbstractConnector, scalar
 from .geometry import cross2, rotate
 
 AXIAL = ("rigid", "elastic")
@@ -114,8 +114,12 @@ class DiscreteBeam(AbstractConnector):
         if axial not in AXIAL:
             raise ParameterError(f"DiscreteBeam {name!r}: axial = {axial!r} is not allowed; allowed: {list(AXIAL)}")
         segments = tuple(segments)
-        if len(segments) < 2:
-            raise ParameterError(f"DiscreteBeam {name!r}: segments needs at least 2 rigid elements, got {len(segments)}")
+        if len(segments) < 2 or not all(isinstance(b, str) for b in segments):
+            raise ParameterError(f"DiscreteBeam {name!r}: segments must name at least 2 rigid elements (body names), "
+                                 f"got {segments!r}")
+        for field, pair in (("end_a", end_a), ("end_b", end_b), ("middle", middle)):
+            if len(pair) != 2 or not all(isinstance(v, str) for v in pair):
+                raise ParameterError(f"DiscreteBeam {name!r}: {field} must be a (body, point) pair of names, got {pair!r}")
         self.name, self.segments, self.axial = name, segments, axial
         self.end_a, self.end_b, self.middle = tuple(end_a), tuple(end_b), tuple(middle)
         self.spacing = scalar(f"DiscreteBeam {name!r}", "spacing", spacing)
@@ -211,3 +215,6 @@ class DiscreteBeam(AbstractConnector):
         nodes = [points[self.segments[k]][node_name(k + 1)] for k in range(self.n_nodes)]
         return np.array([points[self.end_a[0]][self.end_a[1]], *nodes, points[self.end_b[0]][self.end_b[1]]],
                         dtype=float)
+
+
+CONNECTORS['discrete-beam'] = DiscreteBeam
