@@ -171,7 +171,7 @@ def test_closest_names_of_a_suffixed_name_and_without_a_mechanism():
         params.get(MECH, "mass:rdo")
     with pytest.raises(jc.ParameterError, match=r"^unknown parameter 'model' \(39 names: jc.params.names\(mech\)\)$"):
         params.get(MECH, "model")  # nothing close: no guess
-    with pytest.raises(jc.ParameterError, match=r"did you mean 'restitution'\? \(45 names: "
+    with pytest.raises(jc.ParameterError, match=r"did you mean 'restitution'\? \(51 names: "
                                                  r"jc.params.parameter_names\(\)\)$"):
         params.info("restitutoin")
     assert params.names(MECH) == jc.differentiable_names(MECH) and len(params.names(MECH)) == 39

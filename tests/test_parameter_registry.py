@@ -150,10 +150,10 @@ def test_the_toy_element_in_the_structure_check_and_the_drawing(tmp_path):
 
 def test_every_law_declares_its_stiffness_leaf_and_every_name_one_meaning():
     """The stiffness each law declares is the leaf its ``stiffness_parameter`` names; the
-    catalogue composed from the registered classes is the one ``INFO`` lists (45 names)."""
+    catalogue composed from the registered classes is the one ``INFO`` lists (51 names)."""
     for cls, *_ in LAWS.values():
         assert cls.PARAMETERS["stiffness"].field == cls.stiffness_parameter, cls
-    assert len(params.INFO) == 45 and params.parameter_names() == sorted(params.INFO)
+    assert len(params.INFO) == 51 and params.parameter_names() == sorted(params.INFO)
     joint = jc.preset("flores-slider-crank").clearance_joints[0]
     table = joint.parameters()  # the joint answers for its law and friction (leaf paths law.*, friction.*)
     assert table["restitution"].field == "law.restitution" and table["friction"].field == "friction.coefficient"
