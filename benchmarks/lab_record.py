@@ -72,9 +72,10 @@ SETTLE_S = 2e-3  # the filter runs at least this long before the record's first 
 #: record, with a single onset: the record hardly holds the restitution (its damping acts only
 #: through the unknown approach speed of a contact under way, and through one light impact).
 CASES = {
-    "acceptance": [dict(stiffness_factor=0.8, c_r=0.75, seed=1, revolutions_before=6),
-                   dict(stiffness_factor=1.25, c_r=0.85, seed=2, revolutions_before=6),
-                   dict(stiffness_factor=1.0, c_r=0.9, seed=3, revolutions_before=12)],
+    # pinned (lab_states.json, 2026-11-30): 96.4, 96.1 and 94.0 % in contact, 2, 4 and 6 onsets
+    "acceptance": [dict(stiffness_factor=0.8, c_r=0.75, seed=1, revolutions_before=5),
+                   dict(stiffness_factor=1.25, c_r=0.85, seed=2, revolutions_before=12),
+                   dict(stiffness_factor=1.0, c_r=0.9, seed=3, revolutions_before=13)],
     "one-impact": [dict(stiffness_factor=0.8, c_r=0.75, seed=1, revolutions_before=5),
                    dict(stiffness_factor=1.25, c_r=0.85, seed=2, revolutions_before=5),
                    dict(stiffness_factor=1.0, c_r=0.9, seed=3, revolutions_before=5)],
