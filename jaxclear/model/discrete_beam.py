@@ -103,7 +103,7 @@ class DiscreteBeam(AbstractConnector):
                                         doc="second moment of area I of a flexible link's section"),
         "beam_area": Parameter("area", "m^2", **POSITIVE, doc="section area A of a flexible link (axial, shear)"),
         "beam_shear_modulus": Parameter("shear_modulus", "Pa", **POSITIVE, doc="shear modulus G of a flexible link"),
-        "beam_shear_factor": Parameter("shear_factor", "-", **POSITIVE, doc="shear factor kappa of a flexible link"),
+        "beam_shear_factor": Parameter("shear_factor", "", **POSITIVE, doc="shear factor kappa of a flexible link"),
         "beam_damping": Parameter("damping", "s", **NONNEGATIVE,
                                   doc="Kelvin-Voigt damping eta of a flexible link (zeta = eta omega / 2)"),
     }
