@@ -166,6 +166,9 @@ def test_joints_and_roles_move_to_the_elements_that_hold_their_points():
     with pytest.raises(jc.ParameterError, match="youngs_modulus"):
         jc.flexible_link(mech, "rod", youngs_modulus=-1.0, second_moment=4e-9)
     assert "beam_modulus:rod" in jc.differentiable_names(link)
+    named = eqx.tree_at(lambda m: m.bodies[1].points, mech, {**mech.bodies[1].points, "middle": jnp.zeros(2)})
+    with pytest.raises(jc.MechanismError, match=r"points named \['middle'\]"):
+        jc.flexible_link(named, "rod", youngs_modulus=207e9, second_moment=4e-9)
 
 
 def test_axial_and_shear_springs_give_the_pinned_link_its_timoshenko_correction():

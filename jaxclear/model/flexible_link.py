@@ -22,6 +22,7 @@ import numpy as np
 from .._errors import MechanismError, ParameterError, check_range
 from .bodies import GROUND, Body
 from .discrete_beam import AXIAL, DiscreteBeam, node_name
+from .geometry import perp, rotate
 from .joints import Revolute
 from .mechanism import Mechanism
 
@@ -86,6 +87,11 @@ def flexible_link(mech: Mechanism, body: str, *, youngs_modulus, second_moment, 
     if clash:
         raise MechanismError(f"flexible_link: the rigid elements' names {clash} are taken by other bodies; rename them")
 
+    reserved = [p for p in rigid.points if p == "middle" or p in {node_name(k) for k in range(1, m + 1)}]
+    if reserved:
+        raise MechanismError(f"flexible_link: body {body!r} has points named {reserved}, the names the link gives its "
+                             "nodes and middle; rename them")
+
     def element_of(s: float) -> int:
         return int(np.clip(np.searchsorted(bounds, s, side="right") - 1, 0, m))
 
@@ -106,15 +112,13 @@ def flexible_link(mech: Mechanism, body: str, *, youngs_modulus, second_moment, 
     mid = element_of(0.5 * length) if m % 2 == 0 else (m - 1) // 2
     points[mid]["middle"] = pa + 0.5 * length * axis - centre_points[mid]
     pose, twist = np.asarray(rigid.position, float), np.asarray(rigid.velocity, float)
-    c, s = np.cos(pose[2]), np.sin(pose[2])
-    rot = np.array([[c, -s], [s, c]])
     bodies = []
     for k in range(m + 1):
-        arm = rot @ centre_points[k]
+        arm = np.asarray(rotate(pose[2], centre_points[k]))  # the element's centre from the body's, global axes
         bodies.append(Body(names[k], mass * lengths[k] / length, mass / length * lengths[k] ** 3 / 12.0,
                            {p: v.tolist() for p, v in points[k].items()},
                            position=(*(pose[:2] + arm), pose[2]),
-                           velocity=(*(twist[:2] + twist[2] * np.array([-arm[1], arm[0]])), twist[2])))
+                           velocity=(*(twist[:2] + twist[2] * np.asarray(perp(arm))), twist[2])))
     index = mech.body_index(body)
     new_bodies = [*mech.bodies[:index], *bodies, *mech.bodies[index + 1:]]
 
