@@ -42,11 +42,15 @@ HERE = Path(__file__).resolve().parent
 RHO, E_STEEL = 7800.0, 207e9  # kg/m^3, Pa
 
 
+def rod_length(mech) -> float:
+    """The preset rod's length between its joints A and B [m]."""
+    rod = mech.body("rod")
+    return float(np.linalg.norm(np.asarray(rod.points["B"]) - np.asarray(rod.points["A"])))
+
+
 def rod_section(mech) -> tuple[float, float]:
     """``(A, I)`` of a solid circular steel bar with the preset rod's mass and length."""
-    rod = mech.body("rod")
-    length = float(np.linalg.norm(np.asarray(rod.points["B"]) - np.asarray(rod.points["A"])))
-    area = float(rod.mass) / (RHO * length)
+    area = float(mech.body("rod").mass) / (RHO * rod_length(mech))
     diameter = np.sqrt(4 * area / np.pi)
     return area, float(np.pi * diameter**4 / 64)
 
@@ -54,9 +58,7 @@ def rod_section(mech) -> tuple[float, float]:
 def first_frequency(mech, modulus: float) -> float:
     """The rod's first bending frequency pinned-pinned [rad/s], Euler-Bernoulli."""
     area, second = rod_section(mech)
-    rod = mech.body("rod")
-    length = float(np.linalg.norm(np.asarray(rod.points["B"]) - np.asarray(rod.points["A"])))
-    return float(np.pi**2 / length**2 * np.sqrt(modulus * second / (RHO * area)))
+    return float(np.pi**2 / rod_length(mech) ** 2 * np.sqrt(modulus * second / (RHO * area)))
 
 
 def cases(mech, zeta: float):

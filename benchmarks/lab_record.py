@@ -167,6 +167,18 @@ def pinned_states() -> dict:
     return json.loads(PINNED_FILE.read_text()) if PINNED_FILE.is_file() else {}
 
 
+def simulator_params(stiffness_factor, c_r, rpm, clearance) -> tuple[dict, float]:
+    """``(p, K_Hertz)``: scipy_reference's parameters for a record (restitution, crank speed
+    [rpm], clearance [m] or None for its default, K = stiffness_factor * K_Hertz)."""
+    over = dict(c_r=c_r, omega=rpm * 2.0 * math.pi / 60.0)
+    if clearance is not None:
+        over["R_J"] = ref.params()["R_B"] - clearance
+    p = ref.params(**over)
+    k_hertz = ref.contact_stiffness(p)
+    p["K"] = stiffness_factor * k_hertz
+    return p, k_hertz
+
+
 def make_record(stiffness_factor=1.0, c_r=0.9, seed=0, revolutions_before=5, start_angle_deg=37.0, duration=12e-3,
                 fs=50e3, cutoff_hz=10e3, order=2, gain=1.03, bias=0.5, snr_db=20.0, delay=0.0, mount="slider",
                 rpm=5000.0, clearance=None, rtol=1e-9, atol=1e-12, pinned=True) -> dict:
@@ -196,12 +208,7 @@ def make_record(stiffness_factor=1.0, c_r=0.9, seed=0, revolutions_before=5, sta
         raise ValueError("mount must be 'slider' or 'rod-mid'")
     if order not in (1, 2):
         raise ValueError("order must be 1 or 2")
-    over = dict(c_r=c_r, omega=rpm * 2.0 * math.pi / 60.0)
-    if clearance is not None:
-        over["R_J"] = ref.params()["R_B"] - clearance
-    p = ref.params(**over)
-    K_hertz = ref.contact_stiffness(p)
-    p["K"] = stiffness_factor * K_hertz
+    p, K_hertz = simulator_params(stiffness_factor, c_r, rpm, clearance)
     omega = p["omega"]
     theta0 = math.radians(start_angle_deg) % (2.0 * math.pi)
     t0 = (2.0 * math.pi * revolutions_before + theta0) / omega  # record start [s after start-up]
@@ -300,11 +307,7 @@ def pin(case: dict, search=range(5, 15), low=0.80, high=0.97) -> dict:
             break
     else:
         raise RuntimeError(f"no revolution of {list(search)} is {low:.0%}-{high:.0%} in contact for {case}")
-    over = dict(c_r=case["c_r"], omega=args["rpm"] * 2.0 * math.pi / 60.0)
-    if args["clearance"] is not None:
-        over["R_J"] = ref.params()["R_B"] - args["clearance"]
-    p = ref.params(**over)
-    p["K"] = case["stiffness_factor"] * ref.contact_stiffness(p)
+    p, _ = simulator_params(case["stiffness_factor"], case["c_r"], args["rpm"], args["clearance"])
     t_pin = truth["start_time"] - PIN_LEAD_S
     sim = ref.simulate(p, t_pin, ts=np.array([t_pin]), rtol=args["rtol"], atol=args["atol"])
     import scipy

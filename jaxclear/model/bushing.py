@@ -38,6 +38,15 @@ from .geometry import rotate
 _FIELDS = ("stiffness_x", "stiffness_y", "stiffness_angle", "damping_x", "damping_y", "damping_angle")
 
 
+def bushing_coordinates(mech, q, body_a: str, point_a: str, body_b: str, point_b: str) -> Float[Array, "3"]:
+    """:math:`d = [A_a^T(p_b - p_a);\ \phi_b - \phi_a]` (module docstring) of two body points: a
+    bushing's coordinates, and those of a flexible link's spring-damping element at a node
+    (:class:`~jaxclear.model.discrete_beam.DiscreteBeam`)."""
+    phi_a = mech.angle(q, body_a)
+    local = rotate(-phi_a, mech.point_position(q, body_b, point_b) - mech.point_position(q, body_a, point_a))
+    return jnp.stack([local[0], local[1], mech.angle(q, body_b) - phi_a])
+
+
 class Bushing(AbstractPointPair):
     """A planar bushing between point ``point_a`` of ``body_a`` and ``point_b`` of ``body_b``, at
     rest where the points coincide and the bodies' angles are equal (module docstring:
@@ -88,10 +97,7 @@ class Bushing(AbstractPointPair):
         self._validate()
 
     def coordinates(self, mech, q) -> Float[Array, "3"]:
-        gap = self.gap(mech, q)
-        phi_a = mech.angle(q, self.body_a)
-        local = rotate(-phi_a, gap)
-        return jnp.stack([local[0], local[1], mech.angle(q, self.body_b) - phi_a])
+        return bushing_coordinates(mech, q, self.body_a, self.point_a, self.body_b, self.point_b)
 
     def law(self, d, ddot):
         k = jnp.stack([self.stiffness_x, self.stiffness_y, self.stiffness_angle])

@@ -45,8 +45,9 @@ import numpy as np
 from .._errors import ParameterError
 from .._parameters import NONNEGATIVE, POSITIVE, Parameter
 from .._types import Array, Float, Scalar
+from .bushing import bushing_coordinates
 from .connectors import CONNECTORS, AbstractConnector, scalar
-from .geometry import cross2, rotate
+from .geometry import cross2
 
 AXIAL = ("rigid", "elastic")
 
@@ -178,18 +179,11 @@ class DiscreteBeam(AbstractConnector):
         return jnp.tile(one, self.n_nodes)
 
     def coordinates(self, mech, q) -> Float[Array, " k"]:
-        out = []
-        for k in range(self.n_nodes):
-            a, b = self.segments[k], self.segments[k + 1]
-            phi_a = mech.angle(q, a)
-            turn = mech.angle(q, b) - phi_a
-            if self.axial == "rigid":
-                out.append(turn[None])
-                continue
-            node = node_name(k + 1)
-            local = rotate(-phi_a, mech.point_position(q, b, node) - mech.point_position(q, a, node))
-            out.append(jnp.stack([local[0], local[1], turn]))
-        return jnp.concatenate(out)
+        pairs = zip(self.segments[:-1], self.segments[1:])
+        if self.axial == "rigid":  # the relative angles only (the elements pinned at the nodes)
+            return jnp.stack([mech.angle(q, b) - mech.angle(q, a) for a, b in pairs])
+        return jnp.concatenate([bushing_coordinates(mech, q, a, node_name(k + 1), b, node_name(k + 1))
+                                for k, (a, b) in enumerate(pairs)])
 
     def law(self, d, ddot):
         return self.stiffness() * (d + self.damping * ddot)
