@@ -39,7 +39,7 @@ _FIELDS = ("stiffness_x", "stiffness_y", "stiffness_angle", "damping_x", "dampin
 
 
 def bushing_coordinates(mech, q, body_a: str, point_a: str, body_b: str, point_b: str) -> Float[Array, "3"]:
-    """:math:`d = [A_a^T(p_b - p_a);\ \phi_b - \phi_a]` (module docstring) of two body points: a
+    r""":math:`d = [A_a^T(p_b - p_a);\ \phi_b - \phi_a]` (module docstring) of two body points: a
     bushing's coordinates, and those of a flexible link's spring-damping element at a node
     (:class:`~jaxclear.model.discrete_beam.DiscreteBeam`)."""
     phi_a = mech.angle(q, body_a)
