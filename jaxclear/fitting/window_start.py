@@ -74,12 +74,25 @@ def pressed(u):
 
 def unpressed(a: np.ndarray) -> np.ndarray:
     """Inverse of :func:`pressed` (an offset deeper than the bound is clipped to 0.999 of it)."""
-    p = MAX_START_PENETRATION
+    a = np.asarray(a, dtype=float)
     r = float(np.linalg.norm(a))
-    if r <= 1.0:
-        return np.asarray(a, dtype=float)
-    r_in = min(r, 1.0 + 0.999 * p)
-    return np.asarray(a, dtype=float) / r * (1.0 + p * math.atanh((r_in - 1.0) / p))
+    return a if r <= 1.0 else a / r * float(unpressed_radius(r))
+
+
+def pressed_radius(n):
+    """``rho(n)`` of :func:`pressed` (NumPy, any shape): the radius of an offset, in units of the
+    start scale, whose number ``u`` has the norm ``n``."""
+    n = np.asarray(n, dtype=float)
+    p = MAX_START_PENETRATION
+    return np.where(n > 1.0, 1.0 + p * np.tanh((n - 1.0) / p), n)
+
+
+def unpressed_radius(r):
+    """Inverse of :func:`pressed_radius` (a radius deeper than the bound is clipped to 0.999 of it)."""
+    r = np.asarray(r, dtype=float)
+    p = MAX_START_PENETRATION
+    deep = np.minimum(r, 1.0 + 0.999 * p)
+    return np.where(r > 1.0, 1.0 + p * np.arctanh((np.maximum(deep, 1.0) - 1.0) / p), r)
 
 
 def approach_speed(m, unit):
