@@ -349,11 +349,13 @@ def _end_stage(st: FitState, stage: Stage, loss: float, reason: str, ckpt: Check
 def run_plan(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoint,
              report: Callable[[dict, FitState], None]) -> FitState:
     """All remaining stages; then, if the last stage is a start (one horizon, one window, no
-    coarse stage), the best start is the result."""
+    coarse stage; or the joint stages of several starts of a record that begins mid-run), the
+    best start is the result, checkpointed as such (the checkpoint held the last start's values)."""
     while st.stage < len(problem.stages):
         st = run_stage(problem, opt, st, ckpt, report)
     if problem.stages[-1].start >= 0:
         st = st.at_best_start()
+        ckpt.save(st)
     return st
 
 
