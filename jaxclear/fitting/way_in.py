@@ -248,8 +248,8 @@ def find_start(model: WindowModel, mech, theta_z, win: WindowInput, horizon: flo
     speeds = np.concatenate([approach_candidates(cands[i], mech, per) for i in order[:k]])[:m]
     speeds = np.concatenate([speeds, np.repeat(cands[int(order[0])][None, :], m - speeds.shape[0], axis=0)])
     seen, seen_scores = np.concatenate([cands, speeds]), np.concatenate([scores, score(speeds)])
-    def fitted(w):  # fitted samples of a window input, every channel
-        return max(float(np.sum(np.asarray(w.mask))) * model.weights.shape[0], 1.0)
+    def fitted(w):
+        return _fitted(w, model.weights.shape[0])
 
     n_first = n_fit = fitted(win)
     passes = [float(np.min(scores)) / n_fit, float(np.min(seen_scores)) / n_fit]
@@ -311,7 +311,7 @@ def search_around(model: WindowModel, mech, theta_z, seeds: np.ndarray, win: Win
     first half, the true start 0.0090 and 0.0097)."""
     m = candidates(mech).shape[0]
     score, score_long = _scorer(model, theta_z, win, horizon), _scorer(model, theta_z, *longer)
-    n_long = max(float(np.sum(np.asarray(longer[0].mask))) * model.weights.shape[0], 1.0)
+    n_long = _fitted(longer[0], model.weights.shape[0])
     seeds = np.asarray(seeds, dtype=float)
     first = score(np.concatenate([seeds, np.repeat(seeds[:1], m - seeds.shape[0], axis=0)]))[: seeds.shape[0]]
     center = seeds[int(np.argmin(np.where(np.isfinite(first), first, np.inf)))]
@@ -361,23 +361,24 @@ def search_sectors(cands: np.ndarray, scores: np.ndarray, score, scorer, win: Wi
     sliding rate, normal rate, log approach speed; spreads :data:`SECTOR_SPREADS` shrinking by
     :data:`SECTOR_SHRINK`), each round one pass of ``M`` runs (``M / SECTORS`` a lineage), a
     lineage moving to its best sample where that scores lower. The lineages' ends are ranked over
-    the longer horizon (where given; ``scorer(win, horizon)`` makes the scores of starts there). Why lineages and not the global elites of the
-    cross-entropy rounds (used for other elements): at the true parameters of an acceptance record
+    the longer horizon (where given; ``scorer(win, horizon)`` makes the scores of starts there).
+    Why lineages and not the global elites of the cross-entropy rounds (used for other elements): at the true parameters of an acceptance record
     of the independent simulator, the global elites of the grid all lay on the far side of the
     bearing from the true start (70 against -147 degrees), in a basin that followed the window's
     first half at 4 times the noise and its whole at 80 times; the sector lineages found every
     window's start of that record (directions within 1.7 degrees, sliding rates within 0.25
     omega c of the simulator's; the first half at 0.92-1.16 times the noise) and, at the fit's
-    start values, the first windows of two records (0.92 and 0.99)."""
+    start values, every window of the three acceptance records at 0.72-1.28 times the noise over
+    the first half but one (7 times, which the joint stages closed)."""
     m = cands.shape[0]
     per = max(1, m // SECTORS)
     polar = _polar(cands)
     sector = np.round(polar[:, 0] / (2.0 * math.pi) * SECTORS).astype(int) % SECTORS
-    finite_scores = np.where(np.isfinite(scores), scores, np.inf)
+    finite_scores = np.where(np.isfinite(scores), scores, np.inf)  # NaN ranks last too
     roots = [int(np.flatnonzero(sector == j)[np.argmin(finite_scores[sector == j])]) for j in range(SECTORS)
              if np.any(sector == j)]
     best_z, best_s = cands[roots].copy(), finite_scores[roots].copy()
-    n_fit = max(float(np.sum(np.asarray(win.mask))) * channels, 1.0)
+    n_first = n_fit = _fitted(win, channels)
     passes = [float(np.min(finite_scores)) / n_fit]
     rng = np.random.default_rng(REFINE_SEED)
     spread = np.asarray(SECTOR_SPREADS, dtype=float)
@@ -401,7 +402,7 @@ def search_sectors(cands: np.ndarray, scores: np.ndarray, score, scorer, win: Wi
         passes.append(float(np.min(best_s)) / n_fit)
     ranked_s = best_s
     if longer is not None:
-        n_fit = max(float(np.sum(np.asarray(longer[0].mask))) * channels, 1.0)
+        n_fit = _fitted(longer[0], channels)
         padded = np.concatenate([best_z, np.repeat(best_z[:1], max(LONGER_ELITES - lineages, 0), axis=0)])
         ranked_s = scorer(*longer)(padded)[:lineages]
         ranked_s = np.where(np.isfinite(ranked_s), ranked_s, np.inf)
@@ -411,7 +412,12 @@ def search_sectors(cands: np.ndarray, scores: np.ndarray, score, scorer, win: Wi
     report = {"candidates": int(m * (1 + SECTOR_ROUNDS) + (lineages if longer is not None else 0)),
               "finite": int(finite.sum()),
               "best_loss": float(ranked_s[order[0]]) / n_fit,
-              "median_loss": float(np.median(scores[finite]) / max(float(np.sum(np.asarray(win.mask))) * channels, 1.0))
-              if finite.any() else float("nan"),
+              "median_loss": float(np.median(scores[finite])) / n_first if finite.any() else float("nan"),
               "passes": passes, "search": "sectors"}
     return best_z[order], report
+
+
+def _fitted(win: WindowInput, channels: int) -> float:
+    """Fitted numbers of a window input (its masked samples times the channels; at least 1): the
+    divisor that makes a sum of squares a mean square."""
+    return max(float(np.sum(np.asarray(win.mask))) * channels, 1.0)
