@@ -246,3 +246,41 @@ def test_started_is_traceable(slider_crank):
     assert float(g_angle) == 1.0
     clearance = float(mech.clearance_joints[0].clearance)
     np.testing.assert_allclose(np.asarray(g_offset), clearance, rtol=1e-15)
+
+
+def test_host_rows_splits_over_threads_and_keeps_the_order(monkeypatch):
+    """:func:`~jaxclear.sweep.lanes.host_rows`: the rows split into one part per thread (one
+    shape: the last part padded), each through the function on its own thread, the outputs in
+    the rows' order and the padding dropped; the same numbers as one call, for a compiled lanes
+    function too (its lanes are independent); ``JAXCLEAR_HOST_THREADS`` sets the threads."""
+    import threading
+
+    import jax.numpy as jnp
+
+    from jaxclear.sweep.lanes import host_map, host_rows, host_threads
+
+    monkeypatch.setenv("JAXCLEAR_HOST_THREADS", "3")
+    assert host_threads() == 3
+    seen = []
+
+    def f(rows):
+        seen.append((rows.shape, threading.get_ident()))
+        return rows[:, 0] * 2.0
+
+    rows = np.arange(50.0).reshape(25, 2)
+    np.testing.assert_array_equal(host_rows(f, rows), rows[:, 0] * 2.0)
+    assert sorted(s for s, _ in seen) == [(9, 2)] * 3  # 25 rows: parts of 9, the last padded
+    seen.clear()
+    np.testing.assert_array_equal(host_rows(f, rows[:10]), rows[:10, 0] * 2.0)
+    assert [s for s, _ in seen] == [(10, 2)]  # under 8 rows a part: one call
+    square = jax.jit(lambda r: jnp.sin(r) ** 2)
+    rows = np.linspace(0.0, 3.0, 64)
+    # an elementwise kernel may take a vector path for one length and a scalar one for another:
+    # within rounding, not bit for bit (the way in's lanes, jax.lax.map, run one scalar path)
+    np.testing.assert_allclose(host_rows(square, rows), np.asarray(square(rows)), rtol=0, atol=1e-15)
+    assert host_map(lambda x: x * x, range(7)) == [x * x for x in range(7)]
+    monkeypatch.setenv("JAXCLEAR_HOST_THREADS", "1")
+    assert host_threads() == 1 and host_map(str, [1, 2]) == ["1", "2"]
+    monkeypatch.setenv("JAXCLEAR_HOST_THREADS", "0")
+    with pytest.raises(ValueError, match="JAXCLEAR_HOST_THREADS = '0' must be an integer >= 1"):
+        host_threads()

@@ -19,6 +19,12 @@ Three levels, each used by the one above:
 * :func:`on_devices` (inside a traced program): a lanes function with its rows split over a 1-D
   mesh of devices (``jax.shard_map``, axis ``"batch"``; :func:`jaxclear.sweep.devices.make_mesh`)
   and its other arguments replicated;
+* the host's threads (:func:`host_map`, :func:`host_rows`): independent calls of compiled
+  programs from host code (the fit's way in scoring its candidate starts, its windows evaluated
+  one by one) spread over :func:`host_threads` Python threads. A CPU device runs one program's
+  loop kernel on one core, and JAX releases the GIL while a program runs, so on two cores two
+  threads score 1560 candidate starts of a fit window in 1.60 s where one call takes 2.95 s (the
+  same numbers bit for bit: the lanes are independent);
 * the host's chunks: :func:`padded_chunk` (chunk ``c`` is rows ``c*S .. c*S+S-1``, the last one
   padded by repeating its last row, so that every chunk has one shape and one compilation, and a
   resumed run batches every row as an uninterrupted one does), :func:`chunks_todo`,
@@ -33,6 +39,7 @@ from __future__ import annotations
 
 import os
 import re
+from concurrent.futures import ThreadPoolExecutor
 
 import equinox as eqx
 import jax
@@ -73,6 +80,57 @@ def over_lanes(f, *args, one_by_one: bool | None = None, batch_size: int | None 
             return jax.lax.map(f, args[0], batch_size=batch_size)
         return jax.lax.map(lambda a: f(*a), args, batch_size=batch_size)
     return jax.vmap(f)(*args)
+
+
+#: Most host threads of :func:`host_threads` (whatever the CPUs), and the environment variable
+#: that sets their number (1: everything on the calling thread).
+MAX_HOST_THREADS = 8
+HOST_THREADS_ENV = "JAXCLEAR_HOST_THREADS"
+
+
+def host_threads() -> int:
+    """Threads for independent host-side calls of compiled programs: ``JAXCLEAR_HOST_THREADS``
+    where set (an integer >= 1), else the CPUs this process may run on, at most
+    :data:`MAX_HOST_THREADS`."""
+    given = os.environ.get(HOST_THREADS_ENV)
+    if given:
+        try:
+            n = int(given)
+        except ValueError:
+            n = 0
+        if n < 1:
+            raise ValueError(f"{HOST_THREADS_ENV} = {given!r} must be an integer >= 1 (threads for independent "
+                             "compiled calls; 1: none beside the calling one)")
+        return n
+    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return max(1, min(cpus, MAX_HOST_THREADS))
+
+
+def host_map(f, items) -> list:
+    """``[f(x) for x in items]``, the calls spread over :func:`host_threads` threads (in order;
+    the first exception raised is raised here)."""
+    items = list(items)
+    n = min(host_threads(), len(items))
+    if n <= 1:
+        return [f(x) for x in items]
+    with ThreadPoolExecutor(n) as pool:
+        return list(pool.map(f, items))
+
+
+def host_rows(f, rows: np.ndarray, min_rows: int = 8) -> np.ndarray:
+    """``f(rows)`` for a lanes function ``f`` of host rows ``(n, ...) -> (n, ...)``, the rows split
+    into :func:`host_threads` parts of one size (the last padded by repeating its last row: one
+    compiled shape), each part on its own thread, the outputs concatenated in order and the
+    padding dropped. Fewer than ``min_rows`` rows a part: one call."""
+    rows = np.asarray(rows)
+    n = len(rows)
+    parts = min(host_threads(), n // max(min_rows, 1))
+    if parts <= 1:
+        return np.asarray(f(rows))
+    size = -(-n // parts)
+    chunks = [padded_chunk(rows, c, size)[2] for c in range(chunk_count(n, size))]
+    out = host_map(lambda r: np.asarray(f(r)), chunks)
+    return np.concatenate(out, axis=0)[:n]
 
 
 def on_devices(lanes, mesh, rows, *shared):
@@ -200,5 +258,6 @@ def run_lanes(compiled, values, *shared, chunk: int | None, mesh, work=None, res
     return {k: np.concatenate([p[k] for p in parts], axis=0) for k in parts[0]}
 
 
-__all__ = ["CHUNK_DIR", "chunk_count", "chunk_file", "chunks_todo", "compute_chunk", "finished_chunks", "lanes_one_by_one",
-           "on_devices", "over_lanes", "padded_chunk", "round_chunk", "run_chunks", "run_lanes"]
+__all__ = ["CHUNK_DIR", "HOST_THREADS_ENV", "MAX_HOST_THREADS", "chunk_count", "chunk_file", "chunks_todo",
+           "compute_chunk", "finished_chunks", "host_map", "host_rows", "host_threads", "lanes_one_by_one", "on_devices",
+           "over_lanes", "padded_chunk", "round_chunk", "run_chunks", "run_lanes"]
