@@ -273,6 +273,23 @@ def test_a_residual_above_the_given_noise_fails():
     assert assess(FREE, GOOD, GOOD_STD, noise=(2000.0, None, 539)) == ()
 
 
+
+def test_a_window_above_the_given_noise_fails_though_the_record_passes():
+    """The same chi-square test window by window (several windows, the noise given): a start in
+    another basin leaves its misfit in its own window. Four windows of 135 dof, one at 1.33 times
+    the noise (z = (1.77 - 1) / sqrt(2/135) = 6.3; the record as a whole 1.09 times, z = 2.2 over
+    540: it passes): a failure naming window 1 alone; all at 1.05 times (z = 0.9 each): none;
+    one window: only the record's test; no noise given: none."""
+    ok = (1.05 * 1000.0, 1000.0, 540)
+    out = assess(FREE, GOOD, GOOD_STD, noise=ok, windows=([1330.0, 1000.0, 990.0, 1010.0], [135.0] * 4))
+    _one(out, "window 1 (1.33 times, 6.3 chi-square std over 135", "does not follow this window",
+         "start was probably not found")
+    assert assess(FREE, GOOD, GOOD_STD, noise=ok, windows=([1050.0] * 4, [135.0] * 4)) == ()
+    assert assess(FREE, GOOD, GOOD_STD, noise=ok, windows=([1330.0], [540.0])) == ()
+    assert assess(FREE, GOOD, GOOD_STD, noise=(1050.0, None, 540), windows=([2000.0, 1000.0], [270.0] * 2)) == ()
+    two = assess(FREE, GOOD, GOOD_STD, noise=ok, windows=([1330.0, 1000.0, 1500.0, 1010.0], [135.0] * 4))
+    _one(two, "windows 1 (1.33 times", "; 3 (1.5 times", "does not follow these windows")
+
 def test_noise_sigma_is_checked():
     import numpy as np
 

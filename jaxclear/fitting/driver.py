@@ -25,7 +25,7 @@ from ..integrate import Settings
 from .problem import FitProblem, build_problem, given_settings, settings_record
 from .result import FitResult
 from .profile import check_profile, run_profiles, summarize
-from .run import evaluate_all, final_jacobian, fitted_mask, fresh_state, run_plan
+from .run import evaluate_all, final_jacobian, fitted_mask, fresh_state, run_plan, window_losses
 from .solver import make_optimizer
 from .state import Checkpoint, FitState
 from .uncertainty import AUTOCORRELATION_WARNING, Uncertainty, estimate_uncertainty
@@ -381,9 +381,7 @@ def _result(problem: FitProblem, st: FitState, wall: float, resumed: bool, profi
     std = {**unc.std, **{name: p["std"] for name, p in profiles.items()}}
     for w in warn if not quiet else ():
         warnings.warn(w, stacklevel=3)
-    n_pad = problem.win.n_pad * problem.win.n_channels
-    window_losses = [float(np.mean(r[k * n_pad:(k + 1) * n_pad][problem.win.residual_mask(k, 1.0) > 0] ** 2))
-                     for k in range(problem.windows)]
+    losses = window_losses(problem, evals)
     initial = evaluate_all(problem, problem.z_starts[0], states, st.guesses)
     s = problem.settings
     return FitResult(
@@ -410,5 +408,6 @@ def _result(problem: FitProblem, st: FitState, wall: float, resumed: bool, profi
                   **({"auto_starts": f"{s['starts']} starts: one start {st.refit}"} if st.refit else {})},
         series=_channel_series(problem, evals, initial),
         warnings=warn, window_states=[list(map(float, v)) for v in (states if problem.anywhere else states[1:])],
-        window_losses=window_losses)
+        window_losses=losses,
+        window_samples=[int(problem.win.residual_mask(k, 1.0).sum()) for k in range(problem.windows)])
 

@@ -32,6 +32,7 @@ class Stage(NamedTuple):
     integrate: bool = False  # residual of the integrated signal (coarse stage)
     way_in: bool = False  # its window's start is first found by the way in (:mod:`.way_in`)
     held: tuple = ()  # parameters (indices into theta) held at their values: a profile point (:mod:`.profile`)
+    revisit: bool = False  # windows not followed are searched anew at the fitted values first (:mod:`.way_in`)
 
     def max_iter(self, max_iter: int) -> int:
         """Iteration limit: ``max_iter`` for the final stage, ``max(5, max_iter // 2)`` else."""
@@ -97,7 +98,11 @@ def plan_free_starts(windows: int, horizons: tuple, starts: int, coarse: str | N
     2. all windows, the parameters and every start, through the horizons (the last is final);
        with ``starts > 1`` once from each start of the parameters (:func:`spread_starts`), each
        from the starts the way in found (at the first start's values), the best of them the
-       result, so that "estimates change with the start" (:mod:`.verdict`) can be checked."""
+       result, so that "estimates change with the start" (:mod:`.verdict`) can be checked;
+    3. with several windows, once more all windows, the parameters and every start, after the
+       windows the joint stages left unfollowed were searched anew at the fitted values over
+       their whole length (:func:`jaxclear.fitting.run.revisit_windows`); skipped where every
+       window follows the record as well as the others."""
     first = horizons[0]
     stages = [Stage(f"window {k + 1} start state (way in), acceleration, horizon {first:g}", (k,), first, False, (k,),
                     -1, False, False, True) for k in range(windows)]
@@ -107,6 +112,9 @@ def plan_free_starts(windows: int, horizons: tuple, starts: int, coarse: str | N
         for hz in horizons:
             stages.append(Stage(f"{prefix}all {windows} windows, parameters and start states, horizon {hz:g}", every,
                                 hz, True, every, j if starts > 1 else -1, hz == 1.0))
+    if windows > 1:
+        stages.append(Stage(f"all {windows} windows again, the windows not followed searched anew", every, 1.0, True,
+                            every, -1, True, revisit=True))
     return stages
 
 

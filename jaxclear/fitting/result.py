@@ -3,9 +3,9 @@
 
 from __future__ import annotations
 
-from dataclasses import InitVar, dataclass, field
-
+import math
 import os
+from dataclasses import InitVar, dataclass, field
 
 import numpy as np
 
@@ -82,6 +82,7 @@ class FitResult(AbstractResult):
     warnings: list = field(default_factory=list)
     window_states: list = field(default_factory=list)
     window_losses: list = field(default_factory=list)
+    window_samples: list = field(default_factory=list)
     evaluations: int = 0
     series: dict = field(default_factory=dict)
     profiles: dict = field(default_factory=dict)
@@ -100,8 +101,20 @@ class FitResult(AbstractResult):
                                    stop_reason=self.stop_reason,
                                    free_start=self.settings.get("start_state") == "free", profiles=self.profiles,
                                    noise=(self.noise_sigma_m_s2, self.settings.get("noise_sigma_given_m_s2"),
-                                          self.n_samples - self.n_unknowns))
+                                          self.n_samples - self.n_unknowns),
+                                   windows=self._window_noise())
         self.failures = tuple(self.failures)
+
+    def _window_noise(self) -> tuple | None:
+        """Per window its residual std [record units] and degrees of freedom (its fitted samples
+        times the record's ``(N - P) / N``; the std over those, as the record's own
+        ``noise_sigma_m_s2``), for the verdict's window rule; None without them."""
+        if not self.window_samples or len(self.window_samples) != len(self.window_losses) or not self.n_samples:
+            return None
+        scale = float(self.settings.get("data_rms_m_s2", 1.0))
+        share = max(self.n_samples - self.n_unknowns, 1) / self.n_samples
+        return ([math.sqrt(max(loss, 0.0) / share) * scale for loss in self.window_losses],
+                [n * share for n in self.window_samples])
 
     @property
     def ok(self) -> bool:
@@ -166,6 +179,7 @@ class FitResult(AbstractResult):
             "window_starts_s": self.window_starts,
             "window_length_s": self.window_length_s,
             "window_losses": self.window_losses,
+            "window_samples": self.window_samples,
             "window_states": self.window_states,
             "profiles": self.profiles,
             "settings": self.settings,

@@ -30,8 +30,10 @@ crank speed [rad/s], or ``1 / T_w``).
   ``F_e(delta) chi deltadot / v^- = F_e(delta) deltadot / nu``: the restitution and the approach
   speed act only through ``nu``, so freeing both makes the least-squares problem singular.
   ``m`` is chosen by the way in (:mod:`jaxclear.fitting.way_in`) and then **held** (its
-  derivative is stopped, its column of the Jacobian is zero), and the restitution is identified
-  from the impacts that begin inside a window. Holding ``nu`` rather than ``v^-`` keeps that
+  derivative is stopped, its column of the Jacobian is zero), chosen again over the longer
+  horizon at each step of the joint stages' continuation
+  (:func:`jaxclear.fitting.way_in.rechoose_approach`: over a window's first half it is hardly
+  seen), and the restitution is identified from the impacts that begin inside a window. Holding ``nu`` rather than ``v^-`` keeps that
   damping what the way in found while the restitution moves; held as ``v^-``, every window
   starting in contact pulled the restitution back to its start value (on a record of the
   independent simulator, 99 % of it in contact: 0.938 for a true 0.75, 10 std off, from 0.9).
