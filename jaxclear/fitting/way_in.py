@@ -63,6 +63,12 @@ pass on later windows and moved the fit to other basins (acceptance record 3: st
 them whose whole window runs with its Jacobian
 (:func:`jaxclear.fitting.run.begin_stage`).
 
+**Later in the fit.** The approach speed a start holds is chosen again over the longer horizon
+each time the joint stages' horizon grows (:func:`rechoose_approach`), and a window the joint
+stages leave unfollowed is searched anew by :func:`find_start` at the fitted values, scored over
+its whole length (:func:`jaxclear.fitting.run.revisit_windows`): over a window's first half two
+basins can score alike where only one follows the second half.
+
 The alternatives considered: reading impact instants and directions from the record itself
 (the spikes of the acceleration) needs impacts, and a journal in continuous contact makes none
 for milliseconds at a time; a filter or smoother along the record (extended or unscented
