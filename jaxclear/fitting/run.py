@@ -258,19 +258,13 @@ def stage_evaluation(problem: FitProblem, st: FitState, stage: Stage, x=None) ->
     """The stage's residual ``(N,)`` (its windows' samples stacked), its Jacobian over the
     stage's unknowns ``(N, len(x))`` (a held parameter's column zero) and the windows' signals
     ``(W_s, C, n_pad)``, at the stage's unknowns ``x`` put in place
-    (:func:`split`; None: the state's values). Each window runs its compiled program
-    (:func:`~jaxclear.fitting.window.evaluate_window_jit`), the windows spread over the host's
-    threads (:func:`jaxclear.sweep.lanes.host_map`)."""
+    (:func:`split`; None: the state's values), from :func:`evaluate_windows`."""
     if x is None:
         theta, states = np.asarray(st.theta, dtype=float), np.asarray(st.states, dtype=float)
     else:
         theta, states = split(problem, st, stage, x)
-    def one(k):
-        win = problem.window_input(k, stage.horizon, stage.integrate, st.guesses)
-        r, jt, js, y, _ = evaluate_window_jit(problem.model, jnp.asarray(theta), jnp.asarray(states[k]), win)
-        return np.asarray(r), np.asarray(jt), np.asarray(js), np.asarray(y)
-
-    rs, jts, jss, ys = zip(*host_map(one, stage.windows))
+    rs, jts, jss, ys = zip(*evaluate_windows(problem, theta, states, st.guesses, stage.windows, stage.horizon,
+                                             stage.integrate))
     jac = np.array(stack_jacobian(jts, jss, stage.theta, _free_rows(stage)))
     if stage.held and stage.theta:
         jac[:, list(stage.held)] = 0.0  # held parameters are no unknowns: the step leaves them
@@ -436,14 +430,22 @@ def run_plan(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoint
     return st
 
 
-def evaluate_all(problem: FitProblem, theta, states, guesses):
-    """Per window at horizon 1: residual, Jacobians and signal (the compiled window function)."""
+def evaluate_windows(problem: FitProblem, theta, states, guesses, windows, horizon: float = 1.0,
+                     integrate: bool = False) -> list:
+    """Per window of ``windows`` over ``horizon``: its residual, Jacobians and signal (host
+    arrays, the compiled window function), the windows spread over the host's threads
+    (:func:`jaxclear.sweep.lanes.host_map`)."""
     def one(k):
-        win = problem.window_input(k, 1.0, False, guesses)
+        win = problem.window_input(k, horizon, integrate, guesses)
         r, jt, js, y, _ = evaluate_window_jit(problem.model, jnp.asarray(theta), jnp.asarray(states[k]), win)
         return np.asarray(r), np.asarray(jt), np.asarray(js), np.asarray(y)
 
-    return host_map(one, range(problem.windows))
+    return host_map(one, windows)
+
+
+def evaluate_all(problem: FitProblem, theta, states, guesses):
+    """Per window at horizon 1: residual, Jacobians and signal (:func:`evaluate_windows`)."""
+    return evaluate_windows(problem, theta, states, guesses, range(problem.windows))
 
 
 def final_jacobian(problem: FitProblem, evals) -> tuple[np.ndarray, np.ndarray]:
