@@ -176,12 +176,18 @@ def assess(free: Sequence[str], estimates: dict, std: dict, *, start: dict | Non
 NOISE_Z = 3.0
 
 
+def _above_noise(sigma: float, sigma_given: float, dof: float) -> tuple[float, float]:
+    """``(ratio, z)``: the residual's variance over the noise's, and by how many chi-square std
+    it lies above it, ``z = (s^2 / sigma^2 - 1) / sqrt(2 / dof)`` (:data:`NOISE_Z`)."""
+    ratio = (sigma / sigma_given) ** 2
+    return ratio, (ratio - 1.0) / math.sqrt(2.0 / dof)
+
+
 def _noise_failures(sigma_fit: float, sigma_given: float, dof: int) -> list:
     """The failure of a residual above the given noise level (:data:`NOISE_Z`)."""
     if not (math.isfinite(sigma_fit) and dof > 0):
         return []
-    ratio = (sigma_fit / sigma_given) ** 2
-    z = (ratio - 1.0) / math.sqrt(2.0 / dof)
+    ratio, z = _above_noise(sigma_fit, sigma_given, dof)
     if z <= NOISE_Z:
         return []
     return [f"the residual's std {sigma_fit:.4g} is {math.sqrt(ratio):.3g} times the sensor's noise {sigma_given:.4g} "
@@ -202,8 +208,7 @@ def _window_failures(sigmas: Sequence[float], dofs: Sequence[float], sigma_given
     for k, (sigma, dof) in enumerate(zip(sigmas, dofs)):
         if not (math.isfinite(sigma) and dof > 0):
             continue
-        ratio = (sigma / sigma_given) ** 2
-        z = (ratio - 1.0) / math.sqrt(2.0 / dof)
+        ratio, z = _above_noise(sigma, sigma_given, dof)
         if z > NOISE_Z:
             bad.append(f"{k + 1} ({math.sqrt(ratio):.3g} times, {z:.1f} chi-square std over {dof:.0f} degrees of "
                        "freedom)")
