@@ -314,3 +314,13 @@ def test_a_stage_stops_where_a_step_gains_less_than_a_tenth_of_a_noise_variance(
     assert statistically_converged(24.0005, 24.0, 2400.0, False) == ""
     assert statistically_converged(float("nan"), 24.0, 2400.0, True) == ""
     assert statistically_converged(23.9, 24.0, 2400.0, True) == ""
+
+
+def test_the_contact_onsets_per_window_are_reported():
+    """``FitResult.window_onsets`` (the impacts the fitted motion has in each window) is in the
+    summary (several windows) and in ``to_dict``; a result that does not know them says nothing."""
+    res = _result(window_onsets=[1, 1, 1, 0])
+    assert res.ok
+    assert "contact onsets of the fitted motion per window: 1, 1, 1, 0 (3 in all)" in res.summary()
+    assert res.to_dict()["window_onsets"] == [1, 1, 1, 0]
+    assert "contact onsets" not in _result().summary() and _result().to_dict()["window_onsets"] is None

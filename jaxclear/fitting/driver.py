@@ -408,6 +408,6 @@ def _result(problem: FitProblem, st: FitState, wall: float, resumed: bool, profi
                   **({"auto_starts": f"{s['starts']} starts: one start {st.refit}"} if st.refit else {})},
         series=_channel_series(problem, evals, initial),
         warnings=warn, window_states=[list(map(float, v)) for v in (states if problem.anywhere else states[1:])],
-        window_losses=losses,
+        window_losses=losses, window_onsets=[int(round(e[4])) if math.isfinite(e[4]) else None for e in evals],
         window_samples=[int(problem.win.residual_mask(k, 1.0).sum()) for k in range(problem.windows)])
 

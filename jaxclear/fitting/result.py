@@ -43,6 +43,12 @@ class FitResult(AbstractResult):
             (times in simulation time, ``initial`` = the model at the start values), per window
             stacked; ``window_starts`` [s].
         series: every fitted column -> ``{"measured", "fitted", "initial"}`` (same samples as ``t``).
+        window_losses, window_samples, window_onsets: per window its normalised misfit, its
+            fitted samples (the verdict's window rule reads both) and the contact onsets of the
+            fitted motion inside it, counted by the contacts' memories (None: not known; an
+            entry None: the window's run failed there). With
+            every window's start free only these onsets' approach speeds are set by the motion:
+            the impacts that hold the restitution.
         free, fixed, settings, warnings: inputs and remarks, written to ``fit.json``.
         failures: why the estimates are not a result (one sentence each: the parameter, its
             value, the rule broken and what to try; :func:`jaxclear.fitting.verdict.assess`),
@@ -83,6 +89,7 @@ class FitResult(AbstractResult):
     window_states: list = field(default_factory=list)
     window_losses: list = field(default_factory=list)
     window_samples: list = field(default_factory=list)
+    window_onsets: list | None = None
     evaluations: int = 0
     series: dict = field(default_factory=dict)
     profiles: dict = field(default_factory=dict)
@@ -131,7 +138,8 @@ class FitResult(AbstractResult):
 
     def summary(self) -> str:
         """The outcome as text: a failed fit's reasons first, then the loss, the estimates with
-        their start values and std [SI], and the warnings."""
+        their start values and std [SI], the profiles, the contact onsets per window (several
+        windows) and the warnings."""
         lines = [self.format_failures()] if not self.ok else []
         lines.append(f"{'FAILED' if not self.ok else 'ok'}: {self.iterations} iterations ({self.stop_reason or '-'}); "
                      f"loss {self.loss:.4g}, residual lag-1 autocorrelation {self.residual_autocorrelation:.2f}")
@@ -141,6 +149,10 @@ class FitResult(AbstractResult):
             lines.append(f"  {name:<{width}}  {self.start.get(name, float('nan')):>12.6g}  {value:>12.6g}  "
                          f"{self.std.get(name, float('nan')):>10.3g}")
         lines += self.profile_lines()
+        if self.window_onsets is not None and len(self.window_onsets) > 1:
+            lines.append(f"  contact onsets of the fitted motion per window: "
+                         f"{', '.join('-' if n is None else str(int(n)) for n in self.window_onsets)} "
+                         f"({int(sum(n for n in self.window_onsets if n is not None))} in all)")
         lines += [f"warning: {w}" for w in self.warnings]
         return "\n".join(lines)
 
@@ -180,6 +192,7 @@ class FitResult(AbstractResult):
             "window_length_s": self.window_length_s,
             "window_losses": self.window_losses,
             "window_samples": self.window_samples,
+            "window_onsets": self.window_onsets,
             "window_states": self.window_states,
             "profiles": self.profiles,
             "settings": self.settings,

@@ -263,7 +263,7 @@ def stage_evaluation(problem: FitProblem, st: FitState, stage: Stage, x=None) ->
         theta, states = np.asarray(st.theta, dtype=float), np.asarray(st.states, dtype=float)
     else:
         theta, states = split(problem, st, stage, x)
-    rs, jts, jss, ys = zip(*evaluate_windows(problem, theta, states, st.guesses, stage.windows, stage.horizon,
+    rs, jts, jss, ys, _ = zip(*evaluate_windows(problem, theta, states, st.guesses, stage.windows, stage.horizon,
                                              stage.integrate))
     jac = np.array(stack_jacobian(jts, jss, stage.theta, _free_rows(stage)))
     if stage.held and stage.theta:
@@ -432,13 +432,13 @@ def run_plan(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoint
 
 def evaluate_windows(problem: FitProblem, theta, states, guesses, windows, horizon: float = 1.0,
                      integrate: bool = False) -> list:
-    """Per window of ``windows`` over ``horizon``: its residual, Jacobians and signal (host
-    arrays, the compiled window function), the windows spread over the host's threads
-    (:func:`jaxclear.sweep.lanes.host_map`)."""
+    """Per window of ``windows`` over ``horizon``: its residual, Jacobians, signal (host
+    arrays, the compiled window function) and the contact onsets of its motion (a float: not
+    finite where the run failed), the windows spread over the host's threads (:func:`jaxclear.sweep.lanes.host_map`)."""
     def one(k):
         win = problem.window_input(k, horizon, integrate, guesses)
-        r, jt, js, y, _ = evaluate_window_jit(problem.model, jnp.asarray(theta), jnp.asarray(states[k]), win)
-        return np.asarray(r), np.asarray(jt), np.asarray(js), np.asarray(y)
+        r, jt, js, y, end = evaluate_window_jit(problem.model, jnp.asarray(theta), jnp.asarray(states[k]), win)
+        return np.asarray(r), np.asarray(jt), np.asarray(js), np.asarray(y), float(end[4])
 
     return host_map(one, windows)
 

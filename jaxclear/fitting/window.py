@@ -111,7 +111,8 @@ class WindowModel(eqx.Module):
 
     def signal(self, theta_z, state_z, win: WindowInput):
         """Sensor outputs ``(C, n_pad)`` at the window's samples and ``(q_end, qdot_end,
-        start_states_end, status)`` of the simulation."""
+        start_states_end, status, onsets)`` of the simulation (``onsets``: the contact onsets
+        of every force element within the window, ``()``, from their memories' counters)."""
         mech, values, speeds = self.mechanism(theta_z, state_z, win)
         sol = simulate(mech, self.settings, self.start(mech, speeds))
         ys = []
@@ -122,7 +123,9 @@ class WindowModel(eqx.Module):
             y = gain * sensor.filter(self.h, channel(mech, sol, name)) + bias
             ys.append(jnp.interp(win.t_rel - delay, sol.ts, y))
         q1, qd1 = sol.q[-1], sol.qdot[-1]
-        return jnp.stack(ys), (q1, qd1, start_states(mech, q1, qd1), sol.status)
+        impacts = sol.memory.impacts
+        onsets = jnp.sum(impacts[-1] - impacts[0]).astype(q1.dtype)
+        return jnp.stack(ys), (q1, qd1, start_states(mech, q1, qd1), sol.status, onsets)
 
     def residual(self, theta_z, state_z, win: WindowInput):
         """Residual ``(C n_pad,)`` of the window (module docstring), the signals, and the end."""
@@ -136,7 +139,7 @@ class WindowModel(eqx.Module):
 def evaluate_window(model: WindowModel, theta_z, state_z, win: WindowInput):
     """Residual ``r`` ``(C n_pad,)``, its Jacobians ``dr/dtheta_z`` ``(C n_pad, P)`` and
     ``dr/dstate_z`` ``(C n_pad, S)`` in forward mode (``jax.jacfwd``: few columns, many rows),
-    the signals ``y`` ``(C, n_pad)`` and the end ``(q, qdot, start states, status)``. ``r`` is NaN
+    the signals ``y`` ``(C, n_pad)`` and the end ``(q, qdot, start states, status, onsets)``. ``r`` is NaN
     where the simulation failed (status not 0) or a value is not finite."""
 
     def f(theta_z, state_z):
@@ -152,8 +155,8 @@ def evaluate_window(model: WindowModel, theta_z, state_z, win: WindowInput):
 
 _evaluate_window = jit(evaluate_window)
 #: The structure of :func:`evaluate_window`'s output: ``r``, the two Jacobians, ``y`` and the end
-#: ``(q, qdot, start states, status)``, arrays all (the store of traced programs rebuilds it).
-_EVALUATE_STRUCTURE = jax.tree_util.tree_structure((0, 0, 0, 0, (0, 0, 0, 0)))
+#: ``(q, qdot, start states, status, onsets)``, arrays all (the store of traced programs rebuilds it).
+_EVALUATE_STRUCTURE = jax.tree_util.tree_structure((0, 0, 0, 0, (0, 0, 0, 0, 0)))
 
 
 def evaluate_window_jit(model: WindowModel, theta_z, state_z, win: WindowInput):
