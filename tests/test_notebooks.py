@@ -13,12 +13,18 @@ NOTEBOOKS = Path(__file__).resolve().parents[1] / "notebooks"
 
 
 def execute_notebook(name: str, tmp_path: Path, timeout: int = 900):
+    """Execute a scratch copy of notebook ``name`` in ``tmp_path`` with JAXCLEAR_QUICK=1, its
+    figures to ``tmp_path/figures`` and its kernel's temporary folders (``tempfile.mkdtemp`` in
+    the notebooks: their output folders) under ``tmp_path/tmp`` (TMPDIR), so that a run leaves
+    nothing in the system's temporary folder beyond pytest's own, which pytest prunes."""
     src = NOTEBOOKS / name
     dst = tmp_path / name
     shutil.copy(src, dst)
     nb = nbformat.read(dst, as_version=4)
-    env_before = {k: os.environ.get(k) for k in ("JAXCLEAR_QUICK", "JAXCLEAR_FIGURES", "MPLBACKEND")}
-    os.environ.update(JAXCLEAR_QUICK="1", JAXCLEAR_FIGURES=str(tmp_path / "figures"), MPLBACKEND="Agg")
+    env_before = {k: os.environ.get(k) for k in ("JAXCLEAR_QUICK", "JAXCLEAR_FIGURES", "MPLBACKEND", "TMPDIR")}
+    (tmp_path / "tmp").mkdir(exist_ok=True)
+    os.environ.update(JAXCLEAR_QUICK="1", JAXCLEAR_FIGURES=str(tmp_path / "figures"), MPLBACKEND="Agg",
+                      TMPDIR=str(tmp_path / "tmp"))
     try:
         NotebookClient(nb, timeout=timeout, kernel_name="python3",
                        resources={"metadata": {"path": str(tmp_path)}}).execute()
