@@ -46,9 +46,9 @@ class FitResult(AbstractResult):
         window_losses, window_samples, window_onsets: per window its normalised misfit, its
             fitted samples (the verdict's window rule reads both) and the contact onsets of the
             fitted motion inside it, counted by the contacts' memories (None: not known; an
-            entry None: the window's run failed there). With
-            every window's start free only these onsets' approach speeds are set by the motion:
-            the impacts that hold the restitution.
+            entry None: the window's run failed there). With every window's start free only
+            these onsets' approach speeds are set by the motion: the impacts that hold the
+            restitution.
         free, fixed, settings, warnings: inputs and remarks, written to ``fit.json``.
         failures: why the estimates are not a result (one sentence each: the parameter, its
             value, the rule broken and what to try; :func:`jaxclear.fitting.verdict.assess`),

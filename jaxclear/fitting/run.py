@@ -264,7 +264,7 @@ def stage_evaluation(problem: FitProblem, st: FitState, stage: Stage, x=None) ->
     else:
         theta, states = split(problem, st, stage, x)
     rs, jts, jss, ys, _ = zip(*evaluate_windows(problem, theta, states, st.guesses, stage.windows, stage.horizon,
-                                             stage.integrate))
+                                                stage.integrate))
     jac = np.array(stack_jacobian(jts, jss, stage.theta, _free_rows(stage)))
     if stage.held and stage.theta:
         jac[:, list(stage.held)] = 0.0  # held parameters are no unknowns: the step leaves them
@@ -434,7 +434,8 @@ def evaluate_windows(problem: FitProblem, theta, states, guesses, windows, horiz
                      integrate: bool = False) -> list:
     """Per window of ``windows`` over ``horizon``: its residual, Jacobians, signal (host
     arrays, the compiled window function) and the contact onsets of its motion (a float: not
-    finite where the run failed), the windows spread over the host's threads (:func:`jaxclear.sweep.lanes.host_map`)."""
+    finite where the run failed), the windows spread over the host's threads
+    (:func:`jaxclear.sweep.lanes.host_map`)."""
     def one(k):
         win = problem.window_input(k, horizon, integrate, guesses)
         r, jt, js, y, end = evaluate_window_jit(problem.model, jnp.asarray(theta), jnp.asarray(states[k]), win)
