@@ -236,6 +236,16 @@ def _acceptance_problem(i: int):
     return case, truth, mech, free, problem
 
 
+def _true_theta(case, truth, free, problem):
+    """The fit's unknowns ``theta_z`` ``(P,)`` at the record's truth (stiffness, restitution,
+    sensor gain and bias)."""
+    from jaxclear.fitting.parameters import z_vector
+
+    return jnp.asarray(z_vector(free, {"stiffness": truth["stiffness"], "restitution": case["c_r"],
+                                       "sensor_gain": truth["sensor"]["gain"], "sensor_bias": truth["sensor"]["bias"]},
+                                problem.win.scale))
+
+
 def _true_start(case, truth, mech, problem, k: int, true_speed: bool = False):
     """The simulator's state at window ``k``'s start (restarted from the record's first sample
     at rtol 1e-10): its penetration [m] and its start numbers ``(S,)`` in the fit's anywhere
@@ -273,7 +283,6 @@ def test_way_in_finds_a_start_in_flight_as_good_as_the_true_one():
     (measured on the records made before the pinning, a start 28 micrometres off the wall: the
     grid alone 0.21 against the true start's 0.0115, with the local search 0.0143; here, with the
     sector search, 0.0120 against 0.0092 over the first half)."""
-    from jaxclear.fitting.parameters import z_vector
     from jaxclear.fitting.way_in import WAY_IN_HORIZON, find_start
     from jaxclear.integrate import jit
 
@@ -281,9 +290,7 @@ def test_way_in_finds_a_start_in_flight_as_good_as_the_true_one():
     k = 1
     delta, true_z = _true_start(case, truth, mech, problem, k)
     assert delta < 0.0  # in flight at the window's start
-    theta = jnp.asarray(z_vector(free, {"stiffness": truth["stiffness"], "restitution": case["c_r"],
-                                        "sensor_gain": truth["sensor"]["gain"], "sensor_bias": truth["sensor"]["bias"]},
-                                 problem.win.scale))
+    theta = _true_theta(case, truth, free, problem)
     residual = jit(lambda th, s, w: problem.model.residual(th, s, w)[0])
 
     def loss(z, horizon):
@@ -310,13 +317,10 @@ def test_window_onsets_count_the_independent_simulators_onsets(i, total):
     counts the onsets that the simulator had in it. Exact: an onset is a sign change of the
     penetration, which both codes locate; the windows follow the simulator to 1e-4 of the signal
     (test_a_run_from_the_independent_simulators_in_contact_state_follows_its_record)."""
-    from jaxclear.fitting.parameters import z_vector
     from jaxclear.integrate import jit
 
     case, truth, mech, free, problem = _acceptance_problem(i)
-    theta = jnp.asarray(z_vector(free, {"stiffness": truth["stiffness"], "restitution": case["c_r"],
-                                        "sensor_gain": truth["sensor"]["gain"], "sensor_bias": truth["sensor"]["bias"]},
-                                 problem.win.scale))
+    theta = _true_theta(case, truth, free, problem)
     onsets = jit(lambda th, s, w: problem.model.signal(th, s, w)[1][4])
     times = np.asarray(truth["impact_times"])
     counted, expected = [], []
@@ -363,16 +367,13 @@ def test_the_previous_windows_end_finds_the_next_windows_start(tmp_path):
     records made before the pinning this window began at a rebound (0.2 micrometres off the wall,
     leaving it at 2.4 omega c while sliding at 7.7) and the way in's grid and cross-entropy rounds
     missed it (8 times the true start), where the contender reached 0.0084 against 0.0090."""
-    from jaxclear.fitting.parameters import z_vector
     from jaxclear.fitting.run import chained_start, fresh_state, polish
     from jaxclear.fitting.solver import make_optimizer
     from jaxclear.fitting.way_in import WAY_IN_HORIZON, find_start
     from jaxclear.integrate import jit
 
     case, truth, mech, free, problem = _acceptance_problem(2)
-    theta = z_vector(free, {"stiffness": truth["stiffness"], "restitution": case["c_r"],
-                            "sensor_gain": truth["sensor"]["gain"], "sensor_bias": truth["sensor"]["bias"]},
-                     problem.win.scale)
+    theta = _true_theta(case, truth, free, problem)
     st = fresh_state(problem).replace(theta=np.asarray(theta).tolist())
     opt = make_optimizer("lm", 1e-6, 1e-5)
     guesses = problem.window_guesses
@@ -456,15 +457,12 @@ def test_the_approach_speed_of_a_contact_under_way_is_found_over_the_whole_windo
     whole window must bring it within 1.5 times the true start's and the approach number within
     log 1.5 of the truth (the grid spacing is 0.135 in log)."""
     from jaxclear.elements import start_states
-    from jaxclear.fitting.parameters import z_vector
     from jaxclear.fitting.way_in import rechoose_approach
     from jaxclear.integrate import jit
 
     case, truth, mech, free, problem = _acceptance_problem(2)
     assert truth["in_contact_at_start"]
-    theta = jnp.asarray(z_vector(free, {"stiffness": truth["stiffness"], "restitution": case["c_r"],
-                                        "sensor_gain": truth["sensor"]["gain"], "sensor_bias": truth["sensor"]["bias"]},
-                                 problem.win.scale))
+    theta = _true_theta(case, truth, free, problem)
     chi = float(jc.params.replace(mech, "restitution", case["c_r"]).clearance_joints[0].law.hysteresis_factor())
     x = np.asarray(truth["state"])
     state = np.asarray(start_states(mech, jnp.asarray(x[:9]), jnp.asarray(x[9:])))
