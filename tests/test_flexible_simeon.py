@@ -9,6 +9,7 @@ rigid finite elements) follows that model's midpoint deflection over the first c
 
 import math
 
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -83,3 +84,56 @@ def test_the_flexible_rod_follows_simeons_slider_crank_over_a_revolution():
     error = np.max(np.abs(deflection - stiffened)) / peak
     assert error < 0.06, error
     assert np.max(np.abs(deflection - linear)) / np.max(np.abs(linear)) > 2 * error
+
+
+def _smooth_start(mech) -> jc.State:
+    """The test set's consistent start (``simeon_crank.START_SMOOTH``) as a state of the
+    flexible mechanism: crank at 150 rad/s, the rod straight with the published rates (rod angle
+    -74.996 rad/s; its first two sine modes at 0.4449 and 0.00463 m/s), slider at its published
+    rate. Each rigid element's lateral velocity and angular velocity are those of the straight
+    line through the published velocity field at its two ends, so the nodes' velocities agree
+    between neighbours (the revolute joints' velocity constraints hold exactly). The test set's
+    axial stretch (1e-5 m) has no place in the inextensible link and is left out."""
+    y = sc.START_SMOOTH
+    w, rate, slider_rate, mode1, mode2 = sc.OMEGA, y[8], y[9], y[10], y[11]
+
+    def lateral(s):  # velocity across the rod (along y at t = 0) at distance s from the crank pin
+        return (sc.L1 * w + rate * s + mode1 * math.sin(math.pi * s / sc.L2)
+                + mode2 * math.sin(2 * math.pi * s / sc.L2))
+
+    q, qdot = [], []
+    for body in mech.bodies:
+        x, y_, angle = (float(v) for v in body.position)
+        q += [x, y_, angle]
+        if body.name == "crank":
+            qdot += [0.0, w * sc.L1 / 2, w]
+        elif body.name == "slider":
+            qdot += [slider_rate, 0.0, 0.0]
+        else:  # a rigid element of the rod, between its two outermost points (nodes or pins)
+            ends = sorted(x + float(v[0]) - sc.L1 for v in body.points.values())
+            a, b = ends[0], ends[-1]
+            va, vb = lateral(a), lateral(b)
+            qdot += [0.0, va + (vb - va) * (x - sc.L1 - a) / (b - a), (vb - va) / (b - a)]
+    return jc.State(jnp.asarray(q), jnp.asarray(qdot), ())
+
+
+@pytest.mark.slow  # about 60 s
+def test_the_flexible_rod_from_the_published_start_follows_the_published_motion():
+    """From the test set's own consistent start (given to ``jc.simulate`` as ``y0``: the
+    assembly would start the rod with no bending rate) to t = 0.1 s, the published interval (2.4
+    revolutions), the rod's midpoint deflection (8 elements, rtol 1e-8) against the independent
+    model from the same start. Measured: within 2.3 % of the 1.6 mm peak of the model with the
+    axial force's geometric stiffness, 9.4 % of the published (linear) model's; at t = 0.1 s
+    0.228 mm where the test set publishes q1 = 0.189 mm and the stiffened model gives 0.236 mm
+    (2.4 % of the peak from the published value: the stiffening, as above). Bounds: 3.5 % of the
+    peak against the stiffened model over the interval, 5 % against the published value."""
+    n = 201
+    mech = _simeon_mechanism(8)
+    sol = jc.simulate(mech, jc.settings(t_end=sc.T_REFERENCE, n_out=n, rtol=1e-8, atol=1e-11), _smooth_start(mech))
+    deflection = np.asarray(jc.channel(mech, sol, "load:rod:deflection"))
+    times = np.asarray(sol.ts)
+    stiffened = sc.solve(sc.T_REFERENCE, sc.START_SMOOTH, times, rtol=1e-10, atol=1e-13, stiffening=True).y[3]
+    peak = np.max(np.abs(stiffened))
+    assert 1.5e-3 < peak < 1.7e-3
+    assert np.max(np.abs(deflection - stiffened)) / peak < 0.035
+    assert abs(deflection[-1] - sc.REFERENCE[3]) / peak < 0.05
