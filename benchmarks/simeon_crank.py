@@ -3,8 +3,8 @@ jaxclear): the published reference against which the flexible link is checked.
 
 The model (B. Simeon, "Modelling a flexible slider crank mechanism by a mixed system of DAEs and
 PDEs", Math. Modelling of Systems 2 (1996) 1-18; the version of the Test Set for IVP Solvers,
-problem "Slider crank", F. Mazzia and F. Iavernaro, University of Bari, 1998/2006, with its
-reference solution): a rigid crank of length L1 = 0.15 m turned at omega = 150 rad/s from angle 0,
+problem "Slider crank", F. Mazzia and F. Iavernaro, University of Bari, contributed by B. Simeon
+in 1998, with its reference solution; also in the R package deTestSet): a rigid crank of length L1 = 0.15 m turned at omega = 150 rad/s from angle 0,
 an elastic connecting rod of length L2 = 0.30 m (steel, E = 2e11 Pa, square section 8 x 8 mm,
 density 7870 kg/m^3: mass 0.151104 kg), a slider of 0.075552 kg; no gravity, no damping.
 
