@@ -4,9 +4,10 @@ jaxclear): the published reference against which the flexible link is checked.
 The model (B. Simeon, "Modelling a flexible slider crank mechanism by a mixed system of DAEs and
 PDEs", Math. Modelling of Systems 2 (1996) 1-18; the version of the Test Set for IVP Solvers,
 problem "Slider crank", F. Mazzia and F. Iavernaro, University of Bari, contributed by B. Simeon
-in 1998, with its reference solution; also in the R package deTestSet): a rigid crank of length L1 = 0.15 m turned at omega = 150 rad/s from angle 0,
-an elastic connecting rod of length L2 = 0.30 m (steel, E = 2e11 Pa, square section 8 x 8 mm,
-density 7870 kg/m^3: mass 0.151104 kg), a slider of 0.075552 kg; no gravity, no damping.
+in 1998, with its reference solution; also in the R package deTestSet): a rigid crank of length
+L1 = 0.15 m turned at omega = 150 rad/s from angle 0, an elastic connecting rod of length L2 =
+0.30 m (steel, E = 2e11 Pa, square section 8 x 8 mm, density 7870 kg/m^3: mass 0.151104 kg), a
+slider of 0.075552 kg; no gravity, no damping.
 
 The rod is a floating frame of reference whose x axis runs from the crank pin A through the
 slider pin B; its lateral displacement is two sine modes, w(x) = q1 sin(pi x/L2) + q2
@@ -64,8 +65,8 @@ REFERENCE = np.array([0.1500000000000104e2, -0.3311734988256260, 0.1697373328427
 T_REFERENCE = 0.1
 
 
-def _matrices(youngs_modulus: float = E):
-    facm, fack, facb = RHO * B * H * L2, youngs_modulus * B * H / L2, B * H * L2
+def _matrices():
+    facm, fack, facb = RHO * B * H * L2, E * B * H / L2, B * H * L2
     pi = PI
     mq = facm * np.array([[0.5, 0, 0, 0], [0, 0.5, 0, 0], [0, 0, 8.0, 1.0], [0, 0, 1.0, 2.0]])
     kq = fack * np.array([[pi**4 / 24 * (H / L2) ** 2, 0, 0, 0], [0, pi**4 * 2 / 3 * (H / L2) ** 2, 0, 0],
@@ -111,7 +112,7 @@ def geometric_stiffness(t: float) -> np.ndarray:
 
 def accelerations(t: float, y: np.ndarray, kq=KQ, stiffening: bool = False):
     """``(w, lambda)``: the accelerations (7,) of (p, q) and the 3 multipliers at time ``t`` [s]
-    and state ``y`` (14,); ``kq``: the stiffness matrix (:func:`_matrices` of another Young's
+    and state ``y`` (14,); ``kq``: the stiffness matrix (``KQ`` scaled to another Young's
     modulus); ``stiffening``: with the lateral modes' :func:`geometric_stiffness`. The test set's
     options of a nonlinear stiffness and of damping are not written here (the reference
     solution is without them)."""
@@ -175,7 +176,7 @@ def solve(t_end: float = T_REFERENCE, start: np.ndarray = START_SMOOTH, times=No
     ``stiffening``: with the lateral modes' :func:`geometric_stiffness` (not in the test set's
     model)."""
     return solve_ivp(_rhs, (0.0, t_end), np.asarray(start, float), method="DOP853", rtol=rtol, atol=atol,
-                     t_eval=times, args=(_matrices(youngs_modulus)[1], stiffening))
+                     t_eval=times, args=(KQ * (youngs_modulus / E), stiffening))
 
 
 if __name__ == "__main__":
