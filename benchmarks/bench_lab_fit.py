@@ -12,7 +12,8 @@ revolution (12 ms) at 50 kHz through a 10 kHz second-order accelerometer with ga
 Targets: stiffness within 5 %, restitution within 0.02, every error within 3 reported std, under
 5 minutes a record on 2 cores.
 
-``python benchmarks/bench_lab_fit.py [--set acceptance] [--cases 0,1,2] [--windows 4] [--starts N] [--json PATH]`` prints a table
+``python benchmarks/bench_lab_fit.py [--set acceptance] [--cases 0,1,2] [--windows 4] [--starts N] [--scan NAME]
+[--json PATH]`` prints a table
 and writes the JSON after every record (a killed run resumes: the records done are kept; the
 output is locked while it runs).
 """
@@ -34,9 +35,10 @@ DEFAULT_JSON = os.path.join(HERE, "results", "lab_fit.json")
 FREE = ["stiffness", "restitution", "sensor_gain", "sensor_bias"]
 
 
-def fit_case(case: dict, windows: int, window: float, starts: int = 1, noise: bool = True) -> dict:
-    """One record (``make_record``'s arguments ``case``) made and fitted: the truth, the
-    estimates, std, errors, verdict and times."""
+def fit_case(case: dict, windows: int, window: float, starts: int = 1, noise: bool = True, scan=None) -> dict:
+    """One record (``make_record``'s arguments ``case``) made and fitted (``scan``: the fit's
+    scan of held values, :mod:`jaxclear.fitting.scan`): the truth, the estimates, std, errors,
+    verdict and times."""
     factor, c_r, seed = case["stiffness_factor"], case["c_r"], case["seed"]
     t0 = time.perf_counter()
     rec = lab_record.make_record(**case)
@@ -47,7 +49,7 @@ def fit_case(case: dict, windows: int, window: float, starts: int = 1, noise: bo
     t1 = time.perf_counter()
     res = jc.fit(data, mech, free=FREE, start={"restitution": 0.9}, sensor=jc.Accelerometer(10e3),
                  start_state="free", windows=windows, window=window, starts=starts, progress=False,
-                 noise_sigma=truth["noise_std"] if noise else None)
+                 noise_sigma=truth["noise_std"] if noise else None, scan=scan)
     wall = time.perf_counter() - t1
     k, c = res.estimates["stiffness"], res.estimates["restitution"]
     return {"stiffness_factor": factor, "c_r": c_r, "seed": seed, "revolutions_before": case["revolutions_before"],
@@ -61,7 +63,8 @@ def fit_case(case: dict, windows: int, window: float, starts: int = 1, noise: bo
             "fit_wall_s": wall, "record_s": made, "way_in": res.settings.get("way_in", []), "starts": starts,
             "noise_sigma_given": truth["noise_std"] if noise else None, "residual_std": res.noise_sigma_m_s2,
             "stop_reason": res.stop_reason, "window_losses": list(res.window_losses),
-            "window_onsets": res.window_onsets}
+            "window_onsets": res.window_onsets, "scan": scan, "scan_report": res.settings.get("scan"),
+            "profiles": res.profiles}
 
 
 def main(argv=None) -> int:
@@ -71,6 +74,8 @@ def main(argv=None) -> int:
     p.add_argument("--windows", type=int, default=4)
     p.add_argument("--window", type=float, default=2.99e-3)
     p.add_argument("--starts", type=int, default=1, help="starts of the parameters (default 1)")
+    p.add_argument("--scan", default=None, metavar="NAME",
+                   help="scan this free parameter after the fit (jc.fit's scan; default: none)")
     p.add_argument("--no-noise", action="store_true",
                    help="do not give the fit the sensor's noise level (default: given, as a record at rest would)")
     p.add_argument("--json", default=DEFAULT_JSON)
@@ -80,11 +85,12 @@ def main(argv=None) -> int:
     with locked_folder(os.path.dirname(os.path.abspath(args.json)), "benchmark results folder"):
         done = json.load(open(args.json))["records"] if os.path.isfile(args.json) else []
         for case in cases:
-            if any(all(r.get(k) == v for k, v in case.items()) and r.get("starts", 1) == args.starts for r in done):
+            if any(all(r.get(k) == v for k, v in case.items()) and r.get("starts", 1) == args.starts
+                   and r.get("scan") == args.scan for r in done):
                 continue
-            done.append(fit_case(case, args.windows, args.window, args.starts, not args.no_noise))
+            done.append(fit_case(case, args.windows, args.window, args.starts, not args.no_noise, args.scan))
             atomic_write_json(args.json, {"meta": {"date": time.strftime("%Y-%m-%d"), "windows": args.windows,
-                                                   "window_s": args.window, "free": FREE}, "records": done},
+                                                   "window_s": args.window, "free": FREE, "scan": args.scan}, "records": done},
                               indent=1, sort_keys=False)
     print(f"{'K/K_H':>6} {'c_r':>5} {'revs':>4} {'contact':>8} {'K err %':>8} {'K err/std':>9} {'c_r err':>8} {'c_r err/std':>11} "
           f"{'gain':>6} {'ok':>5} {'iters':>5} {'fit s':>6} {'starts':>6}")

@@ -133,7 +133,21 @@ def _acceptance_cases():
 #: chosen again and the windows not followed searched anew, benchmarks/README "Records that begin
 #: mid-run"): record 1's two onsets do not single out the restitution, and its fit passes the
 #: verdict at another minimum that follows the record to its noise.
-NOT_YET_MET = {0: "restitution 0.888 for 0.75 (7.9 std) at a minimum that follows the record to its noise"}
+NOT_YET_MET = {0: "restitution 0.827 +- 0.021 for 0.75 (3.6 std) at a minimum that follows the record to its noise; "
+                  "with a scan of the restitution 0.791 in [0.741, 0.812] (test below)"}
+
+
+def _acceptance_fit(case: dict, out, noise: bool = False, **kw):
+    """``(FitResult, truth)``: the acceptance fit of the record ``case`` (free stiffness,
+    restitution from 0.9, sensor gain and bias; a 10 kHz accelerometer; four 2.99 ms windows,
+    every start free), ``noise``: the sensor's noise level given; ``kw``: more of ``jc.fit``'s."""
+    truth = (rec := _lab_record(**case))["truth"]
+    mech = jc.params.replace(jc.preset("flores-slider-crank"), "angle0", truth["start_angle"])
+    data = {"time_s": rec["time_s"], "slider_acc_m_s2": rec["slider_acc_m_s2"]}
+    res = jc.fit(data, mech, free=["stiffness", "restitution", "sensor_gain", "sensor_bias"],
+                 start={"restitution": 0.9}, sensor=jc.Accelerometer(10e3), start_state="free", windows=4,
+                 window=2.99e-3, progress=False, out=out, noise_sigma=truth["noise_std"] if noise else None, **kw)
+    return res, truth
 
 
 @pytest.mark.slow
@@ -149,13 +163,7 @@ def test_fit_of_a_laboratory_record(tmp_path, case):
     with gain 1.03, bias 0.5 m/s^2 and 20 dB noise at 50 kHz; the journal state at every window's
     start unknown, sensor gain and bias fitted."""
     c_r = case["c_r"]
-    rec = _lab_record(**case)
-    truth = rec["truth"]
-    mech = jc.params.replace(jc.preset("flores-slider-crank"), "angle0", truth["start_angle"])
-    data = {"time_s": rec["time_s"], "slider_acc_m_s2": rec["slider_acc_m_s2"]}
-    res = jc.fit(data, mech, free=["stiffness", "restitution", "sensor_gain", "sensor_bias"],
-                 start={"restitution": 0.9}, sensor=jc.Accelerometer(10e3), start_state="free", windows=4,
-                 window=2.99e-3, progress=False, out=tmp_path)
+    res, truth = _acceptance_fit(case, tmp_path)
     (tmp_path / "truth.json").write_text(json.dumps({k: v for k, v in truth.items() if k != "state"}, default=str))
     k_err = res.estimates["stiffness"] / truth["stiffness"] - 1.0
     c_err = res.estimates["restitution"] - c_r
@@ -163,6 +171,27 @@ def test_fit_of_a_laboratory_record(tmp_path, case):
     assert abs(c_err) < RESTITUTION_TOLERANCE, (res.estimates, res.std)
     assert abs(k_err * truth["stiffness"]) < STD_FACTOR * res.std["stiffness"]
     assert abs(c_err) < STD_FACTOR * res.std["restitution"]
+    assert res.ok, res.failures
+
+
+@pytest.mark.slow
+def test_a_scan_of_the_restitution_makes_record_1_honest(tmp_path):
+    """Acceptance record 1 (stiffness 0.8x, restitution 0.75, two onsets), the fit of
+    :func:`test_fit_of_a_laboratory_record` with ``scan="restitution"``: the fit alone passes
+    at 0.827 +- 0.021 (3.6 std off); held at 0.743 with every window's start searched anew the
+    record is followed better, the refit from there is taken, and the restitution's profile
+    interval holds the truth (measured 2026-11-30: 0.791 in [0.741, 0.812], the stiffness 4.2 %
+    low, 12 minutes beside a test run; benchmarks/README "Records that begin mid-run"). Checked:
+    the scan's result was taken and fits better than the fit before it, the truth lies within
+    the reported 90 % interval and within 3 std, the stiffness within 5 %, the verdict passes."""
+    case = _acceptance_cases()[0]
+    res, truth = _acceptance_fit(case, tmp_path, noise=True, scan="restitution")
+    scan = res.settings["scan"]
+    assert scan["taken"] and res.loss < scan["estimate_loss"], scan
+    lo, hi = res.profiles["restitution"]["interval"]
+    assert lo <= case["c_r"] <= hi, (lo, hi)
+    assert abs(res.estimates["restitution"] - case["c_r"]) < STD_FACTOR * res.std["restitution"]
+    assert abs(res.estimates["stiffness"] / truth["stiffness"] - 1.0) < STIFFNESS_TOLERANCE
     assert res.ok, res.failures
 
 

@@ -98,6 +98,13 @@ def configure(p: argparse.ArgumentParser):
                    "interval replaces the Gauss-Newton std (an honest one where the loss is not quadratic) and "
                    "a better fit found on the way fails the fit; with the same --out, adding it to a finished fit "
                    "runs only the profile (default: none)")
+    f.add_argument("--scan", default=None, metavar="NAME[=V1,V2,...]",
+                   help="a free parameter of the mechanism fitted again after the fit with it held at each value "
+                   "(default: two, either side of the estimate), the window starts searched anew at each; where "
+                   "one fits better than the estimate, every unknown is fitted again from it and that result is "
+                   "taken; its profile likelihood is then walked. For records that begin mid-run "
+                   "(--start-state free) whose estimate of a weakly determined parameter must be trusted; costs "
+                   "one whole fit per value, each checkpointed in OUT/scan-NAME-VALUE (default: none)")
     f.add_argument("--optimizer", default="levenberg-marquardt", metavar="NAME",
                    help="levenberg-marquardt (optimistix's LevenbergMarquardt on the residual vector) or "
                    "adam[:LR] (optax's adam on the loss's gradient, learning rate LR in the transformed "
@@ -166,6 +173,17 @@ def configure(p: argparse.ArgumentParser):
     return run
 
 
+def _scan(text: str | None):
+    """``--scan``: None, a name, or ``{name: [values]}`` from ``NAME=V1,V2,...`` (checked by the fit)."""
+    if text is None or "=" not in text:
+        return text.strip() if text else None
+    name, _, values = text.partition("=")
+    try:
+        return {name.strip(): [float(v) for v in values.split(",") if v.strip()]}
+    except ValueError:
+        raise ParameterError(f"--scan {text!r}: expected NAME or NAME=V1,V2,... with numbers") from None
+
+
 def _profile_names(text: str | None):
     """``--profile``: None, True for 'all', or the names."""
     if text is None:
@@ -179,6 +197,7 @@ def run(args) -> int:
     """Check the counts, fit, write fit.json and fit.png, print the estimates."""
     mech = load_mechanism_file(args, args.mechanism) if args.mechanism else preset_from_args(args)
     channels = _channels(args)
+    scan = _scan(args.scan)
     free = [n.strip() for n in args.free.split(",") if n.strip()]
     sensor = Accelerometer(args.sensor_cutoff_hz, gain=args.sensor_gain, bias=args.sensor_bias,
                            oversample=args.oversample, order=args.sensor_order, delay=args.sensor_delay)
@@ -211,7 +230,8 @@ def run(args) -> int:
         res = fit(args.data, mech, free, dict(args.start), channels=channels, sensor=sensor, window=args.window, windows=args.windows,
                   start_state=args.start_state, starts=args.starts, optimizer=args.optimizer, max_iter=args.max_iter,
                   settings=_settings(args), align=args.align, time_offset=args.time_offset, out=args.out, resume=not args.restart,
-                  progress=not args.no_progress, profile=_profile_names(args.profile), noise_sigma=args.noise_sigma)
+                  progress=not args.no_progress, profile=_profile_names(args.profile), noise_sigma=args.noise_sigma,
+                  scan=scan)
     files = res.write(args.out, plots=not args.no_plots)
     _print_result(res, files)
     if not res.ok and args.strict:

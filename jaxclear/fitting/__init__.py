@@ -137,6 +137,9 @@ Gauss-Newton std is the curvature at the minimum; ``fit(..., profile=NAMES)`` wa
 likelihood instead (:mod:`.profile`: each parameter held at values round the estimate, the
 other unknowns fitted again, the 90 % interval where the loss rises by less than 2.706 noise
 variances), honest where the loss is not quadratic or jumps (a contact that appears).
+``fit(..., scan=NAME)`` fits the record again with the parameter held either side of the
+estimate, every window's start searched anew, and takes the better fit (:mod:`.scan`: the way
+out of a basin that a window's start found elsewhere bends the parameter into).
 
 Resuming
 --------
@@ -151,7 +154,7 @@ Modules
 checks, quiet cut), :mod:`.targets` (record columns mapped to named channels), :mod:`.window` (the window model and the record cut into windows),
 :mod:`.window_start` (a window's unknown start), :mod:`.way_in` (candidate starts scored),
 :mod:`.verdict` (whether the estimates are a result),
-:mod:`.plan` (stages and starts), :mod:`.profile` (the profile likelihood), :mod:`.problem` (the checked inputs), :mod:`.state` (the fit
+:mod:`.plan` (stages and starts), :mod:`.profile` (the profile likelihood), :mod:`.scan` (held values, starts searched anew), :mod:`.problem` (the checked inputs), :mod:`.state` (the fit
 state and its checkpoint), :mod:`.solver` (optimistix steps of one stage), :mod:`.run` (the
 plan with checkpoints), :mod:`.uncertainty`, :mod:`.verdict` (:func:`assess`: whether the
 estimates are a result; ``FitResult.failures``, ``FitResult.ok``), :mod:`.result` (:class:`FitResult`),

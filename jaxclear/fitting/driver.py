@@ -17,6 +17,7 @@ from .._numbers import as_typed
 from .._errors import CheckpointError, ParameterError
 from .._checkpoint import locked
 from ..integrate import on_trace
+from .. import params
 from ..model import Mechanism
 from ..analysis.sensor import Accelerometer
 from .parameters import DEFAULT_FREE, law_name, values_of
@@ -25,6 +26,7 @@ from ..integrate import Settings
 from .problem import FitProblem, build_problem, given_settings, settings_record
 from .result import FitResult
 from .profile import check_profile, run_profiles, summarize
+from .scan import check_scan, folder as scan_folder, run_scan, summarize_scan
 from .run import evaluate_all, final_jacobian, fitted_mask, fresh_state, run_plan, window_losses
 from .solver import make_optimizer
 from .state import Checkpoint, FitState
@@ -66,6 +68,7 @@ def fit(
     callback: Callable | None = None,
     profile: Sequence[str] | str | bool | None = None,
     noise_sigma: float | None = None,
+    scan: str | dict | None = None,
 ) -> FitResult:
     """Fit the ``free`` parameters of ``mech`` to measured channels, by default the slider
     acceleration (method: :mod:`jaxclear.fitting`).
@@ -152,6 +155,15 @@ def fit(
             tests the residual against it (:mod:`jaxclear.fitting.verdict`: a residual std
             more than 3 chi-square std above it fails the fit: the model does not follow the
             record to its noise). One fitted column only. Not part of the checkpoint's key.
+        scan: a free parameter of the mechanism (or ``{name: [values]}``) scanned after the
+            fit (:mod:`jaxclear.fitting.scan`): the record is fitted again with it held at each
+            value (default: two, either side of the estimate), the window starts searched anew
+            at each; where the best of them fits better than the estimate, every unknown is
+            fitted again from it and that result is taken. Its profile likelihood is then
+            walked (as with ``profile``). For records that begin mid-run, where a window's
+            start found in another basin bends a weakly determined parameter (a restitution
+            seen through few impacts). Costs one whole fit per value, each checkpointed in
+            ``out/scan-NAME-VALUE``; not part of the checkpoint's key.
 
     Raises:
         ParameterError: unknown free parameter, start value outside its bounds, record shorter
@@ -175,16 +187,30 @@ def fit(
                             settings, channels, start_state, integration)
     names = check_profile(profile, problem.free)
     extra = {"noise_sigma_given_m_s2": check_noise(noise_sigma, problem)} if noise_sigma is not None else {}
+    scanned = check_scan(scan, problem.free)
+    if scanned and scanned[0] not in names:
+        names = names + (scanned[0],)
+
+    def fit_at(value: float, others: dict, out_at) -> FitResult:  # the record again, scanned[0] held at value
+        held = build_problem(data, params.replace(mech, scanned[0], value),
+                             [n for n in problem.free if n != scanned[0]], others, sensor, window, windows, horizons,
+                             coarse, 1 if starts is None else starts, dict(settings), channels, start_state,
+                             integration)
+        with locked(out_at, "fit"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # a held fit's warnings are not the result's
+            return _fit_locked(held, opt, out_at, resume, progress, callback, time.perf_counter(), extra=extra)
+
+    scanned = (*scanned, fit_at) if scanned else ()
     auto = auto and not problem.anywhere
     with locked(out, "fit"):
         if not (auto and opt.least_squares):
-            return _fit_locked(problem, opt, out, resume, progress, callback, t_wall, profile=names, extra=extra)
+            return _fit_locked(problem, opt, out, resume, progress, callback, t_wall, profile=names, scan=scanned, extra=extra)
         several = problem.with_starts(AUTO_STARTS)
         if resume and _checkpoint(several, out).load() is not None:  # killed in the refit (or at the switch to it)
-            return _fit_locked(several, opt, out, resume, progress, callback, t_wall, profile=names, extra=extra)
+            return _fit_locked(several, opt, out, resume, progress, callback, t_wall, profile=names, scan=scanned, extra=extra)
         with warnings.catch_warnings(record=True) as first_warnings:
             warnings.simplefilter("always")
-            first = _fit_locked(problem, opt, out, resume, progress, callback, t_wall, profile=names,
+            first = _fit_locked(problem, opt, out, resume, progress, callback, t_wall, profile=names, scan=scanned,
                                 unless=_not_converged, extra=extra)
         why = _not_converged(first)
         if not why:
@@ -194,7 +220,7 @@ def fit(
         if progress:
             tqdm.write(f"jaxclear fit: one start {why}; fitting again from {AUTO_STARTS} starts")
         return _fit_locked(several, opt, out, False, progress, callback, time.perf_counter(), after=first, profile=names,
-                           extra=extra)
+                           scan=scanned, extra=extra)
 
 
 #: Starts of the refit of a fit with ``starts=None`` (the default) whose single start stops on
@@ -235,14 +261,17 @@ def _checkpoint(problem: FitProblem, out, clock=None) -> Checkpoint:
 
 def _fit_locked(problem: FitProblem, opt, out, resume: bool, progress: bool, callback, t_wall: float,
                 after: FitResult | None = None, profile: tuple = (), unless: Callable | None = None,
-                extra: dict | None = None):
+                extra: dict | None = None, scan: tuple = ()):
     """:func:`fit` inside the output folder's lock, its wall time counted from ``t_wall``
     (:func:`time.perf_counter`). ``after``: the single start that this automatic refit follows
     (a fresh refit: its state starts from that fit's wall time and reason, and is checkpointed at
     once, so that a kill from here on resumes the refit; the result is resumed if that fit was).
     ``profile``: the names whose profile likelihood is walked after the plan, unless
     ``unless(result)`` says the result will be fitted again (the single start of the automatic
-    refit). ``extra``: settings for the result only (the given noise level), not the checkpoint's key."""
+    refit). ``scan``: ``(name, values, fit_at)`` of the scan of held values run after the plan
+    (:func:`~jaxclear.fitting.scan.run_scan`; each held fit has its own safe points), under the
+    same condition. ``extra``: settings for the result only (the given noise level), not the
+    checkpoint's key."""
     ckpt = _checkpoint(problem, out, clock=lambda: wall_before + time.perf_counter() - t_wall)
     saved = ckpt.resume() if resume else None  # the protocol's rules: another fit's checkpoint is refused
     if saved is not None:
@@ -279,16 +308,31 @@ def _fit_locked(problem: FitProblem, opt, out, resume: bool, progress: bool, cal
     try:
         with stop_at_safe_points("the current iteration") as interrupt, on_trace(compiling):
             st = run_plan(problem, opt, st, ckpt, report)
-            if profile and not (unless is not None and unless(_result(problem, st, 0.0, False, quiet=True))):
+            after_plan = not (unless is not None and (profile or scan)
+                              and unless(_result(problem, st, 0.0, False, quiet=True)))
+        if scan and after_plan:
+            close_bars(bars)
+            name, values, fit_at = scan
+            st = run_scan(problem, opt, st, ckpt, name, values,
+                          lambda value, others: fit_at(value, others, scan_folder(out, name, value)),
+                          lambda record, now: None, tqdm.write if progress else (lambda text: None))
+        with stop_at_safe_points("the current iteration") as interrupt, on_trace(compiling):
+            if profile and after_plan:
                 st = run_profiles(problem, opt, st, ckpt, profile, lambda record, now: interrupt.check(),
                                   tqdm.write if progress else (lambda text: None))
     finally:
-        for bar in bars:
-            bar.total = bar.n
-            bar.refresh()
-            bar.close()
+        close_bars(bars)
     resumed = saved is not None or (after is not None and after.settings["resumed"])
     return _result(problem, st, wall_before + time.perf_counter() - t_wall, resumed, profile=profile, extra=extra)
+
+
+def close_bars(bars: list) -> None:
+    """Close the progress bars (their total what they counted) and empty the list."""
+    for bar in bars:
+        bar.total = bar.n
+        bar.refresh()
+        bar.close()
+    bars.clear()
 
 
 def iterations_left(problem: FitProblem, st: FitState) -> int:
@@ -404,6 +448,8 @@ def _result(problem: FitProblem, st: FitState, wall: float, resumed: bool, profi
                   "law": law_name(problem.mech), "resumed": resumed, "optimizer": s["optimizer"],
                   "skipped_stages": list(st.skipped), "start_state": "free" if problem.anywhere else "known",
                   "way_in": [dict(w) for w in st.way_in],
+                  **({"scan": summarize_scan(st, float(np.mean(r[mask > 0] ** 2)), unc.n_samples, unc.n_unknowns)}
+                     if st.scan else {}),
                   "channels": problem.channel_config(), **(extra or {}),
                   **({"auto_starts": f"{s['starts']} starts: one start {st.refit}"} if st.refit else {})},
         series=_channel_series(problem, evals, initial),

@@ -170,7 +170,7 @@ def _point(single: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoint, i
             return st, p
     theta = np.array(below[1], dtype=float)
     theta[i] = float(st.theta[i]) + side * dz
-    point = _fit_point(single, opt, st, theta, np.asarray(below[2], dtype=float), on_iteration)
+    point = fit_point(single, opt, st, theta, np.asarray(below[2], dtype=float), on_iteration)
     point.update(name=name, side=side, dz=dz, deviance=(point["loss"] - loss_min) / s2)
     st = st.replace(profile=st.profile + (point,))
     ckpt.save(st)
@@ -178,7 +178,7 @@ def _point(single: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoint, i
     return st, point
 
 
-def _fit_point(single: FitProblem, opt: Optimizer, st: FitState, theta, states, on_iteration) -> dict:
+def fit_point(single: FitProblem, opt: Optimizer, st: FitState, theta, states, on_iteration) -> dict:
     """The other unknowns fitted at ``theta`` (its held entry fixed) from ``states``: the point's
     ``loss`` (sum of squares at horizon 1, all windows), ``theta``, ``states`` and stop ``reason``."""
     inner = st.replace(stage=0, iteration=0, x=None, column_scale=None, solver=None, theta=theta.tolist(),

@@ -158,12 +158,20 @@ class FitResult(AbstractResult):
 
     def profile_lines(self) -> list[str]:
         """One line per profiled parameter: its 90 % interval ("open" on a side the record does
-        not bound), the Gauss-Newton std beside it and the points walked."""
+        not bound), the Gauss-Newton std beside it and the points walked; and one for a scan of
+        held values (:mod:`jaxclear.fitting.scan`)."""
         lines = []
         for name, p in self.profiles.items():
             lo, hi = (f"{v:.6g}" if v is not None else "open" for v in p["interval"])
             lines.append(f"  profile likelihood of {name}: 90 % interval [{lo}, {hi}] (Gauss-Newton std "
                          f"{p['std_gauss_newton']:.3g}; {len(p['values']) - 1} points)")
+        scan = self.settings.get("scan")
+        if scan:
+            held = ", ".join(f"{v:.6g} (misfit {m:.5g}, deviance {d:+.3g})"
+                             for v, m, d in zip(scan["values"], scan["loss"], scan["deviance"]))
+            lines.append(f"  scan of {scan['name']} held (starts searched anew): {held}; "
+                         + (f"the result is the refit from {scan['refit_from']:.6g} (the fit before it: misfit "
+                            f"{scan['estimate_loss']:.5g})" if scan["taken"] else "the fit before the scan stands"))
         return lines
 
     def to_dict(self) -> dict:

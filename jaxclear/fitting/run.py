@@ -421,10 +421,12 @@ def run_plan(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoint
              report: Callable[[dict, FitState], None]) -> FitState:
     """All remaining stages; then, if the last stage is a start (one horizon, one window, no
     coarse stage; or the joint stages of several starts of a record that begins mid-run), the
-    best start is the result, checkpointed as such (the checkpoint held the last start's values)."""
+    best start is the result, checkpointed as such (the checkpoint held the last start's values);
+    not where a scan of held values has begun (:mod:`.scan`), which starts from that result and
+    may have replaced it."""
     while st.stage < len(problem.stages):
         st = run_stage(problem, opt, st, ckpt, report)
-    if problem.stages[-1].start >= 0:
+    if problem.stages[-1].start >= 0 and not st.scan:  # a scan began after this: its result may be taken
         st = st.at_best_start()
         ckpt.save(st)
     return st

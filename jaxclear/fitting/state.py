@@ -75,6 +75,9 @@ class FitState(eqx.Module):
             parameters of a record that begins mid-run begins from them), or ``()``.
         profile: the points of the profile likelihood computed so far (:mod:`jaxclear.fitting.profile`),
             one dict each ``{"name", "side", "z", "loss", "theta", "states", "reason"}``.
+        scan: the points of the scan of held values (:mod:`jaxclear.fitting.scan`), one dict
+            each ``{"kind": "held", "name", "value", "loss", "theta", "states", "reason",
+            "estimates"}``, then its ``{"kind": "decision", ...}`` once the scan is done.
         wall: wall time spent so far [s]; stop_reason: why the final stage ended.
         refit: in the automatic refit from several starts (``fit(starts=None)``), why the
             single start before it was not enough (``FitResult.settings["auto_starts"]``);
@@ -98,6 +101,7 @@ class FitState(eqx.Module):
     way_in: tuple = ()
     found: tuple = ()
     profile: tuple = ()
+    scan: tuple = ()
     wall: float = 0.0
     stop_reason: str = ""
     refit: str = ""
@@ -134,6 +138,7 @@ class FitState(eqx.Module):
         out["starts"] = {k: {name: _plain(value) for name, value in v} for k, v in self.starts}
         out["history"] = list(self.history)
         out["profile"] = [_plain_point(p) for p in self.profile]
+        out["scan"] = [_plain_point(p) for p in self.scan]
         return out
 
     @classmethod
@@ -147,11 +152,12 @@ class FitState(eqx.Module):
         values["history"] = tuple(dict(h, loss=_number(h["loss"])) if "loss" in h else h
                                   for h in data.get("history", ()))
         values["profile"] = tuple(dict(p, loss=_number(p["loss"])) for p in data.get("profile", ()))
-        return cls(**{k: (v if k in ("history", "profile") else _frozen(v)) for k, v in values.items()})
+        values["scan"] = tuple(dict(p, loss=_number(p["loss"])) for p in data.get("scan", ()))
+        return cls(**{k: (v if k in ("history", "profile", "scan") else _frozen(v)) for k, v in values.items()})
 
 
 def _plain_point(point: dict) -> dict:
-    """A profile point JSON-ready (its arrays as lists)."""
+    """A profile or scan point JSON-ready (its arrays as lists)."""
     return {k: _plain(v) for k, v in point.items()}
 
 
