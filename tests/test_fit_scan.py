@@ -43,6 +43,8 @@ def test_scan_inputs_are_checked_before_any_fit(record, capsys):
         jc.fit(path, mech, free=["stiffness"], window=1e-3, scan="stiffness", progress=False)
     with pytest.raises(jc.ParameterError, match="give at least one finite value of 'restitution'"):
         jc.fit(path, mech, window=1e-3, scan={"restitution": [float("nan")]}, progress=False)
+    with pytest.raises(jc.ParameterError, match="the held value 1.2 of 'restitution' is not allowed"):
+        jc.fit(path, mech, window=1e-3, scan={"restitution": [0.8, 1.2]}, progress=False)
     with pytest.raises(jc.ParameterError, match="expected a free parameter's name or"):
         jc.fit(path, mech, window=1e-3, scan={"restitution": [0.8], "stiffness": [1e10]}, progress=False)
     assert main(["fit", path, "--out", str(record[2] / "cli-bad"), "--scan", "restitution=a,b", "--no-progress"]) == 2

@@ -187,7 +187,7 @@ def fit(
                             settings, channels, start_state, integration)
     names = check_profile(profile, problem.free)
     extra = {"noise_sigma_given_m_s2": check_noise(noise_sigma, problem)} if noise_sigma is not None else {}
-    scanned = check_scan(scan, problem.free)
+    scanned = check_scan(scan, problem.free, mech)
     if scanned and scanned[0] not in names:
         names = names + (scanned[0],)
 

@@ -48,8 +48,8 @@ from typing import Callable
 
 import numpy as np
 
-from .._errors import ParameterError
-from .parameters import SENSOR_PARAMETERS, from_z, transform, values_of, z_vector
+from .._errors import CheckpointError, OutputLockedError, ParameterError
+from .parameters import SENSOR_PARAMETERS, check_start, from_z, transform, values_of, z_vector
 from .plan import final_stage
 from .problem import FitProblem
 from .profile import fit_point
@@ -65,11 +65,12 @@ from .state import Checkpoint, FitState
 SCAN_STEP = {"logit": 0.5, "log": 0.4}
 
 
-def check_scan(scan, free: tuple) -> tuple:
+def check_scan(scan, free: tuple, mech=None) -> tuple:
     """``scan`` (None, a name, or ``{name: [values]}`` with one name) as ``(name, values or
     None)``, or ``()``; a :class:`~jaxclear.ParameterError` naming the problem: a name that is
     not free, a sensor parameter (held through the sensor, not the mechanism), the only free
-    parameter, values that are not finite numbers or fewer than one."""
+    parameter, values that are not finite numbers or fewer than one, or (with ``mech``) outside
+    the parameter's range."""
     if scan is None or scan is False:
         return ()
     if isinstance(scan, str):
@@ -92,6 +93,11 @@ def check_scan(scan, free: tuple) -> tuple:
     if len(free) < 2:
         raise ParameterError(f"scan = {name!r} is the only free parameter: holding it leaves nothing to fit; free "
                              "another parameter, or give its values to jc.fit one by one")
+    for v in values if mech is not None and values is not None else ():
+        try:
+            check_start(mech, name, v)
+        except ParameterError as err:
+            raise ParameterError(f"scan = {scan!r}: the held value {v:g} of {name!r} is not allowed ({err})") from None
     if values is None and transform(name) not in SCAN_STEP:
         raise ParameterError(f"scan = {name!r}: give its values ({{{name!r}: [v1, v2, ...]}}, --scan "
                              f"{name}=v1,v2,...): the default steps are for positive parameters and restitutions")
@@ -127,16 +133,24 @@ def run_scan(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoint
     for value in scan_values(problem, theta, name, given):
         if any(p["kind"] == "held" and math.isclose(p["value"], value, rel_tol=1e-9) for p in points):
             continue
-        res = fit_at(value, {n: v for n, v in estimate.items() if n != name})
-        held = {**res.estimates, name: value}
-        states = res.window_states if problem.anywhere else [list(st.states[0])] + list(res.window_states)
-        points.append({"kind": "held", "name": name, "value": float(value), "loss": float(res.loss),
-                       "theta": z_vector(problem.free, held, problem.win.scale, problem.mech).tolist(),
-                       "states": np.asarray(states, dtype=float).tolist(), "reason": res.stop_reason,
-                       "estimates": {n: float(v) for n, v in res.estimates.items()}})
+        try:
+            res = fit_at(value, {n: v for n, v in estimate.items() if n != name})
+        except (OutputLockedError, CheckpointError):
+            raise
+        except (ArithmeticError, ValueError) as exc:  # the model cannot run there (FitDataError, SolverError)
+            points.append({"kind": "held", "name": name, "value": float(value), "loss": math.nan, "theta": None,
+                           "states": None, "reason": str(exc), "estimates": {}})
+        else:
+            held = {**res.estimates, name: value}
+            states = res.window_states if problem.anywhere else [list(st.states[0])] + list(res.window_states)
+            points.append({"kind": "held", "name": name, "value": float(value), "loss": float(res.loss),
+                           "theta": z_vector(problem.free, held, problem.win.scale, problem.mech).tolist(),
+                           "states": np.asarray(states, dtype=float).tolist(), "reason": res.stop_reason,
+                           "estimates": {n: float(v) for n, v in res.estimates.items()}})
         st = st.replace(scan=tuple(points))
         ckpt.save(st)
-        on_point(f"scan {name} = {value:.6g}: misfit {res.loss:.6g} of the data's mean square")
+        on_point(f"scan {name} = {value:.6g}: misfit {points[-1]['loss']:.6g} of the data's mean square"
+                 + (f" ({points[-1]['reason']})" if not math.isfinite(points[-1]["loss"]) else ""))
     here = sum_of_squares(problem, evaluate_all(problem, theta, np.asarray(st.states, dtype=float), st.guesses)) / n_fit
     best = min((p for p in points if p["kind"] == "held" and math.isfinite(p["loss"])), key=lambda p: p["loss"],
                default=None)
