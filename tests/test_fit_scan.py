@@ -106,3 +106,23 @@ def test_a_scan_that_finds_nothing_better_keeps_the_fit(record):
     np.testing.assert_allclose(np.log(np.array([lo, hi]) / (1 - np.array([lo, hi]))),
                                np.log(est / (1 - est)) + np.array([-0.5, 0.5]), atol=1e-9)
     assert min(scan["deviance"]) > 10.0
+
+
+def test_a_free_start_fit_with_few_onsets_names_the_scan():
+    """The hint of :func:`jaxclear.fitting.scan.few_onsets`: a record that begins mid-run whose
+    fitted motion holds fewer than 4 onsets (acceptance record 1's 1, 1, 1, 0) with the
+    restitution free and no scan run; none with 4 or more (record 2), with a known start, with
+    the restitution held, or after a scan."""
+    from jaxclear.fitting.scan import FEW_ONSETS, few_onsets
+
+    assert FEW_ONSETS == 4
+    free = ("stiffness", "restitution", "sensor_gain", "sensor_bias")
+    text = few_onsets(free, True, False, [1, 1, 1, 0])
+    assert "seen through 3 contact onset(s) of the fitted motion (per window: 1, 1, 1, 0)" in text
+    assert "scan='restitution' (--scan restitution)" in text
+    assert "per window: 1, -, 0" in few_onsets(free, True, False, [1, None, 0])
+    assert few_onsets(free, True, False, [1, 2, 1, 0]) == ""
+    assert few_onsets(free, False, False, [1, 1, 1, 0]) == ""
+    assert few_onsets(("stiffness", "sensor_gain"), True, False, [1, 1, 1, 0]) == ""
+    assert few_onsets(free, True, True, [1, 1, 1, 0]) == ""
+    assert few_onsets(free, True, False, [None, None]) == ""

@@ -26,7 +26,7 @@ from ..integrate import Settings
 from .problem import FitProblem, build_problem, given_settings, settings_record
 from .result import FitResult
 from .profile import check_profile, run_profiles, summarize
-from .scan import check_scan, folder as scan_folder, run_scan, summarize_scan
+from .scan import check_scan, few_onsets, folder as scan_folder, run_scan, summarize_scan
 from .run import evaluate_all, final_jacobian, fitted_mask, fresh_state, run_plan, window_losses
 from .solver import make_optimizer
 from .state import Checkpoint, FitState
@@ -421,6 +421,10 @@ def _result(problem: FitProblem, st: FitState, wall: float, resumed: bool, profi
         warn.append(f"the fit may sit in a local minimum: try more starts (--starts N, starts=N; this fit had "
                     f"{problem.settings['starts']}), other start values (--start NAME=VALUE, start=...) or a larger "
                     "max_iter")
+    onsets = [int(round(e[4])) if math.isfinite(e[4]) else None for e in evals]
+    few = few_onsets(problem.free, problem.anywhere, bool(st.scan), onsets)
+    if few:
+        warn.append(few)
     profiles = summarize(problem, st, profile, unc.std)
     std = {**unc.std, **{name: p["std"] for name, p in profiles.items()}}
     for w in warn if not quiet else ():
@@ -454,6 +458,6 @@ def _result(problem: FitProblem, st: FitState, wall: float, resumed: bool, profi
                   **({"auto_starts": f"{s['starts']} starts: one start {st.refit}"} if st.refit else {})},
         series=_channel_series(problem, evals, initial),
         warnings=warn, window_states=[list(map(float, v)) for v in (states if problem.anywhere else states[1:])],
-        window_losses=losses, window_onsets=[int(round(e[4])) if math.isfinite(e[4]) else None for e in evals],
+        window_losses=losses, window_onsets=onsets,
         window_samples=[int(problem.win.residual_mask(k, 1.0).sum()) for k in range(problem.windows)])
 
