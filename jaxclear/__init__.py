@@ -135,6 +135,7 @@ from .model import (  # noqa: E402
     Torque,
     Translational,
     TranslationalSpringDamper,
+    bent_link,
     crank_period,
     flexible_link,
 )
@@ -195,7 +196,8 @@ __all__ = [
     # Model (docs/api/model.md)
     "Body", "Revolute", "Translational", "Fixed", "PointOnLine", "AngleDriver", "FunctionDriver", "ProfileDriver",
     "ConstantProfile", "RampProfile", "HarmonicProfile", "TableProfile", "PointForce", "Torque",
-    "TranslationalSpringDamper", "PolynomialCurve", "TableCurve", "RotationalSpringDamper", "Bushing", "DiscreteBeam", "flexible_link",
+    "TranslationalSpringDamper", "PolynomialCurve", "TableCurve", "RotationalSpringDamper", "Bushing", "DiscreteBeam",
+    "flexible_link", "bent_link",
     "Mechanism",
     "GROUND", "crank_period", "AbstractConstraint", "AbstractJoint", "AbstractDriver", "AbstractLoad",
     "AbstractConnector", "AbstractCurve",

@@ -78,6 +78,8 @@ ELEMENT_TYPES = {
 DEPRECATED_KEYS = {"lubricated": {"width": "length"}}
 #: keys whose value is one of a few strings
 CHOICES = {"film": FILMS, "ideal": IDEALS, "axial": AXIAL}
+#: keys whose value is an array of numbers of a length the class checks (a flexible link's start)
+VECTOR_KEYS = ("start", "start_rate")
 #: keys whose value is a string (every other value is a number or an array of numbers)
 STRING_KEYS = {"name", "body", "point", "body_i", "point_i", "body_j", "point_j", "bearing_body", "bearing_point",
                "journal_body", "journal_point", "guide_body", "guide_point", "slider_body", "slider_point",
@@ -304,6 +306,9 @@ class _Reader:
             return self.string(key, value)
         if name in ("axis", "force", "initial_offset", "initial_velocity"):
             return self.vector(key, value, 2)
+        if name in VECTOR_KEYS:  # its length checked by the class (a flexible link's start: one per sde)
+            return [self.number(f"{key}[{i}]", v) for i, v in enumerate(value)] if isinstance(value, list) else \
+                self.vector(key, value, 1)
         if name in INTEGER_KEYS:
             return self.integer(key, value)
         if isinstance(value, list) and value and all(isinstance(v, str) for v in value):

@@ -17,4 +17,4 @@ from .discrete_beam import DiscreteBeam
 from .profiles import (PROFILE_KINDS, AbstractProfile, ConstantProfile, HarmonicProfile, RampProfile,
                        TableProfile)
 from .mechanism import Mechanism, point_acceleration, point_load, point_position, point_velocity
-from .flexible_link import flexible_link
+from .flexible_link import bent_link, flexible_link

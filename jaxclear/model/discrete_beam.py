@@ -52,6 +52,19 @@ from .geometry import cross2
 AXIAL = ("rigid", "elastic")
 
 
+def _start_vector(name: str, field: str, value, k: int) -> Float[Array, " k"]:
+    """``value`` (None: zeros) as a float64 vector of the ``k`` sde coordinates; a
+    :class:`~jaxclear.ParameterError` naming the field for another shape or a value that is not
+    finite."""
+    out = jnp.zeros((k,)) if value is None else jnp.asarray(value, dtype=float)
+    if out.shape != (k,):
+        raise ParameterError(f"DiscreteBeam {name!r}: {field} must hold {k} numbers (one per sde coordinate), got "
+                             f"shape {out.shape}")
+    if not bool(jnp.all(jnp.isfinite(out))):
+        raise ParameterError(f"DiscreteBeam {name!r}: {field} must be finite, got {np.asarray(out).tolist()}")
+    return out
+
+
 def node_name(k: int) -> str:
     """The name of node ``k`` (1-based, the sde between rigid elements ``k - 1`` and ``k``) as a
     point of both elements."""
@@ -75,6 +88,10 @@ class DiscreteBeam(AbstractConnector):
         shear_modulus: G [Pa] > 0 (``beam_shear_modulus``; ``"elastic"`` only).
         shear_factor: kappa > 0 (``beam_shear_factor``; 5/6 for a rectangle, 0.9 for a circle).
         damping: eta [s] >= 0, Kelvin-Voigt (``beam_damping``).
+        start, start_rate: ``(k,)`` the sdes' coordinates (:meth:`coordinates`) and their rates
+            that the start's assembly holds (``Mechanism.held_at_start``); zeros (default): the
+            link starts straight and moving rigidly. :meth:`with_shape` sets them from a
+            deflection curve (a link that starts bent or vibrating).
 
     Outputs: ``deflection`` [m] (the middle's distance from the chord through the ends, positive
     to the left of the chord from end ``a`` to end ``b``), ``moment_middle`` [N m] (the bending
@@ -95,6 +112,8 @@ class DiscreteBeam(AbstractConnector):
     shear_modulus: Scalar
     shear_factor: Scalar
     damping: Scalar
+    start: Float[Array, " k"]
+    start_rate: Float[Array, " k"]
 
     OUTPUTS: ClassVar[dict[str, str]] = {"deflection": "m", "moment_middle": "N m", "moment_max": "N m",
                                          "energy": "J", "power": "W"}
@@ -111,7 +130,7 @@ class DiscreteBeam(AbstractConnector):
     SKETCH_STYLE: ClassVar[dict] = {"color": "tab:purple", "lw": 2.0, "marker": "o", "ms": 3}
 
     def __init__(self, name, segments, end_a, end_b, middle, spacing, youngs_modulus, second_moment, area=1.0,
-                 shear_modulus=1.0, shear_factor=5.0 / 6.0, damping=0.0, axial="rigid"):
+                 shear_modulus=1.0, shear_factor=5.0 / 6.0, damping=0.0, axial="rigid", start=None, start_rate=None):
         if axial not in AXIAL:
             raise ParameterError(f"DiscreteBeam {name!r}: axial = {axial!r} is not allowed; allowed: {list(AXIAL)}")
         segments = tuple(segments)
@@ -127,6 +146,9 @@ class DiscreteBeam(AbstractConnector):
         for field, value in (("youngs_modulus", youngs_modulus), ("second_moment", second_moment), ("area", area),
                              ("shear_modulus", shear_modulus), ("shear_factor", shear_factor), ("damping", damping)):
             setattr(self, field, scalar(f"DiscreteBeam {name!r}", field, value))
+        k = (len(segments) - 1) * (1 if axial == "rigid" else 3)
+        self.start, self.start_rate = (_start_vector(name, field, value, k)
+                                       for field, value in (("start", start), ("start_rate", start_rate)))
         self._validate()
         if not float(self.spacing) > 0.0:
             raise ParameterError(f"DiscreteBeam {name!r}: spacing = {float(self.spacing)!r} m is outside the allowed "
@@ -153,19 +175,60 @@ class DiscreteBeam(AbstractConnector):
         nodes = [(self.segments[k + j], node_name(k + 1)) for k in range(self.n_nodes) for j in (0, 1)]
         return (self.end_a, self.end_b, self.middle, *nodes)
 
-    # ---- the start: the link undeformed (Mechanism.held_at_start) ----------------------
+    # ---- the start: the link as given (Mechanism.held_at_start) --------------------------
     @property
     def n_equations(self) -> int:
-        """The sdes' coordinates, held at rest by the start's assembly."""
+        """The sdes' coordinates, held at their start values by the start's assembly."""
         return self.n_nodes if self.axial == "rigid" else 3 * self.n_nodes
 
     def equations(self, mech, q, t):
-        """:math:`d(q) = 0`: every sde at rest (the link straight)."""
-        return self.coordinates(mech, q)
+        """:math:`d(q) = d_0`: every sde at its start value (zero: the link straight)."""
+        return self.coordinates(mech, q) - self.start
 
     def assembly_velocity(self):
-        """:math:`\\dot d = 0` at the start: the link moves rigidly."""
-        return jnp.zeros((self.n_equations,), dtype=self.spacing.dtype)
+        """:math:`\\dot d = \\dot d_0` at the start (zero: the link moves rigidly)."""
+        return self.start_rate
+
+    def node_positions(self) -> np.ndarray:
+        """``(m + 2,)`` [m]: the distances from end ``a`` of the rigid elements' ends along the
+        undeformed link: 0, the nodes :math:`(k - \\tfrac12)\\Delta`, and :math:`L = m\\Delta`."""
+        m, spacing = self.n_nodes, float(self.spacing)
+        return np.concatenate([[0.0], (np.arange(1, m + 1) - 0.5) * spacing, [m * spacing]])
+
+    def with_shape(self, deflection, rate=None) -> "DiscreteBeam":
+        r"""This link started bent (and bending): ``deflection(s)`` [m], the lateral deflection at
+        the distance ``s`` [m] from end ``a`` along the link (positive to the left of the line from
+        end ``a`` to end ``b``, as the ``deflection`` output), and ``rate(s)`` [m/s] its rate (None:
+        zero). Each rigid element is the chord of the curve between its ends
+        (:meth:`node_positions`), turned by :math:`\phi_j = \arctan(\Delta w_j / \Delta s_j)`; an
+        sde's start angle is the difference of its two elements' (:math:`\dot\phi_j =
+        \Delta\dot w_j / \Delta s_j \cos^2\phi_j`), its axial and shear coordinates (``"elastic"``)
+        zero. Only the curvature enters: a straight ``deflection`` (a turn of the whole link) gives
+        zeros. The assembly then holds the link in that shape, the joints at its ends moving as
+        the shortened chord needs."""
+        s = self.node_positions()
+        ds = np.diff(s)
+
+        def relative(curve, slope_rate: bool, phi=None):
+            w = np.array([float(curve(v)) for v in s])
+            if not np.all(np.isfinite(w)):
+                raise ParameterError(f"DiscreteBeam {self.name!r}: the start's {'rate' if slope_rate else 'deflection'} "
+                                     "is not finite at every element's end")
+            turn = np.diff(w) / ds * np.cos(phi) ** 2 if slope_rate else np.arctan(np.diff(w) / ds)
+            return turn, np.diff(turn)
+
+        phi, angles = relative(deflection, False)
+        rates = relative(rate, True, phi)[1] if rate is not None else np.zeros_like(angles)
+
+        def coordinates(bend):
+            if self.axial == "rigid":
+                return bend
+            out = np.zeros(3 * self.n_nodes)
+            out[2::3] = bend
+            return out
+
+        return eqx.tree_at(lambda b: (b.start, b.start_rate), self,
+                           (jnp.asarray(coordinates(angles)), jnp.asarray(coordinates(rates))))
 
     # ---- the force element --------------------------------------------------------
     def stiffness(self) -> Float[Array, " k"]:

@@ -17,6 +17,7 @@ import copy
 import dataclasses
 import warnings
 
+import equinox as eqx
 import numpy as np
 
 from .._errors import MechanismError, ParameterError, check_range
@@ -138,6 +139,23 @@ def flexible_link(mech: Mechanism, body: str, *, youngs_modulus, second_moment, 
     roles = {role: (names[mid] if value == body else value) for role, value in mech.roles}
     return Mechanism(new_bodies, joints, drivers, elements_, [*loads, beam], gravity=mech.gravity,
                      ground_points=dict(mech.ground_points), name=f"{mech.name}-flexible-{body}", roles=roles)
+
+
+def bent_link(mech: Mechanism, name: str, deflection, rate=None) -> Mechanism:
+    """``mech`` whose flexible link ``name`` (its :class:`~jaxclear.DiscreteBeam`'s name: the
+    body's name by default) starts bent by ``deflection(s)`` [m] and bending at ``rate(s)`` [m/s]
+    (None: zero), ``s`` [m] the distance from the link's end ``a`` along it, positive to the left
+    of the line from end ``a`` to end ``b`` (:meth:`~jaxclear.DiscreteBeam.with_shape`). The
+    start's assembly then holds the link in that shape instead of straight: a link that starts
+    vibrating (its first mode's shape, say), or a run that continues from a measured deflection.
+    A :class:`~jaxclear.MechanismError` names the flexible links when none is called ``name``."""
+    beams = [ld for ld in mech.loads if isinstance(ld, DiscreteBeam)]
+    if not any(b.name == name for b in beams):
+        raise MechanismError(f"bent_link: no flexible link named {name!r}; this mechanism's: "
+                             f"{[b.name for b in beams] or 'none (make one with jc.flexible_link)'}")
+    loads = tuple(ld.with_shape(deflection, rate) if isinstance(ld, DiscreteBeam) and ld.name == name else ld
+                  for ld in mech.loads)
+    return eqx.tree_at(lambda m: m.loads, mech, loads)
 
 
 def _ends(rigid: Body, ends):
