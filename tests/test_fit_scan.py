@@ -91,7 +91,7 @@ def test_a_scan_that_finds_nothing_better_keeps_the_fit(record):
     """A converged fit scanned at its default values (the estimate's logit +- 0.5: two held
     fits, 0.85 and 0.94 for an estimate of 0.90) keeps its estimate; the held points lie above
     it by hundreds of noise variances (a 1 ms record of 200 samples fixes the restitution to
-    +-0.002), and the CLI prints the scan's line."""
+    +-0.002)."""
     mech, path, folder = record
     out = folder / "kept"
     code = main(["fit", path, "--out", str(out), "--window", "1e-3", "--sensor-cutoff-hz", "20000",
@@ -106,6 +106,24 @@ def test_a_scan_that_finds_nothing_better_keeps_the_fit(record):
     np.testing.assert_allclose(np.log(np.array([lo, hi]) / (1 - np.array([lo, hi]))),
                                np.log(est / (1 - est)) + np.array([-0.5, 0.5]), atol=1e-9)
     assert min(scan["deviance"]) > 10.0
+
+
+@pytest.mark.slow  # about 40 s: a held fit and the stiffness's profile
+def test_a_finished_fit_scanned_for_another_name_runs_the_new_scan(record):
+    """The converged fit of :func:`test_a_scan_that_finds_nothing_better_keeps_the_fit`, then the
+    same call scanned for the stiffness (held at 7e10, 5 % above the estimate) with the same
+    ``out``: the fit and the restitution's scan are read back, the new scan runs and replaces the
+    old one in the report."""
+    mech, path, folder = record
+    out = folder / "renamed"
+    args = ["fit", path, "--out", str(out), "--window", "1e-3", "--sensor-cutoff-hz", "20000", "--start",
+            "restitution=0.85", "--no-progress", "--no-plots"]
+    assert main(args + ["--scan", "restitution"]) == 0
+    est = json.loads((out / "fit.json").read_text())["estimates"]["restitution"]
+    assert main(args + ["--scan", "stiffness=7e10"]) == 0
+    d = json.loads((out / "fit.json").read_text())
+    assert d["settings"]["scan"]["name"] == "stiffness" and d["settings"]["scan"]["values"] == [7e10]
+    assert d["settings"]["resumed"] and d["estimates"]["restitution"] == est
 
 
 def test_a_free_start_fit_with_few_onsets_names_the_scan():

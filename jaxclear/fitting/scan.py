@@ -145,12 +145,14 @@ def run_scan(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoint
     """Steps 1-2 of the module docstring from the fit's state ``st``; every point and the
     decision are appended to ``FitState.scan`` and checkpointed. ``fit_at(value, start)`` fits
     the record with ``name`` held at ``value`` from the ``start`` values of the other free
-    parameters and returns its :class:`~jaxclear.fitting.FitResult`."""
+    parameters and returns its :class:`~jaxclear.fitting.FitResult`. A scan of another name in
+    the state (the same ``out`` scanned before for another parameter) is replaced by this one,
+    which starts from the state's result."""
     theta = np.asarray(st.theta, dtype=float)
     estimate = dict(zip(problem.free, values_of(problem.free, theta, problem.win.scale, problem.mech)))
-    points = [dict(p) for p in st.scan]
-    if any(p["kind"] == "decision" for p in points):
-        return st
+    points = [dict(p) for p in st.scan if p["name"] == name]  # a scan of another name before: this one anew
+    if any(p["kind"] == "decision" for p in points):  # done (a finished scan read back: other values need
+        return st                                      # another out, or resume=False)
     n_fit = float(fitted_mask(problem).sum())
     for value in scan_values(problem, theta, name, given):
         if any(p["kind"] == "held" and math.isclose(p["value"], value, rel_tol=1e-9) for p in points):
