@@ -204,10 +204,12 @@ def fit(
     auto = auto and not problem.anywhere
     with locked(out, "fit"):
         if not (auto and opt.least_squares):
-            return _fit_locked(problem, opt, out, resume, progress, callback, t_wall, profile=names, scan=scanned, extra=extra)
+            return _fit_locked(problem, opt, out, resume, progress, callback, t_wall, profile=names, scan=scanned,
+                               extra=extra)
         several = problem.with_starts(AUTO_STARTS)
         if resume and _checkpoint(several, out).load() is not None:  # killed in the refit (or at the switch to it)
-            return _fit_locked(several, opt, out, resume, progress, callback, t_wall, profile=names, scan=scanned, extra=extra)
+            return _fit_locked(several, opt, out, resume, progress, callback, t_wall, profile=names, scan=scanned,
+                               extra=extra)
         with warnings.catch_warnings(record=True) as first_warnings:
             warnings.simplefilter("always")
             first = _fit_locked(problem, opt, out, resume, progress, callback, t_wall, profile=names, scan=scanned,
