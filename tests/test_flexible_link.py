@@ -197,6 +197,7 @@ def test_a_flexible_mechanism_is_saved_and_read_back_leaf_by_leaf(tmp_path):
     jc.save_mechanism(link, path)
     assert eqx.tree_equal(jc.load_mechanism(path), link)
     text = path.read_text()
+    assert "start" not in text  # a straight start is the default, not written
     start = text.index("end_b = [")
     path.write_text(text[:start] + 'end_b = ["rod_3"]\n' + text[text.index("]", start) + 2:])
     with pytest.raises(jc.ParameterError, match=r"loads\[0\].*end_b must be a \(body, point\) pair"):

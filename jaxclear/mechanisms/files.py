@@ -128,7 +128,8 @@ def _typed(table: dict, item, where: str, skip=()) -> dict:
     for name, (cls, keys) in table.items():
         if type(item) is cls:
             _no_function(item, where)
-            return {"type": name, **_fields(item, [k for k in keys if k not in skip])}
+            unset = {k for k in VECTOR_KEYS if k in keys and not np.any(np.asarray(getattr(item, k)))}  # the default
+            return {"type": name, **_fields(item, [k for k in keys if k not in skip and k not in unset])}
     raise MechanismError(f"{where}: {type(item).__name__} cannot be written to a mechanism file; "
                          f"allowed types: {[c.__name__ for c, _ in table.values()]}")
 
