@@ -77,8 +77,8 @@ SCAN_STEP = {"logit": 0.5, "log": 0.4}
 #: (all windows together) warns that the restitution may sit elsewhere and names the scan. The
 #: restitution acts through the impacts that begin inside a window; on the independent
 #: simulator's acceptance records the fit with 3 onsets (record 1: 1, 1, 1, 0) passed 3.6 std from
-#: the truth, those with 4 and 6 within 1.1 std (benchmarks/README "Records that begin mid-run").
-#: Three records set it: a hint, not a rule of the verdict.
+#: the truth, those with 5 and 7 (1, 0, 0, 4 and 2, 3, 2, 0) within 1.1 std (benchmarks/README
+#: "Records that begin mid-run"). Three records set it: a hint, not a rule of the verdict.
 FEW_ONSETS = 4
 
 
