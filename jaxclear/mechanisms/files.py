@@ -35,63 +35,13 @@ from .._units import rpm_to_rad_s
 from ..contact import FourierProfile, Friction, Material, make_law
 from ..contact.friction import FRICTION_MODELS, friction_name
 from ..contact.registry import LAWS, law_names
-from ..elements import FILMS, IDEALS, ClearanceJoint, LubricatedJoint, PinSlotJoint, TranslationalClearanceJoint
-from ..model import AngleDriver, Body, Fixed, Mechanism, PointForce, ProfileDriver, Revolute, Torque, Translational
-from ..model.connectors import CONNECTORS
-from ..model.discrete_beam import AXIAL
+from ..elements import TranslationalClearanceJoint
+from ..model import Body, Mechanism
+from .file_keys import (BODY_KEYS, CHOICES, DEPRECATED_KEYS, DRIVER_TYPES, ELEMENT_TYPES, FORMAT_VERSION,
+                        INTEGER_KEYS, JOINT_TYPES, LOAD_TYPES, REQUIRED, STRING_KEYS, TABLE_PARAMETERS, TOP_KEYS,
+                        VECTOR_KEYS)
 from .tables import PROFILE_KINDS, load_tables, read_curve, read_profile
 from ..model.mechanism import check_sizes
-
-FORMAT_VERSION = 1
-
-TOP_KEYS = ("format", "name", "gravity", "ground_points", "roles", "bodies", "joints", "drivers",
-            "clearance_joints", "loads")
-BODY_KEYS = ("name", "mass", "inertia", "points", "position", "velocity")
-#: ``type`` -> (class, keys in constructor order)
-JOINT_TYPES = {
-    "revolute": (Revolute, ("body_i", "point_i", "body_j", "point_j")),
-    "translational": (Translational, ("body_i", "point_i", "body_j", "point_j", "axis", "angle")),
-    "fixed": (Fixed, ("body_i", "point_i", "body_j", "point_j", "angle")),
-}
-DRIVER_TYPES = {"angle": (AngleDriver, ("body", "speed", "angle0", "relative_to")),
-                "speed-profile": (ProfileDriver, ("body", "angle0", "relative_to"))}  # + the profile table
-LOAD_TYPES = {
-    "point-force": (PointForce, ("body", "point", "force")),
-    "torque": (Torque, ("body", "torque")),  # + an optional profile table (a time factor)
-    **{kind: (cls, tuple(k for k in inspect.signature(cls).parameters if k != "curve"))
-       for kind, cls in CONNECTORS.items()},  # + a spring's optional curve table
-}
-_JOURNAL = ("name", "bearing_body", "bearing_point", "journal_body", "journal_point", "bearing_radius",
-            "journal_radius")
-_TAIL = ("law", "friction", "impact_velocity_floor", "initial_offset", "initial_velocity")
-ELEMENT_TYPES = {
-    "revolute-clearance": (ClearanceJoint, (*_JOURNAL, "length", *_TAIL)),
-    "lubricated": (LubricatedJoint, (*_JOURNAL, "length", "viscosity", "film", "blend_start", "blend_end",
-                                     "n_elements", "n_gauss", *_TAIL)),  # profiles: in the law's table
-    "pin-slot": (PinSlotJoint, (*_JOURNAL, "slot_length", "axis", "length", "ideal", *_TAIL)),
-    "translational-clearance": (TranslationalClearanceJoint, (
-        "name", "guide_body", "guide_point", "slider_body", "slider_point", "slider_length", "slider_height",
-        "guide_width", "axis", "angle", "corner_radius", *_TAIL)),
-}
-#: old file key -> the key that replaced it, per element type (read with a DeprecationWarning; the
-#: lubricated joint's film width is its ``length``, as for every journal joint)
-DEPRECATED_KEYS = {"lubricated": {"width": "length"}}
-#: keys whose value is one of a few strings
-CHOICES = {"film": FILMS, "ideal": IDEALS, "axial": AXIAL}
-#: keys whose value is an array of numbers of a length the class checks (a flexible link's start)
-VECTOR_KEYS = ("start", "start_rate")
-#: keys whose value is a string (every other value is a number or an array of numbers)
-STRING_KEYS = {"name", "body", "point", "body_i", "point_i", "body_j", "point_j", "bearing_body", "bearing_point",
-               "journal_body", "journal_point", "guide_body", "guide_point", "slider_body", "slider_point",
-               "relative_to", "body_a", "point_a", "body_b", "point_b", "drawn_at", *CHOICES}
-#: law parameters that are tables, by the suffix of their key
-TABLE_PARAMETERS = {"_material": (Material, ("young", "poisson")), "_profile": (FourierProfile, ("cos", "sin"))}
-#: keys whose value is an integer (counts; a law's integer fields are found from its annotations)
-INTEGER_KEYS = {"n_elements", "n_gauss"}
-REQUIRED = {"body", "body_i", "point_i", "body_j", "point_j", "point", "bearing_body",
-            "bearing_point", "journal_body", "journal_point", "bearing_radius", "guide_body", "guide_point",
-            "slider_body", "slider_point", "body_a", "point_a", "body_b"}
-
 
 # ---- writing ------------------------------------------------------------------------------
 
@@ -308,8 +258,7 @@ class _Reader:
         if name in ("axis", "force", "initial_offset", "initial_velocity"):
             return self.vector(key, value, 2)
         if name in VECTOR_KEYS:  # its length checked by the class (a flexible link's start: one per sde)
-            return [self.number(f"{key}[{i}]", v) for i, v in enumerate(value)] if isinstance(value, list) else \
-                self.vector(key, value, 1)
+            return self.numbers(key, value)
         if name in INTEGER_KEYS:
             return self.integer(key, value)
         if isinstance(value, list) and value and all(isinstance(v, str) for v in value):
