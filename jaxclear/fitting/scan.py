@@ -128,7 +128,7 @@ def check_scan(scan, free: tuple, mech=None) -> tuple:
             check_start(mech, name, v)
         except ParameterError as err:
             raise ParameterError(f"scan = {scan!r}: the held value {v:g} of {name!r} is not allowed ({err})") from None
-    if values is None and transform(name) not in SCAN_STEP:
+    if values is None and transform(name, mech) not in SCAN_STEP:
         raise ParameterError(f"scan = {name!r}: give its values ({{{name!r}: [v1, v2, ...]}}, --scan "
                              f"{name}=v1,v2,...): the default steps are for positive parameters and restitutions")
     return name, values
@@ -170,13 +170,11 @@ def run_scan(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoint
         except (OutputLockedError, CheckpointError):
             raise
         except (ArithmeticError, ValueError) as exc:  # the model cannot run there (FitDataError, SolverError)
-            points.append({"kind": "held", "name": name, "value": float(value), "loss": math.nan, "theta": None,
-                           "states": None, "reason": str(exc), "estimates": {}})
+            points.append({"kind": "held", "name": name, "value": float(value), "loss": math.nan, "states": None,
+                           "reason": str(exc), "estimates": {}})
         else:
-            held = {**res.estimates, name: value}
             states = res.window_states if problem.anywhere else [list(st.states[0])] + list(res.window_states)
             points.append({"kind": "held", "name": name, "value": float(value), "loss": float(res.loss),
-                           "theta": z_vector(problem.free, held, problem.win.scale, problem.mech).tolist(),
                            "states": np.asarray(states, dtype=float).tolist(), "reason": res.stop_reason,
                            "estimates": {n: float(v) for n, v in res.estimates.items()}})
         st = st.replace(scan=tuple(points))
@@ -190,10 +188,11 @@ def run_scan(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoint
                 "from": None, "value": math.nan}
     if best is not None and best["loss"] < here:
         single = dataclasses.replace(problem, stages=[final_stage(problem.windows, problem.anywhere)])
-        point = fit_point(single, opt, st, np.asarray(best["theta"]), np.asarray(best["states"]), on_iteration)
+        theta_best = z_vector(problem.free, {**best["estimates"], name: best["value"]}, problem.win.scale, problem.mech)
+        point = fit_point(single, opt, st, theta_best, np.asarray(best["states"]), on_iteration)
         loss = point["loss"] / n_fit
         if not loss <= best["loss"]:  # a first-order optimiser's last step can climb: the held point itself
-            point, loss = {"theta": best["theta"], "states": best["states"], "reason": best["reason"]}, best["loss"]
+            point, loss = {"theta": theta_best.tolist(), "states": best["states"], "reason": best["reason"]}, best["loss"]
         i = problem.free.index(name)
         decision.update(loss=loss, taken=bool(loss < here), value=float(from_z(name, point["theta"][i],
                         problem.win.scale, problem.mech)), **{"from": best["value"]})

@@ -76,8 +76,8 @@ class FitState(eqx.Module):
         profile: the points of the profile likelihood computed so far (:mod:`jaxclear.fitting.profile`),
             one dict each ``{"name", "side", "z", "loss", "theta", "states", "reason"}``.
         scan: the points of the scan of held values (:mod:`jaxclear.fitting.scan`), one dict
-            each ``{"kind": "held", "name", "value", "loss", "theta", "states", "reason",
-            "estimates"}``, then its ``{"kind": "decision", ...}`` once the scan is done.
+            each ``{"kind": "held", "name", "value", "loss", "states", "reason", "estimates"}``
+            (its parameters: the estimates and the held value), then its ``{"kind": "decision", ...}`` once the scan is done.
         wall: wall time spent so far [s]; stop_reason: why the final stage ended.
         refit: in the automatic refit from several starts (``fit(starts=None)``), why the
             single start before it was not enough (``FitResult.settings["auto_starts"]``);
