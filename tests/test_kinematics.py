@@ -35,6 +35,30 @@ def test_slider_crank_matches_closed_form():
     assert float(sol.drift.max()) < 1e-12
 
 
+def test_a_crank_started_anywhere_assembles_on_the_branch_it_turns_through():
+    """A preset built at crank angle 0 and started at another ``angle0`` assembles where turning
+    the crank there by hand leads (:func:`jaxclear.integrate.assemble`'s continuation), not on
+    the mirror branch: the slider-crank's slider at x = r cos phi + sqrt(l^2 - r^2 sin^2 phi)
+    (closed form) for angles round the circle and past a whole turn (it sat at -0.17 m instead
+    of 0.07 m at phi = pi before); the four-bar's bodies at angle0 = 3 equal the kinematic
+    solution's, which follows the crank from the preset's angle sample by sample. Tolerances: the Newton
+    tolerance 1e-10 (m, rad) on the residual, times the Jacobian's conditioning; 1e-9 allowed."""
+    from jaxclear.integrate._assembly import assemble
+
+    for ideal in (True, False):
+        base = jc.preset("flores-slider-crank", ideal=ideal)
+        for phi in (*np.linspace(0.0, 2 * np.pi, 9), 3.3, 7.0, -2.5):
+            q = np.asarray(assemble(params.replace(base, "angle0", float(phi))).q)
+            x = slider_crank_exact(phi, 1.0)[0]
+            assert abs(q[3 * base.body_index("slider")] - x) < 1e-9, (ideal, phi)
+            assert abs(q[3 * base.body_index("crank") + 2] - phi) < 1e-9
+    four = jc.preset("four-bar", ideal=True)
+    omega = _omega(four)
+    sol = kinematic_solution(four, jc.settings((3.0 - float(params.get(four, "angle0"))) / omega, n_out=301))
+    started = np.asarray(assemble(params.replace(four, "angle0", 3.0)).q)
+    assert np.max(np.abs(started - np.asarray(sol.q[-1]))) < 1e-9
+
+
 @pytest.mark.parametrize("name", ["flores-slider-crank", "four-bar"])
 def test_agrees_with_the_integrated_ideal_run(name):
     """The integrated run at rtol 1e-10 differs from the exact motion by its own error; 1e-6 of

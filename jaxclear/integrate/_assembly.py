@@ -23,6 +23,12 @@ FREE_DOF_OPTION = ("Settings(allow_free_dof=True) in Python, --allow-free-dof on
                    "simulate, animate)")
 NEWTON_ITERATIONS = 30
 NEWTON_TOL = 1e-10  # [m or rad], residual norm of Phi
+#: Steps of the continuation in the crank angle (:func:`assemble`): the angle drivers' misfit at
+#: the guess is closed in this many equal steps, each followed by :data:`CONTINUATION_ITERATIONS`
+#: Newton iterations, before the final :data:`NEWTON_ITERATIONS`. 16 steps move a crank half a
+#: turn by 0.2 rad a step.
+CONTINUATION_STEPS = 16
+CONTINUATION_ITERATIONS = 6
 RANK_TOL = 1e-9  # relative singular value below which constraints count as dependent
 
 
@@ -64,19 +70,42 @@ def assemble(mech: Mechanism, t0=0.0) -> Assembly:
     drivers and to the prescribed relative velocity ``initial_velocity`` on every clearance
     joint (zero by default: the ideal-joint kinematics, journal moving with its bearing).
     :math:`D^+` is applied by :func:`minimum_norm_correction` (no LAPACK).
+
+    **Continuation in the crank angle.** Where an angle driver's angle at ``t0`` differs from the
+    guess's (a preset built at crank angle 0 started at ``angle0 = pi``), Newton from the guess
+    can land on the linkage's other assembly branch: the benchmark slider-crank at ``angle0``
+    near pi assembled with its slider at x = -0.17 m, the mirror image, instead of the
+    0.07 m of the motion through 0. The drivers' misfit at the guess is therefore closed in
+    :data:`CONTINUATION_STEPS` steps (each driver's ``angle0`` moved from where the guess
+    satisfies it to its value, Newton iterations after each step), so that the branch is the
+    guess's, as when the crank is turned by hand from the guess to ``angle0`` (Allgower and Georg
+    1990, natural-parameter continuation).
     """
     q, qd = mech.guess()
     t0 = jnp.asarray(t0, q.dtype)
     extra = mech.held_at_start
 
-    def newton(_, q):
-        r = constraints.phi(mech, q, t0, extra)
-        d = constraints.jacobian(mech, q, t0, extra)
-        return q - minimum_norm_correction(d, r)
+    def newton_of(m):
+        def newton(_, q):
+            r = constraints.phi(m, q, t0, extra)
+            d = constraints.jacobian(m, q, t0, extra)
+            return q - minimum_norm_correction(d, r)
+        return newton
 
     if mech.n_constraints + sum(c.n_equations for c in extra) == 0:
         return Assembly(q, qd, jnp.zeros((), q.dtype), jnp.zeros((0, q.shape[0]), q.dtype))
-    q = jax.lax.fori_loop(0, NEWTON_ITERATIONS, newton, q)
+    turned = [i for i, d in enumerate(mech.drivers) if isinstance(getattr(d, "angle0", None), jax.Array)]
+    if turned:
+        misfit = jnp.stack([mech.drivers[i].equations(mech, q, t0)[0] for i in turned])
+
+        def step(k, q):
+            left = (1.0 - (k + 1.0) / CONTINUATION_STEPS) * misfit  # the part of the misfit not yet closed
+            m = eqx.tree_at(lambda mm: [mm.drivers[i].angle0 for i in turned], mech,
+                            [mech.drivers[i].angle0 + left[j] for j, i in enumerate(turned)])
+            return jax.lax.fori_loop(0, CONTINUATION_ITERATIONS, newton_of(m), q)
+
+        q = jax.lax.fori_loop(0, CONTINUATION_STEPS - 1, step, q)
+    q = jax.lax.fori_loop(0, NEWTON_ITERATIONS, newton_of(mech), q)
     r = constraints.phi(mech, q, t0, extra)
     d = constraints.jacobian(mech, q, t0, extra)
     phit = constraints.time_derivative(mech, q, t0, extra)
