@@ -1,0 +1,249 @@
+"""Long-time averages of the benchmark slider-crank's steady chaotic running, and their slopes
+against the clearance, the restitution and the crank speed: the truth a shadowing derivative of
+that mechanism must meet (issue 44), and whether the averages are differentiable at all.
+
+For each parameter, ``--values`` values in a band round the preset's (clearance 0.45-0.55 mm,
+restitution 0.85-0.95, crank speed 4750-5250 rpm), each run as ``--members`` independent motions
+(start crank angles spread over the circle), each ``--transient`` revolutions left out and then
+``--revolutions`` revolutions averaged (100 samples a revolution). Objectives, time averages over
+the steady running:
+
+* ``rms_dev``: the RMS of the slider's acceleration minus the ideal joint's (closed form of the
+  ideal slider-crank, x = r cos phi + sqrt(l^2 - r^2 sin^2 phi), phi = angle0 + omega t) [m/s^2];
+* ``rms_acc``: the RMS of the slider's acceleration [m/s^2];
+* ``onsets``: contact onsets per revolution (a count: a rate that can jump).
+
+Each member's steady part is cut into blocks of ``--block`` revolutions; the value's average is
+the mean of its blocks, its standard error the blocks' spread over sqrt(blocks) (the motion
+forgets its start in a few milliseconds, 1/lambda_1 = 2.3 ms, so blocks of 50 revolutions
+(0.6 s) are independent). The slope: weighted least squares of the averages against the value,
+a straight line and a parabola; the line's slope with its 95 % interval, the parabola's slope at
+the preset's value, and the lack-of-fit statistic chi^2 / dof of the line with its p-value: a
+p-value below 0.01 says the average is not a straight line over the band (curved, or not smooth:
+see the residuals).
+
+``python benchmarks/bench_steady_averages.py [--parameters clearance,restitution,speed_rpm]
+[--values 10] [--members 4] [--revolutions 500] [--json PATH]`` prints a table and writes the
+JSON after every parameter (a killed run resumes with the parameters done; the output is locked
+while it runs).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import time
+
+import jaxclear as jc  # noqa: I001  (float64 first)
+import jax
+import numpy as np
+from scipy import stats
+
+from jaxclear._storage import atomic_write_json, locked_folder
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+DEFAULT_JSON = os.path.join(HERE, "results", "steady_averages.json")
+PRESET = "flores-slider-crank"
+#: The bands swept round the preset's values (relative half-width of the band).
+BANDS = {"clearance": 0.1, "restitution": None, "speed_rpm": 0.05}
+RESTITUTION_BAND = (0.85, 0.95)
+SAMPLES = 100  # per revolution
+CRANK, ROD = 0.05, 0.12  # the preset's crank radius and rod length [m] (Flores et al. 2004)
+
+
+def ideal_slider_acc(phi, omega):
+    """The ideal slider-crank's slider acceleration [m/s^2] at crank angle ``phi`` and constant
+    speed ``omega`` (second derivative of x = r cos phi + sqrt(l^2 - r^2 sin^2 phi))."""
+    r, l = CRANK, ROD
+    s, c = np.sin(phi), np.cos(phi)
+    root = np.sqrt(l**2 - r**2 * s**2)
+    return (-r * c - r**2 * (c**2 - s**2) / root - r**4 * s**2 * c**2 / root**3) * omega**2
+
+
+def member_blocks(mech, angle0: float, transient: int, revolutions: int, block: int) -> dict:
+    """Block averages ``{objective: (revolutions // block,)}`` of one motion from crank angle
+    ``angle0`` [rad]."""
+    m = jc.params.replace(mech, "angle0", angle0)
+    omega = float(jc.params.get(m, "speed"))
+    period = 2 * math.pi / abs(omega)
+    total = transient + revolutions
+    s = jc.settings(total * period, n_out=total * SAMPLES + 1, max_steps=20_000_000)
+    sol = jc.simulate(m, s)
+    jax.block_until_ready(sol.q)
+    if int(sol.status) != 0:
+        raise RuntimeError(f"run failed: status {int(sol.status)} ({jc.STATUS.get(int(sol.status), '?')})")
+    t = np.asarray(sol.ts)
+    acc = np.asarray(sol.coordinate(m, "slider", "x", 2))
+    dev = acc - ideal_slider_acc(angle0 + omega * t, omega)
+    onsets = np.asarray(sol.memory.impacts)[:, 0]
+    out = {"rms_dev": [], "rms_acc": [], "onsets": []}
+    first = transient * SAMPLES
+    for b in range(revolutions // block):
+        a, z = first + b * block * SAMPLES, first + (b + 1) * block * SAMPLES
+        out["rms_dev"].append(math.sqrt(float(np.mean(dev[a:z] ** 2))))
+        out["rms_acc"].append(math.sqrt(float(np.mean(acc[a:z] ** 2))))
+        out["onsets"].append(float(onsets[z] - onsets[a]) / block)
+    return {k: np.asarray(v) for k, v in out.items()}
+
+
+def regression(x: np.ndarray, y: np.ndarray, se: np.ndarray, x0: float) -> dict:
+    """Weighted least squares of ``y`` (standard errors ``se``) against ``x``: the line's slope
+    with its standard error and 95 % interval, chi^2/dof and p-value of the line's lack of fit,
+    and the parabola's slope at ``x0`` with its standard error."""
+    w = 1.0 / se**2
+    out = {}
+    for deg in (1, 2):
+        X = np.vander(x - x0, deg + 1, increasing=True)
+        cov = np.linalg.inv(X.T @ (w[:, None] * X))
+        beta = cov @ (X.T @ (w * y))
+        chi2 = float(np.sum(w * (y - X @ beta) ** 2))
+        dof = len(x) - deg - 1
+        out[deg] = (beta, cov, chi2, dof)
+    beta, cov, chi2, dof = out[1]
+    t95 = stats.t.ppf(0.975, dof)
+    slope_se = math.sqrt(cov[1, 1])
+    b2, c2, chi2_2, dof2 = out[2]
+    return {"slope": float(beta[1]), "slope_se": slope_se,
+            "slope_95": [float(beta[1] - t95 * slope_se), float(beta[1] + t95 * slope_se)],
+            "line_chi2_per_dof": chi2 / dof, "line_p": float(stats.chi2.sf(chi2, dof)),
+            "parabola_slope": float(b2[1]), "parabola_slope_se": math.sqrt(c2[1, 1]),
+            "parabola_chi2_per_dof": chi2_2 / dof2, "parabola_p": float(stats.chi2.sf(chi2_2, dof2))}
+
+
+def values_of(name: str, mech, n: int, band: tuple | None = None) -> tuple[np.ndarray, float]:
+    """The band of ``n`` values of ``name`` round the preset's (or ``band = (low, high)``) and
+    the preset's value."""
+    x0 = float(jc.params.get(mech, name))
+    if band is not None:
+        return np.linspace(*band, n), x0
+    if name == "restitution":
+        return np.linspace(*RESTITUTION_BAND, n), x0
+    return x0 * np.linspace(1 - BANDS[name], 1 + BANDS[name], n), x0
+
+
+def study(name: str, n: int, members: int, transient: int, revolutions: int, block: int,
+          band: tuple | None = None) -> dict:
+    mech = jc.preset(PRESET)
+    xs, x0 = values_of(name, mech, n, band)
+    angles = np.linspace(0.0, 2 * math.pi, members, endpoint=False)
+    t0 = time.perf_counter()
+    rows = []
+    for x in xs:
+        m = jc.params.replace(mech, name, float(x))
+        blocks = [member_blocks(m, float(a), transient, revolutions, block) for a in angles]
+        row = {"value": float(x)}
+        for key in blocks[0]:
+            allb = np.concatenate([b[key] for b in blocks])
+            row[key] = float(np.mean(allb))
+            row[key + "_se"] = float(np.std(allb, ddof=1) / math.sqrt(allb.size))
+            row[key + "_members"] = [float(np.mean(b[key])) for b in blocks]
+        rows.append(row)
+        print(f"  {name} = {x:.6g}: " + ", ".join(f"{k} {row[k]:.6g} +- {row[k + '_se']:.2g}"
+                                                  for k in blocks[0]), flush=True)
+    fits = {key: regression(np.array([r["value"] for r in rows]), np.array([r[key] for r in rows]),
+                            np.array([r[key + "_se"] for r in rows]), x0) for key in ("rms_dev", "rms_acc", "onsets")}
+    return {"parameter": name, "preset_value": x0, "values": n, "members": members, "transient": transient,
+            "revolutions": revolutions, "block": block, "rows": rows, "fits": fits,
+            "wall_s": time.perf_counter() - t0, "revolutions_run": n * members * (transient + revolutions)}
+
+
+def plot(studies: list, path: str) -> str:
+    """Each study's averages (error bars: 2 standard errors) against its parameter, with the
+    weighted line and parabola, one row per parameter, one column per objective; saved to
+    ``path`` (PNG)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    keys = ("rms_dev", "rms_acc", "onsets")
+    labels = {"rms_dev": "RMS slider acc. deviation [m/s$^2$]", "rms_acc": "RMS slider acc. [m/s$^2$]",
+              "onsets": "contact onsets per revolution"}
+    fig, axes = plt.subplots(len(studies), 3, figsize=(12, 3.2 * len(studies)), squeeze=False)
+    for row, s in zip(axes, studies):
+        x = np.array([r["value"] for r in s["rows"]])
+        for ax, key in zip(row, keys):
+            y = np.array([r[key] for r in s["rows"]])
+            se = np.array([r[key + "_se"] for r in s["rows"]])
+            ax.errorbar(x, y, yerr=2 * se, fmt="o", ms=3, capsize=2, color="k", label="average +- 2 SE")
+            w = 1.0 / se**2
+            xx = np.linspace(x.min(), x.max(), 100)
+            for deg, style in ((1, "-"), (2, "--")):
+                c = np.polyfit(x - s["preset_value"], y, deg, w=np.sqrt(w))
+                ax.plot(xx, np.polyval(c, xx - s["preset_value"]), style, lw=1,
+                        label="line" if deg == 1 else "parabola")
+            f = s["fits"][key]
+            ax.set_title(f"slope {f['slope']:.3g}, line p = {f['line_p']:.2g}", fontsize=9)
+            ax.set_xlabel(s["parameter"])
+            ax.set_ylabel(labels[key], fontsize=8)
+            ax.axvline(s["preset_value"], color="0.7", lw=0.8)
+        row[0].legend(fontsize=7)
+    fig.suptitle(f"{PRESET}: long-time averages of steady running ({studies[0]['members']} motions x "
+                 f"{studies[0]['revolutions']} revolutions a value)", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--parameters", default="clearance,restitution,speed_rpm")
+    p.add_argument("--values", type=int, default=10)
+    p.add_argument("--members", type=int, default=4)
+    p.add_argument("--transient", type=int, default=20)
+    p.add_argument("--revolutions", type=int, default=500)
+    p.add_argument("--block", type=int, default=50)
+    p.add_argument("--band", action="append", default=[], metavar="NAME=LOW,HIGH",
+                   help="the band of one parameter instead of the default (a closer look; use another --json)")
+    p.add_argument("--json", default=DEFAULT_JSON)
+    a = p.parse_args(argv)
+    bands = {}
+    for item in a.band:
+        name, _, lh = item.partition("=")
+        try:
+            bands[name] = tuple(float(v) for v in lh.split(","))
+        except ValueError:
+            bands[name] = ()
+        if name not in BANDS or len(bands[name]) != 2 or not bands[name][0] < bands[name][1]:
+            p.error(f"--band {item!r}: expected NAME=LOW,HIGH with LOW < HIGH, NAME one of {sorted(BANDS)}")
+    if a.revolutions % a.block or a.values < 4 or a.members < 1:
+        p.error("--revolutions must be a multiple of --block; --values >= 4; --members >= 1")
+    path = os.path.abspath(a.json)
+    with locked_folder(os.path.dirname(path)):
+        done = {}
+        if os.path.exists(path):
+            with open(path, encoding="utf-8") as f:
+                saved = json.load(f)
+            same = {k: saved["meta"].get(k) for k in ("values", "members", "transient", "revolutions", "block")}
+            if same == {"values": a.values, "members": a.members, "transient": a.transient,
+                        "revolutions": a.revolutions, "block": a.block} and \
+                    {k: tuple(v) for k, v in saved["meta"].get("bands", {}).items()} == bands:
+                done = {s["parameter"]: s for s in saved["studies"]}
+        meta = {"date": time.strftime("%Y-%m-%d"), "preset": PRESET, "values": a.values, "members": a.members,
+                "transient": a.transient, "revolutions": a.revolutions, "block": a.block, "samples": SAMPLES,
+                "cpus": os.cpu_count(), "bands": bands,
+                "command": "python benchmarks/bench_steady_averages.py" + "".join(f" --band {b}" for b in a.band)}
+        for name in a.parameters.split(","):
+            if name not in BANDS:
+                p.error(f"--parameters: {name!r}; valid: {sorted(BANDS)}")
+            if name not in done:
+                print(f"{name}: {a.values} values x {a.members} members x {a.revolutions} revolutions", flush=True)
+                done[name] = study(name, a.values, a.members, a.transient, a.revolutions, a.block, bands.get(name))
+                atomic_write_json(path, {"meta": meta, "studies": list(done.values())})
+        if done:
+            print("figure:", plot(list(done.values()), os.path.splitext(path)[0] + ".png"))
+        print(f"\n{'parameter':12s} {'objective':9s} {'slope (line)':>14s} {'95 % interval':>30s} "
+              f"{'chi2/dof':>9s} {'p':>8s} {'slope (parabola)':>18s}")
+        for name, s in done.items():
+            for key, f in s["fits"].items():
+                print(f"{name:12s} {key:9s} {f['slope']:14.5g} [{f['slope_95'][0]:13.5g}, {f['slope_95'][1]:13.5g}] "
+                      f"{f['line_chi2_per_dof']:9.2f} {f['line_p']:8.2g} {f['parabola_slope']:11.5g} +- "
+                      f"{f['parabola_slope_se']:.2g}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

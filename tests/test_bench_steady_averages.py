@@ -1,0 +1,46 @@
+"""benchmarks/bench_steady_averages.py's own pieces (the long runs are the benchmark's): the
+ideal slider's acceleration against central differences of its closed-form position, and the
+regression's slope, interval and lack-of-fit test on data of known shape."""
+
+import math
+
+import numpy as np
+
+import bench_steady_averages as bench  # benchmarks/ is on sys.path (conftest.py)
+
+
+def test_ideal_slider_acceleration_is_the_second_difference_of_the_position():
+    """x(phi) = r cos phi + sqrt(l^2 - r^2 sin^2 phi) (the ideal slider-crank with the preset's
+    r = 0.05 m, l = 0.12 m); the closed-form acceleration at 5000 rpm against the central second
+    difference of x(omega t) with h = 1e-6 s: truncation h^2 x''''/12, about 1e-4 relative of
+    the 1.7e4 m/s^2 scale, rounding 1e-16 * 0.17 m / h^2 = 2e-5 m/s^2; 1e-3 relative allowed."""
+    omega = 5000 * 2 * math.pi / 60
+    r, l = bench.CRANK, bench.ROD
+
+    def x(t):
+        phi = 0.3 + omega * t
+        return r * np.cos(phi) + np.sqrt(l**2 - r**2 * np.sin(phi) ** 2)
+
+    t = np.linspace(0.0, 0.012, 97)
+    h = 1e-6
+    fd = (x(t + h) - 2 * x(t) + x(t - h)) / h**2
+    exact = bench.ideal_slider_acc(0.3 + omega * t, omega)
+    assert np.max(np.abs(fd - exact)) < 1e-3 * np.max(np.abs(exact))
+
+
+def test_regression_finds_a_known_slope_and_flags_a_curve():
+    """Averages on a line y = 2 + 3 x with Gaussian errors of known size: the slope within its
+    interval and a lack of fit that is not significant; on a parabola whose curvature is 30
+    standard errors over the band, the line's p-value below 1e-6 and the parabola's slope at x0
+    the derivative there (within 4 of its standard errors)."""
+    rng = np.random.default_rng(0)
+    x = np.linspace(0.9, 1.1, 10)
+    se = np.full(10, 0.01)
+    y = 2 + 3 * x + se * rng.standard_normal(10)
+    f = bench.regression(x, y, se, 1.0)
+    assert f["slope_95"][0] < 3.0 < f["slope_95"][1]
+    assert f["line_p"] > 0.01
+    curved = 2 + 3 * x + 30 * (x - 1.0) ** 2 / 0.01 * 0.01 + se * rng.standard_normal(10)
+    g = bench.regression(x, curved, se, 1.0)
+    assert g["line_p"] < 1e-6
+    assert abs(g["parabola_slope"] - 3.0) < 4 * g["parabola_slope_se"]
