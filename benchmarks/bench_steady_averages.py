@@ -88,6 +88,23 @@ def member_blocks(mech, angle0: float, transient: int, revolutions: int, block: 
     return {k: np.asarray(v) for k, v in out.items()}
 
 
+#: Members whose averages differ more than their own errors allow (chi^2 of the member means about
+#: their weighted mean, p below this) have settled on different attractors: the value is
+#: multistable, its average depends on the start, and it is left out of ``fits_single``.
+AGREE_P = 1e-3
+
+
+def members_agree(means, ses) -> float:
+    """p-value of the member averages ``means`` (standard errors ``ses``) being one average:
+    chi^2 of their weighted scatter with ``len(means) - 1`` degrees of freedom (1.0 for one member)."""
+    m, se = np.asarray(means, dtype=float), np.asarray(ses, dtype=float)
+    if m.size < 2:
+        return 1.0
+    w = 1.0 / np.maximum(se, 1e-300) ** 2
+    mean = np.sum(w * m) / np.sum(w)
+    return float(stats.chi2.sf(np.sum(w * (m - mean) ** 2), m.size - 1))
+
+
 def regression(x: np.ndarray, y: np.ndarray, se: np.ndarray, x0: float) -> dict:
     """Weighted least squares of ``y`` (standard errors ``se``) against ``x``: the line's slope
     with its standard error and 95 % interval, chi^2/dof and p-value of the line's lack of fit,
@@ -139,20 +156,27 @@ def study(name: str, n: int, members: int, transient: int, revolutions: int, blo
             row[key] = float(np.mean(allb))
             row[key + "_se"] = float(np.std(allb, ddof=1) / math.sqrt(allb.size))
             row[key + "_members"] = [float(np.mean(b[key])) for b in blocks]
+            row[key + "_members_se"] = [float(np.std(b[key], ddof=1) / math.sqrt(b[key].size)) for b in blocks]
+        row["members_agree_p"] = members_agree(row["rms_dev_members"], row["rms_dev_members_se"])
         rows.append(row)
         print(f"  {name} = {x:.6g}: " + ", ".join(f"{k} {row[k]:.6g} +- {row[k + '_se']:.2g}"
                                                   for k in blocks[0]), flush=True)
-    fits = {key: regression(np.array([r["value"] for r in rows]), np.array([r[key] for r in rows]),
-                            np.array([r[key + "_se"] for r in rows]), x0) for key in ("rms_dev", "rms_acc", "onsets")}
+    def fits_of(kept):
+        return {key: regression(np.array([r["value"] for r in kept]), np.array([r[key] for r in kept]),
+                                np.array([r[key + "_se"] for r in kept]), x0) for key in ("rms_dev", "rms_acc", "onsets")}
+
+    single = [r for r in rows if r["members_agree_p"] >= AGREE_P]
     return {"parameter": name, "preset_value": x0, "values": n, "members": members, "transient": transient,
-            "revolutions": revolutions, "block": block, "rows": rows, "fits": fits,
+            "revolutions": revolutions, "block": block, "rows": rows, "fits": fits_of(rows),
+            "multistable": [r["value"] for r in rows if r["members_agree_p"] < AGREE_P],
+            "fits_single": fits_of(single) if len(single) >= 4 else None,
             "wall_s": time.perf_counter() - t0, "revolutions_run": n * members * (transient + revolutions)}
 
 
 def plot(studies: list, path: str) -> str:
-    """Each study's averages (error bars: 2 standard errors) against its parameter, with the
-    weighted line and parabola, one row per parameter, one column per objective; saved to
-    ``path`` (PNG)."""
+    """Each study's averages (error bars: 2 standard errors; grey dots: each motion's; red: a
+    multistable value) against its parameter, with the weighted line and parabola of the values
+    on one attractor, one row per parameter, one column per objective; saved to ``path`` (PNG)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -167,15 +191,23 @@ def plot(studies: list, path: str) -> str:
         for ax, key in zip(row, keys):
             y = np.array([r[key] for r in s["rows"]])
             se = np.array([r[key + "_se"] for r in s["rows"]])
-            ax.errorbar(x, y, yerr=2 * se, fmt="o", ms=3, capsize=2, color="k", label="average +- 2 SE")
+            ok = np.array([r.get("members_agree_p", 1.0) >= AGREE_P for r in s["rows"]])
+            for r in s["rows"]:
+                ax.plot([r["value"]] * len(r[key + "_members"]), r[key + "_members"], ".", color="0.75", ms=3)
+            ax.errorbar(x[ok], y[ok], yerr=2 * se[ok], fmt="o", ms=3, capsize=2, color="k", label="average +- 2 SE")
+            if not ok.all():
+                ax.errorbar(x[~ok], y[~ok], yerr=2 * se[~ok], fmt="s", ms=4, capsize=2, color="tab:red",
+                            label="multistable (motions differ)")
             w = 1.0 / se**2
             xx = np.linspace(x.min(), x.max(), 100)
             for deg, style in ((1, "-"), (2, "--")):
-                c = np.polyfit(x - s["preset_value"], y, deg, w=np.sqrt(w))
+                c = np.polyfit(x[ok] - s["preset_value"], y[ok], deg, w=np.sqrt(w[ok]))
                 ax.plot(xx, np.polyval(c, xx - s["preset_value"]), style, lw=1,
                         label="line" if deg == 1 else "parabola")
-            f = s["fits"][key]
-            ax.set_title(f"slope {f['slope']:.3g}, line p = {f['line_p']:.2g}", fontsize=9)
+            f = (s.get("fits_single") if s.get("multistable") else None) or s["fits"]
+            f = f[key]
+            ax.set_title(f"slope {f['slope']:.3g}, line p = {f['line_p']:.2g}"
+                         + (" (one attractor)" if s.get("multistable") else ""), fontsize=9)
             ax.set_xlabel(s["parameter"])
             ax.set_ylabel(labels[key], fontsize=8)
             ax.axvline(s["preset_value"], color="0.7", lw=0.8)
@@ -238,10 +270,14 @@ def main(argv=None) -> int:
         print(f"\n{'parameter':12s} {'objective':9s} {'slope (line)':>14s} {'95 % interval':>30s} "
               f"{'chi2/dof':>9s} {'p':>8s} {'slope (parabola)':>18s}")
         for name, s in done.items():
-            for key, f in s["fits"].items():
-                print(f"{name:12s} {key:9s} {f['slope']:14.5g} [{f['slope_95'][0]:13.5g}, {f['slope_95'][1]:13.5g}] "
-                      f"{f['line_chi2_per_dof']:9.2f} {f['line_p']:8.2g} {f['parabola_slope']:11.5g} +- "
-                      f"{f['parabola_slope_se']:.2g}")
+            for label, fits in (("", s["fits"]), (" (one attractor)", s.get("fits_single") if s.get("multistable") else None)):
+                for key, f in (fits or {}).items():
+                    print(f"{name:12s} {key + label:9s} {f['slope']:14.5g} [{f['slope_95'][0]:13.5g}, "
+                          f"{f['slope_95'][1]:13.5g}] {f['line_chi2_per_dof']:9.2f} {f['line_p']:8.2g} "
+                          f"{f['parabola_slope']:11.5g} +- {f['parabola_slope_se']:.2g}")
+            if s.get("multistable"):
+                print(f"{name:12s} multistable (the motions settle on different attractors) at "
+                      f"{', '.join(f'{v:.6g}' for v in s['multistable'])}")
     return 0
 
 

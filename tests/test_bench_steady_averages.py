@@ -44,3 +44,13 @@ def test_regression_finds_a_known_slope_and_flags_a_curve():
     g = bench.regression(x, curved, se, 1.0)
     assert g["line_p"] < 1e-6
     assert abs(g["parabola_slope"] - 3.0) < 4 * g["parabola_slope_se"]
+
+
+def test_members_on_different_attractors_are_told_apart():
+    """Four motions' averages within their errors agree (p well above the benchmark's 1e-3);
+    one of them 20 errors off, as a motion settled on another attractor (0.534 mm: 8,010 against
+    14,200-14,800 m/s^2 with errors of about 300), gives p below 1e-6."""
+    ses = [100.0, 120.0, 110.0, 100.0]
+    assert bench.members_agree([15000.0, 15100.0, 14950.0, 15050.0], ses) > 0.01
+    assert bench.members_agree([15000.0, 15100.0, 14950.0, 13000.0], ses) < 1e-6
+    assert bench.members_agree([15000.0], [100.0]) == 1.0
