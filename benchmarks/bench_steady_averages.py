@@ -53,13 +53,17 @@ SAMPLES = 100  # per revolution
 CRANK, ROD = 0.05, 0.12  # the preset's crank radius and rod length [m] (Flores et al. 2004)
 
 
-def ideal_slider_acc(phi, omega):
-    """The ideal slider-crank's slider acceleration [m/s^2] at crank angle ``phi`` and constant
-    speed ``omega`` (second derivative of x = r cos phi + sqrt(l^2 - r^2 sin^2 phi))."""
-    r, l = CRANK, ROD
+def slider_crank_exact(phi, omega, r=CRANK, l=ROD):
+    """Exact slider position [m], velocity [m/s] and acceleration [m/s^2] of the ideal
+    slider-crank at crank angle ``phi`` and constant speed ``omega`` (closed form of
+    x = r cos phi + sqrt(l^2 - r^2 sin^2 phi) and its derivatives; the tests' truth too,
+    tests/conftest.py)."""
     s, c = np.sin(phi), np.cos(phi)
     root = np.sqrt(l**2 - r**2 * s**2)
-    return (-r * c - r**2 * (c**2 - s**2) / root - r**4 * s**2 * c**2 / root**3) * omega**2
+    x = r * c + root
+    dx = -r * s - r**2 * s * c / root
+    ddx = -r * c - r**2 * (c**2 - s**2) / root - r**4 * s**2 * c**2 / root**3
+    return x, dx * omega, ddx * omega**2
 
 
 def member_blocks(mech, angle0: float, transient: int, revolutions: int, block: int) -> dict:
@@ -76,7 +80,7 @@ def member_blocks(mech, angle0: float, transient: int, revolutions: int, block: 
         raise RuntimeError(f"run failed: status {int(sol.status)} ({jc.STATUS.get(int(sol.status), '?')})")
     t = np.asarray(sol.ts)
     acc = np.asarray(sol.coordinate(m, "slider", "x", 2))
-    dev = acc - ideal_slider_acc(angle0 + omega * t, omega)
+    dev = acc - slider_crank_exact(angle0 + omega * t, omega)[2]
     onsets = np.asarray(sol.memory.impacts)[:, 0]
     out = {"rms_dev": [], "rms_acc": [], "onsets": []}
     first = transient * SAMPLES

@@ -73,17 +73,7 @@ def clearance_pendulum(restitution=1.0, friction=0.0, length=0.2, mass=1.0, clea
     return jc.Mechanism([body], clearance_joints=[joint], ground_points={"pivot": (0, 0)}, name="pendulum")
 
 
-def slider_crank_exact(phi, omega, r=0.05, l=0.12):
-    """Exact slider position, velocity and acceleration of the ideal slider-crank at crank angle
-    phi = omega t (closed form of x = r cos phi + sqrt(l^2 - r^2 sin^2 phi))."""
-    import numpy as np
-
-    s, c = np.sin(phi), np.cos(phi)
-    root = np.sqrt(l**2 - r**2 * s**2)
-    x = r * c + root
-    dx = -r * s - r**2 * s * c / root
-    ddx = -r * c - r**2 * (c**2 - s**2) / root - r**4 * s**2 * c**2 / root**3
-    return x, dx * omega, ddx * omega**2
+from bench_steady_averages import slider_crank_exact  # noqa: E402,F401  (benchmarks/: the closed form, one place)
 
 
 def _refuse_constant(name):
