@@ -112,7 +112,8 @@ def members_agree(means, ses) -> float:
 def regression(x: np.ndarray, y: np.ndarray, se: np.ndarray, x0: float) -> dict:
     """Weighted least squares of ``y`` (standard errors ``se``) against ``x``: the line's slope
     with its standard error and 95 % interval, chi^2/dof and p-value of the line's lack of fit,
-    and the parabola's slope at ``x0`` with its standard error."""
+    and the parabola's slope at ``x0`` with its standard error; ``line`` and ``parabola``: their
+    coefficients in powers of ``x - x0`` (constant first), which the figure draws."""
     w = 1.0 / se**2
     out = {}
     for deg in (1, 2):
@@ -130,7 +131,8 @@ def regression(x: np.ndarray, y: np.ndarray, se: np.ndarray, x0: float) -> dict:
             "slope_95": [float(beta[1] - t95 * slope_se), float(beta[1] + t95 * slope_se)],
             "line_chi2_per_dof": chi2 / dof, "line_p": float(stats.chi2.sf(chi2, dof)),
             "parabola_slope": float(b2[1]), "parabola_slope_se": math.sqrt(c2[1, 1]),
-            "parabola_chi2_per_dof": chi2_2 / dof2, "parabola_p": float(stats.chi2.sf(chi2_2, dof2))}
+            "parabola_chi2_per_dof": chi2_2 / dof2, "parabola_p": float(stats.chi2.sf(chi2_2, dof2)),
+            "line": [float(b) for b in beta], "parabola": [float(b) for b in b2]}
 
 
 def values_of(name: str, mech, n: int, band: tuple | None = None) -> tuple[np.ndarray, float]:
@@ -202,14 +204,11 @@ def plot(studies: list, path: str) -> str:
             if not ok.all():
                 ax.errorbar(x[~ok], y[~ok], yerr=2 * se[~ok], fmt="s", ms=4, capsize=2, color="tab:red",
                             label="multistable (motions differ)")
-            w = 1.0 / se**2
+            f = regression(x[ok], y[ok], se[ok], s["preset_value"])  # the values on one attractor
             xx = np.linspace(x.min(), x.max(), 100)
-            for deg, style in ((1, "-"), (2, "--")):
-                c = np.polyfit(x[ok] - s["preset_value"], y[ok], deg, w=np.sqrt(w[ok]))
-                ax.plot(xx, np.polyval(c, xx - s["preset_value"]), style, lw=1,
-                        label="line" if deg == 1 else "parabola")
-            f = (s.get("fits_single") if s.get("multistable") else None) or s["fits"]
-            f = f[key]
+            for curve, style in (("line", "-"), ("parabola", "--")):
+                ax.plot(xx, np.polynomial.polynomial.polyval(xx - s["preset_value"], f[curve]), style, lw=1,
+                        label=curve)
             ax.set_title(f"slope {f['slope']:.3g}, line p = {f['line_p']:.2g}"
                          + (" (one attractor)" if s.get("multistable") else ""), fontsize=9)
             ax.set_xlabel(s["parameter"])
