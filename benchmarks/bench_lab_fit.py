@@ -13,7 +13,7 @@ Targets: stiffness within 5 %, restitution within 0.02, every error within 3 rep
 5 minutes a record on 2 cores.
 
 ``python benchmarks/bench_lab_fit.py [--set acceptance] [--cases 0,1,2] [--windows 4] [--starts N] [--scan NAME]
-[--json PATH]`` prints a table
+[--rtol R] [--json PATH]`` prints a table
 and writes the JSON after every record (a killed run resumes: the records done are kept; the
 output is locked while it runs).
 """
@@ -35,9 +35,11 @@ DEFAULT_JSON = os.path.join(HERE, "results", "lab_fit.json")
 FREE = ["stiffness", "restitution", "sensor_gain", "sensor_bias"]
 
 
-def fit_case(case: dict, windows: int, window: float, starts: int = 1, noise: bool = True, scan=None) -> dict:
+def fit_case(case: dict, windows: int, window: float, starts: int = 1, noise: bool = True, scan=None,
+             rtol: float | None = None) -> dict:
     """One record (``make_record``'s arguments ``case``) made and fitted (``scan``: the fit's
-    scan of held values, :mod:`jaxclear.fitting.scan`): the truth, the estimates, std, errors,
+    scan of held values, :mod:`jaxclear.fitting.scan`; ``rtol``: the model's tolerance, ``atol``
+    a thousandth of it, None for the fit's default): the truth, the estimates, std, errors,
     verdict and times."""
     factor, c_r, seed = case["stiffness_factor"], case["c_r"], case["seed"]
     t0 = time.perf_counter()
@@ -49,7 +51,8 @@ def fit_case(case: dict, windows: int, window: float, starts: int = 1, noise: bo
     t1 = time.perf_counter()
     res = jc.fit(data, mech, free=FREE, start={"restitution": 0.9}, sensor=jc.Accelerometer(10e3),
                  start_state="free", windows=windows, window=window, starts=starts, progress=False,
-                 noise_sigma=truth["noise_std"] if noise else None, scan=scan)
+                 noise_sigma=truth["noise_std"] if noise else None, scan=scan,
+                 settings=None if rtol is None else jc.settings(1.0, rtol=rtol, atol=1e-3 * rtol))
     wall = time.perf_counter() - t1
     k, c = res.estimates["stiffness"], res.estimates["restitution"]
     return {"stiffness_factor": factor, "c_r": c_r, "seed": seed, "revolutions_before": case["revolutions_before"],
@@ -64,7 +67,7 @@ def fit_case(case: dict, windows: int, window: float, starts: int = 1, noise: bo
             "noise_sigma_given": truth["noise_std"] if noise else None, "residual_std": res.noise_sigma_m_s2,
             "stop_reason": res.stop_reason, "window_losses": list(res.window_losses),
             "window_onsets": res.window_onsets, "scan": scan, "scan_report": res.settings.get("scan"),
-            "profiles": res.profiles}
+            "profiles": res.profiles, "rtol": rtol}
 
 
 def main(argv=None) -> int:
@@ -76,6 +79,8 @@ def main(argv=None) -> int:
     p.add_argument("--starts", type=int, default=1, help="starts of the parameters (default 1)")
     p.add_argument("--scan", default=None, metavar="NAME",
                    help="scan this free parameter after the fit (jc.fit's scan; default: none)")
+    p.add_argument("--rtol", type=float, default=None,
+                   help="the model's relative tolerance (atol a thousandth of it; default: the fit's, 1e-8)")
     p.add_argument("--no-noise", action="store_true",
                    help="do not give the fit the sensor's noise level (default: given, as a record at rest would)")
     p.add_argument("--json", default=DEFAULT_JSON)
@@ -86,9 +91,9 @@ def main(argv=None) -> int:
         done = json.load(open(args.json))["records"] if os.path.isfile(args.json) else []
         for case in cases:
             if any(all(r.get(k) == v for k, v in case.items()) and r.get("starts", 1) == args.starts
-                   and r.get("scan") == args.scan for r in done):
+                   and r.get("scan") == args.scan and r.get("rtol") == args.rtol for r in done):
                 continue
-            done.append(fit_case(case, args.windows, args.window, args.starts, not args.no_noise, args.scan))
+            done.append(fit_case(case, args.windows, args.window, args.starts, not args.no_noise, args.scan, args.rtol))
             atomic_write_json(args.json, {"meta": {"date": time.strftime("%Y-%m-%d"), "windows": args.windows,
                                                    "window_s": args.window, "free": FREE, "scan": args.scan}, "records": done},
                               indent=1, sort_keys=False)
