@@ -421,3 +421,35 @@ def test_the_group_converts_what_is_given():
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # no deprecated spelling on the command line's way
         settings_from_args(args)
+
+
+@pytest.mark.parametrize("driver", ["fit", "posterior", "fit_statistics", "tolerance_study", "lyapunov", "SweepConfig"])
+def test_every_driver_refuses_settings_that_are_not_settings(driver, tmp_path):
+    """One check of ``settings=`` (``jaxclear.integrate.check_settings``) in every driver: a
+    tolerance given where the settings go names the driver and the expected type, before
+    anything is read or compiled."""
+    call = {"fit": lambda: jc.fit(None, MECH, settings=1e-7),
+            "posterior": lambda: jc.posterior(None, MECH, settings=1e-7),
+            "fit_statistics": lambda: jc.fit_statistics(None, MECH, settings=1e-7),
+            "tolerance_study": lambda: jc.tolerance_study({}, MECH, settings=1e-7, out=str(tmp_path)),
+            "lyapunov": lambda: jc.lyapunov(MECH, settings=1e-7),
+            "SweepConfig": lambda: jc.SweepConfig(grid={"clearance": [1e-4]}, settings=1e-7, out=str(tmp_path))}[driver]
+    with pytest.raises(ParameterError, match=r"settings = 1e-07: expected a jaxclear\.Settings \(jc\.settings\(t_end"):
+        call()
+
+
+def test_a_run_refuses_settings_that_are_not_settings_also_under_jit():
+    """``jc.simulate`` and ``jc.sensitivities`` take their settings through the same check: a
+    number or None where the settings go is a ParameterError naming the argument, not a
+    ``TypeError`` from ``dataclasses.replace`` deep inside; under ``jax.jit`` too (a check of the
+    settings' type, which is static there)."""
+    import jax
+
+    with pytest.raises(ParameterError, match=r"simulate: s = 1e-07: expected a jaxclear\.Settings"):
+        jc.simulate(MECH, 1e-7)
+    with pytest.raises(ParameterError, match=r"simulate: settings are required .*s=jc\.settings\(t_end"):
+        jc.simulate(MECH, None)
+    with pytest.raises(ParameterError, match=r"simulate: s = 3\.0: expected a jaxclear\.Settings"):
+        jax.jit(lambda m: jc.simulate(m, 3.0).q)(MECH)
+    with pytest.raises(ParameterError, match=r"sensitivities: s = 1e-07: expected a jaxclear\.Settings"):
+        jc.sensitivities(MECH, ["clearance"], 1e-7)

@@ -24,7 +24,7 @@ from .._errors import JaxclearError, ParameterError, is_concrete
 from .._results import deprecated
 from ..analysis.channels import channel
 from ..integrate import Settings, Solution, State, stored_solution
-from ..integrate import default_settings
+from ..integrate import check_settings, default_settings
 from ..integrate import raise_for_status as _raise_run_status
 from ..model import Mechanism, crank_driver, crank_period
 from ..sweep.devices import DEFAULT_RUNS_PER_DEVICE, make_mesh
@@ -186,14 +186,7 @@ def _renamed(driver: str, settings: Settings | None, s: Settings | None, require
             raise ParameterError(f"{driver}: both settings= and s= (its old name) given; give settings= only")
         deprecated(f"{driver}(s=...)", "settings=...", stacklevel=3)
         settings = s
-    if settings is None:
-        if required:
-            raise ParameterError(f"{driver}: settings are required (the run's span [t_start, t_end]): "
-                                 "settings=jc.settings(t_end, ...)")
-        return default_settings()
-    if not isinstance(settings, Settings):
-        raise ParameterError(f"{driver}: settings = {settings!r}: expected a jaxclear.Settings")
-    return settings
+    return check_settings(driver, settings, required) or default_settings()
 
 
 def check_convergence(result: LyapunovResult, tol: float | None) -> None:

@@ -17,7 +17,7 @@ from ..model import FunctionDriver, Mechanism, crank_driver, crank_period
 from ..analysis.channels import unit as named_unit
 from ..analysis.sensor import Accelerometer, record_times, uniform_spacing
 from ..integrate import ExactOnsets, SampleBlock, Sensitivity, Settings
-from ..integrate import default_settings, deprecated_keywords, option_values
+from ..integrate import check_settings, default_settings, deprecated_keywords, option_values
 from .parameters import check_free, fixed_values, start_values, z_vector
 from .plan import check_plan, plan_stages, spread_starts
 from .records import read_record
@@ -73,10 +73,7 @@ def given_settings(driver: str, settings: Settings | None, rtol=None, atol=None,
     second is the step limit given (the keyword, or the settings' where it is not ``Settings``'
     default), None where the fit chooses (:func:`model_settings`)."""
     old = deprecated_keywords(driver, settings, stacklevel=stacklevel, rtol=rtol, atol=atol, max_steps=max_steps)
-    if settings is not None:
-        if not isinstance(settings, Settings):
-            raise ParameterError(f"{driver}: settings = {settings!r}: expected a jaxclear.Settings "
-                                 "(jc.settings(1.0, rtol=...)) or None")
+    if check_settings(driver, settings) is not None:
         default = default_settings().max_steps
         return settings, (settings.max_steps if settings.max_steps != default else None)
     try:

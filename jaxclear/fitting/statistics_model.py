@@ -39,7 +39,7 @@ import numpy as np
 from .. import params
 from ..analysis.sensor import Accelerometer
 from .._errors import JaxclearError, ParameterError
-from ..integrate import Settings, default_settings, deprecated_keywords, simulate
+from ..integrate import Settings, check_settings, default_settings, deprecated_keywords, simulate
 from ..model import Mechanism
 from ..sweep.lanes import lanes_one_by_one, over_lanes
 from .records import slider_role
@@ -111,10 +111,7 @@ def given_settings(settings: Settings | None, stacklevel: int = 4, **old) -> Set
             return dataclasses.replace(default_settings(), **old)
         except JaxclearError as err:
             raise ParameterError(f"fit_statistics: {err}") from None
-    if not isinstance(settings, Settings):
-        raise ParameterError(f"fit_statistics: settings = {settings!r}: expected a jaxclear.Settings "
-                             "(jc.settings(1.0, rtol=...)) or None")
-    return settings
+    return check_settings("fit_statistics", settings)
 
 
 def run_settings(plan: SignalPlan, settings: Settings) -> Settings:

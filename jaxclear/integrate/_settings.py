@@ -276,3 +276,19 @@ def deprecated_keywords(driver: str, settings: Settings | None, stacklevel: int 
     deprecated(f"{driver}({keywords}...)", f"settings=jc.settings(t_end, {spelled}) (t_end and n_out are the "
                "driver's own)", stacklevel=stacklevel)
     return given
+
+
+def check_settings(driver: str, settings, required: bool = False, name: str = "settings") -> Settings | None:
+    """``settings`` as a run or driver takes it: a :class:`Settings`, or None (the driver's own)
+    where not ``required``; else a :class:`~jaxclear.ParameterError` naming the driver, the
+    argument ``name`` and the expected type (a check of types only: it holds inside ``jit`` and
+    ``vmap``, where the settings' structure is static). The one check of every ``settings=``
+    (simulate, sensitivities, fit, posterior, statistics fit, sweep, tolerance study, Lyapunov
+    exponents)."""
+    if settings is None and required:
+        raise ParameterError(f"{driver}: settings are required (the run's span [t_start, t_end]): "
+                             f"{name}=jc.settings(t_end, ...)")
+    if settings is not None and not isinstance(settings, Settings):
+        raise ParameterError(f"{driver}: {name} = {settings!r}: expected a jaxclear.Settings "
+                             "(jc.settings(t_end, rtol=...))" + ("" if required else " or None"))
+    return settings

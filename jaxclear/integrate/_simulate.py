@@ -27,7 +27,7 @@ from . import _solve as solve
 from ._assembly import ASSEMBLY_TEMPLATE, check_assembly
 from ._compile import jit
 from ._sensitivity import tangent_run
-from ._settings import Settings
+from ._settings import Settings, check_settings
 from ._solution import Solution
 # not used here, read from here: by _kinematics.py, tests/test_output.py, tests/test_sampling.py, and through the
 # deprecated old path jaxclear.integrate.simulate (this package's _OldPath) for one release
@@ -135,6 +135,7 @@ def simulate(mech: Mechanism, s: Settings, y0: State | None = None) -> Solution:
         y0: optional start :class:`~jaxclear.integrate.State`; default: assembled by
             :func:`~jaxclear.assemble`.
     """
+    check_settings("simulate", s, required=True, name="s")
     if not is_concrete((mech, s, y0)):
         sol = _simulate(mech, s, y0)
         return check_status(sol, sol.status, s, mech=mech)

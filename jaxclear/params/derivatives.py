@@ -33,7 +33,7 @@ from . import registry as params
 from .._errors import ParameterError
 from .._results import deprecated
 from ..integrate import Settings, Solution, jit, simulate, solution_structure
-from ..integrate import check_status
+from ..integrate import check_settings, check_status
 from ..model import Mechanism
 
 
@@ -170,6 +170,7 @@ def sensitivities(mech: Mechanism, names: Sequence[str], s: Settings, output: Ca
         deprecated("jc.sensitivities(mech, settings, names)",
                    "jc.sensitivities(mech, names, settings), the order of jc.parameter_grad(loss, mech, names, settings)")
         names, s = s, names
+    check_settings("sensitivities", s, required=True, name="s")
     names = check_names(mech, names)
     at, along = directions(mech, names)
     value, tangents, status = _linearized_run(at, s, along, output)

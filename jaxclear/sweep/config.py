@@ -26,7 +26,7 @@ from .._results import deprecated
 from ..model import Mechanism
 from ..mechanisms.files import load_mechanism
 from ..mechanisms.presets import PRESETS, preset
-from ..integrate import Settings
+from ..integrate import Settings, check_settings
 from ..integrate import (MAX_OUT_SAMPLES, OPTION_KEYS, deprecated_keywords, option_values,
                                   settings_from_options)
 from ..analysis.channels import unit as channel_unit
@@ -266,9 +266,7 @@ class SweepConfig:
     def _run_settings(self) -> Settings:
         """The settings of every run: ``settings`` (or the sweep's default) with the old keywords."""
         src = self.source
-        if self.settings is not None and not isinstance(self.settings, Settings):
-            raise ParameterError(f"{src}: settings = {self.settings!r}: expected a jaxclear.Settings "
-                                 "(jc.settings(1.0, rtol=...)) or None")
+        check_settings(src, self.settings)
         old = {key: getattr(self, key) for key in OLD_RUN_SETTINGS if getattr(self, key) is not None}
         if "max_steps" in old and (isinstance(self.max_steps, bool) or
                                    not isinstance(self.max_steps, (int, np.integer))):

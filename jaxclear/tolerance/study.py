@@ -40,7 +40,7 @@ from .._errors import ParameterError
 from .._extras import require_extra
 from .._results import AbstractResult, SummaryTable
 from .._storage import atomic_write_json, atomic_write_text, jsonable
-from ..integrate import Settings, deprecated_keywords, option_values, settings_from_options
+from ..integrate import Settings, check_settings, deprecated_keywords, option_values, settings_from_options
 from ..model import Mechanism
 from .distributions import Inputs
 from .estimators import (UnresolvedEstimateWarning, check_limit, exceedance, importance_exceedance, linearised,
@@ -61,8 +61,7 @@ OLD_RUN_SETTINGS = ("solver", "rtol", "atol", "max_steps")
 def _settings(settings: Settings | None, run_options: dict) -> Settings | None:
     """The study's runs' settings: ``settings``, or the sweep's default with the deprecated run
     options (``solver``, ``rtol``, ``atol``, ``max_steps``: removed from ``run_options``)."""
-    if settings is not None and not isinstance(settings, Settings):
-        raise ParameterError(f"tolerance_study: settings = {settings!r}: expected a jaxclear.Settings or None")
+    check_settings("tolerance_study", settings)
     old = deprecated_keywords("tolerance_study", settings,
                               **{k: run_options.get(k) for k in OLD_RUN_SETTINGS})
     if not old:
