@@ -54,6 +54,24 @@ def test_round_trip_with_profiles_loads_and_translational_options(tmp_path):
     assert same(mech, loads_mechanism(dumps_mechanism(mech)))
 
 
+def test_point_on_line_round_trip(tmp_path):
+    """The ideal pin in a slot (``PointOnLine``, type ``point-on-line``) is saved and read back
+    leaf by leaf, its axis normalized as given; a file without ``axis`` gets ``[1, 0]``."""
+    base = jc.preset("slider-crank-pin-slot", ideal=True)
+    j = base.joints[-1]
+    slot = jc.PointOnLine(j.body_i, j.point_i, j.body_j, j.point_j, axis=(0.6, 0.8))
+    mech = jc.Mechanism(base.bodies, [*base.joints[:-1], slot], base.drivers, base.clearance_joints,
+                        gravity=base.gravity, ground_points=dict(base.ground_points), name="slot", roles=dict(base.roles))
+    text = dumps_mechanism(mech)
+    assert 'type = "point-on-line"' in text
+    back = loads_mechanism(text)
+    assert same(mech, back) and isinstance(back.joints[-1], jc.PointOnLine)
+    short = text.replace("axis = [0.6, 0.8]", "")
+    assert np.allclose(np.asarray(loads_mechanism(short).joints[-1].axis), [1.0, 0.0])
+    jc.save_mechanism(mech, tmp_path / "slot.toml")
+    assert same(mech, jc.load_mechanism(tmp_path / "slot.toml"))
+
+
 def _lubricated(**kw):
     mech = jc.preset("flores-slider-crank", viscosity=0.4)
     if kw:

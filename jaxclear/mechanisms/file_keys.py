@@ -9,7 +9,7 @@ import inspect
 
 from ..contact import FourierProfile, Material
 from ..elements import FILMS, IDEALS, ClearanceJoint, LubricatedJoint, PinSlotJoint, TranslationalClearanceJoint
-from ..model import AngleDriver, Fixed, PointForce, ProfileDriver, Revolute, Torque, Translational
+from ..model import AngleDriver, Fixed, PointForce, PointOnLine, ProfileDriver, Revolute, Torque, Translational
 from ..model.connectors import CONNECTORS
 from ..model.discrete_beam import AXIAL
 
@@ -23,6 +23,7 @@ JOINT_TYPES = {
     "revolute": (Revolute, ("body_i", "point_i", "body_j", "point_j")),
     "translational": (Translational, ("body_i", "point_i", "body_j", "point_j", "axis", "angle")),
     "fixed": (Fixed, ("body_i", "point_i", "body_j", "point_j", "angle")),
+    "point-on-line": (PointOnLine, ("body_i", "point_i", "body_j", "point_j", "axis")),
 }
 DRIVER_TYPES = {"angle": (AngleDriver, ("body", "speed", "angle0", "relative_to")),
                 "speed-profile": (ProfileDriver, ("body", "angle0", "relative_to"))}  # + the profile table
