@@ -147,7 +147,9 @@ def fit(
             every other unknown is fitted again): their 90 % interval is
             ``FitResult.profiles[name]["interval"]`` and their ``std`` the interval's longer half
             over 1.645 (the Gauss-Newton std beside it), infinite where the record does not bound
-            them; a profile that finds a better fit than the estimate fails the fit. Costs up to
+            them; a profile that finds a better fit than the estimate begins the fit again from
+            it and is walked anew (once: ``profile.RESTARTS``), and one that still finds one
+            fails the fit. Costs up to
             20 warm-started final stages per name (usually 4-8). Not part of the checkpoint's key: the same
             call with ``out`` and a profile added to a finished fit runs only the profile.
         noise_sigma: the sensor's noise standard deviation [record units, m/s^2], measured

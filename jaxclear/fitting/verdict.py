@@ -125,7 +125,9 @@ def assess(free: Sequence[str], estimates: dict, std: dict, *, start: dict | Non
             was free (``start_state="free"``): a free-start fit that stopped on ``max_iter`` fails.
         profiles: name -> its profile likelihood (``FitResult.profiles``): a side that stays
             open fails the name (the record does not bound it; the std rules then judge the
-            Gauss-Newton std), a point that fits better than the estimate fails the fit.
+            Gauss-Newton std), a point that fits better than the estimate (still, after the
+            fit began again from such a point: :data:`~jaxclear.fitting.profile.RESTARTS`) fails
+            the fit.
         noise: ``(sigma_fit, sigma_given, dof)``: the residual's std [record units], the
             sensor's noise level given by the user (None: unknown, no test) and the residual's
             degrees of freedom (samples minus unknowns): a residual above the noise by more
