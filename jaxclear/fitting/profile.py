@@ -166,13 +166,9 @@ def _restart(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoint
     result (or the point itself, where the refit climbs) replaces the state's optimum where it
     fits better. The walked points are dropped (they were walked from the old optimum) and a
     ``"restart"`` entry is kept in their place; checkpointed."""
-    single = dataclasses.replace(problem, stages=[final_stage(problem.windows, problem.anywhere)])
     here = sum_of_squares(problem, evaluate_all(problem, np.asarray(st.theta, dtype=float),
                                                 np.asarray(st.states, dtype=float), st.guesses))
-    refit = fit_point(single, opt, st, np.asarray(point["theta"], dtype=float), np.asarray(point["states"], dtype=float),
-                      on_iteration)
-    if not refit["loss"] <= point["loss"]:  # a first-order optimiser's last step can climb: the point itself
-        refit = {"theta": point["theta"], "states": point["states"], "loss": point["loss"], "reason": point["reason"]}
+    refit = refit_from(problem, opt, st, point["theta"], point["states"], point["loss"], point["reason"], on_iteration)
     i = problem.free.index(point["name"])
     value = float(from_z(point["name"], point["theta"][i], problem.win.scale, problem.mech))
     taken = bool(refit["loss"] < here)
@@ -188,6 +184,20 @@ def _restart(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoint
     on_point(f"profile {point['name']}: a better fit at {value:.6g}; fitted again from it: loss {refit['loss']:.6g} "
              f"({'taken' if taken else 'kept the estimate'}: {here:.6g})")
     return st
+
+
+def refit_from(problem: FitProblem, opt: Optimizer, st: FitState, theta, states, loss: float, reason: str,
+               on_iteration) -> dict:
+    """Every unknown fitted again from a point (``theta``, window ``states``; its sum of squares
+    ``loss`` and stop ``reason``) by the fit's final stage: ``{"theta", "states", "loss",
+    "reason"}`` of the refit, or of the point itself where the refit ends higher (a first-order
+    optimiser's last step can climb). The one way out of a basin of the profile's restart and of
+    the scan (:mod:`.scan`)."""
+    single = dataclasses.replace(problem, stages=[final_stage(problem.windows, problem.anywhere)])
+    refit = fit_point(single, opt, st, np.asarray(theta, dtype=float), np.asarray(states, dtype=float), on_iteration)
+    if not refit["loss"] <= loss:
+        return {"theta": list(map(float, theta)), "states": states, "loss": loss, "reason": reason}
+    return refit
 
 
 def _walk(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoint, names: tuple, on_iteration,

@@ -23,7 +23,7 @@ So ``fit(..., scan=NAME)`` (``--scan NAME``), after the fit:
    ``out/scan-NAME-VALUE`` (a killed scan resumes: the finished points are read back);
 2. where the best held point fits better than the estimate (a lower loss), fits every unknown
    again from that point (the fit's final stage, ``NAME`` free, from the point's parameters and
-   window starts: :func:`~jaxclear.fitting.profile.fit_point`; the point itself where that
+   window starts: :func:`~jaxclear.fitting.profile.refit_from`; the point itself where that
    refit ends higher, as a first-order optimiser's last step can), and takes the result where
    it fits better than the estimate;
 3. reports the points (``FitResult.settings["scan"]``: values, misfits, deviances from the
@@ -49,7 +49,6 @@ whose windows hold one contact onset each: :data:`FEW_ONSETS`) must be trusted.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 from typing import Callable
@@ -58,9 +57,8 @@ import numpy as np
 
 from .._errors import CheckpointError, OutputLockedError, ParameterError
 from .parameters import SENSOR_PARAMETERS, check_start, from_z, transform, values_of, z_vector
-from .plan import final_stage
 from .problem import FitProblem
-from .profile import fit_point
+from .profile import refit_from
 from .run import evaluate_all, fitted_mask, sum_of_squares
 from .solver import Optimizer
 from .state import Checkpoint, FitState
@@ -187,12 +185,10 @@ def run_scan(problem: FitProblem, opt: Optimizer, st: FitState, ckpt: Checkpoint
     decision = {"kind": "decision", "name": name, "estimate_loss": here, "taken": False, "loss": math.nan,
                 "from": None, "value": math.nan}
     if best is not None and best["loss"] < here:
-        single = dataclasses.replace(problem, stages=[final_stage(problem.windows, problem.anywhere)])
         theta_best = z_vector(problem.free, {**best["estimates"], name: best["value"]}, problem.win.scale, problem.mech)
-        point = fit_point(single, opt, st, theta_best, np.asarray(best["states"]), on_iteration)
+        point = refit_from(problem, opt, st, theta_best, best["states"], best["loss"] * n_fit, best["reason"],
+                           on_iteration)
         loss = point["loss"] / n_fit
-        if not loss <= best["loss"]:  # a first-order optimiser's last step can climb: the held point itself
-            point, loss = {"theta": theta_best.tolist(), "states": best["states"], "reason": best["reason"]}, best["loss"]
         i = problem.free.index(name)
         decision.update(loss=loss, taken=bool(loss < here), value=float(from_z(name, point["theta"][i],
                         problem.win.scale, problem.mech)), **{"from": best["value"]})
