@@ -260,6 +260,28 @@ def test_fit_takes_settings_and_its_old_keywords_warn(monkeypatch):
         jc.fit(None, MECH, settings=given, rtol=1e-7, atol=1e-10)
 
 
+def test_a_free_start_fit_given_no_settings_runs_at_its_own_tolerances(monkeypatch):
+    """Free starts (records of a laboratory) default to 1e-7 / 1e-10, the others keep 1e-8 / 1e-11;
+    settings given are used as given in both, and the old keywords go over the free starts' own."""
+    record, integration = _fit_calls(monkeypatch, start_state="free")
+    assert integration == fit_problem.default_fit_settings(anywhere=True) and "integration" not in record
+    assert (record["rtol"], record["atol"]) == (fit_problem.FREE_START_RTOL, fit_problem.FREE_START_ATOL) == (
+        1e-7, 1e-10)
+    given = jc.settings(1.0, rtol=1e-9, atol=1e-12)
+    assert _fit_calls(monkeypatch, start_state="free", settings=given)[1] == given
+    with pytest.warns(DeprecationWarning):
+        record, _ = _fit_calls(monkeypatch, start_state="free", max_steps=5000)
+    assert (record["rtol"], record["atol"], record["max_steps"]) == (1e-7, 1e-10, 5000)
+    # the command line: the same defaults, shown by --help, a tolerance given goes over them
+    from jaxclear.cli.fit import _settings
+
+    text = " ".join(_sub("fit").format_help().split())
+    assert "(default: 1e-8, 1e-7 with --start-state free)" in text
+    assert "(default: 1e-11, 1e-10 with --start-state free)" in text
+    s = _settings(build_parser().parse_args(["fit", "rec.csv", "--start-state", "free", "--max-steps", "9000"]))
+    assert s == dataclasses.replace(fit_problem.default_fit_settings(anywhere=True), max_steps=9000)
+
+
 def test_posterior_takes_settings_and_its_old_keywords_warn(monkeypatch):
     import importlib
 

@@ -11,11 +11,12 @@ from .._errors import ParameterError
 from .._extras import require_extra
 from ..fitting import fit, read_channels_toml
 from ..fitting.driver import AUTO_STARTS, COMPILING
-from ..fitting.problem import FIT_OUTPUT, FREE_START_MAX_STEPS, MAX_STEPS, default_fit_settings
+from ..fitting.problem import (FIT_OUTPUT, FREE_START_ATOL, FREE_START_MAX_STEPS, FREE_START_RTOL, MAX_STEPS,
+                               default_fit_settings)
 from ..analysis.sensor import Accelerometer
 from ..integrate import on_trace
 from .common import add_mechanism_options, load_mechanism_file, name_value, number_in, preset_from_args
-from .settings import add_settings_options, settings_from_args
+from .settings import add_settings_options, number_text, settings_from_args
 
 HELP = "fit contact parameters to a measured record (JSON, PNG)"
 DESCRIPTION = """\
@@ -118,7 +119,10 @@ def configure(p: argparse.ArgumentParser):
                    help="added to the record's times with --align time [s]; a delay to fit is sensor_delay "
                    "(default: 0)")
     # the model's integration: the fit's own settings where an option is not given (jaxclear.fit's settings)
-    add_settings_options(p, default_fit_settings(), title="integration of the model", shown={
+    fit_defaults = default_fit_settings()
+    add_settings_options(p, fit_defaults, title="integration of the model", shown={
+        "--rtol": f"{number_text(fit_defaults.rtol)}, {number_text(FREE_START_RTOL)} with --start-state free",
+        "--atol": f"{number_text(fit_defaults.atol)}, {number_text(FREE_START_ATOL)} with --start-state free",
         "--max-steps": f"{MAX_STEPS}, {FREE_START_MAX_STEPS} with --start-state free",
         "--derivative-tolerance": "1 where rtol <= 1e-7, else 0.1; 0.1 given counts as not given",
         "--output-sampling": f"{FIT_OUTPUT.name}; loop given counts as not given"})
@@ -253,9 +257,9 @@ def name_prior(text: str) -> tuple[str, str]:
 
 def _settings(args):
     """The model's settings from the integration options given over the fit's own
-    (:func:`~jaxclear.fitting.problem.default_fit_settings`); None where none is given (the
-    fit's own, whole)."""
-    return settings_from_args(args, default_fit_settings(), none_if_unset=True)
+    (:func:`~jaxclear.fitting.problem.default_fit_settings`, those of free starts with
+    ``--start-state free``); None where none is given (the fit's own, whole)."""
+    return settings_from_args(args, default_fit_settings(args.start_state == "free"), none_if_unset=True)
 
 
 def _posterior(args, mech, free, channels, sensor, res):

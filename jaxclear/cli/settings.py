@@ -44,6 +44,11 @@ def _dest(flag: str) -> str:
     return flag.lstrip("-").replace("-", "_")
 
 
+def number_text(x: float) -> str:
+    """A default as ``--help`` shows it: ``1e-8``, not ``1e-08``."""
+    return f"{x:g}".replace("e-0", "e-")
+
+
 def add_settings_options(group, defaults: Settings | None = None, *, shown: dict | None = None,
                          title: str | None = None):
     """Add the integration options (:data:`FLAGS`) to ``group`` (a parser or an argument group;
@@ -58,7 +63,7 @@ def add_settings_options(group, defaults: Settings | None = None, *, shown: dict
 
     def default(flag):
         text = shown.get(flag, values[FLAGS[flag]])
-        return f"{text:g}".replace("e-0", "e-") if isinstance(text, float) else str(text)
+        return number_text(text) if isinstance(text, float) else str(text)
 
     def add(flag, help, **kw):
         # an option whose default the command chooses at run time has none in the parser

@@ -180,7 +180,8 @@ def fit(
             resumes from the checkpoint.
     """
     t_wall = time.perf_counter()
-    integration, steps = given_settings("fit", settings, rtol, atol, max_steps)
+    integration, steps = given_settings("fit", settings, rtol, atol, max_steps,
+                                         anywhere=start_state == "free")
     opt = make_optimizer(optimizer, ftol, xtol)
     settings = dict(max_iter=max_iter, ftol=ftol, xtol=xtol, **settings_record(integration, steps), align=align,
                     time_offset=time_offset, optimizer=opt.name)

@@ -38,8 +38,7 @@ import numpy as np
 
 from .. import params
 from ..analysis.sensor import Accelerometer
-from .._errors import JaxclearError, ParameterError
-from ..integrate import Settings, check_settings, default_settings, deprecated_keywords, simulate
+from ..integrate import Settings, default_settings, settings_or_default, simulate
 from ..model import Mechanism
 from ..sweep.lanes import lanes_one_by_one, over_lanes
 from .records import slider_role
@@ -105,13 +104,7 @@ def given_settings(settings: Settings | None, stacklevel: int = 4, **old) -> Set
     ``settings`` too, a :class:`~jaxclear.ParameterError`; ``stacklevel`` as
     :func:`~jaxclear.integrate.deprecated_keywords`'). Given none, the runs are those of before
     (rtol 1e-6, atol 1e-9, 400,000 steps: ``Settings``' defaults)."""
-    old = deprecated_keywords("fit_statistics", settings, stacklevel=stacklevel, **old)
-    if settings is None:
-        try:
-            return dataclasses.replace(default_settings(), **old)
-        except JaxclearError as err:
-            raise ParameterError(f"fit_statistics: {err}") from None
-    return check_settings("fit_statistics", settings)
+    return settings_or_default("fit_statistics", settings, default_settings(), stacklevel, **old)
 
 
 def run_settings(plan: SignalPlan, settings: Settings) -> Settings:

@@ -22,7 +22,7 @@ from ._runs import (SAMPLES_PER_REVOLUTION, RunWithIdeal, revolution_settings, r
                     timed_simulate)
 from ._sensitivity import tangent_system
 from ._settings import (MAX_OUT_SAMPLES, OPTION_KEYS, Settings, check_settings, default_settings, deprecated_keywords,
-                        option_values, settings, settings_from_options)
+                        option_values, settings, settings_from_options, settings_or_default)
 from ._strategies import (ADJOINTS, ONSETS, OUTPUTS, SOLVERS, ExactOnsets, SampleBlock, SampleLoop, Sensitivity,
                           StepOnsets, ThroughLoop, from_names)
 from ._simulate import check_status, raise_for_status, simulate, solution_structure
@@ -35,7 +35,7 @@ from . import caches
 __all__ = [
     # settings and their strategies
     "Settings", "settings", "default_settings", "settings_from_options", "option_values", "deprecated_keywords",
-    "check_settings",
+    "check_settings", "settings_or_default",
     "OPTION_KEYS", "MAX_OUT_SAMPLES", "SOLVERS", "ADJOINTS", "OUTPUTS", "ONSETS", "from_names", "Sensitivity",
     "ThroughLoop", "SampleLoop", "SampleBlock", "ExactOnsets", "StepOnsets",
     # a run and its result

@@ -278,6 +278,23 @@ def deprecated_keywords(driver: str, settings: Settings | None, stacklevel: int 
     return given
 
 
+def settings_or_default(driver: str, settings: Settings | None, base: Settings, stacklevel: int = 4,
+                        **old) -> Settings:
+    """A driver's settings: ``settings`` (:func:`check_settings`), else ``base`` (the driver's own
+    default) with the deprecated keywords ``old`` replaced (:func:`deprecated_keywords`: a
+    ``DeprecationWarning``; with ``settings`` too, a :class:`~jaxclear.ParameterError`); a bad
+    value among them is a ``ParameterError`` naming the driver. ``stacklevel``: as
+    :func:`deprecated_keywords`' for a driver that calls a helper that calls this (the fit's and
+    the statistics fit's)."""
+    old = deprecated_keywords(driver, settings, stacklevel=stacklevel + 1, **old)
+    if check_settings(driver, settings) is not None:
+        return settings
+    try:
+        return dataclasses.replace(base, **old)
+    except JaxclearError as err:
+        raise ParameterError(f"{driver}: {err}") from None
+
+
 def check_settings(driver: str, settings, required: bool = False, name: str = "settings") -> Settings | None:
     """``settings`` as a run or driver takes it: a :class:`Settings`, or None (the driver's own)
     where not ``required``; else a :class:`~jaxclear.ParameterError` naming the driver, the
