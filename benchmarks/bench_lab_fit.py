@@ -64,7 +64,7 @@ def fit_case(case: dict, windows: int, window: float, starts: int = 1, noise: bo
             "stiffness_error_std": (k - truth["stiffness"]) / res.std["stiffness"],
             "restitution_error_std": (c - c_r) / res.std["restitution"], "ok": res.ok, "failures": list(res.failures),
             "loss": res.loss, "autocorrelation": res.residual_autocorrelation, "iterations": res.iterations,
-            "fit_wall_s": wall, "record_s": made, "way_in": res.settings.get("way_in", []), "starts": starts,
+            "fit_wall_s": wall, "phase_s": res.settings.get("phase_s", {}), "record_s": made, "way_in": res.settings.get("way_in", []), "starts": starts,
             "noise_sigma_given": truth["noise_std"] if noise else None, "residual_std": res.noise_sigma_m_s2,
             "stop_reason": res.stop_reason, "window_losses": list(res.window_losses),
             "window_onsets": res.window_onsets, "scan": scan, "scan_report": res.settings.get("scan"),

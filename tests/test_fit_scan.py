@@ -79,6 +79,10 @@ def test_a_better_held_point_is_refitted_and_taken_and_the_scan_resumes(record):
     assert abs(c - 0.9) < 0.02, res.estimates
     assert "restitution" in res.profiles  # the scanned name's profile is walked
     assert any("scan of restitution held" in line for line in res.profile_lines())
+    # the seconds of each phase of this call: the stages, the scan and the profile, within the fit's wall time
+    phases = res.settings["phase_s"]
+    assert list(phases) == ["plan", "scan", "profile"] and min(phases.values()) >= 0.0
+    assert sum(phases.values()) <= res.wall_time_s
     saved = json.loads((out / fitting.CHECKPOINT_NAME).read_text())["state"]["scan"]
     assert [p["kind"] for p in saved] == ["held", "decision"]
     seen = []

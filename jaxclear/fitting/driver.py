@@ -310,25 +310,36 @@ def _fit_locked(problem: FitProblem, opt, out, resume: bool, progress: bool, cal
             tqdm.write(f"jaxclear fit: {COMPILING}; the progress bar starts after the first iteration")
 
     told: list = []
+    phases, clock = {}, [time.perf_counter()]
+
+    def lap(phase: str) -> None:  # seconds of a phase in this process (compilation included)
+        now = time.perf_counter()
+        phases[phase] = round(now - clock[0], 3)
+        clock[0] = now
+
     try:
         with stop_at_safe_points("the current iteration") as interrupt, on_trace(compiling):
             st = run_plan(problem, opt, st, ckpt, report)
             after_plan = not (unless is not None and (profile or scan)
                               and unless(_result(problem, st, 0.0, False, quiet=True)))
+        lap("plan")
         if scan and after_plan:
             close_bars(bars)
             name, values, fit_at = scan
             st = run_scan(problem, opt, st, ckpt, name, values,
                           lambda value, others: fit_at(value, others, scan_folder(out, name, value)),
                           lambda record, now: None, tqdm.write if progress else (lambda text: None))
+            lap("scan")
         with stop_at_safe_points("the current iteration") as interrupt, on_trace(compiling):
             if profile and after_plan:
                 st = run_profiles(problem, opt, st, ckpt, profile, lambda record, now: interrupt.check(),
                                   tqdm.write if progress else (lambda text: None))
+                lap("profile")
     finally:
         close_bars(bars)
     resumed = saved is not None or (after is not None and after.settings["resumed"])
-    return _result(problem, st, wall_before + time.perf_counter() - t_wall, resumed, profile=profile, extra=extra)
+    return _result(problem, st, wall_before + time.perf_counter() - t_wall, resumed, profile=profile,
+                   extra={**(extra or {}), "phase_s": phases})
 
 
 def close_bars(bars: list) -> None:

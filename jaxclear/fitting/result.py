@@ -49,7 +49,10 @@ class FitResult(AbstractResult):
             entry None: the window's run failed there). With every window's start free only
             these onsets' approach speeds are set by the motion: the impacts that hold the
             restitution.
-        free, fixed, settings, warnings: inputs and remarks, written to ``fit.json``.
+        free, fixed, settings, warnings: inputs and remarks, written to ``fit.json``;
+            ``settings["phase_s"]``: the seconds of this call's phases, ``plan`` (the stages,
+            compilation included), ``scan`` and ``profile`` where they ran (a resumed fit: since
+            the resume; the automatic refit: the refit's own).
         failures: why the estimates are not a result (one sentence each: the parameter, its
             value, the rule broken and what to try; :func:`jaxclear.fitting.verdict.assess`),
             ``()`` for a fit that passed; computed when the result is made unless given.
