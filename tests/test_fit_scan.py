@@ -91,6 +91,37 @@ def test_a_better_held_point_is_refitted_and_taken_and_the_scan_resumes(record):
     assert again.estimates == res.estimates and again.settings["scan"] == scan
 
 
+def test_a_held_fit_keeps_the_fit_s_unknowns_and_compiled_programs(record):
+    """A scan point is the fit's own problem with the scanned parameter held
+    (``FitProblem.holding``): the same unknowns, every stage that moves the parameters holds it
+    (its Jacobian column exactly zero, the other columns those of the fit at the same values),
+    every start of the parameters keeps it at the held value, the checkpoint's key tells the two
+    apart; and its evaluation runs the fit's compiled program (no trace), where a problem without
+    the name among its free parameters would compile its programs again."""
+    from jaxclear.fitting.problem import ATOL, RTOL, build_problem
+    from jaxclear.fitting.run import fresh_state, stage_evaluation
+
+    mech, path, _ = record
+    settings = dict(max_iter=3, ftol=1e-8, xtol=1e-8, rtol=RTOL, atol=ATOL, max_steps=None, align="time",
+                    time_offset=0.0, optimizer="lm")  # the fit's model: its program is the other tests' here
+    args = (SENSOR, 1e-3, 1, (0.5, 1.0), None, 3, settings)
+    fit = build_problem(path, mech, ["stiffness", "restitution"], {"restitution": 0.8}, *args)
+    held = build_problem(path, mech, ["stiffness", "restitution"], {"restitution": 0.8}, *args).holding("restitution")
+    assert held.free == fit.free and len(held.stages) == len(fit.stages)
+    assert all(s.held == ((1,) if s.theta else ()) for s in held.stages)
+    assert [z[1] for z in held.z_starts] == [fit.z0[1]] * 3 and fit.z_starts[1][1] != fit.z0[1]
+    assert held.checkpoint_key() != fit.checkpoint_key()
+    stage = fit.stages[-1]
+    r, jac, _ = stage_evaluation(fit, fresh_state(fit), stage)
+    traced = []
+    with jc.integrate.on_trace(traced.append):
+        r_held, jac_held, _ = stage_evaluation(held, fresh_state(held), held.stages[-1])
+    assert traced == []
+    np.testing.assert_array_equal(r_held, r)
+    assert np.all(jac_held[:, 1] == 0.0) and np.any(jac[:, 1] != 0.0)
+    np.testing.assert_array_equal(jac_held[:, 0], jac[:, 0])
+
+
 def test_a_scan_that_finds_nothing_better_keeps_the_fit(record):
     """A converged fit scanned at its default values (the estimate's logit +- 0.5: two held
     fits, 0.85 and 0.94 for an estimate of 0.90) keeps its estimate; the held points lie above

@@ -17,7 +17,6 @@ from .._numbers import as_typed
 from .._errors import CheckpointError, ParameterError
 from .._checkpoint import locked
 from ..integrate import on_trace
-from .. import params
 from ..model import Mechanism
 from ..analysis.sensor import Accelerometer
 from .parameters import DEFAULT_FREE, law_name, values_of
@@ -195,10 +194,9 @@ def fit(
         names = names + (scanned[0],)
 
     def fit_at(value: float, others: dict, out_at) -> FitResult:  # the record again, scanned[0] held at value
-        held = build_problem(data, params.replace(mech, scanned[0], value),
-                             [n for n in problem.free if n != scanned[0]], others, sensor, window, windows, horizons,
-                             coarse, 1 if starts is None else starts, dict(settings), channels, start_state,
-                             integration)
+        held = build_problem(data, mech, problem.free, {**others, scanned[0]: value}, sensor, window, windows,
+                             horizons, coarse, 1 if starts is None else starts, dict(settings), channels, start_state,
+                             integration).holding(scanned[0])
         with locked(out_at, "fit"), warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)  # a held fit's warnings are not the result's
             return _fit_locked(held, opt, out_at, resume, progress, callback, time.perf_counter(), extra=extra)

@@ -20,7 +20,9 @@ So ``fit(..., scan=NAME)`` (``--scan NAME``), after the fit:
    :math:`z \pm` :data:`SCAN_STEP` in the fit's unconstrained coordinate, :mod:`.parameters`:
    restitution 0.827 -> 0.743 and 0.887; or the values given), each a whole fit with its own
    way in, the other parameters starting from the estimate, each checkpointed in its own folder
-   ``out/scan-NAME-VALUE`` (a killed scan resumes: the finished points are read back);
+   ``out/scan-NAME-VALUE`` (a killed scan resumes: the finished points are read back). A held
+   fit is the fit's own problem with ``NAME`` held (:meth:`~jaxclear.fitting.problem.FitProblem.holding`: the same
+   unknowns, ``NAME``'s Jacobian column zero), so that it runs the fit's compiled programs;
 2. where the best held point fits better than the estimate (a lower loss), fits every unknown
    again from that point (the fit's final stage, ``NAME`` free, from the point's parameters and
    window starts: :func:`~jaxclear.fitting.profile.refit_from`; the point itself where that
@@ -41,8 +43,8 @@ estimates stood. The held fits are searches, not exact minimisations: which basi
 reaches depends on where it starts (started from the fit's start values instead of the
 estimate, the fit held at 0.743 ended at 0.01005 and the scan kept the estimate).
 
-Cost: one whole fit per scan value (the compiled programs are shared): on a record of four
-3 ms windows about 3-5 minutes each on 2 cores. Use it where the verdict passes but the
+Cost: one whole fit per scan value (the compiled programs are the fit's): on a record of four
+3 ms windows about 2-5 minutes each on 2 cores. Use it where the verdict passes but the
 estimate of a weakly determined parameter (a restitution seen through few impacts, a record
 whose windows hold one contact onset each: :data:`FEW_ONSETS`) must be trusted.
 """
