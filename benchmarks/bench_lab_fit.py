@@ -12,7 +12,7 @@ revolution (12 ms) at 50 kHz through a 10 kHz second-order accelerometer with ga
 Targets: stiffness within 5 %, restitution within 0.02, every error within 3 reported std, under
 5 minutes a record on 2 cores.
 
-``python benchmarks/bench_lab_fit.py [--set acceptance] [--cases 0,1,2] [--windows 4] [--starts N] [--scan NAME]
+``python benchmarks/bench_lab_fit.py [--set acceptance] [--cases 0,1,2] [--windows 4] [--starts N] [--scan NAME|auto|none]
 [--rtol R] [--json PATH]`` prints a table
 and writes the JSON after every record (a killed run resumes: the records done are kept; the
 output is locked while it runs).
@@ -84,8 +84,9 @@ def main(argv=None) -> int:
     p.add_argument("--windows", type=int, default=4)
     p.add_argument("--window", type=float, default=2.99e-3)
     p.add_argument("--starts", type=int, default=1, help="starts of the parameters (default 1)")
-    p.add_argument("--scan", default=None, metavar="NAME",
-                   help="scan this free parameter after the fit (jc.fit's scan; default: none)")
+    p.add_argument("--scan", default="auto", metavar="NAME|auto|none",
+                   help="scan this free parameter after the fit (jc.fit's scan; default: auto, the fit's own rule: "
+                   "the restitution where the fitted motion holds fewer than 4 onsets; none: no scan)")
     p.add_argument("--rtol", type=float, default=None,
                    help="the model's relative tolerance (atol a thousandth of it; default: the fit's for free "
                    "starts, 1e-7 with atol 1e-10)")
@@ -93,6 +94,7 @@ def main(argv=None) -> int:
                    help="do not give the fit the sensor's noise level (default: given, as a record at rest would)")
     p.add_argument("--json", default=DEFAULT_JSON)
     args = p.parse_args(argv)
+    args.scan = None if args.scan == "none" else args.scan
     cases = [lab_record.CASES[args.set][int(i)] for i in args.cases.split(",")]
     rtol = args.rtol if args.rtol is not None else FREE_START_RTOL
     os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)

@@ -179,3 +179,30 @@ def test_a_free_start_fit_with_few_onsets_names_the_scan():
     assert few_onsets(("stiffness", "sensor_gain"), True, False, [1, 1, 1, 0]) == ""
     assert few_onsets(free, True, True, [1, 1, 1, 0]) == ""
     assert few_onsets(free, True, False, [None, None]) == ""
+
+
+def test_the_automatic_scan_runs_where_the_fitted_motion_holds_few_onsets(monkeypatch):
+    """``scan="auto"`` (the default, ``--scan auto``): the restitution, for a record that begins
+    mid-run with the restitution and another parameter of the mechanism free, nothing
+    elsewhere; it runs where the fitted motion holds fewer than 4 onsets (acceptance record 1's
+    1, 1, 1, 0, the evaluation replaced by those counts here), not with 4 or more (record 2's 1,
+    0, 0, 4), and a scan begun before is continued. ``--scan none`` is no scan."""
+    from types import SimpleNamespace
+
+    from jaxclear.cli.fit import _scan
+    from jaxclear.fitting import scan as scan_module
+
+    free = ("stiffness", "restitution", "sensor_gain", "sensor_bias")
+    assert scan_module.auto_scan(free, True) == ("restitution", None)
+    assert scan_module.auto_scan(free, False) == ()
+    assert scan_module.auto_scan(("stiffness", "sensor_gain"), True) == ()
+    assert scan_module.auto_scan(("restitution", "sensor_gain"), True) == ()  # nothing else of the mechanism
+    problem = SimpleNamespace(free=free, anywhere=True)
+    state = SimpleNamespace(scan=(), theta=[0.0] * 4, states=[[0.0]], guesses=())
+    for onsets, expected in (([1, 1, 1, 0], "fewer than 4"), ([1, 0, 0, 4], "")):
+        evals = [(None, None, None, None, float(n)) for n in onsets]
+        monkeypatch.setattr(scan_module, "evaluate_all", lambda *args, evals=evals: evals)
+        why = scan_module.auto_reason(problem, state)
+        assert (expected in why) if expected else why == ""
+    assert scan_module.auto_reason(problem, SimpleNamespace(scan=({"kind": "held"},))) == "automatic, resumed"
+    assert _scan("none") is None and _scan("auto") == "auto" and _scan("restitution") == "restitution"

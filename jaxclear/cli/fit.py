@@ -99,13 +99,15 @@ def configure(p: argparse.ArgumentParser):
                    "interval replaces the Gauss-Newton std (an honest one where the loss is not quadratic) and "
                    "a better fit found on the way fails the fit; with the same --out, adding it to a finished fit "
                    "runs only the profile (default: none)")
-    f.add_argument("--scan", default=None, metavar="NAME[=V1,V2,...]",
+    f.add_argument("--scan", default="auto", metavar="NAME[=V1,V2,...]|auto|none",
                    help="a free parameter of the mechanism fitted again after the fit with it held at each value "
                    "(default: two, either side of the estimate), the window starts searched anew at each; where "
                    "one fits better than the estimate, every unknown is fitted again from it and that result is "
                    "taken; its profile likelihood is then walked. For records that begin mid-run "
                    "(--start-state free) whose estimate of a weakly determined parameter must be trusted; costs "
-                   "one whole fit per value, each checkpointed in OUT/scan-NAME-VALUE (default: none)")
+                   "one whole fit per value, each checkpointed in OUT/scan-NAME-VALUE. 'auto' (default): the "
+                   "restitution where every window's start is free (--start-state free) and the fitted motion "
+                   "holds fewer than 4 contact onsets, nothing elsewhere; 'none': no scan")
     f.add_argument("--optimizer", default="levenberg-marquardt", metavar="NAME",
                    help="levenberg-marquardt (optimistix's LevenbergMarquardt on the residual vector) or "
                    "adam[:LR] (optax's adam on the loss's gradient, learning rate LR in the transformed "
@@ -178,7 +180,10 @@ def configure(p: argparse.ArgumentParser):
 
 
 def _scan(text: str | None):
-    """``--scan``: None, a name, or ``{name: [values]}`` from ``NAME=V1,V2,...`` (checked by the fit)."""
+    """``--scan``: None ('none'), 'auto', a name, or ``{name: [values]}`` from ``NAME=V1,V2,...``
+    (checked by the fit)."""
+    if text is not None and text.strip().lower() == "none":
+        return None
     if text is None or "=" not in text:
         return text.strip() if text else None
     name, _, values = text.partition("=")

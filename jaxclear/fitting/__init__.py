@@ -139,7 +139,9 @@ other unknowns fitted again, the 90 % interval where the loss rises by less than
 variances), honest where the loss is not quadratic or jumps (a contact that appears).
 ``fit(..., scan=NAME)`` fits the record again with the parameter held either side of the
 estimate, every window's start searched anew, and takes the better fit (:mod:`.scan`: the way
-out of a basin that a window's start found elsewhere bends the parameter into).
+out of a basin that a window's start found elsewhere bends the parameter into); by default
+(``scan="auto"``) the restitution where every window's start is free and the fitted motion holds
+fewer than four contact onsets.
 
 Resuming
 --------

@@ -4,6 +4,7 @@ uncertainty at the optimum and returns a :class:`FitResult` (method: :mod:`jaxcl
 from __future__ import annotations
 
 import math
+from functools import partial
 import time
 import warnings
 from typing import Callable, Sequence
@@ -25,7 +26,7 @@ from ..integrate import Settings
 from .problem import FitProblem, build_problem, given_settings, settings_record
 from .result import FitResult
 from .profile import check_profile, run_profiles, summarize
-from .scan import check_scan, few_onsets, folder as scan_folder, run_scan, summarize_scan
+from .scan import AUTO, auto_reason, auto_scan, check_scan, few_onsets, folder as scan_folder, run_scan, summarize_scan
 from .run import evaluate_all, final_jacobian, fitted_mask, fresh_state, run_plan, window_losses
 from .solver import make_optimizer
 from .state import Checkpoint, FitState
@@ -67,7 +68,7 @@ def fit(
     callback: Callable | None = None,
     profile: Sequence[str] | str | bool | None = None,
     noise_sigma: float | None = None,
-    scan: str | dict | None = None,
+    scan: str | dict | None = AUTO,
 ) -> FitResult:
     """Fit the ``free`` parameters of ``mech`` to measured channels, by default the slider
     acceleration (method: :mod:`jaxclear.fitting`).
@@ -164,7 +165,10 @@ def fit(
             walked (as with ``profile``). For records that begin mid-run, where a window's
             start found in another basin bends a weakly determined parameter (a restitution
             seen through few impacts). Costs one whole fit per value, each checkpointed in
-            ``out/scan-NAME-VALUE``; not part of the checkpoint's key.
+            ``out/scan-NAME-VALUE``; not part of the checkpoint's key. ``"auto"`` (default):
+            the restitution is scanned where every window's start is free and the fitted
+            motion holds fewer than ``scan.FEW_ONSETS`` (4) contact onsets
+            (:func:`~jaxclear.fitting.scan.auto_reason`), nothing elsewhere; None: no scan.
 
     Raises:
         ParameterError: unknown free parameter, start value outside its bounds, record shorter
@@ -189,9 +193,10 @@ def fit(
                             settings, channels, start_state, integration)
     names = check_profile(profile, problem.free)
     extra = {"noise_sigma_given_m_s2": check_noise(noise_sigma, problem)} if noise_sigma is not None else {}
-    scanned = check_scan(scan, problem.free, mech)
-    if scanned and scanned[0] not in names:
-        names = names + (scanned[0],)
+    if isinstance(scan, str) and scan == AUTO:
+        scanned, when = auto_scan(problem.free, problem.anywhere), partial(auto_reason, problem)
+    else:
+        scanned, when = check_scan(scan, problem.free, mech), lambda st: "asked"
 
     def fit_at(value: float, others: dict, out_at) -> FitResult:  # the record again, scanned[0] held at value
         held = build_problem(data, mech, problem.free, {**others, scanned[0]: value}, sensor, window, windows,
@@ -201,7 +206,7 @@ def fit(
             warnings.simplefilter("ignore", UserWarning)  # a held fit's warnings are not the result's
             return _fit_locked(held, opt, out_at, resume, progress, callback, time.perf_counter(), extra=extra)
 
-    scanned = (*scanned, fit_at) if scanned else ()
+    scanned = (*scanned, fit_at, when) if scanned else ()
     auto = auto and not problem.anywhere
     with locked(out, "fit"):
         if not (auto and opt.least_squares):
@@ -271,9 +276,9 @@ def _fit_locked(problem: FitProblem, opt, out, resume: bool, progress: bool, cal
     once, so that a kill from here on resumes the refit; the result is resumed if that fit was).
     ``profile``: the names whose profile likelihood is walked after the plan, unless
     ``unless(result)`` says the result will be fitted again (the single start of the automatic
-    refit). ``scan``: ``(name, values, fit_at)`` of the scan of held values run after the plan
-    (:func:`~jaxclear.fitting.scan.run_scan`; each held fit has its own safe points), under the
-    same condition. ``extra``: settings for the result only (the given noise level), not the
+    refit). ``scan``: ``(name, values, fit_at, when)`` of the scan of held values run after the
+    plan where ``when(state)`` gives a reason (:func:`~jaxclear.fitting.scan.run_scan`; each held
+    fit has its own safe points; the name's profile is then walked), under the same condition. ``extra``: settings for the result only (the given noise level), not the
     checkpoint's key."""
     ckpt = _checkpoint(problem, out, clock=lambda: wall_before + time.perf_counter() - t_wall)
     saved = ckpt.resume() if resume else None  # the protocol's rules: another fit's checkpoint is refused
@@ -321,12 +326,14 @@ def _fit_locked(problem: FitProblem, opt, out, resume: bool, progress: bool, cal
             after_plan = not (unless is not None and (profile or scan)
                               and unless(_result(problem, st, 0.0, False, quiet=True)))
         lap("plan")
-        if scan and after_plan:
+        name, values, fit_at, when = scan if scan and after_plan else (None, None, None, None)
+        why = when(st) if when is not None else ""
+        if why:
             close_bars(bars)
-            name, values, fit_at = scan
             st = run_scan(problem, opt, st, ckpt, name, values,
                           lambda value, others: fit_at(value, others, scan_folder(out, name, value)),
-                          lambda record, now: None, tqdm.write if progress else (lambda text: None))
+                          lambda record, now: None, tqdm.write if progress else (lambda text: None), why)
+            profile = profile if name in profile else (*profile, name)  # the scanned name's profile is walked
             lap("scan")
         with stop_at_safe_points("the current iteration") as interrupt, on_trace(compiling):
             if profile and after_plan:
