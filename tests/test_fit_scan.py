@@ -183,8 +183,8 @@ def test_a_free_start_fit_with_few_onsets_names_the_scan():
 
 def test_the_automatic_scan_runs_where_the_fitted_motion_holds_few_onsets(monkeypatch):
     """``scan="auto"`` (the default, ``--scan auto``): the restitution, for a record that begins
-    mid-run with the restitution and another parameter of the mechanism free, nothing
-    elsewhere; it runs where the fitted motion holds fewer than 4 onsets (acceptance record 1's
+    mid-run with the restitution and another parameter free, nothing
+    elsewhere (as ``scan="restitution"`` is checked); it runs where the fitted motion holds fewer than 4 onsets (acceptance record 1's
     1, 1, 1, 0, the evaluation replaced by those counts here), not with 4 or more (record 2's 1,
     0, 0, 4), and a scan begun before is continued. ``--scan none`` is no scan."""
     from types import SimpleNamespace
@@ -196,7 +196,7 @@ def test_the_automatic_scan_runs_where_the_fitted_motion_holds_few_onsets(monkey
     assert scan_module.auto_scan(free, True) == ("restitution", None)
     assert scan_module.auto_scan(free, False) == ()
     assert scan_module.auto_scan(("stiffness", "sensor_gain"), True) == ()
-    assert scan_module.auto_scan(("restitution", "sensor_gain"), True) == ()  # nothing else of the mechanism
+    assert scan_module.auto_scan(("restitution",), True) == ()  # holding it would leave nothing to fit
     problem = SimpleNamespace(free=free, anywhere=True)
     state = SimpleNamespace(scan=(), theta=[0.0] * 4, states=[[0.0]], guesses=())
     for onsets, expected in (([1, 1, 1, 0], "fewer than 4"), ([1, 0, 0, 4], "")):

@@ -278,8 +278,8 @@ def _fit_locked(problem: FitProblem, opt, out, resume: bool, progress: bool, cal
     ``unless(result)`` says the result will be fitted again (the single start of the automatic
     refit). ``scan``: ``(name, values, fit_at, when)`` of the scan of held values run after the
     plan where ``when(state)`` gives a reason (:func:`~jaxclear.fitting.scan.run_scan`; each held
-    fit has its own safe points; the name's profile is then walked), under the same condition. ``extra``: settings for the result only (the given noise level), not the
-    checkpoint's key."""
+    fit has its own safe points; the name's profile is then walked), under the same condition.
+    ``extra``: settings for the result only (the given noise level), not the checkpoint's key."""
     ckpt = _checkpoint(problem, out, clock=lambda: wall_before + time.perf_counter() - t_wall)
     saved = ckpt.resume() if resume else None  # the protocol's rules: another fit's checkpoint is refused
     if saved is not None:

@@ -106,9 +106,9 @@ AUTO = "auto"
 
 def auto_scan(free: tuple, anywhere: bool) -> tuple:
     """The scan that ``scan="auto"`` may run: ``("restitution", None)`` for a record that begins
-    mid-run (every window's start free) with the restitution and another parameter of the
-    mechanism free; ``()`` otherwise."""
-    if anywhere and "restitution" in free and any(n not in SENSOR_PARAMETERS and n != "restitution" for n in free):
+    mid-run (every window's start free) with the restitution and another parameter free (as
+    :func:`check_scan` asks); ``()`` otherwise."""
+    if anywhere and "restitution" in free and len(free) >= 2:
         return "restitution", None
     return ()
 
