@@ -27,7 +27,7 @@ from .problem import FitProblem, build_problem, given_settings, settings_record
 from .result import FitResult
 from .profile import check_profile, run_profiles, summarize
 from .scan import AUTO, auto_reason, auto_scan, check_scan, few_onsets, folder as scan_folder, run_scan, summarize_scan
-from .run import evaluate_all, final_jacobian, fitted_mask, fresh_state, run_plan, window_losses
+from .run import evaluate_all, final_jacobian, fitted_mask, fresh_state, run_plan, window_losses, window_onsets
 from .solver import make_optimizer
 from .state import Checkpoint, FitState
 from .uncertainty import AUTOCORRELATION_WARNING, Uncertainty, estimate_uncertainty
@@ -442,7 +442,7 @@ def _result(problem: FitProblem, st: FitState, wall: float, resumed: bool, profi
         warn.append(f"the fit may sit in a local minimum: try more starts (--starts N, starts=N; this fit had "
                     f"{problem.settings['starts']}), other start values (--start NAME=VALUE, start=...) or a larger "
                     "max_iter")
-    onsets = [int(round(e[4])) if math.isfinite(e[4]) else None for e in evals]
+    onsets = window_onsets(evals)
     few = few_onsets(problem.free, problem.anywhere, bool(st.scan), onsets)
     if few:
         warn.append(few)

@@ -3,6 +3,7 @@ state checkpointed after every step, so that a killed fit resumes where it stopp
 
 from __future__ import annotations
 
+import math
 from typing import Callable
 
 import jax.numpy as jnp
@@ -462,6 +463,12 @@ def final_jacobian(problem: FitProblem, evals) -> tuple[np.ndarray, np.ndarray]:
     p = len(problem.free)
     keep = np.concatenate([np.ones(p, dtype=bool), np.any(jac[:, p:] != 0.0, axis=0)])
     return r, jac[:, keep]
+
+
+def window_onsets(evals) -> list:
+    """Per window the contact onsets of the fitted motion (:func:`evaluate_all`'s ``evals``;
+    None where the window's run failed)."""
+    return [int(round(e[4])) if math.isfinite(e[4]) else None for e in evals]
 
 
 def fitted_mask(problem: FitProblem) -> np.ndarray:

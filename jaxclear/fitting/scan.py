@@ -65,7 +65,7 @@ from .._errors import CheckpointError, OutputLockedError, ParameterError
 from .parameters import SENSOR_PARAMETERS, check_start, from_z, transform, values_of, z_vector
 from .problem import FitProblem
 from .profile import refit_from
-from .run import evaluate_all, fitted_mask, sum_of_squares
+from .run import evaluate_all, fitted_mask, sum_of_squares, window_onsets
 from .solver import Optimizer
 from .state import Checkpoint, FitState
 
@@ -124,8 +124,7 @@ def auto_reason(problem: FitProblem, st: FitState) -> str:
     if st.scan:
         return "automatic, resumed"
     theta, states = np.asarray(st.theta, dtype=float), np.asarray(st.states, dtype=float)
-    onsets = [int(round(e[4])) if math.isfinite(e[4]) else None
-              for e in evaluate_all(problem, theta, states, st.guesses)]
+    onsets = window_onsets(evaluate_all(problem, theta, states, st.guesses))
     if not few_onsets(problem.free, problem.anywhere, False, onsets):
         return ""
     return (f"automatic: the fitted motion holds {sum(n for n in onsets if n is not None)} contact onset(s), "
