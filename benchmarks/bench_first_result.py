@@ -20,6 +20,8 @@ font cache (``MPLCONFIGDIR``) is a temporary one filled once before the first me
   and once more (``steady``: the run alone, if nothing is traced again).
 * ``cli:NAME``: ``jaxclear.cli.main(argv)`` in the child (``JAXCLEAR_CACHE_DIR`` = the folder: the
   XLA cache and the traced-program store, ``jaxclear/cli/cache.py``), then ``os._exit``, as ``jaxclear``.
+* ``api:convergence``: the preset's run at the four tolerances of :data:`CONVERGENCE_RTOLS`
+  one after the other (a user's convergence check): one program where the tolerances are inputs.
 * ``size:NxK``: ``jc.simulate`` (2 ms) of an open chain of N bars (a driven crank and N-1
   hanging links at 2000 rpm), K of its N-1 inner pin joints clearance joints, cold only.
 
@@ -82,7 +84,10 @@ CLI = {
     "wear": ["wear", "--preset", "flores-slider-crank", "--revolutions", "0.25", "--updates", "1", "--no-progress",
              "--out", "{out}"],
 }
-API = ("simulate", "jacfwd", "sensitivities", "fit", "sweep", "design", "chaos", "tolerance", "posterior", "wear")
+API = ("simulate", "jacfwd", "sensitivities", "fit", "sweep", "design", "chaos", "tolerance", "posterior", "wear",
+       "convergence")
+#: The tolerances of the ``convergence`` entry: the same run at each (a user's convergence check).
+CONVERGENCE_RTOLS = (1e-4, 1e-6, 1e-8, 1e-10)
 ENTRIES = [f"api:{n}" for n in API] + [f"cli:{n}" for n in CLI]
 SIZES = ["2x1", "5x1", "5x4", "10x1", "10x9", "20x1", "20x10", "50x1", "50x10"]
 QUICK = dict(entries=["api:simulate", "api:jacfwd", "cli:simulate"], sizes=["2x1", "5x4"], timeout=240)
@@ -132,6 +137,8 @@ def _api_entry(name: str, spec: dict):
                   window=1e-3, starts=1, max_iter=3, progress=False)
     if name == "simulate":
         return lambda out: jc.simulate(mech, s)
+    if name == "convergence":  # the same run at four tolerances, atol = rtol * 1 mm
+        return lambda out: [jc.simulate(mech, jc.settings(T_END, rtol=r, atol=r * 1e-3)) for r in CONVERGENCE_RTOLS]
     if name == "jacfwd":  # d(slider x at 2 ms)/d(stiffness); q = (x, y, phi) of crank, rod, slider
         return lambda out: jax.jacfwd(lambda k: jc.simulate(params.replace(mech, "stiffness", k), s).q[-1, 6])(
             jnp.asarray(k0))

@@ -109,6 +109,10 @@ class RESULTS(eqx.Enumeration):
         "the tangents overflowed within the shortest renormalisation step (a growth beyond 1e250 within a "
         "millionth of the interval): the tangent dynamics is not resolved (check the run's steps and tolerances)"
     )
+    invalid_tolerance = (
+        "invalid parameter: the integration tolerances must be finite with rtol in (0, 1) and atol > 0 "
+        "(Settings.rtol, Settings.atol)"
+    )
 
 
 STATUS = {int(item._value): RESULTS[item] for item in (getattr(RESULTS, n) for n in RESULTS._name_to_item)}

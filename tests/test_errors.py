@@ -160,6 +160,30 @@ def test_bad_settings(kwargs, match):
         jc.settings(0.01, **kwargs)
 
 
+def test_a_traced_tolerance_outside_its_range_is_a_status_naming_it():
+    """Tolerances are array leaves, so they can be traced (a ``jax.vmap`` over them), where
+    ``Settings``' own check cannot see them: the run checks them too. A lane at rtol 0 or atol
+    -1 is status ``invalid_tolerance`` (a zero-length run, no NaN), the others are ok; with
+    ``throw`` the same under ``jax.jit`` is an error naming the tolerances and their ranges."""
+    import dataclasses
+
+    import jax
+    import jax.numpy as jnp
+
+    mech = jc.preset("flores-slider-crank")
+    s = jc.settings(2e-4, n_out=11, throw=False)
+
+    def status(rtol, atol):
+        return jc.simulate(mech, dataclasses.replace(s, rtol=rtol, atol=atol)).status
+
+    got = jax.vmap(status)(jnp.array([1e-6, 0.0, 1e-6, 1.5]), jnp.array([1e-9, 1e-9, -1.0, 1e-9]))
+    bad = int(jc.RESULTS.invalid_tolerance._value)
+    assert got.tolist() == [0, bad, bad, bad]
+    thrown = dataclasses.replace(s, throw=True)
+    with pytest.raises(Exception, match=r"rtol in \(0, 1\) and atol > 0"):
+        jax.jit(lambda r: jc.simulate(mech, dataclasses.replace(thrown, rtol=r)).q)(jnp.asarray(0.0)).block_until_ready()
+
+
 def test_bad_end_time():
     with pytest.raises(jc.ParameterError, match=r"t_end = -1 s must be greater than t_start = 0 s"):
         jc.settings(-1.0)

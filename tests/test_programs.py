@@ -73,6 +73,22 @@ def test_stored_program_equals_the_jitted_run_and_serves_every_value(store):
     assert len(_files(store)) == 2
 
 
+def test_a_run_at_another_tolerance_is_the_same_program_with_that_tolerances_steps(store):
+    """rtol and atol are inputs of the run's program (a convergence check compiles once): a run
+    at rtol 1e-9 after one at 1e-6 traces nothing, and equals the plainly jitted run at 1e-9 bit
+    for bit, whose steps are not those of 1e-6 (the tolerance reached the step controller)."""
+    mech = jc.preset("flores-slider-crank")
+    s = revolution_settings(mech, 0.05, n_out=51)
+    loose = jc.simulate(mech, s)
+    tight_s = dataclasses.replace(s, rtol=1e-9, atol=1e-12)
+    heard = []
+    with on_trace(heard.append):
+        tight = jc.simulate(mech, tight_s)
+    assert heard == [] and len(_files(store)) == 1
+    _assert_same(tight, _plain(mech, tight_s))
+    assert int(tight.num_steps) > 2 * int(loose.num_steps)
+
+
 def test_unkeyable_arguments_are_traced_as_usual(store):
     class Opaque:  # repr shows an address: not a faithful key
         pass

@@ -53,7 +53,6 @@ whose run failed, or whose tangents overflowed, integrates zero-length intervals
 
 from __future__ import annotations
 
-import math
 
 import equinox as eqx
 import jax
@@ -76,10 +75,10 @@ OVERFLOW = 1e250
 GROWTH_ACCURACY = 0.01
 
 
-def default_max_growth(rtol: float) -> float:
+def default_max_growth(rtol):
     r"""The default ``max_growth``, :math:`\ln(0.01/\mathrm{rtol})` [-] (:data:`GROWTH_ACCURACY`):
     9.2 at rtol 1e-6, 13.8 at 1e-8 (module docstring; measured: docs/theory/chaos.md)."""
-    return math.log(GROWTH_ACCURACY / rtol)
+    return jnp.log(GROWTH_ACCURACY / rtol)
 
 
 #: The shortest renormalisation step, as a fraction of the interval: a step this short is

@@ -122,11 +122,11 @@ class DesignProblem(eqx.Module):
 
     @property
     def rtol(self) -> float:
-        return self.base.rtol
+        return float(self.base.rtol)
 
     @property
     def atol(self) -> float:
-        return self.base.atol
+        return float(self.base.atol)
 
     @property
     def max_steps(self) -> int:

@@ -121,7 +121,7 @@ def settings_record(s: Settings, max_steps: int | None) -> dict:
     baumgarte = [float(s.baumgarte.alpha), float(s.baumgarte.beta)]
     if baumgarte != [5.0, 5.0]:
         changed["baumgarte"] = baumgarte
-    return dict(rtol=s.rtol, atol=s.atol, max_steps=max_steps, **({"integration": changed} if changed else {}))
+    return dict(rtol=float(s.rtol), atol=float(s.atol), max_steps=max_steps, **({"integration": changed} if changed else {}))
 
 
 def derivative_tolerance(rtol: float) -> float:

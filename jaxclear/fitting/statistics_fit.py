@@ -409,7 +409,7 @@ def _settings_record(s: Settings) -> dict:
     defaults (none for a fit given no settings)."""
     mine, default = option_values(s), option_values(default_settings())
     changed = {k: v for k, v in mine.items() if k not in ("rtol", "atol", "max_steps") and v != default[k]}
-    return dict(rtol=s.rtol, atol=s.atol, max_steps=s.max_steps, **({"integration": changed} if changed else {}))
+    return dict(rtol=float(s.rtol), atol=float(s.atol), max_steps=s.max_steps, **({"integration": changed} if changed else {}))
 
 
 def _refined(u, refine: int) -> np.ndarray:

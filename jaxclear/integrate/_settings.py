@@ -8,10 +8,11 @@ from typing import Mapping
 
 import diffrax
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._errors import JaxclearError, ParameterError, is_concrete
+from .._errors import RESULTS, JaxclearError, ParameterError, in_range, is_concrete
 from .._results import deprecated
 from .._types import Array, Float
 from ._dynamics import Baumgarte
@@ -33,6 +34,14 @@ MAX_OUT_SAMPLES = 2_000_000
 
 #: Default of ``Settings.continuous_contact_after`` [s].
 CONTINUOUS_CONTACT_AFTER = 2e-4
+
+
+def _tolerance(value):
+    """A tolerance as a float64 array leaf: a JAX array (a tracer too) as ``jnp``, a number as a
+    NumPy scalar array (building settings compiles nothing; :func:`default_settings`)."""
+    if isinstance(value, jax.Array):
+        return jnp.asarray(value, dtype=float)
+    return np.asarray(value, dtype=np.float64)
 
 
 class _OldName:
@@ -65,7 +74,8 @@ class Settings(eqx.Module):
             solver in :class:`~jaxclear.integrate.UnrolledExplicitRK` runs them unrolled
             (the same step; ``stages="unrolled"``).
         rtol, atol: tolerances of the adaptive PID step controller (relative [-], absolute [SI];
-            defaults 1e-6, 1e-9).
+            defaults 1e-6, 1e-9); float64 array leaves, so that a run at another tolerance is the
+            same compiled program with other inputs (a tolerance study compiles once).
         dt0: first step [s]; ``None`` (default) lets diffrax choose.
         dtmax: largest step [s] or ``None`` (default).
         max_steps: step limit (default 400,000); reaching it is an error (or status 1 with
@@ -105,8 +115,8 @@ class Settings(eqx.Module):
     t_start: float = eqx.field(static=True)
     n_out: int = eqx.field(static=True)
     solver: diffrax.AbstractSolver = eqx.field(static=True)
-    rtol: float = eqx.field(static=True)
-    atol: float = eqx.field(static=True)
+    rtol: Float[Array, ""]
+    atol: Float[Array, ""]
     dt0: float | None = eqx.field(static=True)
     dtmax: float | None = eqx.field(static=True)
     max_steps: int = eqx.field(static=True)
@@ -127,8 +137,7 @@ class Settings(eqx.Module):
         self.t_end = t_end
         self.t_start = t_start
         self.n_out = n_out
-        self.rtol = rtol
-        self.atol = atol
+        self.rtol, self.atol = _tolerance(rtol), _tolerance(atol)
         self.dt0 = dt0
         self.dtmax = dtmax
         self.max_steps = max_steps
@@ -151,10 +160,13 @@ class Settings(eqx.Module):
     sampling = _OldName("output", lambda s: s.output.name, "loop")
 
     def __check_init__(self):
-        if not (0 < self.rtol < 1):
-            raise ParameterError(f"rtol = {self.rtol:g} outside the allowed range (0, 1)")
-        if not (self.atol > 0):
-            raise ParameterError(f"atol = {self.atol:g} outside the allowed range (0, inf)")
+        for name, low, high in (("rtol", 0.0, 1.0), ("atol", 0.0, np.inf)):
+            value = getattr(self, name)
+            if jnp.shape(value) != ():
+                raise ParameterError(f"{name} must be one number, not an array of shape {jnp.shape(value)}")
+            if is_concrete(value) and not low < float(value) < high:
+                raise ParameterError(f"{name} = {float(value):g} outside the allowed range "
+                                     f"({low:g}, {'inf' if high == np.inf else format(high, 'g')})")
         if not 2 <= self.n_out <= MAX_OUT_SAMPLES:
             raise ParameterError(
                 f"n_out = {self.n_out} output samples outside the allowed range [2, {MAX_OUT_SAMPLES}] "
@@ -171,6 +183,14 @@ class Settings(eqx.Module):
             raise ParameterError(
                 f"t_end = {float(self.t_end):g} s must be greater than t_start = {self.t_start:g} s"
             )
+
+
+def tolerance_checks(s: Settings) -> tuple:
+    """The run-time checks of ``s.rtol`` in (0, 1) and ``s.atol`` in (0, inf), for
+    :func:`~jaxclear._errors.first_failure` (status ``invalid_tolerance``): traced tolerances
+    (a ``jax.vmap`` over them) are not seen by :class:`Settings`' own check."""
+    return ((in_range(s.rtol, low=0.0, high=1.0, low_open=True, high_open=True), RESULTS.invalid_tolerance),
+            (in_range(s.atol, low=0.0, low_open=True), RESULTS.invalid_tolerance))
 
 
 def settings(t_end, **kwargs) -> Settings:
@@ -242,7 +262,7 @@ def option_values(s: Settings) -> dict:
     """The fields of ``s`` by name (:data:`OPTION_KEYS`): what :func:`settings_from_options`
     reads, what a driver records of its runs' settings, and the defaults the command line shows
     (read from ``Settings`` itself, never repeated)."""
-    return {"solver": solver_name(s.solver), "rtol": s.rtol, "atol": s.atol, "dt0": s.dt0, "dtmax": s.dtmax,
+    return {"solver": solver_name(s.solver), "rtol": float(s.rtol), "atol": float(s.atol), "dt0": s.dt0, "dtmax": s.dtmax,
             "max_steps": s.max_steps, "derivatives": s.derivatives.name,
             "derivative_tolerance": getattr(s.derivatives, "tolerance", None),
             "checkpoints": getattr(s.derivatives, "checkpoints", None), "output": s.output.name,
