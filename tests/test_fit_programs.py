@@ -107,3 +107,28 @@ def test_the_fit_runs_as_before_with_the_store_off(two_processes):
     assert all(v == 0 for v in off["counts"].values()), off["counts"]
     assert FIT_PROGRAMS <= set(off["traced"]), off["traced"]
     assert _results(off) == _results(cold)
+
+
+def test_the_way_ins_longer_scorings_run_the_whole_window_and_its_first_rounds_a_part():
+    """A run's sample count is part of its compiled program, so the way in's longer scorings
+    (its last round over the first half, the approach speed chosen again over a stage's horizon,
+    a window revisited over its whole length) all run the whole window: one program, where each
+    horizon was one. Its first rounds, hundreds of candidates, run the first part only."""
+    import jaxclear as jc
+    from jaxclear.fitting import way_in
+    from jaxclear.fitting.problem import build_problem
+
+    mech = jc.preset("flores-slider-crank")
+    sensor = jc.Accelerometer(20e3)
+    record = jc.synthetic_record(mech, 0.7e-3, 200e3, sensor, snr_db=20, seed=7)
+    settings = dict(max_iter=1, ftol=1e-6, xtol=1e-5, rtol=1e-8, atol=1e-11, max_steps=None, align="time",
+                    time_offset=0.0, optimizer="lm")
+    problem = build_problem(record, mech, ("stiffness", "restitution"), None, sensor, 0.5e-3, 1, (1.0,), None, 1,
+                            settings, start_state="free")
+    whole = problem.model
+    for horizon in (way_in.WAY_IN_HORIZON, 0.75, 1.0):
+        assert way_in.scoring_model(whole, horizon) is whole
+    first = way_in.scoring_model(whole, 0.25)
+    n = whole.settings.n_out - 1
+    assert first.settings.n_out - 1 == pytest.approx((0.25 + way_in.SCORED_BEYOND) * n, abs=1)
+    assert float(first.settings.t_end) == pytest.approx((first.settings.n_out - 1) * float(whole.h), rel=1e-12)
