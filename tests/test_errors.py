@@ -147,8 +147,8 @@ def test_step_limit_reported_without_throw():
 
 
 @pytest.mark.parametrize("kwargs,match", [
-    (dict(rtol=0.0), r"rtol = 0 outside the allowed range \(0, 1\)"),
-    (dict(atol=-1.0), r"atol = -1 outside the allowed range \(0, inf\)"),
+    (dict(rtol=0.0), r"rtol = 0 is outside the allowed range \(0, 1\)"),
+    (dict(atol=-1.0), r"atol = -1 is outside the allowed range \(0, inf\)"),
     (dict(solver="euler9"), r"unknown solver 'euler9'; valid: \["),
     (dict(n_out=1), r"n_out = 1 output samples outside the allowed range \[2, 2000000\]"),
     (dict(stages="fused"), r"stages must be 'unrolled' or 'loop', got 'fused'"),

@@ -114,18 +114,11 @@ def test_the_way_ins_longer_scorings_run_the_whole_window_and_its_first_rounds_a
     (its last round over the first half, the approach speed chosen again over a stage's horizon,
     a window revisited over its whole length) all run the whole window: one program, where each
     horizon was one. Its first rounds, hundreds of candidates, run the first part only."""
-    import jaxclear as jc
-    from jaxclear.fitting import way_in
-    from jaxclear.fitting.problem import build_problem
+    from test_lab_fit import small_free_start_problem
 
-    mech = jc.preset("flores-slider-crank")
-    sensor = jc.Accelerometer(20e3)
-    record = jc.synthetic_record(mech, 0.7e-3, 200e3, sensor, snr_db=20, seed=7)
-    settings = dict(max_iter=1, ftol=1e-6, xtol=1e-5, rtol=1e-8, atol=1e-11, max_steps=None, align="time",
-                    time_offset=0.0, optimizer="lm")
-    problem = build_problem(record, mech, ("stiffness", "restitution"), None, sensor, 0.5e-3, 1, (1.0,), None, 1,
-                            settings, start_state="free")
-    whole = problem.model
+    from jaxclear.fitting import way_in
+
+    whole = small_free_start_problem()[1].model
     for horizon in (way_in.WAY_IN_HORIZON, 0.75, 1.0):
         assert way_in.scoring_model(whole, horizon) is whole
     first = way_in.scoring_model(whole, 0.25)

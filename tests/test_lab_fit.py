@@ -440,23 +440,30 @@ def test_the_previous_windows_end_finds_the_next_windows_start(tmp_path):
     assert chained < 1.5 * true_loss, (chained, true_loss, report["best_loss"])
 
 
-def test_rechosen_approach_speed_keeps_the_start_and_never_scores_worse():
-    """:func:`~jaxclear.fitting.way_in.rechoose_approach` on a journal pressed into its bearing
-    at a window's start (0.5 ms of a synthetic record): only the approach number ``m`` moves,
-    the reported losses are the window's own mean squares at the start given and at the start
-    returned, the choice is never worse than the start given (it is one of the candidates), and
-    it moves only for a gain beyond ``RECHOSEN_GAIN``."""
+def small_free_start_problem():
+    """The benchmark preset and the fit problem of a 0.7 ms synthetic record (20 kHz sensor, 20
+    dB) with stiffness and restitution free and one 0.5 ms window whose start is free."""
     from jaxclear.fitting.problem import build_problem
-    from jaxclear.fitting.way_in import RECHOSEN_APPROACHES, RECHOSEN_GAIN, rechoose_approach
-    from jaxclear.integrate import jit
 
     mech = jc.preset("flores-slider-crank")
     sensor = jc.Accelerometer(20e3)
     record = jc.synthetic_record(mech, 0.7e-3, 200e3, sensor, snr_db=20, seed=7)
     settings = dict(max_iter=1, ftol=1e-6, xtol=1e-5, rtol=1e-8, atol=1e-11, max_steps=None, align="time",
                     time_offset=0.0, optimizer="lm")
-    problem = build_problem(record, mech, ("stiffness", "restitution"), None, sensor, 0.5e-3, 1, (1.0,), None, 1,
-                            settings, start_state="free")
+    return mech, build_problem(record, mech, ("stiffness", "restitution"), None, sensor, 0.5e-3, 1, (1.0,), None, 1,
+                               settings, start_state="free")
+
+
+def test_rechosen_approach_speed_keeps_the_start_and_never_scores_worse():
+    """:func:`~jaxclear.fitting.way_in.rechoose_approach` on a journal pressed into its bearing
+    at a window's start (0.5 ms of a synthetic record): only the approach number ``m`` moves,
+    the reported losses are the window's own mean squares at the start given and at the start
+    returned, the choice is never worse than the start given (it is one of the candidates), and
+    it moves only for a gain beyond ``RECHOSEN_GAIN``."""
+    from jaxclear.fitting.way_in import RECHOSEN_APPROACHES, RECHOSEN_GAIN, rechoose_approach
+    from jaxclear.integrate import jit
+
+    mech, problem = small_free_start_problem()
     cols = window_start.approach_columns(mech)
     grid = window_start.candidates(mech)
     pressed = grid[np.linalg.norm(grid[:, :2], axis=1) > 1.0][0].copy()  # a start inside a contact

@@ -105,7 +105,7 @@ def _doc(**changes):
     (dict(run__samples_per_revolution=2.5), r"samples_per_revolution = 2.5: expected an integer >= 2"),
     (dict(run__revolutions=0.3, run__samples_per_revolution=5), r"revolutions x samples_per_revolution = 1.5 must"),
     (dict(run__solver="rk99"), r"unknown solver 'rk99'"),
-    (dict(run__rtol=2.0), r"rtol = 2 outside the allowed range \(0, 1\)"),
+    (dict(run__rtol=2.0), r"rtol = 2 is outside the allowed range \(0, 1\)"),
     (dict(run__max_steps=0), r"max_steps = 0 outside the allowed range \[1, inf\)"),
     (dict(output__chunk_size=0), r"chunk_size = 0: expected 'auto' or an integer >= 1"),
     (dict(output__devices=99), r"output.devices = 99: expected an integer in \[1, "),

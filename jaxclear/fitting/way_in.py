@@ -125,9 +125,8 @@ _SCORES_STRUCTURE = jax.tree_util.tree_structure(0)
 
 #: The part of a window the way in integrates, beyond its scored horizon, as a fraction of the
 #: window: a partial horizon ends at the quietest sample within the next tenth of the window
-#: (:func:`.records.quiet_cut`). The first rounds' candidates are run this far only (0.35 of a
-#: window at the first stage's quarter); a horizon of :data:`WAY_IN_HORIZON` or more runs the
-#: whole window (:func:`scoring_model`).
+#: (:func:`.records.quiet_cut`). The first rounds' candidates run this far only; a horizon of
+#: :data:`WAY_IN_HORIZON` or more runs the whole window (:func:`scoring_model`).
 SCORED_BEYOND = 0.1
 #: The longer part of a window the way in's last round scores the candidates on, as a fraction
 #: of the window (``find_start``'s ``longer``; the earlier passes score on the first stage's
@@ -221,16 +220,9 @@ def refine_scales(mech) -> np.ndarray:
 def scoring_model(model: WindowModel, horizon: float) -> WindowModel:
     """``model`` run over the first ``horizon + SCORED_BEYOND`` of its window only (whole fine
     steps; the samples beyond are masked by the horizon's cut), or over the whole window for a
-    horizon of :data:`WAY_IN_HORIZON` or more.
-
-    Why the whole window there: a run's sample count is part of its compiled program, so each
-    scored length was a program of its own (the way in's last round over the first half, the
-    approach speed chosen again over a stage's horizon, a window revisited over its whole
-    length: three compilations of the batched run, 11-17 s each on 2 cores, 44 s of the 70 s a
-    first fit of one window compiled). The longer scorings run tens of candidates where the
-    first rounds run hundreds, so running them to the window's end costs little, and the
-    samples the horizon's cut masks do not change those before it (the sensor's filter is
-    causal, the steps do not depend on where the run ends)."""
+    horizon of :data:`WAY_IN_HORIZON` or more: a sample count is part of a compiled program, so
+    the longer scorings (tens of candidates; the samples past the cut masked, the filter causal)
+    are one program (benchmarks/README.md, "Tolerances as inputs")."""
     if horizon >= WAY_IN_HORIZON:
         return model
     n_fine = model.settings.n_out - 1

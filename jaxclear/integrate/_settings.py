@@ -12,7 +12,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._errors import RESULTS, JaxclearError, ParameterError, in_range, is_concrete
+from .._errors import RESULTS, JaxclearError, ParameterError, Rule, failed_check, is_concrete
 from .._results import deprecated
 from .._types import Array, Float
 from ._dynamics import Baumgarte
@@ -160,13 +160,12 @@ class Settings(eqx.Module):
     sampling = _OldName("output", lambda s: s.output.name, "loop")
 
     def __check_init__(self):
-        for name, low, high in (("rtol", 0.0, 1.0), ("atol", 0.0, np.inf)):
-            value = getattr(self, name)
-            if jnp.shape(value) != ():
-                raise ParameterError(f"{name} must be one number, not an array of shape {jnp.shape(value)}")
-            if is_concrete(value) and not low < float(value) < high:
-                raise ParameterError(f"{name} = {float(value):g} outside the allowed range "
-                                     f"({low:g}, {'inf' if high == np.inf else format(high, 'g')})")
+        for rule in tolerance_rules(self):
+            if jnp.shape(rule.value) != ():
+                raise ParameterError(f"{rule.name} must be one number, not an array of shape {jnp.shape(rule.value)}")
+        failed = failed_check(tolerance_rules(self)) if is_concrete((self.rtol, self.atol)) else None
+        if failed is not None:
+            raise ParameterError(failed)
         if not 2 <= self.n_out <= MAX_OUT_SAMPLES:
             raise ParameterError(
                 f"n_out = {self.n_out} output samples outside the allowed range [2, {MAX_OUT_SAMPLES}] "
@@ -185,12 +184,13 @@ class Settings(eqx.Module):
             )
 
 
-def tolerance_checks(s: Settings) -> tuple:
-    """The run-time checks of ``s.rtol`` in (0, 1) and ``s.atol`` in (0, inf), for
-    :func:`~jaxclear._errors.first_failure` (status ``invalid_tolerance``): traced tolerances
-    (a ``jax.vmap`` over them) are not seen by :class:`Settings`' own check."""
-    return ((in_range(s.rtol, low=0.0, high=1.0, low_open=True, high_open=True), RESULTS.invalid_tolerance),
-            (in_range(s.atol, low=0.0, low_open=True), RESULTS.invalid_tolerance))
+def tolerance_rules(s: Settings) -> tuple:
+    """The range rules of ``s.rtol`` in (0, 1) and ``s.atol`` in (0, inf), status
+    ``invalid_tolerance``: checked eagerly when ``Settings`` is built with concrete tolerances and
+    in the run (:func:`~jaxclear._errors.first_failure`), where traced ones (a ``jax.vmap`` over
+    them) are seen."""
+    return (Rule("rtol", s.rtol, RESULTS.invalid_tolerance, low=0.0, high=1.0, low_open=True, high_open=True),
+            Rule("atol", s.atol, RESULTS.invalid_tolerance, low=0.0, low_open=True))
 
 
 def settings(t_end, **kwargs) -> Settings:

@@ -26,7 +26,7 @@ from ..model.mechanism import Mechanism
 from ._assembly import NEWTON_TOL, assemble, initial_state
 from ._compile import without_input_callbacks
 from ._dynamics import _accelerations
-from ._settings import Settings, tolerance_checks
+from ._settings import Settings, tolerance_rules
 from ._solution import Solution
 from ._solvers import ImpactMemorySolver, StopOnNonFinite
 from ._state import State, stack_memory
@@ -111,7 +111,7 @@ def start_run(mech: Mechanism, s: Settings, y0: State | None) -> Start:
         y0 = initial_state(mech, s, asm)
     else:
         assembled_ok = jnp.asarray(True)
-    return Start(y0.pack(), assembled_ok, first_failure(mech.check(), *tolerance_checks(s)), asm)
+    return Start(y0.pack(), assembled_ok, first_failure(mech.check(), *tolerance_rules(s)), asm)
 
 
 class Integration(eqx.Module):
