@@ -33,9 +33,16 @@ from ._state import State, stack_memory
 from ._system import AbstractSystem, MechanismSystem, system_field
 
 
-def _inner_solver(s: Settings):
-    """The solver of ``s`` as the integration loop runs it (its derivatives' form)."""
-    return s.derivatives.solver(s.solver)
+def _inner_solver(s: Settings, norm):
+    """The solver of ``s`` as the integration loop runs it (its derivatives' form). An implicit
+    solver's (``kvaerno5``) Newton iterations take the step-size controller's tolerances and
+    error norm, which diffrax would fill in itself for its own controller but not through the
+    wrappers of the controller this integration uses."""
+    solver = s.solver
+    if isinstance(solver, diffrax.AbstractImplicitSolver):
+        solver = eqx.tree_at(lambda x: (x.root_finder.rtol, x.root_finder.atol, x.root_finder.norm), solver,
+                             (s.rtol, s.atol, norm))
+    return s.derivatives.solver(solver)
 
 
 #: Without single-kernel loops (``JAXCLEAR_SMALL_LOOP_BYTES=0``, see ``jaxclear/_xla_flags.py``):
@@ -135,7 +142,7 @@ def integrate_system(system: AbstractSystem, s: Settings, t0, t1, ts, v0) -> Int
     controller = StopOnNonFinite(diffrax.PIDController(rtol=s.rtol, atol=s.atol, dtmax=s.dtmax, norm=system.norm(),
                                                        dtmin=system.dtmin()))
     controller = s.onsets.controller(controller, system.mech)
-    solver = ImpactMemorySolver(_inner_solver(s), dense_to_controller=s.output.dense_to_controller)
+    solver = ImpactMemorySolver(_inner_solver(s, system.norm()), dense_to_controller=s.output.dense_to_controller)
     controller, saveat = s.output.saving(controller, ts, solver.interpolation_cls)
     meter = diffrax.TqdmProgressMeter(refresh_steps=200) if s.progress else diffrax.NoProgressMeter()
     with without_input_callbacks():

@@ -55,6 +55,16 @@ class _Forwarding(diffrax.AbstractWrappedSolver):
     def error_order(self, terms):
         return self.solver.error_order(terms)
 
+    @property
+    def root_finder(self):
+        # diffrax treats a wrapper as the solver it wraps (``isinstance``): an implicit one's
+        # Newton solver is read through the wrapper (its tolerances: ``_solve._inner_solver``).
+        return self.solver.root_finder
+
+    @property
+    def root_find_max_steps(self):
+        return self.solver.root_find_max_steps
+
 
 class UnrolledExplicitRK(_Forwarding):
     """An explicit Runge-Kutta solver of diffrax (Tsit5, Dopri5, Dopri8, Bosh3) with its stages
