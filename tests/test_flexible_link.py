@@ -95,6 +95,15 @@ def test_cantilever_tip_deflection_is_the_models_closed_form():
     closed = p * L**3 / (3 * E * SECOND) * (1 - 1 / (4 * m**2))
     assert -tip == pytest.approx(closed, rel=1e-7)
     assert -tip == pytest.approx(p * L**3 / (3 * E * SECOND), rel=1 / (4 * m**2) + 1e-6)
+    # the outputs at the nodes: the bending moment is statics', P (L - s_k), s_k = (k - 1/2) L / m
+    # (to the nonlinearity's 1e-9); the nodes' deflections from the chord are the link's shape
+    out = link.loads[-1].outputs(link, 0.0, jnp.asarray(q), start.qdot)
+    s_k = (np.arange(1, m + 1) - 0.5) * L / m
+    moments = np.array([float(out[f"moment_{k}"]) for k in range(1, m + 1)])
+    np.testing.assert_allclose(np.abs(moments), p * (L - s_k), rtol=1e-6)
+    shape = np.array([float(out[f"deflection_{k}"]) for k in range(1, m + 1)])
+    assert np.all(shape > 0.0) and shape[1] > shape[0] and shape[2] > shape[3]  # above the chord, most inside
+    assert set(link.loads[-1].OUTPUTS) >= {"deflection", "moment_max", f"moment_{m}", f"deflection_{m}"}
 
 
 def test_free_flexible_pendulum_keeps_its_energy_and_loses_what_its_damping_dissipates():

@@ -97,7 +97,9 @@ class DiscreteBeam(AbstractConnector):
     to the left of the chord from end ``a`` to end ``b``), ``moment_middle`` [N m] (the bending
     moment at the middle: the mean of the one or two nodes nearest it), ``moment_max`` [N m] (the
     largest absolute bending moment over the nodes), ``energy`` [J] (strain energy), ``power`` [W]
-    (of the sdes' forces on the mechanism)."""
+    (of the sdes' forces on the mechanism), and at each node ``k = 1 .. m`` (arc length
+    :math:`s_k = (k - \tfrac12)\Delta` from end ``a``) ``deflection_k`` [m] (as ``deflection``)
+    and ``moment_k`` [N m] (the sde's bending moment)."""
 
     name: str = eqx.field(static=True)
     segments: tuple[str, ...] = eqx.field(static=True)
@@ -115,8 +117,8 @@ class DiscreteBeam(AbstractConnector):
     start: Float[Array, " k"]
     start_rate: Float[Array, " k"]
 
-    OUTPUTS: ClassVar[dict[str, str]] = {"deflection": "m", "moment_middle": "N m", "moment_max": "N m",
-                                         "energy": "J", "power": "W"}
+    LINK_OUTPUTS: ClassVar[dict[str, str]] = {"deflection": "m", "moment_middle": "N m", "moment_max": "N m",
+                                              "energy": "J", "power": "W"}
     PARAMETERS: ClassVar[dict[str, Parameter]] = {
         "beam_modulus": Parameter("youngs_modulus", "Pa", **POSITIVE, doc="Young's modulus E of a flexible link"),
         "beam_second_moment": Parameter("second_moment", "m^4", **POSITIVE,
@@ -248,6 +250,12 @@ class DiscreteBeam(AbstractConnector):
         return jnp.concatenate([bushing_coordinates(mech, q, a, node_name(k + 1), b, node_name(k + 1))
                                 for k, (a, b) in enumerate(pairs)])
 
+    @property
+    def OUTPUTS(self) -> dict[str, str]:  # noqa: N802 (the connectors' name): the link's, then each node's
+        nodes = {f"{what}_{k}": unit for k in range(1, self.n_nodes + 1) for what, unit in (("deflection", "m"),
+                                                                                            ("moment", "N m"))}
+        return {**self.LINK_OUTPUTS, **nodes}
+
     def law(self, d, ddot):
         return self.stiffness() * (d + self.damping * ddot)
 
@@ -259,13 +267,19 @@ class DiscreteBeam(AbstractConnector):
         d, ddot, f, power, _ = self.evaluate(mech, q, qdot)
         a = mech.point_position(q, *self.end_a)
         chord = mech.point_position(q, *self.end_b) - a
-        deflection = cross2(chord, mech.point_position(q, *self.middle) - a) / jnp.sqrt(jnp.sum(chord**2))
+        length = jnp.sqrt(jnp.sum(chord**2))
+        deflection = cross2(chord, mech.point_position(q, *self.middle) - a) / length
         moments = self.moments(f)
         m = self.n_nodes
         nearest = [m // 2] if m % 2 else [m // 2 - 1, m // 2]  # node (m + 1) / 2, or nodes m / 2 and m / 2 + 1
-        return {"deflection": deflection, "moment_middle": jnp.mean(moments[jnp.asarray(nearest)]),
-                "moment_max": jnp.max(jnp.abs(moments)), "energy": 0.5 * jnp.sum(self.stiffness() * d**2),
-                "power": power}
+        out = {"deflection": deflection, "moment_middle": jnp.mean(moments[jnp.asarray(nearest)]),
+               "moment_max": jnp.max(jnp.abs(moments)), "energy": 0.5 * jnp.sum(self.stiffness() * d**2),
+               "power": power}
+        for k in range(m):
+            node = mech.point_position(q, self.segments[k], node_name(k + 1))
+            out[f"deflection_{k + 1}"] = cross2(chord, node - a) / length
+            out[f"moment_{k + 1}"] = moments[k]
+        return out
 
     def sketch(self, points: dict, size: float) -> np.ndarray:
         """The centre line: end a, the nodes, end b."""
