@@ -5,7 +5,7 @@ Finite Element Method", Springer 2006, chapters 2-3; the "discrete flexible link
 
 A link of length :math:`L` is cut into :math:`m` equal parts of length :math:`\Delta = L/m`; a
 spring-damping element (sde) sits at the middle of each part, at the node
-:math:`s_k = (k - \tfrac12)\Delta`, :math:`k = 1..m`, and the rigid elements lie between the nodes
+s_k = (k - 1/2) Delta, :math:`k = 1..m`, and the rigid elements lie between the nodes
 (the two end elements :math:`\Delta/2` long, the others :math:`\Delta`): Wittbrodt's secondary
 division, whose :math:`m` sdes carry the bending of the parts they stand for. Each sde's
 coordinates are those of a planar bushing between the two elements it joins, at their common node
@@ -98,7 +98,7 @@ class DiscreteBeam(AbstractConnector):
     moment at the middle: the mean of the one or two nodes nearest it), ``moment_max`` [N m] (the
     largest absolute bending moment over the nodes), ``energy`` [J] (strain energy), ``power`` [W]
     (of the sdes' forces on the mechanism), and at each node ``k = 1 .. m`` (arc length
-    :math:`s_k = (k - \tfrac12)\Delta` from end ``a``) ``deflection_k`` [m] (as ``deflection``)
+    s_k = (k - 1/2) Delta from end ``a``) ``deflection_k`` [m] (as ``deflection``)
     and ``moment_k`` [N m] (the sde's bending moment)."""
 
     name: str = eqx.field(static=True)
