@@ -5,7 +5,7 @@ Finite Element Method", Springer 2006, chapters 2-3; the "discrete flexible link
 
 A link of length :math:`L` is cut into :math:`m` equal parts of length :math:`\Delta = L/m`; a
 spring-damping element (sde) sits at the middle of each part, at the node
-s_k = (k - 1/2) Delta, :math:`k = 1..m`, and the rigid elements lie between the nodes
+:math:`s_k = (k - \tfrac12)\Delta`, :math:`k = 1..m`, and the rigid elements lie between the nodes
 (the two end elements :math:`\Delta/2` long, the others :math:`\Delta`): Wittbrodt's secondary
 division, whose :math:`m` sdes carry the bending of the parts they stand for. Each sde's
 coordinates are those of a planar bushing between the two elements it joins, at their common node
