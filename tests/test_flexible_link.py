@@ -248,7 +248,7 @@ def test_a_link_started_bent_in_its_first_mode_vibrates_at_its_frequency(tmp_pat
     assert np.max(np.abs(np.asarray(straight.loads[-1].start))) < 1e-15  # rounding of the slopes' differences
     rod = jc.bent_link(jc.flexible_link(jc.preset("flores-slider-crank"), "rod", youngs_modulus=207e9,
                                         second_moment=4e-9, elements=3), "rod", shape, lambda s: omega * shape(s))
-    path = tmp_path / "bent.toml"  # (a PointOnLine joint has no place in a mechanism file: the rod)
+    path = tmp_path / "bent.toml"  # (the benchmark's rod: a bent link beside a clearance joint)
     jc.save_mechanism(rod, path)
     assert eqx.tree_equal(jc.load_mechanism(path), rod)
     assert np.all(np.asarray(rod.loads[-1].start) < 0.0)  # a bump to the left: its slope falls at every node
