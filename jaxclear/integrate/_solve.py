@@ -18,6 +18,7 @@ import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import optimistix as optx
 
 from .._errors import RESULTS, first_failure
 from .._xla_flags import loop_kernels_active
@@ -33,15 +34,15 @@ from ._state import State, stack_memory
 from ._system import AbstractSystem, MechanismSystem, system_field
 
 
-def _inner_solver(s: Settings, norm):
+def _inner_solver(s: Settings, norm=None):
     """The solver of ``s`` as the integration loop runs it (its derivatives' form). An implicit
     solver's (``kvaerno5``) Newton iterations take the step-size controller's tolerances and
-    error norm, which diffrax would fill in itself for its own controller but not through the
-    wrappers of the controller this integration uses."""
+    error norm ``norm`` (default: optimistix's RMS norm), which diffrax would fill in itself for
+    its own controller but not through the wrappers of the controller this integration uses."""
     solver = s.solver
     if isinstance(solver, diffrax.AbstractImplicitSolver):
         solver = eqx.tree_at(lambda x: (x.root_finder.rtol, x.root_finder.atol, x.root_finder.norm), solver,
-                             (s.rtol, s.atol, norm))
+                             (s.rtol, s.atol, optx.rms_norm if norm is None else norm))
     return s.derivatives.solver(solver)
 
 
