@@ -9,6 +9,8 @@ tests for chaos.
 * :mod:`~jaxclear.chaos.signals`: power spectral density (Welch), the 0-1 test for chaos,
   Rosenstein's time-series exponent; Poincare sections and their period are in
   :mod:`jaxclear.analysis.sections`;
+* :mod:`~jaxclear.chaos.shadowing`: :func:`steady_derivatives`, derivatives of long-time
+  averages of the steady running by least-squares shadowing (NILSS) on the same tangents;
 * :mod:`~jaxclear.chaos.report`, :mod:`~jaxclear.chaos.figures`: one operating point's tables
   and figures (``jaxclear chaos``).
 
@@ -19,10 +21,11 @@ from .benettin import LyapunovResult
 from .lyapunov import MIN_INTERVALS, LyapunovError, LyapunovMap, check_convergence, lyapunov, lyapunov_map, trajectory
 from .signals import channel_series, psd, rosenstein, zero_one_test
 from .report import ChannelReport, ChaosReport, characterise, write_report
+from .shadowing import steady_derivatives
 
 __all__ = ["MIN_INTERVALS", "ChannelReport", "ChaosReport", "LyapunovError", "LyapunovMap", "LyapunovResult", "channel_series",
-           "characterise", "check_convergence", "lyapunov", "lyapunov_map", "psd", "rosenstein", "trajectory", "write_report",
-           "zero_one_test"]
+           "characterise", "check_convergence", "lyapunov", "lyapunov_map", "psd", "rosenstein", "steady_derivatives", "trajectory",
+           "write_report", "zero_one_test"]
 
 
 def __getattr__(name: str):

@@ -185,16 +185,30 @@ class TangentSystem(AbstractSystem):
         return self._pack(y_err, t_err)
 
 
-def tangent_system(mech: Mechanism, s: Settings, *, size: int, count: int, span, reference=None) -> TangentSystem:
-    """The packed state (``size`` entries) of ``mech`` followed by ``count`` free tangents, with
-    no perturbed parameter: the variational equations along the motion, whose tangents the
-    Lyapunov exponents follow (:mod:`jaxclear.chaos`; the tangents' start and renormalisation
-    are the caller's). ``span`` [s]: the length of the runs it integrates (the shortest step is
-    :data:`DTMIN_FRACTION` of it); ``reference``: the size of a tangent at which its absolute
-    tolerance is ``atol`` (:attr:`TangentSystem.tangent_reference`), None: ``atol`` always."""
+def tangent_system(mech: Mechanism, s: Settings, *, size: int, count: int, span, reference=None,
+                   along=None) -> TangentSystem:
+    r"""The packed state (``size`` entries) of ``mech`` followed by ``count`` tangents: the
+    variational equations along the motion, whose tangents the Lyapunov exponents follow
+    (:mod:`jaxclear.chaos`; the tangents' start and renormalisation are the caller's). ``span``
+    [s]: the length of the runs it integrates (the shortest step is :data:`DTMIN_FRACTION` of
+    it); ``reference``: the size of a tangent at which its absolute tolerance is ``atol``
+    (:attr:`TangentSystem.tangent_reference`), None: ``atol`` always. ``along``: None (free
+    tangents, :math:`\dot S = f_y S`), or each tangent's direction in the mechanism's parameters,
+    a pytree of ``eqx.filter(mech, eqx.is_inexact_array)``'s structure whose leaves have a leading
+    axis ``count`` (:func:`jaxclear.params.derivatives.directions`): tangent ``j`` then obeys
+    :math:`\dot S_j = f_y S_j + f_\theta\,\theta'_j` (a row of zeros: a free tangent), as the
+    inhomogeneous tangents of least-squares shadowing do (:mod:`jaxclear.chaos.shadowing`)."""
     leaves, treedef = jax.tree_util.tree_flatten((mech, s, None))
-    return TangentSystem(mech, s.baumgarte, Rebuild(leaves, treedef, ()), (), (), DTMIN_FRACTION * span, size, count,
-                         reference)
+    if along is None:
+        perturbed, point, dirs = (), (), ()
+    else:
+        perturbed = tuple(i for i in range(len(jax.tree_util.tree_leaves(mech))) if eqx.is_inexact_array(leaves[i]))
+        point = tuple(leaves[i] for i in perturbed)
+        dirs = tuple(jax.tree_util.tree_leaves(along))
+        if len(dirs) != len(point):
+            raise ValueError(f"along has {len(dirs)} leaves where the mechanism has {len(point)} floating-point ones")
+    return TangentSystem(mech, s.baumgarte, Rebuild(leaves, treedef, perturbed), point, dirs, DTMIN_FRACTION * span,
+                         size, count, reference)
 
 
 def directions(point) -> tuple[tuple, Float[Array, " P"]]:

@@ -4,13 +4,17 @@ r"""Derivatives of long-time averages of chaotic motions by shadowing.
   :math:`\dot u = f(u, s)`, batched over independent trajectories whose spread is the error
   estimate; returns a :class:`ShadowingResult`.
 * :func:`shadowing_coefficients`: its small least-squares problem (the KKT system over the
-  segments, solved block by block).
+  segments, solved block by block); :func:`derivative_terms`: the derivative's terms from the
+  segments' records (:class:`SegmentRecord`, :class:`Integrals`), which the mechanisms'
+  shadowing (:func:`jaxclear.chaos.steady_derivatives`) fills from the engine's tangents.
 
 Theory: docs/theory/shadowing.md.
 """
 
 from ._least_squares import kkt_dense, shadowing_coefficients
-from ._nilss import nilss
+from ._nilss import derivative_terms, nilss
 from ._result import ShadowingResult
+from ._segments import Integrals, SegmentRecord
 
-__all__ = ["ShadowingResult", "kkt_dense", "nilss", "shadowing_coefficients"]
+__all__ = ["Integrals", "SegmentRecord", "ShadowingResult", "derivative_terms", "kkt_dense", "nilss",
+           "shadowing_coefficients"]

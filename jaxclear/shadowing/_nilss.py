@@ -37,20 +37,30 @@ from ._result import ShadowingResult
 from ._segments import SegmentConfig, primal_solve, segment, start_basis
 
 
-def _derivative(records, discard: int, segment_time: float):
-    """One member's ``(average, derivative (p,), exponents (n_u,))`` from its segments' records,
-    averaged over the segments after the first ``discard`` (all of them enter the least squares)."""
+def derivative_terms(records, discard: int, segment_time):
+    """The pieces of the derivative from the segments' records (:class:`SegmentRecord`, stacked
+    ``K`` deep): ``(average, contributions (K, p), exponents (n_u,), T)``, with the derivative
+    ``contributions.sum(0) / T``; segment ``i``'s contribution is its term of the sum in the module
+    docstring (zero for the first ``discard``, which still enter the least squares), so that
+    sums over blocks of segments give batch means. ``T``: the averaging time."""
     I = records.integrals
     K = I.J.shape[0]
     kept = (jnp.arange(K) >= discard).astype(I.J.dtype)
     T = (K - discard) * segment_time
     average = jnp.sum(kept * I.J) / T
     a = shadowing_coefficients(I.C, I.D, records.R[:-1], records.b[:-1])  # (K, n_u, p)
-    along = kept @ I.JV + jnp.einsum("k,ku,kup->p", kept, I.JW, a)
+    along = I.JV + jnp.einsum("ku,kup->kp", I.JW, a)
     xi = records.xi_V + jnp.einsum("ku,kup->kp", records.xi_W, a)
-    dilation = (kept * (average - records.J_end)) @ xi
+    contributions = kept[:, None] * (along + (average - records.J_end)[:, None] * xi)
     growth = jnp.log(jnp.abs(jnp.diagonal(records.R, axis1=1, axis2=2)))
-    return average, (along + dilation) / T, kept @ growth / T
+    return average, contributions, kept @ growth / T, T
+
+
+def _derivative(records, discard: int, segment_time: float):
+    """One member's ``(average, derivative (p,), exponents (n_u,))`` from its segments' records,
+    averaged over the segments after the first ``discard`` (all of them enter the least squares)."""
+    average, contributions, exponents, T = derivative_terms(records, discard, segment_time)
+    return average, jnp.sum(contributions, axis=0) / T, exponents
 
 
 def _member(config: SegmentConfig, segments: int, discard: int, chunks: int, chunk_time, u0, s, key):

@@ -1,0 +1,285 @@
+r"""Derivatives of a mechanism's steady operation: non-intrusive least-squares shadowing (NILSS,
+Ni and Wang, J. Comput. Phys. 347 (2017) 56-77) on the engine's own tangents.
+
+The objective is the long-time average :math:`\langle J\rangle` of a function
+:math:`J(t, q, \dot q, \ddot q; \theta)` along the steady (possibly chaotic) running of a driven
+mechanism; :func:`steady_derivatives` returns :math:`d\langle J\rangle/d\theta` for named
+parameters :math:`\theta`. The algorithm is :func:`jaxclear.shadowing.nilss`'s (its least
+squares and derivative formula, :func:`jaxclear.shadowing.derivative_terms`); what differs is
+where the tangents come from and which space they live in:
+
+* **The tangents are the engine's** (:func:`~jaxclear.integrate.tangent_system`): ``n_unstable``
+  homogeneous tangents :math:`W` and one inhomogeneous tangent per name :math:`v^*_j`
+  (:math:`\dot v^*_j = f_y v^*_j + f_\theta\,\theta'_j`, the name's direction with derived values
+  following, :func:`jaxclear.params.derivatives.directions`), integrated with the state in one
+  error-controlled solve, steps ending at every contact onset, the impact memory's saltation
+  applied at every step (as for the sensitivities and the Lyapunov exponents).
+* **Time is a state.** A driven mechanism is not autonomous; with :math:`t` as a state
+  :math:`u = (y, t)`, :math:`\dot u = (f(t, y), 1)` is, and its flow direction is neutral. A tangent
+  is :math:`(v_y, v_t)`; within a segment :math:`v_t` is constant and :math:`\tilde v = v_y -
+  v_t f` obeys the engine's tangent equation without a time part (:math:`\dot{\tilde v} = f_y
+  \tilde v + f_\theta`), so the engine integrates :math:`\tilde v` and :math:`v_y = \tilde v +
+  v_t f` is rebuilt wherever it is read. This is what lets the crank speed be a parameter: its
+  perturbation shifts the crank's phase linearly in time, a drift the time dilation absorbs.
+* **The metric** of the least squares and of the flow-normal projection is the Lyapunov
+  exponents' (:mod:`.manifold`): positions weighed 1, velocities by :math:`1/|\omega|`, the memory
+  and :math:`v_t` by 0 (a time shift is what shadowing leaves free). The homogeneous tangents are
+  projected on the constraint manifold's tangent space at every renormalisation; the memory
+  entries the motion does not read (:func:`.manifold.live_memory`: records such as the contact
+  work) are outputs and set to zero there.
+* **The integrals** (:math:`\int W^{\perp\top}W^\perp`, :math:`\int W^{\perp\top}v^{*\perp}`,
+  :math:`\int J_u W`, :math:`\int (J_u v^* + J_\theta)`, :math:`\int J`) are sums over
+  ``samples_per_segment`` uniform samples a segment (the right end points): the averages are those
+  of the sampled signal, as a measurement's are (the statistics in
+  ``benchmarks/bench_steady_averages.py`` are of 100 samples a revolution).
+* **The error** is the spread of batch means: the segments after ``discard`` are cut into
+  ``blocks`` consecutive blocks, each block's share of the derivative taken as an independent
+  estimate (the motion forgets its state in a few e-folding times :math:`1/\lambda_1`, 2.3 ms on
+  the benchmark; a block is many revolutions).
+
+Theory, assumptions and the validation on the benchmark slider-crank: docs/theory/shadowing.md.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import partial
+from typing import Callable, Sequence
+
+import diffrax
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.scipy.linalg import solve_triangular
+
+from .._errors import RESULTS, ParameterError, SolverError, function_name
+from ..integrate import (Settings, assemble, check_assembly, check_settings, flat_vector_field, integrate_system,
+                         mechanism_system, settings, start_run, tangent_system)
+from ..model.drivers import crank_period
+from ..model.mechanism import Mechanism
+from .. import params
+from ..shadowing import Integrals, SegmentRecord, ShadowingResult, derivative_terms
+from . import manifold
+
+
+def _segments(mech, s, along, objective, transient, segment_time, segments: int, samples: int, n_unstable: int):
+    """Traceable: the transient, then ``segments`` segments in one ``lax.scan``. Returns the
+    segments' records (stacked :class:`~jaxclear.shadowing.SegmentRecord`), the steps and whether
+    every solve succeeded."""
+    begin = start_run(mech, s, None)
+    y = begin.packed
+    dtype = y.dtype
+    size, n = y.shape[0], mech.n_coordinates
+    p = jax.tree_util.tree_leaves(along)[0].shape[0]
+    count = n_unstable + p
+    t0 = jnp.asarray(s.t_start, dtype)
+    t_a = t0 + transient
+    pre = integrate_system(mechanism_system(mech, s), s, t0, t_a, t_a[None], y)
+    y = pre.samples[-1]
+    ok0 = (begin.assembled & (begin.valid == RESULTS.successful) & (pre.result == diffrax.RESULTS.successful)
+           & jnp.all(jnp.isfinite(y)))
+
+    w = manifold.weights(mech, manifold.time_scale(mech)).astype(dtype)  # (2n,)
+    wm = jnp.concatenate([w, jnp.zeros(size - 2 * n, dtype)])  # memory weighs nothing
+    basis = manifold.tangent_basis(mech, t_a, y[:n], y[n:2 * n], w, n_unstable)
+    W = jnp.zeros((n_unstable, size), dtype).at[:, :2 * n].set((basis / w[:, None]).T)
+    V = jnp.zeros((p, size), dtype)
+    zero_rows = jax.tree_util.tree_map(lambda d: jnp.zeros((n_unstable,) + d.shape[1:], d.dtype), along)
+    dirs = jax.tree_util.tree_map(lambda z, d: jnp.concatenate([z, d]), zero_rows, along)
+    reference = jnp.max(1.0 / w) / jnp.sqrt(w.shape[0])
+    system = tangent_system(mech, s, size=size, count=count, span=segment_time, reference=reference, along=dirs)
+    fractions = jnp.arange(1, samples + 1, dtype=dtype) / samples
+
+    def rate_and_objective(t, yy, point):
+        m, ss, _ = system.rebuild(point)
+        rate = flat_vector_field(t, yy, (m, ss.baumgarte))
+        return rate, jnp.asarray(objective(t, yy[:n], yy[n:2 * n], rate[n:2 * n], m), dtype)
+
+    def measure(t, yy, S, times):
+        """At one sample: the rate, J, the tangents v_y = S + v_t f and their J_u v (+ J_theta)."""
+        (rate, J), lin = jax.linearize(rate_and_objective, t, yy, system.point)
+        full = S + times[:, None] * rate[None]
+        _, dJ = jax.vmap(lin)(times, full, system.directions)
+        return rate, J, full, dJ
+
+    rate_a = flat_vector_field(t_a, y, (mech, s.baumgarte))
+    ct = jnp.sqrt(rate_a @ (wm**2 * rate_a))  # the metric's weight of a time shift [state/s]
+
+    def perp(rate, full, times):
+        """The flow-normal parts (in the metric, time weighed ``ct``) of the tangents ``(full,
+        times)`` of ``u = (y, t)``, whose flow direction is ``(rate, 1)``, and their flow
+        components xi."""
+        xi = (full @ (wm**2 * rate) + ct**2 * times) / (rate @ (wm**2 * rate) + ct**2)
+        return full - xi[:, None] * rate[None], times - xi, xi
+
+    def weighted(full, times):
+        """The tangents' coordinates in the metric (count, 2n + 1): positions, velocities, time."""
+        return jnp.concatenate([full[:, :2 * n] * w, ct * times[:, None]], axis=1)
+
+    def segment(carry, i):
+        y, W, V, wt, vt, ok = carry
+        ta = t_a + i * segment_time
+        tb = ta + segment_time
+        ts = ta + segment_time * fractions
+        times = jnp.concatenate([wt, vt])
+        rate0 = flat_vector_field(ta, y, (mech, s.baumgarte))
+        S0 = jnp.concatenate([W, V]) - times[:, None] * rate0[None]
+        run = integrate_system(system, s, ta, tb, ts, jnp.concatenate([y, S0.reshape(-1)]))
+        ys, Ss = run.samples[:, :size], run.samples[:, size:].reshape(samples, count, size)
+        rates, Js, fulls, dJs = jax.vmap(lambda t, yy, S: measure(t, yy, S, times))(ts, ys, Ss)
+        h = segment_time / samples
+        P = jax.vmap(lambda r, f: weighted(*perp(r, f, times)[:2]))(rates, fulls)  # (samples, count, 2n + 1)
+        Wp, Vp = P[:, :n_unstable], P[:, n_unstable:]
+        integrals = Integrals(C=h * jnp.einsum("kus,kvs->uv", Wp, Wp), D=h * jnp.einsum("kus,kps->up", Wp, Vp),
+                              JW=h * jnp.sum(dJs[:, :n_unstable], 0), JV=h * jnp.sum(dJs[:, n_unstable:], 0),
+                              J=h * jnp.sum(Js))
+        # the segment's end: flow-normal parts; W's state part (v_y - v_t f, at fixed time) on the
+        # constraint manifold's tangent space; QR of W; V less its part along Q
+        y1, rate1 = ys[-1], rates[-1]
+        fp, tp, xi = perp(rate1, fulls[-1], times)
+        proj = manifold.projector(mech, tb, y1[:n], y1[n:2 * n], w)
+        still = fp[:n_unstable, :2 * n] - tp[:n_unstable, None] * rate1[None, :2 * n]
+        on = (proj @ (w[:, None] * still.T)).T / w + tp[:n_unstable, None] * rate1[None, :2 * n]
+        fp = fp.at[:n_unstable, :2 * n].set(on)
+        X = weighted(fp, tp)
+        Q, R = jnp.linalg.qr(X[:n_unstable].T)  # (2n + 1, n_u), (n_u, n_u)
+        sign = jnp.where(jnp.diagonal(R) < 0, -1.0, 1.0)
+        Q, R = Q * sign, R * sign[:, None]
+        good = run.result == diffrax.RESULTS.successful
+        good = good & jnp.all(jnp.isfinite(run.samples)) & jnp.all(jnp.abs(jnp.diagonal(R)) > 0)
+        safe_R = jnp.where(good, R, jnp.eye(n_unstable, dtype=dtype))
+        live = manifold.live_memory(mech, s.baumgarte, tb, y1)
+        memory = solve_triangular(safe_R.T, fp[:n_unstable, 2 * n:], lower=True) * live
+        W1 = jnp.concatenate([(Q[:2 * n] / w[:, None]).T, memory], axis=1)
+        wt1 = Q[2 * n] / ct
+        b = Q.T @ X[n_unstable:].T  # (n_u, p)
+        V1 = fp[n_unstable:] - b.T @ W1
+        V1 = V1.at[:, 2 * n:].multiply(live)
+        vt1 = tp[n_unstable:] - b.T @ wt1
+        record = SegmentRecord(integrals=integrals, R=safe_R, b=b, xi_W=xi[:n_unstable], xi_V=xi[n_unstable:],
+                               J_end=Js[-1], steps=run.num_accepted_steps, ok=good)
+        keep = ok & good
+        new = (jnp.where(keep, y1, y), jnp.where(keep, W1, W), jnp.where(keep, V1, V), jnp.where(keep, wt1, wt),
+               jnp.where(keep, vt1, vt), keep)
+        return new, record
+
+    zeros = jnp.zeros((n_unstable,), dtype), jnp.zeros((p,), dtype)
+    (_, _, _, _, _, ok), records = jax.lax.scan(segment, (y, W, V, *zeros, ok0), jnp.arange(segments))
+    return records, jnp.sum(records.steps) + pre.num_accepted_steps, ok
+
+
+def _core(mech, s, along, objective, transient, segment_time, segments: int, samples: int, n_unstable: int,
+          discard: int, blocks: int):
+    """Traceable: :func:`_segments`, the least squares and the blocks' derivatives. Returns
+    ``(average, derivative (p,), block averages (B,), block derivatives (B, p), exponents (n_u,),
+    steps, ok)``."""
+    records, steps, ok = _segments(mech, s, along, objective, transient, segment_time, segments, samples, n_unstable)
+    p = records.b.shape[-1]
+    average, contributions, exponents, T = derivative_terms(records, discard, segment_time)
+    per_block = (segments - discard) // blocks
+    kept = slice(discard, discard + per_block * blocks)
+    block_time = per_block * segment_time
+    block_derivatives = contributions[kept].reshape(blocks, per_block, p).sum(1) / block_time
+    block_averages = records.integrals.J[kept].reshape(blocks, per_block).sum(1) / block_time
+    return average, jnp.sum(contributions, 0) / T, block_averages, block_derivatives, exponents, steps, ok
+
+
+@partial(jax.jit, static_argnames=("objective", "segments", "samples", "n_unstable", "discard", "blocks"))
+def _compiled(mech, s, along, transient, segment_time, *, objective, segments, samples, n_unstable, discard, blocks):
+    return _core(mech, s, along, objective, transient, segment_time, segments, samples, n_unstable, discard, blocks)
+
+
+def _check_count(name: str, value, low: int, what: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+        raise ParameterError(f"{name} = {value!r} is outside the allowed range [{low}, inf) (an integer: {what})")
+    return int(value)
+
+
+def steady_derivatives(mech: Mechanism, names: Sequence[str], objective: Callable, s: Settings | None = None, *,
+                       revolutions: int = 200, transient_revolutions: int = 20, segments_per_revolution: int = 16,
+                       samples_per_segment: int = 8, n_unstable: int = 1, blocks: int = 4,
+                       discard_revolutions: int = 2) -> ShadowingResult:
+    r"""The derivative of the long-time average of ``objective`` over a driven mechanism's steady
+    running with respect to the named parameters, by least-squares shadowing (NILSS; the module
+    docstring says how the engine's tangents enter it, docs/theory/shadowing.md when to trust it).
+
+    Args:
+        mech: a mechanism with a crank (:class:`~jaxclear.AngleDriver`): the segments are
+            fractions of its revolution.
+        names: names of :mod:`jaxclear.params` (:func:`jaxclear.differentiable_names`); as in
+            :func:`jaxclear.sensitivities`, derived values follow their sources.
+        objective: ``objective(t, q, qdot, qddot, mech) -> scalar`` [its unit], traceable by JAX
+            (``q``, ``qdot``, ``qddot`` of shape ``(n,)``; ``mech`` the mechanism at the
+            parameters, so that what the objective reads of it is differentiated too). Its time
+            average :math:`\langle J\rangle` is differentiated; for an RMS take the mean square and
+            :math:`d\sqrt{\langle J\rangle} = d\langle J\rangle / (2\sqrt{\langle J\rangle})`.
+        s: the integration settings (tolerances, solver; ``t_start`` is the run's start, its
+            ``t_end`` is not used); default ``jc.settings(1.0)``.
+        revolutions: crank revolutions averaged (after the transient), >= 1.
+        transient_revolutions: revolutions run first without tangents (to reach the steady
+            running), >= 0.
+        segments_per_revolution: renormalisations a revolution, >= 1: the tangents grow by
+            :math:`e^{\lambda_1 T/N}` within a segment (the benchmark at 5000 rpm: 443 1/s, 16 a
+            revolution: e^0.33 on average, more in a contact).
+        samples_per_segment: samples a segment of the averages and integrals, >= 1.
+        n_unstable: homogeneous tangents, at least the positive Lyapunov exponents
+            (:func:`jaxclear.lyapunov`), 1 .. the phase space's dimension.
+        blocks: batch means for the standard errors, >= 2.
+        discard_revolutions: revolutions after the transient that enter the least squares but not
+            the averages (the inhomogeneous tangents start at zero), >= 0.
+
+    Returns:
+        A :class:`~jaxclear.shadowing.ShadowingResult`: ``derivative`` ``(len(names),)`` [unit of
+        J per SI unit of each name; ``speed_rpm`` per rpm], ``average``, their standard errors from
+        the blocks (``member_*``: the blocks' values), ``exponents`` (the homogeneous tangents'
+        growth rates [1/s]: where the last is clearly positive, raise ``n_unstable``).
+
+    Raises:
+        ParameterError: an option outside its range, an unknown name, no crank.
+        SolverError: a segment's solve failed.
+    """
+    s = settings(1.0) if s is None else s
+    check_settings("steady_derivatives", s, required=True, name="s")
+    names = params.check_names(mech, names)
+    revolutions = _check_count("revolutions", revolutions, 1, "crank revolutions averaged")
+    transient_revolutions = _check_count("transient_revolutions", transient_revolutions, 0, "revolutions first")
+    spr = _check_count("segments_per_revolution", segments_per_revolution, 1, "renormalisations a revolution")
+    samples = _check_count("samples_per_segment", samples_per_segment, 1, "samples a segment")
+    blocks = _check_count("blocks", blocks, 2, "batch means for the errors")
+    discard_revolutions = _check_count("discard_revolutions", discard_revolutions, 0, "revolutions left out")
+    dim = manifold.dimension(mech)
+    n_unstable = _check_count("n_unstable", n_unstable, 1, f"homogeneous tangents, at most {dim}")
+    if n_unstable > dim:
+        raise ParameterError(f"n_unstable = {n_unstable} is outside the allowed range [1, {dim}] (the phase space's "
+                             "dimension)")
+    if revolutions * spr < 2 * blocks:
+        raise ParameterError(f"revolutions = {revolutions} with {spr} segments a revolution is too short for "
+                             f"blocks = {blocks}: at least {2 * blocks} segments (allowed range of revolutions: "
+                             f"[{math.ceil(2 * blocks / spr)}, inf))")
+    if not callable(objective):
+        raise ParameterError(f"objective must be a function (t, q, qdot, qddot, mech) -> scalar, got {objective!r}")
+    at, along = params.directions(mech, names)
+    check_assembly(at, s, assemble(at, s.t_start))  # the structure's own messages (free motion, redundancy)
+    x = np.asarray([float(params.get(at, n)) for n in names])
+    scale = np.where(x != 0, np.abs(x), 1.0)
+    along = jax.tree_util.tree_map(lambda d: d * jnp.asarray(scale).reshape((-1,) + (1,) * (d.ndim - 1)), along)
+    period = float(crank_period(at))
+    discard = discard_revolutions * spr
+    segments = discard + revolutions * spr
+    out = _compiled(at, s, along, transient_revolutions * period, period / spr, objective=objective,
+                    segments=segments, samples=samples, n_unstable=n_unstable, discard=discard, blocks=blocks)
+    average, derivative, block_averages, block_derivatives, exponents, steps, ok = jax.device_get(out)
+    if not bool(ok):
+        raise SolverError(f"steady_derivatives: a segment's solve failed (max_steps = {s.max_steps}, or a non-finite "
+                          f"state or tangent; objective {function_name(objective)}); raise max_steps, tighten "
+                          "rtol/atol or use more segments_per_revolution")
+    derivative = np.asarray(derivative) / scale
+    block_derivatives = np.asarray(block_derivatives) / scale
+    root = math.sqrt(blocks)
+    return ShadowingResult(
+        derivative=jnp.asarray(derivative), derivative_error=jnp.asarray(np.std(block_derivatives, 0, ddof=1) / root),
+        average=jnp.asarray(average), average_error=jnp.asarray(np.std(block_averages, ddof=1) / root),
+        member_derivatives=jnp.asarray(block_derivatives), member_averages=jnp.asarray(block_averages),
+        exponents=jnp.asarray(exponents)[None], steps=jnp.asarray(steps)[None],
+        time=revolutions * period, segments=segments, discard=discard, segment_time=period / spr,
+        n_unstable=n_unstable)
