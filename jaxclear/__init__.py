@@ -187,6 +187,7 @@ from .chaos import (  # noqa: E402
     lyapunov_map,
     psd,
     rosenstein,
+    steady_derivatives,
     zero_one_test,
 )
 
@@ -234,7 +235,8 @@ __all__ = [
     # Design (design.md)
     "design", "DesignResult", "OperatingPoint", "Ensemble", "RuggedObjectiveWarning",
     # Chaos (chaos.md)
-    "lyapunov", "lyapunov_map", "LyapunovResult", "LyapunovMap", "LyapunovError", "psd", "zero_one_test",
+    "lyapunov", "lyapunov_map", "LyapunovResult", "LyapunovMap", "LyapunovError", "steady_derivatives", "psd",
+    "zero_one_test",
     "rosenstein", "poincare_section", "detect_period", "period_name",
     # Errors, status codes, host devices (index.md)
     "JaxclearError", "ParameterError", "FitDataError", "DesignError", "MechanismError", "InitialConditionError",

@@ -11,6 +11,7 @@ dilation (the crank's phase drifts linearly under a change of speed).
 """
 
 import math
+import warnings
 
 import jax.numpy as jnp
 import numpy as np
@@ -56,8 +57,10 @@ def test_the_shadowing_derivative_of_a_periodic_average_is_the_central_differenc
     mech = forced_pendulum()
     names = ["torsion_damping:hinge", "speed_rpm"]
     s = jc.settings(1.0, rtol=1e-8, atol=1e-10, allow_free_dof=True)
-    r = jc.chaos.steady_derivatives(mech, names, spin_squared(mech), s, revolutions=REVOLUTIONS,
-                                    transient_revolutions=TRANSIENT, samples_per_segment=16)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", jc.chaos.ShadowingWarning)  # resolved: no warning
+        r = jc.chaos.steady_derivatives(mech, names, spin_squared(mech), s, revolutions=REVOLUTIONS,
+                                        transient_revolutions=TRANSIENT, samples_per_segment=16)
     assert float(r.exponents[0, 0]) < -1.0  # a stable periodic motion (measured -3.78 1/s)
     j = 3 * mech.body_index("bob") + 2
     truth = {}
@@ -103,3 +106,19 @@ def test_objective_must_be_callable():
     mech = forced_pendulum()
     with pytest.raises(jc.ParameterError, match="objective must be a function"):
         jc.chaos.steady_derivatives(mech, ["speed_rpm"], jnp.zeros(()), jc.settings(1.0, allow_free_dof=True))
+
+
+def test_blocks_that_do_not_resolve_a_derivative_are_named_in_the_warning():
+    rng = np.random.default_rng(0)
+    exponents = np.array([456.0, 42.0])
+    normal = 5.0 + 0.5 * rng.standard_normal((8, 1))
+    assert jc.chaos.shadowing.unresolved(["speed_rpm"], normal.mean(0), normal.std(0, ddof=1) / math.sqrt(8), normal,
+                                         exponents) == ""
+    heavy = normal.copy()
+    heavy[5] = 3000.0  # one block dominated by a single segment, as a grazing contact makes it
+    text = jc.chaos.shadowing.unresolved(["speed_rpm"], heavy.mean(0), heavy.std(0, ddof=1) / math.sqrt(8), heavy,
+                                         exponents)
+    assert "speed_rpm" in text and "heavy-tailed" in text and "456, 42" in text
+    wide = np.array([[1.0], [-1.0], [2.0], [-2.0]])
+    assert "not resolved" in jc.chaos.shadowing.unresolved(["restitution"], wide.mean(0), wide.std(0, ddof=1) / 2, wide,
+                                                           exponents)

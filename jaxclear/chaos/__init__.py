@@ -21,11 +21,11 @@ from .benettin import LyapunovResult
 from .lyapunov import MIN_INTERVALS, LyapunovError, LyapunovMap, check_convergence, lyapunov, lyapunov_map, trajectory
 from .signals import channel_series, psd, rosenstein, zero_one_test
 from .report import ChannelReport, ChaosReport, characterise, write_report
-from .shadowing import steady_derivatives
+from .shadowing import ShadowingWarning, steady_derivatives
 
-__all__ = ["MIN_INTERVALS", "ChannelReport", "ChaosReport", "LyapunovError", "LyapunovMap", "LyapunovResult", "channel_series",
-           "characterise", "check_convergence", "lyapunov", "lyapunov_map", "psd", "rosenstein", "steady_derivatives", "trajectory",
-           "write_report", "zero_one_test"]
+__all__ = ["MIN_INTERVALS", "ChannelReport", "ChaosReport", "LyapunovError", "LyapunovMap", "LyapunovResult",
+           "ShadowingWarning", "channel_series", "characterise", "check_convergence", "lyapunov", "lyapunov_map", "psd",
+           "rosenstein", "steady_derivatives", "trajectory", "write_report", "zero_one_test"]
 
 
 def __getattr__(name: str):

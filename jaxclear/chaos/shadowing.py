@@ -43,6 +43,7 @@ Theory, assumptions and the validation on the benchmark slider-crank: docs/theor
 from __future__ import annotations
 
 import math
+import warnings
 from functools import partial
 from typing import Callable, Sequence
 
@@ -189,6 +190,43 @@ def _compiled(mech, s, along, transient, segment_time, *, objective, segments, s
     return _core(mech, s, along, objective, transient, segment_time, segments, samples, n_unstable, discard, blocks)
 
 
+class ShadowingWarning(UserWarning):
+    """A shadowing derivative that its own blocks do not resolve (:func:`steady_derivatives`)."""
+
+
+#: A derivative whose standard error exceeds this fraction of its size is not resolved.
+UNRESOLVED = 0.5
+#: Blocks are heavy-tailed when the farthest lies more than this many robust standard deviations
+#: (1.4826 times the median absolute deviation) from their median, and more than a tenth of the
+#: derivative: batch means of a finite-variance quantity over 4-16 blocks lie within about 3.
+HEAVY_TAIL = 10.0
+
+
+def unresolved(names, derivative, error, blocks, exponents) -> str:
+    """The warning's text for the names whose derivative its blocks do not resolve (standard error
+    above :data:`UNRESOLVED` of its size, or blocks heavy-tailed, :data:`HEAVY_TAIL`), or ``""``."""
+    lines = []
+    for k, name in enumerate(names):
+        b = blocks[:, k]
+        med = np.median(b)
+        mad = 1.4826 * np.median(np.abs(b - med))
+        far = np.max(np.abs(b - med))
+        tail = far / mad if mad > 0 and far > 0.1 * abs(derivative[k]) else 0.0  # material outliers only
+        if error[k] > UNRESOLVED * abs(derivative[k]) or tail > HEAVY_TAIL:
+            lines.append(f"{name}: {derivative[k]:.4g} +- {error[k]:.2g}, blocks from {np.min(b):.3g} to {np.max(b):.3g}"
+                         + (f" (heavy-tailed: one {tail:.0f} robust deviations from their median)"
+                            if tail > HEAVY_TAIL else ""))
+    if not lines:
+        return ""
+    rates = ", ".join(f"{x:.4g}" for x in exponents)
+    return ("steady_derivatives: the shadowing derivative is not resolved by its blocks for " + "; ".join(lines)
+            + f". The homogeneous tangents grow at {rates} 1/s: n_unstable must hold every positive Lyapunov "
+            "exponent (jaxclear.lyapunov(..., count=...)); longer runs shrink a finite-variance error like "
+            "T^-1/2, but an impacting motion's shadowing tangents can have no finite variance (grazing contacts "
+            "stretch them without bound); compare with finite differences of long-time averages "
+            "(docs/theory/shadowing.md, 'Mechanisms')")
+
+
 def _check_count(name: str, value, low: int, what: str) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
         raise ParameterError(f"{name} = {value!r} is outside the allowed range [{low}, inf) (an integer: {what})")
@@ -237,6 +275,10 @@ def steady_derivatives(mech: Mechanism, names: Sequence[str], objective: Callabl
     Raises:
         ParameterError: an option outside its range, an unknown name, no crank.
         SolverError: a segment's solve failed.
+
+    Warns:
+        ShadowingWarning: a derivative its blocks do not resolve (standard error above half its
+            size, or heavy-tailed blocks), with the growth rates and what to check.
     """
     s = settings(1.0) if s is None else s
     check_settings("steady_derivatives", s, required=True, name="s")
@@ -275,10 +317,13 @@ def steady_derivatives(mech: Mechanism, names: Sequence[str], objective: Callabl
                           "rtol/atol or use more segments_per_revolution")
     derivative = np.asarray(derivative) / scale
     block_derivatives = np.asarray(block_derivatives) / scale
-    root = math.sqrt(blocks)
+    error = np.std(block_derivatives, 0, ddof=1) / math.sqrt(blocks)
+    message = unresolved(names, derivative, error, block_derivatives, np.asarray(exponents))
+    if message:
+        warnings.warn(message, ShadowingWarning, stacklevel=2)
     return ShadowingResult(
-        derivative=jnp.asarray(derivative), derivative_error=jnp.asarray(np.std(block_derivatives, 0, ddof=1) / root),
-        average=jnp.asarray(average), average_error=jnp.asarray(np.std(block_averages, ddof=1) / root),
+        derivative=jnp.asarray(derivative), derivative_error=jnp.asarray(error),
+        average=jnp.asarray(average), average_error=jnp.asarray(np.std(block_averages, ddof=1) / math.sqrt(blocks)),
         member_derivatives=jnp.asarray(block_derivatives), member_averages=jnp.asarray(block_averages),
         exponents=jnp.asarray(exponents)[None], steps=jnp.asarray(steps)[None],
         time=revolutions * period, segments=segments, discard=discard, segment_time=period / spr,
