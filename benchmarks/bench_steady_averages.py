@@ -53,13 +53,14 @@ SAMPLES = 100  # per revolution
 CRANK, ROD = 0.05, 0.12  # the preset's crank radius and rod length [m] (Flores et al. 2004)
 
 
-def slider_crank_exact(phi, omega, r=CRANK, l=ROD):
+def slider_crank_exact(phi, omega, r=CRANK, l=ROD, xp=np):
     """Exact slider position [m], velocity [m/s] and acceleration [m/s^2] of the ideal
     slider-crank at crank angle ``phi`` and constant speed ``omega`` (closed form of
     x = r cos phi + sqrt(l^2 - r^2 sin^2 phi) and its derivatives; the tests' truth too,
-    tests/conftest.py)."""
-    s, c = np.sin(phi), np.cos(phi)
-    root = np.sqrt(l**2 - r**2 * s**2)
+    tests/conftest.py). ``xp``: the array module (``jax.numpy`` inside a traced objective,
+    benchmarks/bench_shadowing.py)."""
+    s, c = xp.sin(phi), xp.cos(phi)
+    root = xp.sqrt(l**2 - r**2 * s**2)
     x = r * c + root
     dx = -r * s - r**2 * s * c / root
     ddx = -r * c - r**2 * (c**2 - s**2) / root - r**4 * s**2 * c**2 / root**3

@@ -54,3 +54,23 @@ def test_members_on_different_attractors_are_told_apart():
     assert bench.members_agree([15000.0, 15100.0, 14950.0, 15050.0], ses) > 0.01
     assert bench.members_agree([15000.0, 15100.0, 14950.0, 13000.0], ses) < 1e-6
     assert bench.members_agree([15000.0], [100.0]) == 1.0
+
+
+def test_the_shadowing_benchmarks_objective_is_the_squared_deviation_from_the_closed_form():
+    """benchmarks/bench_shadowing.py's traced objective (jax.numpy through ``xp``) against the
+    NumPy closed form at a few states: the same formula, to rounding."""
+    import jax.numpy as jnp
+
+    import bench_shadowing
+    import jaxclear as jc
+
+    mech = bench_shadowing.mechanism(None)
+    objective = bench_shadowing.deviation_squared(mech)
+    i = 3 * mech.body_index("slider")
+    omega, angle0 = float(jc.params.get(mech, "speed")), float(jc.params.get(mech, "angle0"))
+    n = mech.n_coordinates
+    for t, a in ((0.0, 100.0), (0.0031, -2.5e4), (0.0107, 7.0e3)):
+        qddot = jnp.zeros(n).at[i].set(a)
+        got = float(objective(t, jnp.zeros(n), jnp.zeros(n), qddot, mech))
+        want = (a - bench.slider_crank_exact(angle0 + omega * t, omega)[2]) ** 2
+        assert math.isclose(got, want, rel_tol=1e-12)

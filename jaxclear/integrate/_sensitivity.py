@@ -202,11 +202,15 @@ def tangent_system(mech: Mechanism, s: Settings, *, size: int, count: int, span,
     if along is None:
         perturbed, point, dirs = (), (), ()
     else:
-        perturbed = tuple(i for i in range(len(jax.tree_util.tree_leaves(mech))) if eqx.is_inexact_array(leaves[i]))
-        point = tuple(leaves[i] for i in perturbed)
-        dirs = tuple(jax.tree_util.tree_leaves(along))
-        if len(dirs) != len(point):
-            raise ValueError(f"along has {len(dirs)} leaves where the mechanism has {len(point)} floating-point ones")
+        # along's leaves (None where a leaf is not differentiated) line up with the mechanism's
+        slots = jax.tree_util.tree_leaves(along, is_leaf=lambda x: x is None)
+        if len(slots) != len(jax.tree_util.tree_leaves(mech)):
+            raise ValueError(f"along has {len(slots)} leaves where the mechanism has "
+                             f"{len(jax.tree_util.tree_leaves(mech))}: give eqx.filter(mech, eqx.is_inexact_array)'s "
+                             "structure")
+        perturbed = tuple(i for i, d in enumerate(slots) if d is not None)
+        point = tuple(jnp.asarray(leaves[i]) for i in perturbed)
+        dirs = tuple(slots[i] for i in perturbed)
     return TangentSystem(mech, s.baumgarte, Rebuild(leaves, treedef, perturbed), point, dirs, DTMIN_FRACTION * span,
                          size, count, reference)
 
