@@ -327,4 +327,4 @@ def steady_derivatives(mech: Mechanism, names: Sequence[str], objective: Callabl
         member_derivatives=jnp.asarray(block_derivatives), member_averages=jnp.asarray(block_averages),
         exponents=jnp.asarray(exponents)[None], steps=jnp.asarray(steps)[None],
         time=revolutions * period, segments=segments, discard=discard, segment_time=period / spr,
-        n_unstable=n_unstable)
+        n_unstable=n_unstable, blocks=True)

@@ -27,6 +27,8 @@ class ShadowingResult(eqx.Module):
         discard: the segments at the start left out of the averages.
         segment_time: the length of a segment.
         n_unstable: the number of homogeneous tangents.
+        blocks: True where ``member_*`` are consecutive blocks of one run (batch means,
+            :func:`jaxclear.steady_derivatives`) rather than independent trajectories.
     """
 
     derivative: jax.Array
@@ -42,6 +44,7 @@ class ShadowingResult(eqx.Module):
     discard: int = eqx.field(static=True)
     segment_time: float = eqx.field(static=True)
     n_unstable: int = eqx.field(static=True)
+    blocks: bool = eqx.field(static=True, default=False)
 
     @property
     def members(self) -> int:
@@ -57,9 +60,13 @@ class ShadowingResult(eqx.Module):
             "NILSS derivative of a long-time average",
             f"  <J>       = {float(self.average):.6g} +- {float(self.average_error):.2g} (standard error)",
             *(f"  d<J>/ds[{i}] = {d[i]:.6g} +- {e[i]:.2g}" for i in range(d.size)),
-            f"  {self.members} members x {self.segments} segments x {self.segment_time:g}"
-            + (f" ({self.discard} left out)" if self.discard else "")
-            + f": {self.time:g} time units each averaged, {int(np.sum(self.steps))} steps",
+            (f"  one run of {self.segments} segments x {self.segment_time:g}"
+             + (f" ({self.discard} left out)" if self.discard else "")
+             + f": {self.time:g} time units averaged in {self.members} blocks, {int(np.sum(self.steps))} steps"
+             if self.blocks else
+             f"  {self.members} members x {self.segments} segments x {self.segment_time:g}"
+             + (f" ({self.discard} left out)" if self.discard else "")
+             + f": {self.time:g} time units each averaged, {int(np.sum(self.steps))} steps"),
         ]
         if self.n_unstable:
             lam = np.mean(np.asarray(self.exponents), axis=0)
