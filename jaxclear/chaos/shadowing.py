@@ -255,7 +255,9 @@ def steady_derivatives(mech: Mechanism, names: Sequence[str], objective: Callabl
             ``t_end`` is not used); default ``jc.settings(1.0)``.
         revolutions: crank revolutions averaged (after the transient), >= 1.
         transient_revolutions: revolutions run first without tangents (to reach the steady
-            running), >= 0.
+            running), >= 0. The derivative holds the state at its end: where the average depends
+            on the start (a lasting contact whose damping reads the approach speed stored in the
+            transient) it is the derivative of the average from that state.
         segments_per_revolution: renormalisations a revolution, >= 1: the tangents grow by
             :math:`e^{\lambda_1 T/N}` within a segment (the benchmark at 5000 rpm: 443 1/s, 16 a
             revolution: e^0.33 on average, more in a contact).
