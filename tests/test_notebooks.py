@@ -117,3 +117,15 @@ def test_flexible_links_notebook_runs(tmp_path):
     figures, text = run_notebook("flexible_links.ipynb", tmp_path)
     assert figures == ["flexible_drawing.png", "flexible_force_deflection.png", "flexible_shape.png", "flexible_sweep.png"]
     assert "midpoint deflection" in text and "20.7 GPa: largest deflection" in text
+
+
+def test_steady_operation_notebook_runs(tmp_path):
+    """Shadowing derivatives (issue 44): on the forced pendulum the notebook's NILSS agrees with
+    central differences of averages (measured 0.15 % and 1.38 %; 1 % and 3 % allowed, as
+    tests/test_steady_shadowing.py), and on the benchmark slider-crank it warns (not resolved)."""
+    figures, text = run_notebook("steady_operation.ipynb", tmp_path)
+    assert figures == ["steady_blocks.png"]
+    rows = {line.split()[0]: float(line.split()[-1].rstrip("%")) for line in text.splitlines()
+            if line.startswith(("torsion_damping:hinge ", "speed_rpm "))}
+    assert rows["torsion_damping:hinge"] < 1.0 and rows["speed_rpm"] < 3.0
+    assert "warned: True" in text
