@@ -10,6 +10,7 @@ user reading the message knows what to change. Checks run where objects are buil
 from __future__ import annotations
 
 import difflib
+import numbers
 from typing import Any, NamedTuple
 
 import equinox as eqx
@@ -202,6 +203,18 @@ def check_range(
         shown = arr[bad].ravel()[0]
         raise ParameterError(f"{name} = {shown:g}{u} is outside the allowed range {interval}{u}")
     return value
+
+
+def check_integer(name: str, value, low: int, high: int | None = None, what: str = "") -> int:
+    """``value`` as an ``int`` in ``[low, high]`` (``high`` None: no upper bound), else a
+    :class:`ParameterError` that names ``name``, the value and the range."""
+    interval = f"[{low}, {high}]" if high is not None else f"[{low}, inf)"
+    why = f" ({what})" if what else ""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise ParameterError(f"{name} must be an integer in {interval}{why}, got {value!r}")
+    if value < low or (high is not None and value > high):
+        raise ParameterError(f"{name} = {value} is outside the allowed range {interval}{why}")
+    return int(value)
 
 
 def check_finite(name: str, value):

@@ -53,7 +53,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.scipy.linalg import solve_triangular
 
-from .._errors import RESULTS, ParameterError, SolverError, function_name
+from .._errors import RESULTS, ParameterError, SolverError, check_integer, function_name
 from ..integrate import (Settings, assemble, check_assembly, check_settings, flat_vector_field, integrate_system,
                          mechanism_system, settings, start_run, tangent_system)
 from ..model.drivers import crank_period
@@ -227,12 +227,6 @@ def unresolved(names, derivative, error, blocks, exponents) -> str:
             "(docs/theory/shadowing.md, 'Mechanisms')")
 
 
-def _check_count(name: str, value, low: int, what: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-        raise ParameterError(f"{name} = {value!r} is outside the allowed range [{low}, inf) (an integer: {what})")
-    return int(value)
-
-
 def steady_derivatives(mech: Mechanism, names: Sequence[str], objective: Callable, s: Settings | None = None, *,
                        revolutions: int = 200, transient_revolutions: int = 20, segments_per_revolution: int = 16,
                        samples_per_segment: int = 8, n_unstable: int = 1, blocks: int = 4,
@@ -285,17 +279,14 @@ def steady_derivatives(mech: Mechanism, names: Sequence[str], objective: Callabl
     s = settings(1.0) if s is None else s
     check_settings("steady_derivatives", s, required=True, name="s")
     names = params.check_names(mech, names)
-    revolutions = _check_count("revolutions", revolutions, 1, "crank revolutions averaged")
-    transient_revolutions = _check_count("transient_revolutions", transient_revolutions, 0, "revolutions first")
-    spr = _check_count("segments_per_revolution", segments_per_revolution, 1, "renormalisations a revolution")
-    samples = _check_count("samples_per_segment", samples_per_segment, 1, "samples a segment")
-    blocks = _check_count("blocks", blocks, 2, "batch means for the errors")
-    discard_revolutions = _check_count("discard_revolutions", discard_revolutions, 0, "revolutions left out")
-    dim = manifold.dimension(mech)
-    n_unstable = _check_count("n_unstable", n_unstable, 1, f"homogeneous tangents, at most {dim}")
-    if n_unstable > dim:
-        raise ParameterError(f"n_unstable = {n_unstable} is outside the allowed range [1, {dim}] (the phase space's "
-                             "dimension)")
+    revolutions = check_integer("revolutions", revolutions, 1, None, "crank revolutions averaged")
+    transient_revolutions = check_integer("transient_revolutions", transient_revolutions, 0, None, "revolutions first")
+    spr = check_integer("segments_per_revolution", segments_per_revolution, 1, None, "renormalisations a revolution")
+    samples = check_integer("samples_per_segment", samples_per_segment, 1, None, "samples a segment")
+    blocks = check_integer("blocks", blocks, 2, None, "batch means for the errors")
+    discard_revolutions = check_integer("discard_revolutions", discard_revolutions, 0, None, "revolutions left out")
+    n_unstable = check_integer("n_unstable", n_unstable, 1, manifold.dimension(mech),
+                               "homogeneous tangents, at most the phase space's dimension")
     if revolutions * spr < 2 * blocks:
         raise ParameterError(f"revolutions = {revolutions} with {spr} segments a revolution is too short for "
                              f"blocks = {blocks}: at least {2 * blocks} segments (allowed range of revolutions: "

@@ -3,24 +3,10 @@ the parameter, the value it got and the range it allows (:class:`jaxclear.Parame
 
 from __future__ import annotations
 
-import numbers
-
 import jax.numpy as jnp
 import numpy as np
 
-from .._errors import ParameterError, check_range, function_name
-
-
-def check_integer(name: str, value, low: int, high: int | None = None, what: str = "") -> int:
-    """``value`` as an ``int`` in ``[low, high]`` (``high`` None: no upper bound), else a
-    :class:`ParameterError` that names ``name``, the value and the range."""
-    interval = f"[{low}, {high}]" if high is not None else f"[{low}, inf)"
-    why = f" ({what})" if what else ""
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
-        raise ParameterError(f"{name} must be an integer in {interval}{why}, got {value!r}")
-    if value < low or (high is not None and value > high):
-        raise ParameterError(f"{name} = {value} is outside the allowed range {interval}{why}")
-    return int(value)
+from .._errors import ParameterError, check_integer, check_range, function_name
 
 
 def check_state(u0):
