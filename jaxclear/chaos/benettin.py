@@ -211,10 +211,8 @@ def benettin(mech: Mechanism, s: Settings, y0: State | None, *, transient, inter
     basis = manifold.tangent_basis(mech, t_a, y[:n], y[n:2 * n], w, count)  # (2n, count), weighted
     tangents = jnp.zeros((count, size), dtype).at[:, :2 * n].set((basis / w[:, None]).T)
 
-    # the tangents' absolute tolerance grows with them (TangentSystem.weigh_error): the reference
-    # is the size of a tangent just after renormalising (a unit vector of the metric spread over
-    # the 2n coordinates: its largest entry in the coordinates' units)
-    reference = jnp.max(1.0 / w) / jnp.sqrt(w.shape[0])
+    # the tangents' absolute tolerance grows with them (TangentSystem.weigh_error)
+    reference = manifold.tangent_reference(w)
     system = tangent_system(mech, s, size=size, count=count, span=interval, reference=reference)
     fractions = jnp.arange(1, samples + 1, dtype=dtype) / samples
     bound = jnp.asarray(default_max_growth(s.rtol) if max_growth is None else max_growth, dtype)

@@ -76,6 +76,14 @@ def weights(mech: Mechanism, scale) -> jax.Array:
     return jnp.concatenate([jnp.ones(n), jnp.full(n, 1.0) * scale])
 
 
+def tangent_reference(w) -> jax.Array:
+    """The size ``()`` of a tangent just after renormalising, in the coordinates' units: a unit
+    vector of the metric ``w`` (:func:`weights`) spread over the 2n coordinates, its largest entry
+    (``reference`` of :func:`~jaxclear.integrate.tangent_system`: above it a tangent's absolute
+    tolerance grows with it)."""
+    return jnp.max(1.0 / w) / jnp.sqrt(w.shape[0])
+
+
 def constraint_gradient(mech: Mechanism, t, q, qdot) -> jax.Array:
     r""":math:`G = \partial(\Phi, \dot\Phi)/\partial(q, \dot q)` (2m, 2n) at ``(t, q, qdot)``."""
     n = mech.n_coordinates

@@ -87,7 +87,7 @@ def _segments(mech, s, along, objective, transient, segment_time, segments: int,
     V = jnp.zeros((p, size), dtype)
     zero_rows = jax.tree_util.tree_map(lambda d: jnp.zeros((n_unstable,) + d.shape[1:], d.dtype), along)
     dirs = jax.tree_util.tree_map(lambda z, d: jnp.concatenate([z, d]), zero_rows, along)
-    reference = jnp.max(1.0 / w) / jnp.sqrt(w.shape[0])
+    reference = manifold.tangent_reference(w)
     system = tangent_system(mech, s, size=size, count=count, span=segment_time, reference=reference, along=dirs)
     fractions = jnp.arange(1, samples + 1, dtype=dtype) / samples
 
