@@ -59,7 +59,7 @@ from ..integrate import (Settings, assemble, check_assembly, check_settings, fla
 from ..model.drivers import crank_period
 from ..model.mechanism import Mechanism
 from .. import params
-from ..shadowing import Integrals, SegmentRecord, ShadowingResult, derivative_terms
+from ..shadowing import Integrals, SegmentRecord, ShadowingResult, derivative_terms, positive_qr
 from . import manifold
 
 
@@ -118,12 +118,11 @@ def _segments(mech, s, along, objective, transient, segment_time, segments: int,
         return jnp.concatenate([full[:, :2 * n] * w, ct * times[:, None]], axis=1)
 
     def segment(carry, i):
-        y, W, V, wt, vt, ok = carry
+        y, rate0, W, V, wt, vt, ok = carry  # rate0: the vector field at (ta, y), the last segment's end
         ta = t_a + i * segment_time
         tb = ta + segment_time
         ts = ta + segment_time * fractions
         times = jnp.concatenate([wt, vt])
-        rate0 = flat_vector_field(ta, y, (mech, s.baumgarte))
         S0 = jnp.concatenate([W, V]) - times[:, None] * rate0[None]
         run = integrate_system(system, s, ta, tb, ts, jnp.concatenate([y, S0.reshape(-1)]))
         ys, Ss = run.samples[:, :size], run.samples[:, size:].reshape(samples, count, size)
@@ -143,9 +142,7 @@ def _segments(mech, s, along, objective, transient, segment_time, segments: int,
         on = (proj @ (w[:, None] * still.T)).T / w + tp[:n_unstable, None] * rate1[None, :2 * n]
         fp = fp.at[:n_unstable, :2 * n].set(on)
         X = weighted(fp, tp)
-        Q, R = jnp.linalg.qr(X[:n_unstable].T)  # (2n + 1, n_u), (n_u, n_u)
-        sign = jnp.where(jnp.diagonal(R) < 0, -1.0, 1.0)
-        Q, R = Q * sign, R * sign[:, None]
+        Q, R = positive_qr(X[:n_unstable].T)  # (2n + 1, n_u), (n_u, n_u)
         good = run.result == diffrax.RESULTS.successful
         good = good & jnp.all(jnp.isfinite(run.samples)) & jnp.all(jnp.abs(jnp.diagonal(R)) > 0)
         safe_R = jnp.where(good, R, jnp.eye(n_unstable, dtype=dtype))
@@ -160,12 +157,12 @@ def _segments(mech, s, along, objective, transient, segment_time, segments: int,
         record = SegmentRecord(integrals=integrals, R=safe_R, b=b, xi_W=xi[:n_unstable], xi_V=xi[n_unstable:],
                                J_end=Js[-1], steps=run.num_accepted_steps, ok=good)
         keep = ok & good
-        new = (jnp.where(keep, y1, y), jnp.where(keep, W1, W), jnp.where(keep, V1, V), jnp.where(keep, wt1, wt),
-               jnp.where(keep, vt1, vt), keep)
+        new = (*(jnp.where(keep, a, b) for a, b in ((y1, y), (rate1, rate0), (W1, W), (V1, V), (wt1, wt), (vt1, vt))),
+               keep)
         return new, record
 
     zeros = jnp.zeros((n_unstable,), dtype), jnp.zeros((p,), dtype)
-    (_, _, _, _, _, ok), records = jax.lax.scan(segment, (y, W, V, *zeros, ok0), jnp.arange(segments))
+    (*_, ok), records = jax.lax.scan(segment, (y, rate_a, W, V, *zeros, ok0), jnp.arange(segments))
     return records, jnp.sum(records.steps) + pre.num_accepted_steps, ok
 
 

@@ -5,7 +5,8 @@ r"""Derivatives of long-time averages of chaotic motions by shadowing.
   estimate; returns a :class:`ShadowingResult`.
 * :func:`shadowing_coefficients`: its small least-squares problem (the KKT system over the
   segments, solved block by block); :func:`derivative_terms`: the derivative's terms from the
-  segments' records (:class:`SegmentRecord`, :class:`Integrals`), which the mechanisms'
+  segments' records (:class:`SegmentRecord`, :class:`Integrals`; :func:`positive_qr` the
+  renormalisation), which the mechanisms'
   shadowing (:func:`jaxclear.chaos.steady_derivatives`) fills from the engine's tangents.
 
 Theory: docs/theory/shadowing.md.
@@ -14,7 +15,7 @@ Theory: docs/theory/shadowing.md.
 from ._least_squares import kkt_dense, shadowing_coefficients
 from ._nilss import derivative_terms, nilss
 from ._result import ShadowingResult
-from ._segments import Integrals, SegmentRecord
+from ._segments import Integrals, SegmentRecord, positive_qr
 
 __all__ = ["Integrals", "SegmentRecord", "ShadowingResult", "derivative_terms", "kkt_dense", "nilss",
-           "shadowing_coefficients"]
+           "positive_qr", "shadowing_coefficients"]

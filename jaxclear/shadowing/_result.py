@@ -60,13 +60,11 @@ class ShadowingResult(eqx.Module):
             "NILSS derivative of a long-time average",
             f"  <J>       = {float(self.average):.6g} +- {float(self.average_error):.2g} (standard error)",
             *(f"  d<J>/ds[{i}] = {d[i]:.6g} +- {e[i]:.2g}" for i in range(d.size)),
-            (f"  one run of {self.segments} segments x {self.segment_time:g}"
-             + (f" ({self.discard} left out)" if self.discard else "")
-             + f": {self.time:g} time units averaged in {self.members} blocks, {int(np.sum(self.steps))} steps"
-             if self.blocks else
-             f"  {self.members} members x {self.segments} segments x {self.segment_time:g}"
-             + (f" ({self.discard} left out)" if self.discard else "")
-             + f": {self.time:g} time units each averaged, {int(np.sum(self.steps))} steps"),
+            ("  one run of" if self.blocks else f"  {self.members} members x")
+            + f" {self.segments} segments x {self.segment_time:g}"
+            + (f" ({self.discard} left out)" if self.discard else "")
+            + (f": {self.time:g} time units averaged in {self.members} blocks" if self.blocks
+               else f": {self.time:g} time units each averaged") + f", {int(np.sum(self.steps))} steps",
         ]
         if self.n_unstable:
             lam = np.mean(np.asarray(self.exponents), axis=0)

@@ -154,9 +154,7 @@ def segment(config: SegmentConfig, u, W, V, s):
     perp, component = flow_projector(fu, config.neutral)
     w_perp, v_perp = perp(W_end), perp(V_end)
     if n_u:
-        Q, R = jnp.linalg.qr(w_perp)
-        sign = jnp.where(jnp.diagonal(R) < 0, -1.0, 1.0)
-        Q, R = Q * sign, R * sign[:, None]
+        Q, R = positive_qr(w_perp)
     else:
         Q, R = w_perp, jnp.zeros((0, 0), w_perp.dtype)
     b = Q.T @ v_perp
@@ -165,6 +163,15 @@ def segment(config: SegmentConfig, u, W, V, s):
         J_end=jnp.asarray(config.objective(u_end, s), u_end.dtype), steps=sol.stats["num_accepted_steps"],
         ok=sol.result == diffrax.RESULTS.successful)
     return (u_end, Q, v_perp - Q @ b), record
+
+
+def positive_qr(x):
+    """``(Q, R)`` with ``x = Q R`` (``x`` (m, k), ``Q`` (m, k) orthonormal columns) and the
+    diagonal of ``R`` made non-negative: the renormalisation of NILSS's homogeneous tangents, whose
+    log diagonal is their growth."""
+    Q, R = jnp.linalg.qr(x)
+    sign = jnp.where(jnp.diagonal(R) < 0, -1.0, 1.0)
+    return Q * sign, R * sign[:, None]
 
 
 def start_basis(config: SegmentConfig, u, s, key):
