@@ -37,21 +37,34 @@ from ._result import ShadowingResult
 from ._segments import SegmentConfig, primal_solve, segment, start_basis
 
 
-def derivative_terms(records, discard: int, segment_time):
+def coefficients(records):
+    """The shadowing coefficients ``a`` (K, n_u, p) of every segment from the segments' records
+    (:class:`SegmentRecord`, stacked ``K`` deep): segment ``i``'s shadowing tangent is
+    :math:`v_i = v^*_i + W_i a_i` (the least squares of :func:`shadowing_coefficients`)."""
+    I = records.integrals
+    return shadowing_coefficients(I.C, I.D, records.R[:-1], records.b[:-1])
+
+
+def derivative_terms(records, discard: int, segment_time, dilation: bool = True):
     """The pieces of the derivative from the segments' records (:class:`SegmentRecord`, stacked
     ``K`` deep): ``(average, contributions (K, p), exponents (n_u,), T)``, with the derivative
     ``contributions.sum(0) / T``; segment ``i``'s contribution is its term of the sum in the module
     docstring (zero for the first ``discard``, which still enter the least squares), so that
-    sums over blocks of segments give batch means. ``T``: the averaging time."""
+    sums over blocks of segments give batch means. ``T``: the averaging time. ``dilation=False``
+    leaves out the time dilation's term: for integrals of tangents that already keep a phase of
+    the motion (the mechanisms' tangents at fixed crank angle, :mod:`jaxclear.chaos.shadowing`),
+    whose flow components read nothing."""
     I = records.integrals
     K = I.J.shape[0]
     kept = (jnp.arange(K) >= discard).astype(I.J.dtype)
     T = (K - discard) * segment_time
     average = jnp.sum(kept * I.J) / T
-    a = shadowing_coefficients(I.C, I.D, records.R[:-1], records.b[:-1])  # (K, n_u, p)
+    a = coefficients(records)  # (K, n_u, p)
     along = I.JV + jnp.einsum("ku,kup->kp", I.JW, a)
-    xi = records.xi_V + jnp.einsum("ku,kup->kp", records.xi_W, a)
-    contributions = kept[:, None] * (along + (average - records.J_end)[:, None] * xi)
+    if dilation:
+        xi = records.xi_V + jnp.einsum("ku,kup->kp", records.xi_W, a)
+        along = along + (average - records.J_end)[:, None] * xi
+    contributions = kept[:, None] * along
     growth = jnp.log(jnp.abs(jnp.diagonal(records.R, axis1=1, axis2=2)))
     return average, contributions, kept @ growth / T, T
 
