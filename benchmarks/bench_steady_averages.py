@@ -11,7 +11,11 @@ the steady running:
 * ``rms_dev``: the RMS of the slider's acceleration minus the ideal joint's (closed form of the
   ideal slider-crank, x = r cos phi + sqrt(l^2 - r^2 sin^2 phi), phi = angle0 + omega t) [m/s^2];
 * ``rms_acc``: the RMS of the slider's acceleration [m/s^2];
-* ``onsets``: contact onsets per revolution (a count: a rate that can jump).
+* ``onsets``: contact onsets per revolution (a count: a rate that can jump);
+* ``peak_force``: the mean over revolutions of each revolution's largest sampled normal force in
+  the clearance joint [N] (the samples of the run's grid: the peak of an impact lasting a few
+  samples is read where a sample falls, as ``jc.steady_derivatives(statistic="revolution_peak")``
+  reads it on its own grid).
 
 Each member's steady part is cut into blocks of ``--block`` revolutions; the value's average is
 the mean of its blocks, its standard error the blocks' spread over sqrt(blocks) (the motion
@@ -50,6 +54,8 @@ PRESET = "flores-slider-crank"
 BANDS = {"clearance": 0.1, "restitution": None, "speed_rpm": 0.05}
 RESTITUTION_BAND = (0.85, 0.95)
 SAMPLES = 100  # per revolution
+#: The objectives averaged (the module docstring says what each is).
+OBJECTIVES = ("rms_dev", "rms_acc", "onsets", "peak_force")
 CRANK, ROD = 0.05, 0.12  # the preset's crank radius and rod length [m] (Flores et al. 2004)
 
 
@@ -83,13 +89,15 @@ def member_blocks(mech, angle0: float, transient: int, revolutions: int, block: 
     acc = np.asarray(sol.coordinate(m, "slider", "x", 2))
     dev = acc - slider_crank_exact(angle0 + omega * t, omega)[2]
     onsets = np.asarray(sol.memory.impacts)[:, 0]
-    out = {"rms_dev": [], "rms_acc": [], "onsets": []}
+    force = np.asarray(sol.normal_force)[:, 0]
+    out = {key: [] for key in OBJECTIVES}
     first = transient * SAMPLES
     for b in range(revolutions // block):
         a, z = first + b * block * SAMPLES, first + (b + 1) * block * SAMPLES
         out["rms_dev"].append(math.sqrt(float(np.mean(dev[a:z] ** 2))))
         out["rms_acc"].append(math.sqrt(float(np.mean(acc[a:z] ** 2))))
         out["onsets"].append(float(onsets[z] - onsets[a]) / block)
+        out["peak_force"].append(float(np.mean(np.max(force[a:z].reshape(block, SAMPLES), axis=1))))
     return {k: np.asarray(v) for k, v in out.items()}
 
 
@@ -170,7 +178,8 @@ def study(name: str, n: int, members: int, transient: int, revolutions: int, blo
                                                   for k in blocks[0]), flush=True)
     def fits_of(kept):
         return {key: regression(np.array([r["value"] for r in kept]), np.array([r[key] for r in kept]),
-                                np.array([r[key + "_se"] for r in kept]), x0) for key in ("rms_dev", "rms_acc", "onsets")}
+                                np.array([r[key + "_se"] for r in kept]), x0)
+                for key in OBJECTIVES if key in kept[0]}
 
     single = [r for r in rows if r["members_agree_p"] >= AGREE_P]
     return {"parameter": name, "preset_value": x0, "values": n, "members": members, "transient": transient,
@@ -189,10 +198,10 @@ def plot(studies: list, path: str) -> str:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    keys = ("rms_dev", "rms_acc", "onsets")
+    keys = tuple(k for k in OBJECTIVES if k in studies[0]["rows"][0])
     labels = {"rms_dev": "RMS slider acc. deviation [m/s$^2$]", "rms_acc": "RMS slider acc. [m/s$^2$]",
-              "onsets": "contact onsets per revolution"}
-    fig, axes = plt.subplots(len(studies), 3, figsize=(12, 3.2 * len(studies)), squeeze=False)
+              "onsets": "contact onsets per revolution", "peak_force": "mean peak contact force [N]"}
+    fig, axes = plt.subplots(len(studies), len(keys), figsize=(4 * len(keys), 3.2 * len(studies)), squeeze=False)
     for row, s in zip(axes, studies):
         x = np.array([r["value"] for r in s["rows"]])
         for ax, key in zip(row, keys):
@@ -253,14 +262,15 @@ def main(argv=None) -> int:
         if os.path.exists(path):
             with open(path, encoding="utf-8") as f:
                 saved = json.load(f)
-            same = {k: saved["meta"].get(k) for k in ("values", "members", "transient", "revolutions", "block")}
+            same = {k: saved["meta"].get(k) for k in ("values", "members", "transient", "revolutions", "block",
+                                                      "objectives")}
             if same == {"values": a.values, "members": a.members, "transient": a.transient,
-                        "revolutions": a.revolutions, "block": a.block} and \
+                        "revolutions": a.revolutions, "block": a.block, "objectives": list(OBJECTIVES)} and \
                     {k: tuple(v) for k, v in saved["meta"].get("bands", {}).items()} == bands:
                 done = {s["parameter"]: s for s in saved["studies"]}
         meta = {"date": time.strftime("%Y-%m-%d"), "preset": PRESET, "values": a.values, "members": a.members,
                 "transient": a.transient, "revolutions": a.revolutions, "block": a.block, "samples": SAMPLES,
-                "cpus": os.cpu_count(), "bands": bands,
+                "cpus": os.cpu_count(), "bands": bands, "objectives": list(OBJECTIVES),
                 "command": "python benchmarks/bench_steady_averages.py" + "".join(f" --band {b}" for b in a.band)}
         for name in a.parameters.split(","):
             if name not in BANDS:

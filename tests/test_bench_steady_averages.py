@@ -74,3 +74,23 @@ def test_the_shadowing_benchmarks_objective_is_the_squared_deviation_from_the_cl
         got = float(objective(t, jnp.zeros(n), jnp.zeros(n), qddot, mech))
         want = (a - bench.slider_crank_exact(angle0 + omega * t, omega)[2]) ** 2
         assert math.isclose(got, want, rel_tol=1e-12)
+
+
+def test_the_shadowing_benchmarks_force_objective_is_the_runs_normal_force():
+    """benchmarks/bench_shadowing.py's peak-force objective (the clearance joint's force law on the
+    memory handed to the objective's sixth parameter) at a run's samples against the normal force
+    the run reports there (``sol.normal_force``): in contact at the first onset's sample and at the
+    largest sample, and out of contact; the same law on the same memory, to rounding."""
+    import jax
+
+    import bench_shadowing
+    import jaxclear as jc
+
+    mech = bench_shadowing.mechanism(None)
+    sol = jc.simulate(mech, jc.settings(0.012, n_out=121))  # one revolution at 5000 rpm
+    force = np.asarray(sol.normal_force)[:, 0]
+    objective = bench_shadowing.normal_force(mech)
+    for k in (int(np.flatnonzero(force > 0)[0]), int(np.argmax(force)), int(np.flatnonzero(force == 0)[0])):
+        memory = jax.tree.map(lambda a: a[k, 0], sol.memory)
+        got = float(objective(sol.ts[k], sol.q[k], sol.qdot[k], sol.qddot[k], mech, (memory,)))
+        assert math.isclose(got, force[k], rel_tol=1e-12, abs_tol=1e-9)
