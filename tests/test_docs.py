@@ -334,14 +334,16 @@ def test_fit_docs_and_help_say_what_the_fit_does():
 
 
 def test_license_and_citation_agree_with_pyproject():
-    """LICENSE is the MIT licence that pyproject.toml declares; CITATION.cff (Citation File Format
-    1.2.0, validated once with cffconvert) names the package's version and licence."""
+    """LICENSE is the MIT licence that pyproject.toml declares (an SPDX expression and the licence
+    file, PEP 639: setuptools refuses the older TOML-table form from 2027-02-18); CITATION.cff
+    (Citation File Format 1.2.0, validated once with cffconvert) names the package's version and
+    licence."""
     import tomllib
 
     import yaml
 
     project = tomllib.loads(_read("pyproject.toml"))["project"]
-    assert project["license"] == {"text": "MIT"}
+    assert project["license"] == "MIT" and project["license-files"] == ["LICENSE"]
     assert _read("LICENSE").startswith("MIT License\n") and "Permission is hereby granted, free of charge" in _read("LICENSE")
     cff = yaml.safe_load(_read("CITATION.cff"))
     assert cff["cff-version"] == "1.2.0" and cff["type"] == "software" and cff["authors"]
