@@ -172,9 +172,9 @@ def test_in_a_lasting_contact_the_shadowing_derivative_is_that_of_the_average_fr
     last onset, in the transient, so the average depends on the start: the truth for a derivative
     whose tangents start after the transient (as NILSS's do) is the central difference of averages
     run from the transient's end state with the parameter changed from there on (steps 1e-2 and
-    1e-3 agree to 2e-4: 267,790 and 267,735). Measured: 265,690 +- 240 (0.76 %, 2026-12-03; 265,530 before the tangents were read at fixed
-    crank angle); 2 % allowed (the
-    sampled average over 20 revolutions, 16 samples a segment against 256 a revolution)."""
+    1e-3 agree to 2e-4: 267,790 and 267,735). Measured: 265,690 +- 240 (0.76 %, 2026-12-03;
+    265,530 before the tangents were read at fixed crank angle); 2 % allowed (the sampled average
+    over 20 revolutions, 16 samples a segment against 256 a revolution)."""
     import jax
 
     from bench_shadowing import deviation_squared
