@@ -74,9 +74,12 @@ def normal_force(mech):
 
 
 #: Per objective: the traced objective's builder, steady_derivatives' statistic, whether the
-#: result is reported as an RMS (d RMS = d<J> / (2 RMS)), and its default segments x samples.
-OBJECTIVES = {"rms_dev": (deviation_squared, "mean", True, (16, 32)),
-              "peak_force": (normal_force, "revolution_peak", False, (4, 25))}
+#: result is reported as an RMS (d RMS = d<J> / (2 RMS)), its default segments x samples, and
+#: what the reported value is.
+OBJECTIVES = {"rms_dev": (deviation_squared, "mean", True, (16, 32),
+                          "RMS of the slider's acceleration minus the ideal joint's [m/s^2]"),
+              "peak_force": (normal_force, "revolution_peak", False, (4, 25),
+                             "mean over revolutions of the largest sampled normal force [N]")}
 
 
 def truth(objective: str = "rms_dev") -> dict:
@@ -96,7 +99,7 @@ def truth(objective: str = "rms_dev") -> dict:
 def run(revolutions: int, n_unstable: int, samples: int, segments: int, blocks: int, floor,
         objective: str = "rms_dev") -> dict:
     mech = mechanism(floor)
-    build, statistic, as_rms, _ = OBJECTIVES[objective]
+    build, statistic, as_rms, *_ = OBJECTIVES[objective]
     t0 = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", jc.chaos.ShadowingWarning)
@@ -105,13 +108,13 @@ def run(revolutions: int, n_unstable: int, samples: int, segments: int, blocks: 
                                   segments_per_revolution=segments, blocks=blocks, statistic=statistic)
     seconds = time.perf_counter() - t0
     value = math.sqrt(float(r.average)) if as_rms else float(r.average)
-    to_rms = 1.0 / (2.0 * value) if as_rms else 1.0
-    blocks_ = np.asarray(r.member_derivatives) * to_rms
+    scale = 1.0 / (2.0 * value) if as_rms else 1.0  # d<J> -> d RMS for the RMS objectives
+    blocks_ = np.asarray(r.member_derivatives) * scale
     return {"objective": objective, "revolutions": revolutions, "n_unstable": n_unstable, "samples": samples,
             "segments": segments, "blocks": blocks, "floor": floor, "seconds": seconds, ("rms" if as_rms else "average"): value,
             "exponents": [float(x) for x in np.asarray(r.exponents)[0]],
-            "derivative": {n: float(d) * to_rms for n, d in zip(NAMES, np.asarray(r.derivative))},
-            "error": {n: float(e) * to_rms for n, e in zip(NAMES, np.asarray(r.derivative_error))},
+            "derivative": {n: float(d) * scale for n, d in zip(NAMES, np.asarray(r.derivative))},
+            "error": {n: float(e) * scale for n, e in zip(NAMES, np.asarray(r.derivative_error))},
             "block_derivatives": {n: blocks_[:, k].tolist() for k, n in enumerate(NAMES)},
             "warned": bool(caught), "steps": int(np.sum(np.asarray(r.steps)))}
 
@@ -133,7 +136,7 @@ def main(argv=None) -> int:
     p.add_argument("--floor", type=float, default=None, help="impact-velocity floor [m/s] (preset: 1e-4)")
     p.add_argument("--json", default=DEFAULT_JSON)
     a = p.parse_args(argv)
-    segments, samples = OBJECTIVES[a.objective][3]
+    segments, samples = OBJECTIVES[a.objective][3]  # the objective's defaults
     a.segments = segments if a.segments is None else a.segments
     a.samples = samples if a.samples is None else a.samples
     path = os.path.abspath(a.json)
@@ -143,8 +146,7 @@ def main(argv=None) -> int:
             with open(path, encoding="utf-8") as f:
                 runs = json.load(f).get("runs", [])
         meta = {"date": time.strftime("%Y-%m-%d"), "preset": PRESET, "cpus": os.cpu_count(), "names": list(NAMES),
-                "objectives": {"rms_dev": "RMS of the slider's acceleration minus the ideal joint's [m/s^2]",
-                               "peak_force": "mean over revolutions of the largest sampled normal force [N]"},
+                "objectives": {k: v[4] for k, v in OBJECTIVES.items()},
                 "command": "python benchmarks/bench_shadowing.py"}
         for revolutions in (int(x) for x in a.revolutions.split(",")):
             want = (a.objective, revolutions, a.n_unstable, a.samples, a.segments, a.blocks, a.floor)
