@@ -176,7 +176,7 @@ from .fitting import PosteriorResult, posterior  # noqa: E402
 from .fitting import StatisticsFitResult, fit_statistics  # noqa: E402
 from .tolerance import Inputs, ToleranceResult, inputs_from_dict, tolerance_study  # noqa: E402
 from .wearing import WearHistory, WearOptions, plot_wear, wear  # noqa: E402
-from .designing import DesignResult, Ensemble, OperatingPoint, RuggedObjectiveWarning, design  # noqa: E402
+from .designing import DesignResult, Ensemble, OperatingPoint, RuggedObjectiveWarning, SteadyOperation, design  # noqa: E402
 from . import chaos  # noqa: E402
 from .analysis.sections import detect_period, period_name, section as poincare_section  # noqa: E402
 from .chaos import (  # noqa: E402
@@ -233,7 +233,7 @@ __all__ = [
     # Wear (wear.md)
     "wear", "WearOptions", "WearHistory", "plot_wear",
     # Design (design.md)
-    "design", "DesignResult", "OperatingPoint", "Ensemble", "RuggedObjectiveWarning",
+    "design", "DesignResult", "OperatingPoint", "Ensemble", "SteadyOperation", "RuggedObjectiveWarning",
     # Chaos (chaos.md)
     "lyapunov", "lyapunov_map", "LyapunovResult", "LyapunovMap", "LyapunovError", "steady_derivatives", "psd",
     "zero_one_test",

@@ -40,6 +40,7 @@ automatic differentiation.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -255,6 +256,26 @@ def channel_with_unit(mech: Mechanism, sol: Solution, name: str):
 def channel(mech: Mechanism, sol: Solution, name: str):
     """Values (T,) of channel ``name``: traceable in ``sol`` and ``mech`` (usable in fits)."""
     return channel_with_unit(mech, sol, name)[0]
+
+
+class _Sample(NamedTuple):
+    """One sample's view of a :class:`Solution` (what the body and point channels read)."""
+
+    ts: jax.Array
+    q: jax.Array
+    qdot: jax.Array
+    qddot: jax.Array
+
+
+def sample_channel(mech: Mechanism, name: str, t, q, qdot, qddot):
+    """The value (scalar) of channel ``name`` at one state: time ``t`` [s], ``q``, ``qdot``,
+    ``qddot`` ``(n,)``; channels of kind body or point only (:data:`OVERLAY_KINDS`: functions
+    of the coordinates alone; the others read a run's forces). Traceable (the objectives of
+    steady operation, :mod:`jaxclear.designing.steady`)."""
+    if parse(name).kind not in OVERLAY_KINDS:
+        _fail(name, f"one sample is read of channels of kind {' or '.join(OVERLAY_KINDS)} only")
+    view = _Sample(jnp.asarray(t)[None], q[None], qdot[None], qddot[None])
+    return channel(mech, view, name)[0]
 
 
 def unit(mech: Mechanism, name: str) -> str:

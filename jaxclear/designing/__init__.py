@@ -16,7 +16,9 @@ gradients through the simulations (theory: docs/theory/design.md).
   every evaluation goes to a journal first, so a design resumes bit for bit (:mod:`.journal`);
 * the result reports the design, the objective and each constraint, the gradient norm, the
   sensitivity of the optimum to each variable, the horizon of predictability (:mod:`.chaos`)
-  and a before/after figure (:mod:`.report`, :mod:`.figures`, :mod:`.result`).
+  and a before/after figure (:mod:`.report`, :mod:`.figures`, :mod:`.result`);
+* ``steady=SteadyOperation(...)``: the objective averaged over steady operation, its gradient by
+  least-squares shadowing (:mod:`.steady`).
 """
 
 from .chaos import RuggedObjectiveWarning
@@ -29,12 +31,13 @@ from .objectives import (OBJECTIVES, AbstractObjective, DissipatedEnergy, FreeFl
 from .optimize import METHODS
 from .problem import DesignProblem, Ensemble, OperatingPoint, evaluate, evaluate_with_jacobian
 from .result import OUTCOMES, DesignResult
+from .steady import SteadyOperation
 from .variables import Variable, check_variables, design_names
 
 __all__ = [
     "AbstractDesignConstraint", "AbstractObjective", "Assembles", "DesignProblem", "DesignResult", "DissipatedEnergy",
     "Ensemble", "FreeFlightFraction", "JOURNAL_NAME", "METHODS", "OBJECTIVES", "OUTCOMES", "OperatingPoint", "PeakForce",
-    "PeakPenetration", "RmsDeviation", "RuggedObjectiveWarning", "SmoothPeakForce", "TotalMass", "UserConstraint", "UserObjective",
+    "PeakPenetration", "RmsDeviation", "RuggedObjectiveWarning", "SmoothPeakForce", "SteadyOperation", "TotalMass", "UserConstraint", "UserObjective",
     "Variable", "check_variables", "constraint", "design", "design_names", "evaluate", "evaluate_with_jacobian",
     "objective",
 ]

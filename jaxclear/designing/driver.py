@@ -17,6 +17,7 @@ from .._errors import STATUS, DesignError, ParameterError
 from .._interrupt import stop_at_safe_points
 from .._checkpoint import key as work_key, locked
 from ..params.derivatives import DerivativeHorizonWarning
+from ..chaos import ShadowingWarning
 from ..integrate import Settings
 from ..model import Mechanism, crank_driver
 from .chaos import (RuggedObjectiveWarning, horizon_report, roughness_report, rugged_message, scale_message,
@@ -29,6 +30,7 @@ from .problem import SAMPLES_PER_REVOLUTION, Ensemble, OperatingPoint, build_pro
 from .report import (CONSTRAINT_TOL, comparison_runs, constraint_table, least_violation, sensitivity, status_of,
                      violation)
 from .result import DesignResult
+from .steady import SteadyOperation, SteadyEvaluation
 from .variables import apply, check_variables, to_unit
 
 
@@ -86,7 +88,7 @@ def design(mech: Mechanism, variables: dict, objective="rms-deviation", constrai
            samples_per_revolution: int = SAMPLES_PER_REVOLUTION, method: str = "auto", max_iter: int = 30,
            ftol: float = 1e-6, gtol: float = 1e-5, out=None, resume: bool = True, progress: bool = True,
            check_chaos: bool = True, report_sensitivity: bool = True, plots: bool = True,
-           callback: Callable | None = None) -> DesignResult:
+           callback: Callable | None = None, steady: SteadyOperation | None = None) -> DesignResult:
     """Minimise an objective of simulations of ``mech`` over named design variables within
     bounds and under constraints, with gradients through the simulations (method:
     :mod:`jaxclear.designing`).
@@ -128,6 +130,14 @@ def design(mech: Mechanism, variables: dict, objective="rms-deviation", constrai
         report_sensitivity: simulate the objective at +-1 % of each range around the optimum.
         plots: the comparison runs and ``design.png`` (with ``out``).
         callback: ``callback(record)`` after every iteration (the history's record).
+        steady: a :class:`~jaxclear.designing.SteadyOperation`: the objective is averaged over steady
+            operation (after a transient, over ``steady.revolutions``) and its gradient taken by
+            least-squares shadowing (:mod:`jaxclear.designing.steady`); the objective
+            ``rms-deviation`` or a callable per sample ``fn(t, q, qdot, qddot, mech) -> scalar``
+            (averaged), no points or ensemble, constraints on the design only;
+            ``check_chaos`` then reports the shadowing gradients' errors (``result.chaos["steady"]``)
+            and warns (:class:`jaxclear.chaos.ShadowingWarning`) where they were unresolved. ``revolutions``
+            is then the length of the before/after comparison runs only.
 
     Raises:
         ParameterError: a bad variable (unknown or structural name, empty or inverted range,
@@ -155,6 +165,13 @@ def design(mech: Mechanism, variables: dict, objective="rms-deviation", constrai
         c.check(mech)
         cons.append(c.calibrated(start_mech))
     method_ = choose_method(method, bool(cons))
+    if steady is not None:
+        if not isinstance(steady, SteadyOperation):
+            raise ParameterError(f"steady must be a jaxclear.designing.SteadyOperation or None, got {steady!r}")
+        steady.check()
+        if points is not None or ensemble is not None:
+            raise ParameterError("design(steady=...): operating points and ensembles do not apply (the steady "
+                                 "average holds every start); give neither")
     ensemble = ensemble or Ensemble()
     ensemble.check()
     base = settings if settings is not None else Settings(t_end=1.0)
@@ -162,21 +179,24 @@ def design(mech: Mechanism, variables: dict, objective="rms-deviation", constrai
                             samples_per_revolution, base)
     key = work_key(mech, [(v.name, v.low, v.high, v.start) for v in variables_], _spec(obj),
                    [_spec(c) for c in cons], problem.members, problem.base, revolutions, problem.n_out, method_,
-                   max_iter, ftol, gtol)
+                   max_iter, ftol, gtol, *([dataclasses.asdict(steady)] if steady is not None else []))
+    steady_eval = SteadyEvaluation(problem, steady) if steady is not None else None
     config = dict(variables={v.name: [v.low, v.high] for v in variables_}, objective=obj.describe(mech),
                   constraints=[c.describe() for c in cons], method=method_, max_iter=max_iter, ftol=ftol, gtol=gtol,
                   revolutions=revolutions, samples_per_revolution=samples_per_revolution, runs_per_evaluation=
                   problem.members.count, points=[dict(p.values, weight=p.weight) for p in _points(points)],
-                  ensemble=dataclasses.asdict(ensemble), rtol=problem.rtol, atol=problem.atol)
+                  ensemble=dataclasses.asdict(ensemble), rtol=problem.rtol, atol=problem.atol,
+                  steady=None if steady is None else dataclasses.asdict(steady))
     with locked(out, "design"):
         return _design_locked(problem, variables_, to_unit(variables_, x0), start_mech, key, config, out, resume,
-                              progress, check_chaos, report_sensitivity, plots, callback, t0)
+                              progress, check_chaos, report_sensitivity, plots, callback, t0, steady_eval)
 
 
 def _design_locked(problem, variables, u0, start_mech, key, config, out, resume, progress, check_chaos,
-                   report_sensitivity, plots, callback, t0) -> DesignResult:
+                   report_sensitivity, plots, callback, t0, steady_eval=None) -> DesignResult:
     journal = Journal(out, key, resume, config)
-    ev = Evaluator(problem, journal)
+    ev = Evaluator(problem, journal) if steady_eval is None else Evaluator(
+        problem, journal, values_of=steady_eval.value, jacobian_of=steady_eval.with_jacobian)
     if progress and journal.loaded:
         tqdm.write(f"jaxclear design: resuming in {out}: {journal.loaded} evaluations in the journal")
     if progress and not journal.loaded:
@@ -187,7 +207,7 @@ def _design_locked(problem, variables, u0, start_mech, key, config, out, resume,
     f0 = float(first["values"][0])
     ev.scale = abs(f0) if f0 != 0 else 1.0
     chaos = None
-    if check_chaos:
+    if check_chaos and steady_eval is None:  # a steady design's own check: its gradients' errors, at the end
         chaos = horizon_report(problem, u0)
         # the plain run against the sensitivity solve at the start (the optimiser asks for this
         # gradient first anyway): within the tolerance of each other where the motion is predictable
@@ -255,7 +275,13 @@ def _design_locked(problem, variables, u0, start_mech, key, config, out, resume,
     status = status_of(res, bool(feasible), config["max_iter"])
     grad, sens = sensitivity(ev, u, values, jac) if report_sensitivity else (
         {v.name: float(jac[0][i]) / v.span for i, v in enumerate(variables)}, {})
-    if chaos is not None and np.all(np.isfinite(values)):  # the same check where the design ends
+    if steady_eval is not None and check_chaos:
+        summary = steady_eval.summary(journal.gradients.values())
+        said = steady_eval.message(problem.mech.name, summary)
+        chaos = {"steady": summary, "warnings": [said] if said else []}
+        if said:
+            warnings.warn(said, ShadowingWarning, stacklevel=3)
+    elif chaos is not None and np.all(np.isfinite(values)):  # the same check where the design ends
         chaos["scale_optimum"] = _scale_check(ev, problem, u, float(values[0]), jac[0], "optimum", chaos["warnings"])
     start_eval = first
     x = [float(v.from_unit(ui)) for v, ui in zip(variables, u)]

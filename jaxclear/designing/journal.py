@@ -85,13 +85,16 @@ class Journal:
             return self.gradients.get(k)
         return self.values.get(k) or self.gradients.get(k)
 
-    def add(self, u, values, status, wall_s: float, jacobian=None) -> dict:
-        """Record an evaluation (on disk first); returns it."""
+    def add(self, u, values, status, wall_s: float, jacobian=None, extra: dict | None = None) -> dict:
+        """Record an evaluation (on disk first); returns it. ``extra``: what else the evaluation
+        knows, JSON (a steady design's gradient error, :mod:`.steady`), kept as ``entry["extra"]``."""
         entry = {"kind": "value" if jacobian is None else "gradient", "u": [float(v) for v in np.asarray(u)],
                  "values": [float(v) for v in np.asarray(values)], "status": [int(s) for s in np.asarray(status)],
                  "wall_s": float(wall_s)}
         if jacobian is not None:
             entry["jacobian"] = [[float(v) for v in row] for row in np.asarray(jacobian)]
+        if extra is not None:
+            entry["extra"] = extra
         self.work.append(JOURNAL_NAME, [json_text(entry, indent=None, sort_keys=False, separators=(",", ":"))])
         self._remember(entry)
         return entry

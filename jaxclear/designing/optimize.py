@@ -23,6 +23,8 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from functools import partial
+from typing import Callable
 
 import jax.numpy as jnp
 import numpy as np
@@ -67,6 +69,12 @@ class Evaluator:
     journal: Journal
     counts: Counts = field(default_factory=Counts)
     scale: float = 1.0
+    #: ``u -> (values, statuses)`` and ``u -> (values, jacobian, statuses)``; None: the problem's
+    #: runs (:func:`~.problem.evaluate`, :func:`~.problem.evaluate_with_jacobian`); a design on
+    #: steady operation gives its own (:class:`~.steady.SteadyEvaluation`), whose gradients also
+    #: return a dict of what else they know (journaled as the entry's ``extra``).
+    values_of: Callable | None = None
+    jacobian_of: Callable | None = None
 
     def _record(self, entry: dict, gradient: bool, replayed: bool):
         b = self.problem.members.count
@@ -89,7 +97,7 @@ class Evaluator:
                 self._record(found, found["kind"] == "gradient", True)
             return found
         t0 = time.perf_counter()
-        values, status = evaluate(self.problem, jnp.asarray(u))
+        values, status = (self.values_of or partial(evaluate, self.problem))(jnp.asarray(u))
         values, status = np.asarray(values), np.asarray(status)
         entry = self.journal.add(u, values, status, time.perf_counter() - t0)
         entry["_seen"] = True
@@ -106,9 +114,11 @@ class Evaluator:
                 self._record(found, True, True)
             return found
         t0 = time.perf_counter()
-        values, jac, status = evaluate_with_jacobian(self.problem, jnp.asarray(u))
+        values, jac, status, *extra = (self.jacobian_of or partial(evaluate_with_jacobian, self.problem))(
+            jnp.asarray(u))
         values, jac, status = np.asarray(values), np.asarray(jac), np.asarray(status)
-        entry = self.journal.add(u, values, status, time.perf_counter() - t0, jacobian=jac)
+        entry = self.journal.add(u, values, status, time.perf_counter() - t0, jacobian=jac,
+                                 extra=extra[0] if extra else None)
         entry["_seen"] = True
         self._record(entry, True, False)
         return entry

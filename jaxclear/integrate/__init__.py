@@ -17,7 +17,7 @@ from ._assembly import (ASSEMBLY_TEMPLATE, RANK_TOL, Assembly, assemble, check_a
                         minimum_norm_correction)
 from ._compile import compiler_options, jit, on_trace
 from ._dynamics import Baumgarte, accelerations, energy, flat_vector_field, spd_solve, vector_field
-from ._kinematics import is_kinematic, kinematic_solution
+from ._kinematics import is_kinematic, kinematic_solution, kinematics_at
 from ._runs import (SAMPLES_PER_REVOLUTION, RunWithIdeal, revolution_settings, revolutions_of, simulate_with_ideal,
                     timed_simulate)
 from ._sensitivity import tangent_system
@@ -42,7 +42,7 @@ __all__ = [
     "simulate", "check_status", "raise_for_status", "Solution", "State", "solution_structure",
     # runs by crank revolutions, the ideal-joint companion, kinematic runs
     "revolution_settings", "revolutions_of", "SAMPLES_PER_REVOLUTION", "simulate_with_ideal", "RunWithIdeal",
-    "timed_simulate", "is_kinematic", "kinematic_solution",
+    "timed_simulate", "is_kinematic", "kinematic_solution", "kinematics_at",
     # assembly and the equations of motion
     "assemble", "initial_state", "check_assembly", "Assembly", "ASSEMBLY_TEMPLATE", "RANK_TOL",
     "minimum_norm_correction", "Baumgarte", "accelerations", "energy", "vector_field", "flat_vector_field", "spd_solve",

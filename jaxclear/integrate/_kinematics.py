@@ -81,6 +81,17 @@ def _kinematic_run(mech: Mechanism, s: Settings) -> Solution:
                     status=jnp.asarray(result._value, jnp.int32))
 
 
+def kinematics_at(mech: Mechanism, q, t):
+    """Positions, velocities and accelerations ``(q, qdot, qddot)`` (each ``(n,)``) of a
+    kinematically driven mechanism (:func:`is_kinematic`) at time ``t`` [s], by
+    :data:`NEWTON_ITERATIONS` Newton iterations from the guess ``q`` (a nearby configuration: the
+    previous sample, or the coordinates of the same mechanism with clearance, which lie within a
+    clearance of the ideal joint's). Traceable and differentiable; no status (the residual is not
+    checked: a guess far from the motion can converge elsewhere)."""
+    _, (q, qdot, qddot, _, _) = _sample(mech, q, t)
+    return q, qdot, qddot
+
+
 def kinematic_solution(mech: Mechanism, s: Settings) -> Solution:
     """The motion of a kinematically driven mechanism (:func:`is_kinematic`) on the output grid
     of ``s`` (``t_start``, ``t_end``, ``n_out``; the integration settings do not apply), as a
@@ -103,4 +114,4 @@ def kinematic_solution(mech: Mechanism, s: Settings) -> Solution:
     return sol
 
 
-__all__ = ["NEWTON_ITERATIONS", "is_kinematic", "kinematic_solution"]
+__all__ = ["NEWTON_ITERATIONS", "is_kinematic", "kinematic_solution", "kinematics_at"]
