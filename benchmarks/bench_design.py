@@ -154,7 +154,9 @@ def run_gradient(mech, kw, u0, problem, space, steady=None) -> dict:
             res.objective["optimum"], "simulations": float(sims), "wall_s": wall, "gradient_cost": cost,
             "status": res.status, "design": res.design, "trace": [(s, b) for (s, _), b in zip(trace, best)],
             "evaluations": res.evaluations, "constraints": res.constraints,
-            "shadowing": None if steady is None else {k: v for k, v in res.chaos["steady"].items() if k != "reports"}}
+            "shadowing": None if steady is None else dict(
+                {k: v for k, v in res.chaos["steady"].items() if k != "reports"},
+                start=res.chaos["steady"]["reports"][0] if res.chaos["steady"]["reports"] else None)}
 
 
 def noise(problem, space, w0, steps=(1e-12, 1e-10, 1e-8, 1e-6), steady=None) -> dict:
@@ -195,6 +197,12 @@ def run_de(problem, space, w0, budget: int, seed: int, steady=None) -> dict:
 def design_of(space, w) -> dict:
     """The design (values, the follower's included) at the gradient-free coordinates ``w``."""
     return {v.name: float(v.from_unit(u)) for v, u in zip(space.variables, space.full(w))}
+
+
+#: Step (fraction of a range) of the long averages' central differences at the start (``--steady``):
+#: large enough for the slope to stand above the long average's noise where the average moves
+#: by tens of percents over the range.
+SLOPE_STEP = 0.1
 
 
 def first_within(trace, target: float, rel: float = 0.01):
@@ -273,6 +281,18 @@ def main():
             best = min(row["check"]["cma"], row["check"]["de"])
             row["check"]["gradient_above_best_gradient_free"] = row["check"]["gradient"] / best - 1.0
             row["check"]["nominal"] = float(long(jnp.asarray(space.full(np.full(nfree, 0.5)), dtype=float))[0][0])
+            # the long average's slope at the start along each free coordinate (the follower
+            # following), by central differences over +-SLOPE_STEP of its range: what the start's
+            # shadowing gradient (row["gradient"]["shadowing"]["start"], over all four coordinates)
+            # should have pointed along
+            row["check"]["slope_step"] = SLOPE_STEP
+            row["check"]["slopes"] = {}
+            for j in range(nfree):
+                e = np.zeros(nfree)
+                e[j] = SLOPE_STEP
+                up, down = (float(long(jnp.asarray(space.full(np.asarray(w0) + sgn * e), dtype=float))[0][0])
+                            for sgn in (1, -1))
+                row["check"]["slopes"][variables[space.free[j]].name] = (up - down) / (2 * SLOPE_STEP)
             print(f"  long averages ({args.check_revolutions} revolutions): {row['check']}", flush=True)
         rows.append(row)
         print(f"{args.case} start {i} u0={np.round(u0, 3).tolist()}: gradient best {g['best']:.6g} in {g['simulations']:.1f} "

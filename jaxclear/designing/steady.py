@@ -8,7 +8,8 @@ evaluation is
 
 * **the value**: one run of the design from its start through ``transient_revolutions``
   (left out), ``discard_revolutions`` (left out) and ``revolutions`` (averaged), sampled
-  ``segments_per_revolution x samples_per_segment`` times a revolution at fixed crank angles;
+  ``segments_per_revolution x samples_per_segment`` times a revolution at fixed crank angles
+  (the settings' ``max_steps`` a revolution);
   the objective's per-sample quantity (:class:`SteadyRms`: the squared deviation of a channel
   from the ideal joint's at the same time; or a callable objective, given per sample as
   ``fn(t, q, qdot, qddot, mech)``) averaged over those samples, then its finish (for the RMS the
@@ -162,8 +163,10 @@ class SteadyEvaluation:
         _, m = self._design(u)
         total = st.skipped + st.revolutions
         n = total * st.per_revolution + 1
+        # the step limit per revolution, as the gradient has it per segment: a long average is not
+        # refused for its length
         s = dataclasses.replace(self.problem.base, t_start=0.0, t_end=crank_period(m, total), n_out=n, throw=False,
-                                progress=False)
+                                progress=False, max_steps=self.problem.base.max_steps * total)
         mean, status = _average(m, s, self.objective, st.skipped * st.per_revolution)
         f = self.problem.objective.finish(mean)
         values = jnp.concatenate([jnp.asarray(f, dtype=float)[None], self._constraints(jnp.asarray(u, dtype=float))])
