@@ -262,6 +262,9 @@ def test_design_through_impacts(tmp_path):
     (["--vary", "clearance=1e-4"], "expected NAME=LOW:HIGH"),
     (["--vary", "clearance=a:b"], "not two numbers"),
     (["--vary", "clearance=1e-4:6e-4", "--max-iter", "0"], "outside the allowed range"),
+    (["--vary", "clearance=1e-4:6e-4", "--steady", "50", "--ensemble", "2"], "does not apply with --steady"),
+    (["--vary", "clearance=1e-4:6e-4", "--steady", "50", "--objective", "peak-force"], "has no steady form"),
+    (["--vary", "clearance=1e-4:6e-4", "--steady", "-1"], "--steady"),
     ([], "required"),
 ])
 def test_cli_bad_input_exits_2(argv, match, tmp_path, capsys):

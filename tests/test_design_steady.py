@@ -55,6 +55,7 @@ def test_a_steady_design_has_the_shadowing_gradient_of_the_average_and_walks_to_
     assert res.design["torsion_damping:hinge"] == pytest.approx(HIGH, abs=1e-9)
     assert res.objective["optimum"] < res.objective["start"]
     assert res.settings["steady"]["revolutions"] == REVOLUTIONS
+    assert "averaged over 20 revolutions of steady operation after 42" in res.objective["description"]
     # resumed from its journal: the same design, every evaluation replayed, the gradients' errors too
     again = jc.design(mech, {"torsion_damping:hinge": (LOW, HIGH)}, objective, **kw)
     assert again.design == res.design and again.evaluations["replayed"] == sum(res.evaluations.values())

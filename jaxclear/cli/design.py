@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 
 from .._errors import ParameterError
-from ..designing import METHODS, OBJECTIVES, Ensemble, OperatingPoint, design
+from ..designing import METHODS, OBJECTIVES, Ensemble, OperatingPoint, SteadyOperation, design
 from ..designing.problem import SAMPLES_PER_REVOLUTION
 from .common import add_mechanism_file_option, add_mechanism_options, name_value, number_in
 from .settings import add_settings_options, settings_from_args
@@ -98,6 +98,15 @@ def configure(p: argparse.ArgumentParser):
                    help="each run's length in crank revolutions [-], > 0 (default: 1)")
     r.add_argument("--samples-per-revolution", type=number_in(int, 8), default=SAMPLES_PER_REVOLUTION, metavar="N",
                    help=f"output samples per revolution [-], >= 8 (default: {SAMPLES_PER_REVOLUTION})")
+    r.add_argument("--steady", type=number_in(int, 0), default=0, metavar="N",
+                   help="design on steady operation: the objective averaged over N crank revolutions after "
+                   "--transient, gradients by least-squares shadowing (rms-deviation only; no --point, "
+                   "--ensemble) [-], >= 0 (default: 0, off)")
+    r.add_argument("--transient", type=number_in(int, 0), default=20, metavar="N",
+                   help="with --steady: revolutions left out first [-], >= 0 (default: 20)")
+    r.add_argument("--n-unstable", type=number_in(int, 1), default=1, metavar="N",
+                   help="with --steady: the shadowing's homogeneous tangents, at least the positive Lyapunov "
+                   "exponents [-], >= 1 (default: 1)")
     add_settings_options(r)
     o = p.add_argument_group("output")
     o.add_argument("--out", default="./jaxclear-design", metavar="DIR",
@@ -123,8 +132,13 @@ def run(args) -> int:
     settings = settings_from_args(args)  # the integration options given, over Settings' defaults
     print(f"jaxclear design: {mech.name}, {len(variables)} variable(s), objective {args.objective}; the first "
           "evaluations compile", flush=True)
+    steady = SteadyOperation(revolutions=args.steady, transient_revolutions=args.transient,
+                             n_unstable=args.n_unstable) if args.steady else None
+    if steady is not None and args.ensemble > 1:
+        raise ParameterError("--ensemble: does not apply with --steady (the steady average holds every start)")
     res = design(mech, variables, args.objective, args.constraint, start=dict(args.start), settings=settings,
-                 points=args.point, ensemble=Ensemble(args.ensemble, args.ensemble_kind),
+                 points=args.point, ensemble=None if steady else Ensemble(args.ensemble, args.ensemble_kind),
+                 steady=steady,
                  revolutions=args.revolutions, samples_per_revolution=args.samples_per_revolution,
                  method=args.method, max_iter=args.max_iter, ftol=args.ftol, gtol=args.gtol, out=args.out,
                  resume=not args.restart, progress=not args.no_progress, check_chaos=not args.no_chaos_check,

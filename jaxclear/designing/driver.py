@@ -181,7 +181,8 @@ def design(mech: Mechanism, variables: dict, objective="rms-deviation", constrai
                    [_spec(c) for c in cons], problem.members, problem.base, revolutions, problem.n_out, method_,
                    max_iter, ftol, gtol, *([dataclasses.asdict(steady)] if steady is not None else []))
     steady_eval = SteadyEvaluation(problem, steady) if steady is not None else None
-    config = dict(variables={v.name: [v.low, v.high] for v in variables_}, objective=obj.describe(mech),
+    described = obj.describe(mech) + (steady.describe() if steady is not None else "")
+    config = dict(variables={v.name: [v.low, v.high] for v in variables_}, objective=described,
                   constraints=[c.describe() for c in cons], method=method_, max_iter=max_iter, ftol=ftol, gtol=gtol,
                   revolutions=revolutions, samples_per_revolution=samples_per_revolution, runs_per_evaluation=
                   problem.members.count, points=[dict(p.values, weight=p.weight) for p in _points(points)],
@@ -290,7 +291,7 @@ def _design_locked(problem, variables, u0, start_mech, key, config, out, resume,
     result = DesignResult(
         status=status, message=str(res.message), design={v.name: xi for v, xi in zip(variables, x)},
         start={v.name: float(v.start) for v in variables},
-        objective={"name": problem.objective.name, "description": problem.objective.describe(problem.mech),
+        objective={"name": problem.objective.name, "description": config["objective"],
                    "unit": problem.objective.unit(problem.mech), "start": f_start, "optimum": f_opt,
                    "improvement": 1.0 - f_opt / f_start if f_start else float("nan")},
         constraints=constraint_table(problem, start_eval["values"], values), gradient=grad,

@@ -79,6 +79,11 @@ class SteadyOperation:
             raise ParameterError(f"steady.revolutions = {self.revolutions} is too short for steady.blocks = "
                                  f"{self.blocks} (at least {2 * self.blocks} segments)")
 
+    def describe(self) -> str:
+        """What the average is, appended to the objective's description."""
+        return (f", averaged over {self.revolutions} revolutions of steady operation after {self.skipped} "
+                "(gradients by least-squares shadowing)")
+
     @property
     def per_revolution(self) -> int:
         return self.segments_per_revolution * self.samples_per_segment
