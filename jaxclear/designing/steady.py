@@ -21,7 +21,9 @@ evaluation is
   mean square with respect to every design variable on the same grid, chained through the
   finish, :math:`df/dx = \langle J\rangle' / (2 f)`, and the unit cube's spans. Its blocks' spread
   is the gradient's standard error, journaled with every gradient and reported
-  (``DesignResult.chaos["steady"]``).
+  (``DesignResult.chaos["steady"]``). The objective that comes with a gradient is the shadowing
+  run's own average: another finite-time average of the same chaotic motion than the value's,
+  apart by its noise (percents over 100 revolutions of the benchmark slider-crank).
 
 Where the motion is chaotic and its shadowing tangents have heavy tails (the benchmark
 slider-crank at 5000 rpm, benchmarks/README.md, "Shadowing derivatives of steady running") the
