@@ -101,7 +101,7 @@ def configure(p: argparse.ArgumentParser):
     r.add_argument("--steady", type=number_in(int, 0), default=0, metavar="N",
                    help="design on steady operation: the objective averaged over N crank revolutions after "
                    "--transient, gradients by least-squares shadowing (rms-deviation only; no --point, "
-                   "--ensemble) [-], >= 0 (default: 0, off)")
+                   "--ensemble) [-], >= 0, 0 is off (default: 0)")
     r.add_argument("--transient", type=number_in(int, 0), default=20, metavar="N",
                    help="with --steady: revolutions left out first [-], >= 0 (default: 20)")
     r.add_argument("--n-unstable", type=number_in(int, 1), default=1, metavar="N",
