@@ -304,6 +304,25 @@ def unresolved(names, derivative, error, blocks, exponents) -> str:
             "(docs/theory/shadowing.md, 'Mechanisms')")
 
 
+def check_options(revolutions, transient_revolutions, segments_per_revolution, samples_per_segment, blocks,
+                  discard_revolutions, prefix: str = "") -> tuple[int, ...]:
+    """:func:`steady_derivatives`' options of length and sampling as ints in their ranges, in
+    that order, else a :class:`ParameterError` naming the option (``prefix`` before its name:
+    ``"steady."`` for :class:`jaxclear.SteadyOperation`)."""
+    revolutions = check_integer(prefix + "revolutions", revolutions, 1, None, "crank revolutions averaged")
+    transient = check_integer(prefix + "transient_revolutions", transient_revolutions, 0, None, "revolutions first")
+    spr = check_integer(prefix + "segments_per_revolution", segments_per_revolution, 1, None,
+                        "renormalisations a revolution")
+    samples = check_integer(prefix + "samples_per_segment", samples_per_segment, 1, None, "samples a segment")
+    blocks = check_integer(prefix + "blocks", blocks, 2, None, "batch means for the errors")
+    discard = check_integer(prefix + "discard_revolutions", discard_revolutions, 0, None, "revolutions left out")
+    if revolutions * spr < 2 * blocks:
+        raise ParameterError(f"{prefix}revolutions = {revolutions} with {spr} segments a revolution is too short for "
+                             f"{prefix}blocks = {blocks}: at least {2 * blocks} segments (allowed range of "
+                             f"{prefix}revolutions: [{math.ceil(2 * blocks / spr)}, inf))")
+    return revolutions, transient, spr, samples, blocks, discard
+
+
 def steady_derivatives(mech: Mechanism, names: Sequence[str], objective: Callable, s: Settings | None = None, *,
                        revolutions: int = 200, transient_revolutions: int = 20, segments_per_revolution: int = 16,
                        samples_per_segment: int = 8, n_unstable: int = 1, blocks: int = 4,
@@ -367,18 +386,10 @@ def steady_derivatives(mech: Mechanism, names: Sequence[str], objective: Callabl
     s = settings(1.0) if s is None else s
     check_settings("steady_derivatives", s, required=True, name="s")
     names = params.check_names(mech, names)
-    revolutions = check_integer("revolutions", revolutions, 1, None, "crank revolutions averaged")
-    transient_revolutions = check_integer("transient_revolutions", transient_revolutions, 0, None, "revolutions first")
-    spr = check_integer("segments_per_revolution", segments_per_revolution, 1, None, "renormalisations a revolution")
-    samples = check_integer("samples_per_segment", samples_per_segment, 1, None, "samples a segment")
-    blocks = check_integer("blocks", blocks, 2, None, "batch means for the errors")
-    discard_revolutions = check_integer("discard_revolutions", discard_revolutions, 0, None, "revolutions left out")
+    revolutions, transient_revolutions, spr, samples, blocks, discard_revolutions = check_options(
+        revolutions, transient_revolutions, segments_per_revolution, samples_per_segment, blocks, discard_revolutions)
     n_unstable = check_integer("n_unstable", n_unstable, 1, manifold.dimension(mech),
                                "homogeneous tangents, at most the phase space's dimension")
-    if revolutions * spr < 2 * blocks:
-        raise ParameterError(f"revolutions = {revolutions} with {spr} segments a revolution is too short for "
-                             f"blocks = {blocks}: at least {2 * blocks} segments (allowed range of revolutions: "
-                             f"[{math.ceil(2 * blocks / spr)}, inf))")
     if statistic not in STATISTICS:
         raise ParameterError(f"statistic = {statistic!r} is not one of {', '.join(map(repr, STATISTICS))}")
     if statistic == "revolution_peak" and revolutions < blocks:

@@ -47,6 +47,7 @@ import numpy as np
 from .._errors import ParameterError, SolverError, check_integer
 from ..analysis.channels import OVERLAY_KINDS, parse, sample_channel
 from ..chaos import ShadowingWarning, steady_derivatives
+from ..chaos.shadowing import check_options
 from ..integrate import is_kinematic, kinematics_at, simulate
 from ..model import Mechanism, crank_period
 from .objectives import AbstractObjective, RmsDeviation, UserObjective
@@ -70,16 +71,11 @@ class SteadyOperation:
     blocks: int = 4
 
     def check(self) -> None:
-        check_integer("steady.revolutions", self.revolutions, 1, None, "crank revolutions averaged")
-        check_integer("steady.transient_revolutions", self.transient_revolutions, 0, None, "revolutions left out")
-        check_integer("steady.discard_revolutions", self.discard_revolutions, 0, None, "revolutions left out")
-        check_integer("steady.segments_per_revolution", self.segments_per_revolution, 1, None, "segments")
-        check_integer("steady.samples_per_segment", self.samples_per_segment, 1, None, "samples a segment")
+        """The options' ranges (:func:`jaxclear.chaos.shadowing.check_options`, the shadowing's own
+        rules; ``n_unstable``'s upper bound, the phase space's dimension, when the gradient runs)."""
+        check_options(self.revolutions, self.transient_revolutions, self.segments_per_revolution,
+                      self.samples_per_segment, self.blocks, self.discard_revolutions, prefix="steady.")
         check_integer("steady.n_unstable", self.n_unstable, 1, None, "homogeneous tangents")
-        check_integer("steady.blocks", self.blocks, 2, None, "batch means for the errors")
-        if self.revolutions * self.segments_per_revolution < 2 * self.blocks:
-            raise ParameterError(f"steady.revolutions = {self.revolutions} is too short for steady.blocks = "
-                                 f"{self.blocks} (at least {2 * self.blocks} segments)")
 
     def describe(self) -> str:
         """What the average is, appended to the objective's description."""
@@ -156,9 +152,8 @@ class SteadyEvaluation:
         self.problem, self.steady = problem, steady
         self.objective = sample_objective(problem.objective, problem.mech)
 
-    def _design(self, u):
-        x = self.problem.values(jnp.asarray(u, dtype=float))
-        return x, self.problem.design_mechanism(x)
+    def _design(self, u) -> Mechanism:
+        return self.problem.design_mechanism(self.problem.values(jnp.asarray(u, dtype=float)))
 
     def _constraints(self, u):
         m = self.problem.design_mechanism(self.problem.values(u))
@@ -167,7 +162,7 @@ class SteadyEvaluation:
 
     def value(self, u):
         st = self.steady
-        _, m = self._design(u)
+        m = self._design(u)
         total = st.skipped + st.revolutions
         n = total * st.per_revolution + 1
         # the step limit per revolution, as the gradient has it per segment: a long average is not
@@ -181,7 +176,7 @@ class SteadyEvaluation:
 
     def with_jacobian(self, u):
         st, p = self.steady, self.problem
-        _, m = self._design(u)
+        m = self._design(u)
         base = dataclasses.replace(p.base, t_start=0.0, throw=False, progress=False)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", ShadowingWarning)
@@ -221,7 +216,7 @@ class SteadyEvaluation:
 
     def message(self, name: str, summary: dict) -> str | None:
         """The design's one warning: the share of its gradients that the shadowing left unresolved."""
-        s = summary
+        s = summary  # short for the message below
         if not s["unresolved"]:
             return None
         return (f"design of {name!r} on steady operation: {s['unresolved']} of {s['gradients']} shadowing gradients "
