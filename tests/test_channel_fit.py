@@ -204,6 +204,7 @@ def test_two_channels_with_their_own_sensors_and_weights():
     assert set(res.series) == {"rocker_acc_rad_s2", "tip_acc_m_s2"}
 
 
+@pytest.mark.extended
 def test_fit_of_a_window_before_the_first_contact_is_refused(tmp_path):
     """A 2 ms window of the four-bar ends before the first impact (2.95 ms): the contact
     parameters act on none of its samples (their Jacobian is exactly zero), so the velocity stage

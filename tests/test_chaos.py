@@ -358,6 +358,7 @@ def test_long_intervals_on_the_chaotic_benchmark_do_not_stall():
     assert 200 < float(r.exponents[0]) < 900
 
 
+@pytest.mark.extended
 def test_only_the_memory_the_motion_reads_is_carried():
     """A basis vector carries the tangents of the memory entries the vector field reads
     (chaos.manifold.live_memory), and no others: the revolute joint's memory is

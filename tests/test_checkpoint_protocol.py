@@ -335,6 +335,7 @@ LOCKED = {"posterior": _locked_posterior, "sweep": lambda out: sweep.run_sweep(_
           "fit": lambda out: _fit(out, pytest.MonkeyPatch())}
 
 
+@pytest.mark.extended
 @pytest.mark.parametrize("kind", [pytest.param(k, marks=pytest.mark.slow) if k == "fit" else k for k in DRIVERS])
 def test_kill_and_resume(kind, tmp_path, monkeypatch):
     """Interrupted after its first piece of work, the same call resumes, does no saved piece again

@@ -28,6 +28,7 @@ KF = 2.787e11  # Winkler modulus of steel, E(1-nu)/((1+nu)(1-2nu)) with E = 207 
 # ---------------------------------------------------------------- effective restitution
 
 
+@pytest.mark.extended
 @pytest.mark.parametrize("law", sorted(RESTITUTION_TABLE))
 def test_single_impact_every_law_matches_table(law):
     """All columns and rows of the restitution table, within 2e-3 (the table is rounded to 1e-3)."""
@@ -84,6 +85,7 @@ def simulated_restitution_kv(c_r):
 ALL_LAWS = sorted(set(jc.law_names()))
 
 
+@pytest.mark.extended
 @pytest.mark.parametrize("law", ALL_LAWS)
 def test_hysteresis_never_pulls_and_energy_loss_matches_restitution(law):
     """During one impact F_N >= 0 at every sample (no adhesive pull at separation), and the work of

@@ -372,6 +372,7 @@ def test_roughness_report_against_linear_prediction():
     assert rough["change"]["b"] == pytest.approx((0.02 - 3e-8) / abs(jumpy(u)), rel=1e-6)
 
 
+@pytest.mark.extended
 def test_rugged_objective_warns_and_is_reported(four_bar, tmp_path, monkeypatch):
     """The warning path on the cheap four-bar: a step of 30 % of the ranges makes the quadratic
     objective's curvature a change far beyond its linear prediction (the same programs as the

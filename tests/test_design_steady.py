@@ -31,6 +31,7 @@ DAMPING_SLOPE = -75.1717
 LOW, HIGH = 0.05, 0.15
 
 
+@pytest.mark.extended
 def test_a_steady_design_has_the_shadowing_gradient_of_the_average_and_walks_to_the_bound(tmp_path):
     mech = forced_pendulum()
     steady = designing.SteadyOperation(revolutions=REVOLUTIONS, transient_revolutions=TRANSIENT, samples_per_segment=16)

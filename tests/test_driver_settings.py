@@ -121,6 +121,7 @@ def test_sweep_file_settings_table_and_the_command_line_over_it():
         config_from_dict({**doc, "settings": {"rtl": 1.0}}, source="s.toml")
 
 
+@pytest.mark.extended
 def test_a_tight_rtol_given_to_a_sweep_gives_the_tight_run():
     """One run of a sweep with ``settings=jc.settings(..., rtol=1e-9)``: its step counts are
     those of ``jc.simulate`` at rtol 1e-9 over the same span, not those at the default 1e-6."""

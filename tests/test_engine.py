@@ -380,6 +380,7 @@ def test_unrolled_solver_rejects_implicit():
         UnrolledExplicitRK(jc.SOLVERS["kvaerno5"]())
 
 
+@pytest.mark.extended
 def test_loop_and_unrolled_stages_agree():
     """Settings(stages="loop") (diffrax's stage loop, used by sweeps) and the default unrolled
     stages compute the same step up to rounding (test_unrolled_stages_equal_diffrax). Over a run

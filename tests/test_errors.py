@@ -117,6 +117,7 @@ def test_step_limit_is_an_error_naming_max_steps():
         jc.simulate(jc.preset("flores-slider-crank"), jc.settings(0.01, max_steps=20))
 
 
+@pytest.mark.extended
 def test_failed_run_raises_after_its_program_under_transformations(caplog):
     """A failed run under ``jax.jacfwd`` (called eagerly) and in ``jc.sensitivities`` is the same
     named ``SolverError`` as a plain call, raised in Python after the compiled program returns;
@@ -160,6 +161,7 @@ def test_bad_settings(kwargs, match):
         jc.settings(0.01, **kwargs)
 
 
+@pytest.mark.extended
 def test_a_traced_tolerance_outside_its_range_is_a_status_naming_it():
     """Tolerances are array leaves, so they can be traced (a ``jax.vmap`` over them), where
     ``Settings``' own check cannot see them: the run checks them too. A lane at rtol 0 or atol

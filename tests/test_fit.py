@@ -77,6 +77,7 @@ def test_record_times_by_time_and_by_crank_angle():
     np.testing.assert_allclose(np.interp([0.5, 1.5, 3.0], [0.0, 1.0, 2.0], [0.0, 10.0, 30.0]), [5.0, 20.0, 30.0])
 
 
+@pytest.mark.extended
 @pytest.mark.parametrize("extend,cap", [(0, math.inf), (3, 0.5)])
 def test_fit_levenberg_marquardt_on_rosenbrock(extend, cap):
     """The fit's optimistix Levenberg-Marquardt (Nielsen damping, optional step extension and
@@ -624,6 +625,7 @@ def check_every_phase_of_the_automatic_refit_resumes(small_record, monkeypatch):
     assert res.settings["auto_starts"] == whole.settings["auto_starts"]
 
 
+@pytest.mark.extended
 def test_small_fit_api_and_cli(small_record, capsys, monkeypatch):
     """The checks above in one test, so that a parallel run (pytest -n) compiles the model once."""
     check_small_fit_resumes_after_an_interruption(small_record)
@@ -855,6 +857,7 @@ def test_several_starts_and_adam(tmp_path, small_record):
 # --------------------------------------------------------------------------------------
 
 
+@pytest.mark.extended
 def test_identification_notebook_runs(tmp_path):
     """notebooks/identification.ipynb end to end with JAXCLEAR_QUICK=1 (short record, few
     iterations): no error, its figures written."""

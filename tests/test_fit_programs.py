@@ -79,6 +79,7 @@ def two_processes(tmp_path_factory):
     return _run(_env(cache)), _run(_env(cache))
 
 
+@pytest.mark.extended
 def test_a_second_process_loads_the_fits_programs(two_processes):
     """The first process traces the fit's programs, each stored (none unkeyable, unserializable
     or with an output structure other than its caller's); the second traces none of them (nor

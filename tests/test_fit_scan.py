@@ -53,6 +53,7 @@ def test_scan_inputs_are_checked_before_any_fit(record, capsys):
     assert "jaxclear fit:" not in printed.out  # refused before the fit starts
 
 
+@pytest.mark.extended
 def test_a_better_held_point_is_refitted_and_taken_and_the_scan_resumes(record):
     """A fit stopped before it converged (one Levenberg-Marquardt step on the whole window, ftol
     and xtol 0.5, from 1.3x the stiffness and restitution 0.75: its misfit stays near 0.24 of

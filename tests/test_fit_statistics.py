@@ -235,6 +235,7 @@ def _lab_data(factor, c_r, seed, revolutions):
     return data, rec["truth"]
 
 
+@pytest.mark.extended
 def test_fit_of_a_short_record_of_the_independent_simulator():
     """8 revolutions (96 ms) of the independent simulator at stiffness 1 x nominal and restitution
     0.9 (its case 3), the gain known; 4 x 5 nodes (stiffness a factor 3 either side, restitution

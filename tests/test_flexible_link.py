@@ -63,6 +63,7 @@ def frequencies(mech: jc.Mechanism) -> np.ndarray:
 
 @pytest.mark.parametrize("support, beta, order", [("clamped", (1.87510407, 4.69409113), 2.0),
                                                   ("pinned", (np.pi, 2 * np.pi), 4.0)])
+@pytest.mark.extended
 def test_natural_frequencies_converge_to_euler_bernoulli(support, beta, order):
     """First two bending frequencies with 4 and 8 elements against Euler-Bernoulli's
     (beta_n L)^2 sqrt(EI / (mu L^4)). Measured (2026-11-30): clamped 1.45e-2, 5.2e-2 (4
@@ -133,6 +134,7 @@ def test_free_flexible_pendulum_keeps_its_energy_and_loses_what_its_damping_diss
         assert np.all(np.diff(total) < 1e-9 * exchanged)  # dissipation only takes energy out
 
 
+@pytest.mark.extended
 def test_derivative_with_respect_to_the_modulus_against_central_differences():
     """d(tip height at 50 ms)/dE of the soft pendulum by the error-controlled sensitivities
     against central differences of runs at rtol 1e-10, over a step sweep h/E = 1e-2 .. 1e-5 that

@@ -149,6 +149,7 @@ def check_finite_gradients_through_the_centre(compiled):
         assert abs(g[i] - fd) <= FD_RTOL * abs(fd), (name, g[i], fd)
 
 
+@pytest.mark.extended
 def test_gradients_of_the_free_journal(compiled):
     """The three checks above in one test, so that a parallel run (pytest -n) compiles the shared
     functions once: FD agreement of both modes for every parameter, finite gradients through the

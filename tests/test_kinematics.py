@@ -35,6 +35,7 @@ def test_slider_crank_matches_closed_form():
     assert float(sol.drift.max()) < 1e-12
 
 
+@pytest.mark.extended
 def test_a_crank_started_anywhere_assembles_on_the_branch_it_turns_through():
     """A preset built at crank angle 0 and started at another ``angle0`` assembles where turning
     the crank there by hand leads (:func:`jaxclear.integrate.assemble`'s continuation), not on
@@ -59,6 +60,7 @@ def test_a_crank_started_anywhere_assembles_on_the_branch_it_turns_through():
     assert np.max(np.abs(started - np.asarray(sol.q[-1]))) < 1e-9
 
 
+@pytest.mark.extended
 @pytest.mark.parametrize("name", ["flores-slider-crank", "four-bar"])
 def test_agrees_with_the_integrated_ideal_run(name):
     """The integrated run at rtol 1e-10 differs from the exact motion by its own error; 1e-6 of
@@ -92,6 +94,7 @@ def test_clearance_mechanism_is_refused():
         kinematic_solution(mech, revolution_settings(mech, 0.1))
 
 
+@pytest.mark.extended
 def test_gradient_and_vmap():
     """d(slider acceleration at one sample)/d(crank speed) against a central difference (step
     1e-4 of the speed: truncation ~1e-8 relative, far below the 1e-6 asked), and vmap over two

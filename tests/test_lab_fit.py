@@ -200,6 +200,7 @@ def test_a_scan_of_the_restitution_makes_record_1_honest(tmp_path):
     assert res.ok, res.failures
 
 
+@pytest.mark.extended
 def test_laboratory_record_notebook_runs(tmp_path):
     """notebooks/laboratory_record.ipynb with JAXCLEAR_QUICK=1 (a record 1 revolution after
     start-up, 1.2 ms, one 1 ms window, 6 iterations a stage: the notebook's steps, not a
@@ -454,6 +455,7 @@ def small_free_start_problem():
                                settings, start_state="free")
 
 
+@pytest.mark.extended
 def test_rechosen_approach_speed_keeps_the_start_and_never_scores_worse():
     """:func:`~jaxclear.fitting.way_in.rechoose_approach` on a journal pressed into its bearing
     at a window's start (0.5 ms of a synthetic record): only the approach number ``m`` moves,

@@ -81,6 +81,7 @@ def slider_crank():
     return jc.preset("flores-slider-crank")
 
 
+@pytest.mark.extended
 def test_chunked_equals_unchunked(slider_crank):
     """Five runs at once and in chunks of two (the last one padded by repeating its last run):
     the same bits; map and vmap of the same runs agree to rounding."""
@@ -138,6 +139,7 @@ def _counting(monkeypatch, stop_at=None):
     return calls
 
 
+@pytest.mark.extended
 def test_lyapunov_map_resumes_after_a_kill(slider_crank, tmp_path, monkeypatch):
     # uninterrupted, nothing written, in the chunks of the resumed map: one compiled program for
     # the three maps (that the chunks do not change the rows: test_chunked_equals_unchunked)

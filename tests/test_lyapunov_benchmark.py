@@ -11,6 +11,7 @@ import math
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 import jaxclear as jc
 from jaxclear.chaos import lyapunov, manifold
@@ -18,6 +19,7 @@ from jaxclear.integrate import _solve as solve
 from jaxclear.integrate._system import MechanismSystem
 
 
+@pytest.mark.extended
 def test_undamped_hertz_spectrum_sums_to_zero_and_pairs_at_the_defaults():
     """Frictionless, purely elastic Hertz contact (law "hertz": no damping, so no force reads the
     approach speed) at 5000 rpm: a Hamiltonian motion on the 4-dimensional constraint manifold
@@ -52,6 +54,7 @@ def test_undamped_hertz_spectrum_sums_to_zero_and_pairs_at_the_defaults():
 SHARED = dict(count=4, discard=1, samples=1)
 
 
+@pytest.mark.extended
 def test_periodic_point_exponent_is_its_floquet_multiplier():
     """The chaos notebook's periodic point (1000 rpm, friction 0.2, c_r 0.3): after a transient the
     journal stays in one contact and the motion repeats every revolution T = 60 ms. Its largest
@@ -97,6 +100,7 @@ def test_periodic_point_exponent_is_its_floquet_multiplier():
     assert abs(float(r.exponents[0]) - floquet) < 0.02 * abs(floquet)
 
 
+@pytest.mark.extended
 def test_full_spectrum_volume_is_the_tangent_maps_determinant():
     """The sum of the log growths of all four directions over an interval is the log of the
     volume the tangent map gives the manifold's unit cube, ln sqrt(det(X^T X)), X = P W (dy(t+h)/dy(t))

@@ -275,6 +275,7 @@ def test_python_functions_cannot_be_saved():
         dumps_mechanism(mech)
 
 
+@pytest.mark.extended
 def test_a_damper_given_as_a_function_names_it_when_saved_and_is_added_again_after_loading(tmp_path):
     """A damper given as a point-force function cannot be saved: the message names the function,
     its file and line, the force elements a file holds that replace it (a spring-damper between

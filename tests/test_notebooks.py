@@ -47,6 +47,7 @@ def run_notebook(name: str, tmp_path: Path, timeout: int = 900) -> tuple[list, s
     return figures, "".join(o.get("text", "") for c in cells for o in c.outputs)
 
 
+@pytest.mark.extended
 def test_contact_models_notebook_runs(tmp_path):
     figures, text = run_notebook("contact_models.ipynb", tmp_path)
     assert figures == ["effective_restitution.png", "hybrid_vs_ln_orbits.png", "hybrid_vs_ln_signals.png"]
@@ -63,6 +64,7 @@ def test_committed_notebook_has_outputs_and_figures():
         assert (NOTEBOOKS / "figures" / fig).stat().st_size > 10_000
 
 
+@pytest.mark.extended
 def test_joints_notebook_runs(tmp_path):
     """notebooks/joints.ipynb (dry against lubricated benchmark, guide clearance) end to end, one
     crank revolution of each mechanism with JAXCLEAR_QUICK=1 (about 2 minutes on 2 shared cores,
@@ -72,6 +74,7 @@ def test_joints_notebook_runs(tmp_path):
     assert "lubricated: impacts   0" in text
 
 
+@pytest.mark.extended
 def test_wear_notebook_runs(tmp_path):
     """notebooks/wear.ipynb at small settings (2 updates, 45 elements): runs, writes its two figures."""
     figures, text = run_notebook("wear.ipynb", tmp_path)
@@ -79,6 +82,7 @@ def test_wear_notebook_runs(tmp_path):
     assert "largest wear depth" in text and "worn: peak |slider acceleration|" in text
 
 
+@pytest.mark.extended
 def test_design_notebook_runs(tmp_path):
     """notebooks/design.ipynb at small settings (the balanced four-bar, a 21 x 21 landscape, three
     iterations of a half-revolution design through impacts): runs, writes its two figures."""
@@ -110,6 +114,7 @@ def test_chaos_notebook_runs(tmp_path):
     assert "lambda_1 =" in text and "0-1 test K =" in text and ("e-folding time" in text or "no horizon" in text)
 
 
+@pytest.mark.extended
 def test_flexible_links_notebook_runs(tmp_path):
     """notebooks/flexible_links.ipynb (issue 43: the benchmark slider-crank with its rod rigid,
     steel and ten times softer; one crank revolution each with JAXCLEAR_QUICK=1, 3 moduli): runs,
@@ -119,6 +124,7 @@ def test_flexible_links_notebook_runs(tmp_path):
     assert "midpoint deflection" in text and "20.7 GPa: largest deflection" in text
 
 
+@pytest.mark.extended
 def test_steady_operation_notebook_runs(tmp_path):
     """Shadowing derivatives (issue 44): on the forced pendulum the notebook's NILSS agrees with
     central differences of averages (measured 0.00 % and 0.04 % with the tangents read at fixed crank

@@ -73,6 +73,7 @@ def _run(mech, rtol, exact, n_out=161):
     return jc.simulate(mech, jc.settings(T_END, n_out=n_out, rtol=rtol, atol=1e-12, exact_onsets=exact))
 
 
+@pytest.mark.extended
 def test_exact_onsets_match_an_event_restart_integration():
     """At rtol = 1e-6 the position history of the falling journal (one Flores impact with c_r = 0.3,
     after which it stays in contact) matches the event-restart SciPy solution, and the stored

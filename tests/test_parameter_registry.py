@@ -249,6 +249,7 @@ def test_the_toy_stiffness_swept_gives_the_closed_form_deflection(tmp_path):
                           ideal_reference=False)
 
 
+@pytest.mark.extended
 def test_the_toy_stiffness_fitted_from_a_record_made_at_a_known_value():
     """A record of the block's acceleration, the closed form ``AMPLITUDE (k / M) cos(sqrt(k/M) t)``
     at k = 800 N/m (0.4 s at 1 kHz) plus white noise of 5 % of its amplitude, fitted from 0.7 k

@@ -49,6 +49,7 @@ def _assert_same(a, b):
     assert jax.tree_util.tree_structure(a) == jax.tree_util.tree_structure(b)
 
 
+@pytest.mark.extended
 def test_stored_program_equals_the_jitted_run_and_serves_every_value(store):
     mech = jc.preset("flores-slider-crank")
     s = revolution_settings(mech, 0.05, n_out=51)
@@ -264,6 +265,7 @@ CHILD = textwrap.dedent("""
 """)
 
 
+@pytest.mark.extended
 def test_a_second_process_neither_traces_nor_compiles_the_run(tmp_path):
     """Issue 41, item 3: the Python API keeps its programs across processes by default. Two fresh
     processes run the benchmark's ``jc.simulate`` with the same ``JAXCLEAR_CACHE_DIR`` and nothing

@@ -52,6 +52,7 @@ def four_bar():
     return mech, s, jax.jit(lambda m: _solve(m, s))(mech)
 
 
+@pytest.mark.extended
 def test_block_samples_equal_diffrax_saving(four_bar):
     """With a block as large as the grid no step is cut, so the steps are diffrax's: every
     sample (coordinates, velocities and the impact memory of the clearance joint, onsets
@@ -79,6 +80,7 @@ def test_a_step_holds_at_most_a_block(four_bar):
     assert np.max(np.abs(out[:, :n] - ref[:, :n])) < 1e-5
 
 
+@pytest.mark.extended
 def test_zero_length_and_failed_runs():
     """A member that is not integrated (its restitution outside its range: a zero-length run)
     reads its start at every sample; a run stopped by max_steps leaves the samples after its

@@ -74,6 +74,7 @@ def _effective_restitution(d):
     return brentq(f, 1e-9, min(1.0, 1.0 / d - 1e-12), xtol=1e-15)
 
 
+@pytest.mark.extended
 def test_restitution_derivative_through_three_impacts_matches_the_closed_form():
     c_r = 0.8
     d = 3.0 * (1.0 - c_r**2) / 4.0
@@ -90,6 +91,7 @@ def test_restitution_derivative_through_three_impacts_matches_the_closed_form():
     assert float(grads["restitution"].qdot[-1, 0]) == pytest.approx(exact, rel=3e-4)
 
 
+@pytest.mark.extended
 def test_forward_and_reverse_mode_are_the_same_sensitivities():
     """jax.jacfwd and jax.grad of a scalar: the same error-controlled sensitivities (reverse mode
     is the transpose of their linear combination), equal to rounding (1e-12 relative)."""
@@ -149,6 +151,7 @@ def test_named_parameters_api_errors():
             jc.sensitivities(mech, bad, s)
 
 
+@pytest.mark.extended
 def test_horizon_warning():
     """With a tolerance as loose as 0.3, a change of the stiffness as small as the tolerance moves
     the bouncing journal's state by more than a tenth of its size: the derivative is past the
@@ -222,6 +225,7 @@ def _derived_stiffness_case():
     return mech, fixed, s, out, central
 
 
+@pytest.mark.extended
 def test_a_derived_stiffness_follows_the_clearance_whatever_else_is_asked():
     """The preset's Hertz stiffness is derived from the radii (its leaf is None), so it follows
     the clearance, and a derivative's program does not depend on which names are asked (another

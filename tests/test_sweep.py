@@ -245,6 +245,7 @@ def test_compiled_chunk_has_no_lapack_call():
     assert lapack_targets(text) == []
 
 
+@pytest.mark.extended
 def test_runs_one_after_another_or_side_by_side():
     """On CPU with single-kernel loops a device integrates its runs one after another
     (``jax.lax.map``), elsewhere or with ``Plan(side_by_side=True)`` side by side (``jax.vmap``).
@@ -348,6 +349,7 @@ def test_channel_statistics_exact_on_known_samples():
     assert list(dict.fromkeys(s for _, s in m)) == list(metrics.CHANNEL_STATS)
 
 
+@pytest.mark.extended
 def test_sweep_carries_element_channels(tmp_path):
     """A lubricated slider-crank swept over clearance with the film's own outputs as channels:
     the chunks their time series, equal to the element's outputs of the same run simulated alone
@@ -526,6 +528,7 @@ def _check_labelled_results(e2e):
     assert list(df.index) == list(range(5)) and df.loc[3, "status"] == 1
 
 
+@pytest.mark.extended
 def test_in_process_sweep(tmp_path):
     """One sweep of 5 runs in chunks of 2 (the last padded) with a failing run, then every check
     on it (one test, so that parallel test workers do not each compile it)."""
@@ -575,6 +578,7 @@ RESUME_SCRIPT = textwrap.dedent("""
 """)
 
 
+@pytest.mark.extended
 def test_kill_and_resume(tmp_path):
     """`python -m jaxclear sweep` killed with SIGKILL after its first chunk reached the CSV (plus
     a partial line appended, as a kill in the middle of a write leaves), then the same command
@@ -651,6 +655,7 @@ MULTI_DEVICE_SCRIPT = textwrap.dedent("""
 """)
 
 
+@pytest.mark.extended
 def test_sharded_over_two_cpu_devices(tmp_path):
     """Two host CPU devices forced with XLA_FLAGS (before jax is imported, hence a subprocess):
     the batch is sharded over a Mesh of both with NamedSharding, and the results equal the
@@ -758,6 +763,7 @@ SWEEP_FIGURES = ["sweeps_bifurcation_0.png", "sweeps_bifurcation_1.png", "sweeps
                  "sweeps_poincare_0.png", "sweeps_poincare_1.png"]
 
 
+@pytest.mark.extended
 def test_notebook_runs(tmp_path, monkeypatch):
     """Execute a copy of notebooks/sweeps.ipynb with JAXCLEAR_QUICK=1 (a 2 x 2 map and 3
     speeds; the committed notebook holds the outputs of the full version, about 2 minutes on 2

@@ -1,9 +1,12 @@
 """The mechanism-files tutorial runs end to end with small settings (JAXCLEAR_QUICK=1), its fit
 section through jc.fit on the rocker channel (the notebook asserts the recovered values)."""
 
+import pytest
+
 from test_notebooks import execute_notebook
 
 
+@pytest.mark.extended
 def test_mechanism_files_tutorial_runs(tmp_path):
     nb = execute_notebook("mechanism_files.ipynb", tmp_path)
     errors = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs if o.output_type == "error"]

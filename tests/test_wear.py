@@ -66,6 +66,7 @@ def test_fourier_of_nodes_is_exact_for_a_band_limited_field():
     np.testing.assert_allclose(sin, [0, 0, -3e-7] + [0] * 5, atol=1e-18)
 
 
+@pytest.mark.extended
 def test_archard_volume_and_uniform_wear_of_a_turning_bearing(turning):
     """Worn volume over one revolution: (1) against k_w * integral of F_N * slip dt from the
     output time series (the pressure integral equals F_N up to the contact arc's obliquity,
@@ -97,6 +98,7 @@ def test_archard_volume_and_uniform_wear_of_a_turning_bearing(turning):
     assert abs(depth.mean() * 2 * math.pi * RB * L / float(w.volume) - 1) < 1e-12  # the depth holds the volume
 
 
+@pytest.mark.extended
 def test_worn_profile_changes_the_next_window(tmp_path, monkeypatch):
     """Half speed: one window wears half the circumference. After one update with an
     extrapolation factor, the next run's pin sits lower by the wear depth where it presses the

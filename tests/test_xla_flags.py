@@ -86,6 +86,7 @@ def _child(env_extra):
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+@pytest.mark.extended
 def test_same_results_with_and_without_single_kernel_loops():
     """An oblique impact with friction (rtol 1e-8) in a fresh process with the option and one
     without: same step count, positions and peak contact force to 1e-9 relative (the two
