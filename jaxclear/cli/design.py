@@ -85,7 +85,8 @@ def configure(p: argparse.ArgumentParser):
     d.add_argument("--ensemble-kind", choices=("angles", "offsets"), default="angles",
                    help="what the ensemble's members differ in (default: angles)")
     d.add_argument("--method", choices=METHODS, default="auto",
-                   help="optimiser; auto: L-BFGS-B without constraints, SLSQP with them (default: auto)")
+                   help="optimiser; auto: L-BFGS-B without constraints, SLSQP with them; differential-evolution: "
+                        "no gradients, --max-iter generations of 5 members per variable (default: auto)")
     d.add_argument("--max-iter", type=number_in(int, 1), default=30, metavar="N",
                    help="iteration limit [-], >= 1 (default: 30)")
     d.add_argument("--ftol", type=number_in(float, 0.0, low_open=True), default=1e-6, metavar="TOL",

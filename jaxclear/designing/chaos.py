@@ -216,7 +216,8 @@ def scale_message(mech_name: str, report: dict, where: str) -> str:
             f"{probes}, where its gradient predicts at most {100 * pred:.2g} % and no smooth curve through the probes "
             f"fits them (off by {100 * report['excess'][name]:.2g} %): the gradient does not describe the objective "
             "there, and a 'converged' status means the method's stopping rule, not a minimum; average over an "
-            "ensemble of starts (--ensemble K), shorten or lengthen the runs, or use a gradient-free search")
+            "ensemble of starts (--ensemble K), shorten or lengthen the runs, or use a gradient-free search "
+            "(method 'differential-evolution')")
 
 
 def rugged_message(mech_name: str, report: dict) -> str:
@@ -229,7 +230,7 @@ def rugged_message(mech_name: str, report: dict) -> str:
             f"predicts {100 * report['predicted'][name]:+.2g} %: it is numerically chaotic there and a gradient "
             "follows noise; average shorter runs over an ensemble of starts (jaxclear.designing.Ensemble(starts=k), "
             "--ensemble K with --revolutions R/K), shorten the runs (revolutions), or use a "
-            "gradient-free search")
+            "gradient-free search (method 'differential-evolution')")
 
 
 __all__ = ["ROUGHNESS_LIMIT", "ROUGHNESS_STEPS", "RuggedObjectiveWarning", "SCALE_LIMIT", "SCALE_STEPS",

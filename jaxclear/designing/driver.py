@@ -25,7 +25,7 @@ from .chaos import (RuggedObjectiveWarning, horizon_report, roughness_report, ru
 from .constraints import constraint as make_constraint
 from .journal import Journal
 from .objectives import objective as make_objective
-from .optimize import Evaluator, choose_method, minimize, projected_gradient_norm
+from .optimize import GRADIENT_FREE, Evaluator, choose_method, minimize, projected_gradient_norm
 from .problem import SAMPLES_PER_REVOLUTION, Ensemble, OperatingPoint, build_problem
 from .report import (CONSTRAINT_TOL, comparison_runs, constraint_table, least_violation, sensitivity, status_of,
                      violation)
@@ -114,8 +114,10 @@ def design(mech: Mechanism, variables: dict, objective="rms-deviation", constrai
         ensemble: several starts per point (:class:`~jaxclear.designing.Ensemble`).
         revolutions, samples_per_revolution: length and sampling of each run.
         method: ``"auto"`` (L-BFGS-B without constraints, SLSQP with), ``"L-BFGS-B"``,
-            ``"SLSQP"``, ``"trust-constr"`` (:mod:`jaxclear.designing.optimize`).
-        max_iter, ftol, gtol: the method's iteration limit and tolerances (relative objective).
+            ``"SLSQP"``, ``"trust-constr"``, or ``"differential-evolution"`` (gradient-free: for
+            objectives a gradient cannot describe; :mod:`jaxclear.designing.optimize`).
+        max_iter, ftol, gtol: the method's iteration limit (differential evolution: its
+            generations, of 5 members per variable) and tolerances (relative objective).
         out: folder for the journal and the reports (locked while the design runs); None:
             nothing written.
         resume: answer from a journal of the same design in ``out`` (bit-identical result).
@@ -164,7 +166,7 @@ def design(mech: Mechanism, variables: dict, objective="rms-deviation", constrai
         c = make_constraint(spec)
         c.check(mech)
         cons.append(c.calibrated(start_mech))
-    method_ = choose_method(method, bool(cons))
+    method_ = choose_method(method, bool(cons), any(c.equality for c in cons))
     if steady is not None:
         if not isinstance(steady, SteadyOperation):
             raise ParameterError(f"steady must be a jaxclear.designing.SteadyOperation or None, got {steady!r}")
@@ -235,14 +237,18 @@ def _design_locked(problem, variables, u0, start_mech, key, config, out, resume,
         if why:
             chaos["warnings"].append(f"design of {problem.mech.name!r}: {'; '.join(why)}: the motion is chaotic there "
                                      "and gradients describe changes below the tolerance; use shorter runs over an "
-                                     "ensemble of starts (Ensemble(starts=...)) or a gradient-free search")
+                                     "ensemble of starts (Ensemble(starts=...)) or a gradient-free search "
+                                     "(method='differential-evolution')")
             warnings.warn(chaos["warnings"][-1], DerivativeHorizonWarning, stacklevel=3)
     history, bars = [], []
 
+    with_gradients = config["method"] not in GRADIENT_FREE
+
     def record(u, interrupt):
         # the gradient at every iterate (L-BFGS-B has it; SLSQP asks for it next): asking here keeps
-        # the order of evaluations, hence a resumed design, deterministic
-        grad_entry = ev.gradient(u) if interrupt is not None else None
+        # the order of evaluations, hence a resumed design, deterministic; a gradient-free method
+        # asks for none (its iterates' gradient norm is NaN)
+        grad_entry = ev.gradient(u) if interrupt is not None and with_gradients else None
         e = ev.value(u)
         g = float("nan") if grad_entry is None else projected_gradient_norm(u, np.asarray(grad_entry["jacobian"][0]) / ev.scale)
         h = {"iteration": len(history), "objective": float(e["values"][0]), "violation": violation(problem, e["values"]),

@@ -14,6 +14,19 @@ methods are deterministic, which the journal's resumption relies on (:mod:`.jour
 ``method="auto"``: L-BFGS-B without constraints, SLSQP with them; ``"trust-constr"`` is
 offered for problems where SLSQP's line search struggles.
 
+``method="differential-evolution"``: SciPy's differential evolution (Storn and Price, "Differential
+evolution: a simple and efficient heuristic for global optimization over continuous spaces", J.
+Global Optim. 11 (1997) 341-359; best1bin, constraints by Lampinen's feasibility rules: Lampinen,
+"A constraint handling approach for the differential evolution algorithm", CEC 2002), no
+gradients: for objectives a gradient cannot describe, a chaotic motion's one-revolution objective
+or a steady average whose shadowing gradients are unresolved (benchmarks/README.md, "On steady
+operation": 4,804 against SLSQP's 15,553 on bench_design's study). :data:`POPULATION_PER_VARIABLE`
+members per variable (the start design one of them, the rest a Latin hypercube), ``max_iter``
+generations, a fixed seed (:data:`SEED`), members evaluated one after another and no polishing:
+deterministic, so the journal replays it. It stops where the population's objectives agree to
+``ftol`` (relative). Inequality constraints only: no member meets an equality exactly, so
+SciPy would evaluate no objective (:func:`choose_method` refuses it).
+
 Scaling: the variables are unit-cube coordinates; the objective is divided by its magnitude at
 the start, so the stopping tolerances are relative; the constraints' residuals are
 dimensionless already (:mod:`.constraints`).
@@ -35,7 +48,13 @@ from .journal import Journal
 from .problem import DesignProblem, evaluate, evaluate_with_jacobian
 
 #: The methods offered (``auto``: L-BFGS-B without constraints, SLSQP with them).
-METHODS = ("auto", "L-BFGS-B", "SLSQP", "trust-constr")
+METHODS = ("auto", "L-BFGS-B", "SLSQP", "trust-constr", "differential-evolution")
+#: The methods that use no gradient (the design then asks for none at its iterates).
+GRADIENT_FREE = ("differential-evolution",)
+#: Differential evolution's population per design variable (benchmarks/bench_design.py's).
+POPULATION_PER_VARIABLE = 5
+#: Differential evolution's random seed: a fixed one keeps a design deterministic (its journal).
+SEED = 0
 #: The scaled objective returned for a point where a run fails (the start's is 1): the line
 #: searches step back from it.
 FAILED = 1e6
@@ -151,7 +170,14 @@ class Evaluator:
         return np.asarray(e["jacobian"][1 + i]) if self._ok(e) else np.zeros(len(u))
 
 
-def choose_method(method: str, constrained: bool) -> str:
+def choose_method(method: str, constrained: bool, equality: bool = False) -> str:
+    """The method to run (``auto`` resolved); refuses one that cannot take the constraints
+    (``equality``: one of them is an equality, which differential evolution's members never meet
+    exactly, so it would evaluate no objective)."""
+    if method in GRADIENT_FREE and equality:
+        raise ParameterError(f"method {method!r} takes inequality constraints only; the design has an equality "
+                             "(total-mass, fixed-...): use 'SLSQP' or 'trust-constr', or hold the quantity by "
+                             "a variable of its own instead")
     if method not in METHODS:
         raise ParameterError(f"design method {method!r} is not one of {list(METHODS)}")
     if method == "auto":
@@ -175,6 +201,14 @@ def minimize(ev: Evaluator, u0: np.ndarray, method: str, max_iter: int, ftol: fl
     def cb(intermediate_result):
         callback(np.asarray(intermediate_result.x, dtype=float))
 
+    if method == "differential-evolution":
+        specs = [so.NonlinearConstraint(lambda u, i=i: ev.constraint(u, i), 0.0, 0.0 if c.equality else np.inf)
+                 for i, c in enumerate(cons)]
+        # SciPy's maxiter counts the generations after the first: max_iter generations in all
+        return so.differential_evolution(ev.objective, list(zip(np.zeros(p), np.ones(p))), x0=u0,
+                                         popsize=POPULATION_PER_VARIABLE, maxiter=max(max_iter - 1, 1), tol=ftol,
+                                         seed=SEED, polish=False, updating="immediate", workers=1,
+                                         constraints=specs or (), callback=cb)
     if method == "L-BFGS-B":
         return so.minimize(ev.objective_and_gradient, u0, jac=True, method=method, bounds=bounds, callback=cb,
                            options={"maxiter": max_iter, "ftol": ftol, "gtol": gtol})
@@ -198,4 +232,5 @@ def projected_gradient_norm(u, g) -> float:
     return float(np.linalg.norm(np.where(free, g, 0.0)))
 
 
-__all__ = ["Counts", "Evaluator", "FAILED", "METHODS", "choose_method", "minimize", "projected_gradient_norm"]
+__all__ = ["Counts", "Evaluator", "FAILED", "GRADIENT_FREE", "METHODS", "POPULATION_PER_VARIABLE", "SEED",
+           "choose_method", "minimize", "projected_gradient_norm"]

@@ -222,7 +222,8 @@ class SteadyEvaluation:
         return (f"design of {name!r} on steady operation: {s['unresolved']} of {s['gradients']} shadowing gradients "
                 f"unresolved (median standard error {s['median_relative_error']:.2g} of the gradient): the optimiser "
                 "followed noise where they were; check the average's slope with finite differences of long runs, or "
-                "use a gradient-free search on the steady average (docs/theory/shadowing.md, 'Mechanisms')")
+                "use a gradient-free search on the steady average (method 'differential-evolution'; "
+                "docs/theory/shadowing.md, 'Mechanisms')")
 
 
 __all__ = ["SteadyOperation", "SteadyEvaluation", "SteadyRms", "sample_objective"]
