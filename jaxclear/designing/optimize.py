@@ -176,8 +176,8 @@ def choose_method(method: str, constrained: bool, equality: bool = False) -> str
     exactly, so it would evaluate no objective)."""
     if method in GRADIENT_FREE and equality:
         raise ParameterError(f"method {method!r} takes inequality constraints only; the design has an equality "
-                             "(total-mass, fixed-...): use 'SLSQP' or 'trust-constr', or hold the quantity by "
-                             "a variable of its own instead")
+                             "(such as total-mass), which no member of its population meets exactly: use 'SLSQP' "
+                             "or 'trust-constr'")
     if method not in METHODS:
         raise ParameterError(f"design method {method!r} is not one of {list(METHODS)}")
     if method == "auto":
