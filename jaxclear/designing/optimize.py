@@ -202,11 +202,11 @@ def minimize(ev: Evaluator, u0: np.ndarray, method: str, max_iter: int, ftol: fl
         callback(np.asarray(intermediate_result.x, dtype=float))
 
     if method == "differential-evolution":
-        specs = [so.NonlinearConstraint(lambda u, i=i: ev.constraint(u, i), 0.0, 0.0 if c.equality else np.inf)
-                 for i, c in enumerate(cons)]
+        # inequalities only (choose_method refuses an equality)
+        specs = [so.NonlinearConstraint(lambda u, i=i: ev.constraint(u, i), 0.0, np.inf) for i in range(len(cons))]
         # SciPy's maxiter counts the generations after the first: max_iter generations in all
         return so.differential_evolution(ev.objective, list(zip(np.zeros(p), np.ones(p))), x0=u0,
-                                         popsize=POPULATION_PER_VARIABLE, maxiter=max(max_iter - 1, 1), tol=ftol,
+                                         popsize=POPULATION_PER_VARIABLE, maxiter=max_iter - 1, tol=ftol,
                                          seed=SEED, polish=False, updating="immediate", workers=1,
                                          constraints=specs or (), callback=cb)
     if method == "L-BFGS-B":
