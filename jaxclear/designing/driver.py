@@ -276,8 +276,11 @@ def _design_locked(problem, variables, u0, start_mech, key, config, out, resume,
         for bar in bars:
             bar.close()
     u = np.clip(np.asarray(res.x, dtype=float), 0.0, 1.0)
-    final = ev.gradient(u)
-    values, jac = np.asarray(final["values"]), np.asarray(final["jacobian"])
+    # a gradient-free method's optimum gets no gradient either (on steady operation a shadowing
+    # solve whose answer is the noise the method was chosen to avoid): NaN in the report
+    final = ev.gradient(u) if with_gradients else ev.value(u)
+    values = np.asarray(final["values"])
+    jac = np.asarray(final["jacobian"]) if with_gradients else np.full((values.shape[0], len(u)), np.nan)
     feasible = np.all(np.isfinite(values)) and violation(problem, values) <= CONSTRAINT_TOL
     status = status_of(res, bool(feasible), config["max_iter"])
     grad, sens = sensitivity(ev, u, values, jac) if report_sensitivity else (
@@ -288,7 +291,7 @@ def _design_locked(problem, variables, u0, start_mech, key, config, out, resume,
         chaos = {"steady": summary, "warnings": [said] if said else []}
         if said:
             warnings.warn(said, ShadowingWarning, stacklevel=3)
-    elif chaos is not None and np.all(np.isfinite(values)):  # the same check where the design ends
+    elif chaos is not None and np.all(np.isfinite(values)) and with_gradients:  # the same check where it ends
         chaos["scale_optimum"] = _scale_check(ev, problem, u, float(values[0]), jac[0], "optimum", chaos["warnings"])
     start_eval = first
     x = [float(v.from_unit(ui)) for v, ui in zip(variables, u)]

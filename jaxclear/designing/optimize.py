@@ -49,7 +49,7 @@ from .problem import DesignProblem, evaluate, evaluate_with_jacobian
 
 #: The methods offered (``auto``: L-BFGS-B without constraints, SLSQP with them).
 METHODS = ("auto", "L-BFGS-B", "SLSQP", "trust-constr", "differential-evolution")
-#: The methods that use no gradient (the design then asks for none at its iterates).
+#: The methods that use no gradient (the design then asks for none, at its iterates or its optimum).
 GRADIENT_FREE = ("differential-evolution",)
 #: Differential evolution's population per design variable (benchmarks/bench_design.py's).
 POPULATION_PER_VARIABLE = 5
