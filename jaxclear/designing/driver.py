@@ -183,7 +183,7 @@ def design(mech: Mechanism, variables: dict, objective="rms-deviation", constrai
                    [_spec(c) for c in cons], problem.members, problem.base, revolutions, problem.n_out, method_,
                    max_iter, ftol, gtol, *([dataclasses.asdict(steady)] if steady is not None else []))
     steady_eval = SteadyEvaluation(problem, steady) if steady is not None else None
-    described = obj.describe(mech) + (steady.describe() if steady is not None else "")
+    described = obj.describe(mech) + (steady.describe(method_ not in GRADIENT_FREE) if steady is not None else "")
     config = dict(variables={v.name: [v.low, v.high] for v in variables_}, objective=described,
                   constraints=[c.describe() for c in cons], method=method_, max_iter=max_iter, ftol=ftol, gtol=gtol,
                   revolutions=revolutions, samples_per_revolution=samples_per_revolution, runs_per_evaluation=

@@ -77,10 +77,11 @@ class SteadyOperation:
                       self.samples_per_segment, self.blocks, self.discard_revolutions, prefix="steady.")
         check_integer("steady.n_unstable", self.n_unstable, 1, None, "homogeneous tangents")
 
-    def describe(self) -> str:
-        """What the average is, appended to the objective's description."""
-        return (f", averaged over {self.revolutions} revolutions of steady operation after {self.skipped} "
-                "(gradients by least-squares shadowing)")
+    def describe(self, gradients: bool = True) -> str:
+        """What the average is, appended to the objective's description (``gradients``: the
+        method uses them, by least-squares shadowing)."""
+        return (f", averaged over {self.revolutions} revolutions of steady operation after {self.skipped}"
+                + (" (gradients by least-squares shadowing)" if gradients else ""))
 
     @property
     def per_revolution(self) -> int:
