@@ -157,7 +157,7 @@ class SteadyEvaluation:
         return self.problem.design_mechanism(self.problem.values(jnp.asarray(u, dtype=float)))
 
     def _constraints(self, u):
-        m = self.problem.design_mechanism(self.problem.values(u))
+        m = self._design(u)
         return jnp.stack([jnp.asarray(c.residual(m, None), dtype=float) for c in self.problem.constraints]) if (
             self.problem.constraints) else jnp.zeros((0,))
 
@@ -172,7 +172,7 @@ class SteadyEvaluation:
                                 progress=False, max_steps=self.problem.base.max_steps * total)
         mean, status = _average(m, s, self.objective, st.skipped * st.per_revolution)
         f = self.problem.objective.finish(mean)
-        values = jnp.concatenate([jnp.asarray(f, dtype=float)[None], self._constraints(jnp.asarray(u, dtype=float))])
+        values = jnp.concatenate([jnp.asarray(f, dtype=float)[None], self._constraints(u)])
         return jnp.where(status == 0, values, jnp.nan), jnp.asarray(status)[None]
 
     def with_jacobian(self, u):
