@@ -115,7 +115,8 @@ def design(mech: Mechanism, variables: dict, objective="rms-deviation", constrai
         revolutions, samples_per_revolution: length and sampling of each run.
         method: ``"auto"`` (L-BFGS-B without constraints, SLSQP with), ``"L-BFGS-B"``,
             ``"SLSQP"``, ``"trust-constr"``, or ``"differential-evolution"`` (gradient-free: for
-            objectives a gradient cannot describe; :mod:`jaxclear.designing.optimize`).
+            objectives a gradient cannot describe; no gradient is computed, and ``check_chaos``'
+            gradient checks are left out; :mod:`jaxclear.designing.optimize`).
         max_iter, ftol, gtol: the method's iteration limit (differential evolution: its
             generations, of 5 members per variable) and tolerances (relative objective).
         out: folder for the journal and the reports (locked while the design runs); None:
@@ -210,7 +211,10 @@ def _design_locked(problem, variables, u0, start_mech, key, config, out, resume,
     f0 = float(first["values"][0])
     ev.scale = abs(f0) if f0 != 0 else 1.0
     chaos = None
-    if check_chaos and steady_eval is None:  # a steady design's own check: its gradients' errors, at the end
+    with_gradients = config["method"] not in GRADIENT_FREE
+    # the checks of whether gradients mean anything: a steady design has its own (its gradients'
+    # errors, at the end), a gradient-free method needs none
+    if check_chaos and steady_eval is None and with_gradients:
         chaos = horizon_report(problem, u0)
         # the plain run against the sensitivity solve at the start (the optimiser asks for this
         # gradient first anyway): within the tolerance of each other where the motion is predictable
@@ -241,8 +245,6 @@ def _design_locked(problem, variables, u0, start_mech, key, config, out, resume,
                                      "(method='differential-evolution')")
             warnings.warn(chaos["warnings"][-1], DerivativeHorizonWarning, stacklevel=3)
     history, bars = [], []
-
-    with_gradients = config["method"] not in GRADIENT_FREE
 
     def record(u, interrupt):
         # the gradient at every iterate (L-BFGS-B has it; SLSQP asks for it next): asking here keeps
