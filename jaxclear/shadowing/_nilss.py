@@ -98,9 +98,9 @@ def _member(config: SegmentConfig, segments: int, discard: int, chunks: int, chu
     return average, derivative.reshape(s.shape), exponents, jnp.sum(records.steps), ok & jnp.all(records.ok)
 
 
-@partial(jax.jit, static_argnames=("config", "segments", "discard", "chunks"))
-def _members(config, segments, discard, chunks, chunk_time, starts, s, keys):
-    return jax.vmap(lambda u, k: _member(config, segments, discard, chunks, chunk_time, u, s, k))(starts, keys)
+@partial(jax.jit, static_argnames=("member", "config", "segments", "discard", "chunks"))
+def _members(member, config, segments, discard, chunks, chunk_time, starts, s, keys):
+    return jax.vmap(lambda u, k: member(config, segments, discard, chunks, chunk_time, u, s, k))(starts, keys)
 
 
 def nilss(f, u0, s, objective, *, n_unstable: int, segment_time: float, segments: int, members: int = 4,
@@ -149,6 +149,17 @@ def nilss(f, u0, s, objective, *, n_unstable: int, segment_time: float, segments
         ParameterError: an input outside its range (named, with the range).
         SolverError: a solve failed (``max_steps`` reached, or the solver's own failure).
     """
+    return shadow("nilss", _member, f, u0, s, objective, n_unstable=n_unstable, segment_time=segment_time,
+                  segments=segments, members=members, transient=transient, discard=discard, rtol=rtol, atol=atol,
+                  steps_per_segment=steps_per_segment, solver=solver, max_steps=max_steps, neutral=neutral,
+                  spread=spread, seed=seed)
+
+
+def shadow(name: str, member, f, u0, s, objective, *, n_unstable, segment_time, segments, members, transient,
+           discard, rtol, atol, steps_per_segment, solver, max_steps, neutral, spread, seed) -> ShadowingResult:
+    """The driver of :func:`nilss` and :func:`~jaxclear.shadowing.nilsas` (``name``): the checks,
+    the members' starts, one compiled program of ``member`` (:func:`_member` or the adjoint's)
+    batched over them, the result."""
     u0 = _checks.check_state(u0)
     s = _checks.check_parameters(s)
     n_unstable, segments, members, steps_per_segment, max_steps = _checks.check_options(
@@ -166,11 +177,11 @@ def nilss(f, u0, s, objective, *, n_unstable: int, segment_time: float, segments
     noise = jax.random.normal(key_start, (members,) + u0.shape, u0.dtype)
     starts = u0 + spread * (1.0 + jnp.abs(u0)) * noise
     keys = jax.random.split(key_basis, members)
-    averages, derivatives, exponents, steps, ok = _members(config, segments, discard, chunks, chunk_time, starts, s,
-                                                           keys)
+    averages, derivatives, exponents, steps, ok = _members(member, config, segments, discard, chunks, chunk_time,
+                                                           starts, s, keys)
     failed = np.flatnonzero(~np.asarray(ok))
     if failed.size:
-        raise SolverError(f"nilss: the solve of member {int(failed[0])} (of {members}) failed: max_steps = {max_steps} "
+        raise SolverError(f"{name}: the solve of member {int(failed[0])} (of {members}) failed: max_steps = {max_steps} "
                           f"per segment reached or the solver stopped (f = {function_name(f)}); raise max_steps "
                           "(allowed >= 1), shorten segment_time or loosen rtol/atol")
     root_m = math.sqrt(members)
@@ -179,4 +190,4 @@ def nilss(f, u0, s, objective, *, n_unstable: int, segment_time: float, segments
         average=jnp.mean(averages), average_error=jnp.std(averages, ddof=1) / root_m,
         member_derivatives=derivatives, member_averages=averages, exponents=exponents, steps=steps,
         time=(segments - discard) * float(segment_time), segments=segments, discard=discard,
-        segment_time=float(segment_time), n_unstable=n_unstable)
+        segment_time=float(segment_time), n_unstable=n_unstable, method=name.upper())
