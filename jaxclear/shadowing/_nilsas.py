@@ -193,11 +193,12 @@ def nilsas(f, u0, s, objective, *, n_unstable: int, segment_time: float, segment
     (both approximate the shadowing derivative; on a finite run they differ by terms of order
     :math:`1/T`), the same arguments and result, but for ``discard``.
 
+    ``f``, ``u0``, ``s``, ``objective``, ``n_unstable``, ``segment_time``, ``segments``, ``members``,
+    ``transient``, ``rtol``, ``atol``, ``steps_per_segment``, ``solver``, ``max_steps``, ``neutral``,
+    ``spread`` and ``seed`` are :func:`~jaxclear.shadowing.nilss`'s (the tolerances apply to the
+    forward solves and to the backward solves of the adjoints; ``max_steps`` to each solve).
+
     Args:
-        f, u0, s, objective, n_unstable, segment_time, segments, members, transient, rtol, atol,
-        steps_per_segment, solver, max_steps, neutral, spread, seed: as for
-            :func:`~jaxclear.shadowing.nilss` (the tolerances apply to the forward solves and to the
-            backward solves of the adjoints and their integrals; ``max_steps`` to each).
         discard: segments at the *end* left out of the averages (they still enter the least
             squares): the adjoints start there from their flow component alone, and their parts
             that shrink backwards in time reach the shadowing adjoint at the slowest contraction
