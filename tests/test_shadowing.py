@@ -6,7 +6,8 @@
   Pol, whose period changes with the parameter, so the time-dilation term is half the answer)
   against central differences of weighted Birkhoff averages, and a forced linear oscillator
   against its closed form (two parameters at once);
-* the least-squares problem against the dense KKT system, and bad inputs.
+* the least-squares problem against the dense KKT system, and bad inputs (of NILSAS too:
+  tests/test_nilsas.py checks its derivatives).
 
 Measured here (docs/theory/shadowing.md, "Validation"): NILSS gives d<z>/d rho = 1.017 at rho = 28,
 the regression 1.003 +- 0.001 (64 members x 2000 time units per rho); the shadowing derivative of
@@ -22,7 +23,7 @@ import numpy as np
 import pytest
 
 from jaxclear._errors import ParameterError, SolverError
-from jaxclear.shadowing import kkt_dense, nilss, shadowing_coefficients
+from jaxclear.shadowing import kkt_dense, nilsas, nilss, shadowing_coefficients
 
 RHO = 28.0
 U0 = jnp.array([1.0, 1.0, 25.0])
@@ -204,12 +205,13 @@ def test_block_solve_of_the_least_squares_problem_is_the_dense_kkt_solution(K, n
     ({"u0": jnp.ones((3, 1))}, ["u0 must be a 1-D state vector"]),
     ({"s": float("inf")}, ["s must be finite"]),
 ])
-def test_bad_inputs_raise_parameter_errors_naming_the_parameter_and_range(change, words):
+@pytest.mark.parametrize("method", [nilss, nilsas], ids=["nilss", "nilsas"])
+def test_bad_inputs_raise_parameter_errors_naming_the_parameter_and_range(change, words, method):
     kwargs = dict(u0=U0, s=RHO, n_unstable=1, segment_time=0.25, segments=10, members=2)
     kwargs.update(change)
     u0, s = kwargs.pop("u0"), kwargs.pop("s")
     with pytest.raises(ParameterError) as info:
-        nilss(lorenz, u0, s, height, **kwargs)
+        method(lorenz, u0, s, height, **kwargs)
     for word in words:
         assert word in str(info.value), str(info.value)
 
