@@ -23,9 +23,9 @@ import pytest
 
 from jaxclear._errors import SolverError
 from jaxclear.shadowing import nilsas, nilss
-from test_shadowing import SHADOWING_GAP, U0, _birkhoff_mean, forced_oscillator, regression_slope, skewed, van_der_pol
+from test_shadowing import (SHADOWING_GAP, U0, _birkhoff_mean, forced_oscillator, oscillator_exact, regression_slope,
+                            skewed, van_der_pol)
 
-OMEGA, ZETA = 1.3, 0.3
 S3 = jnp.array([10.0, 28.0, 8.0 / 3.0])
 
 
@@ -76,9 +76,7 @@ def test_limit_cycle_gives_the_ordinary_derivative_with_its_time_dilation():
 
 def test_forced_oscillator_gives_the_closed_form_for_two_parameters():
     k, amplitude = 2.0, 0.7
-    den = (k - OMEGA**2) ** 2 + (2.0 * ZETA * OMEGA) ** 2
-    mean = amplitude**2 / (2.0 * den)
-    exact = np.array([-(amplitude**2) * (k - OMEGA**2) / den**2, 2.0 * mean / amplitude])
+    mean, exact = oscillator_exact(k, amplitude)
     result = nilsas(forced_oscillator, jnp.array([0.0, 0.0, 1.0, 0.0]), jnp.array([k, amplitude]),
                     lambda u, s: u[0] ** 2, n_unstable=0, segment_time=1.0, segments=840, discard=40, members=2,
                     transient=60.0, rtol=1e-9, atol=1e-9, spread=1e-7)

@@ -158,11 +158,17 @@ def forced_oscillator(u, s):
     return jnp.stack([y, -k * x - 2.0 * ZETA * y + amplitude * c, -OMEGA * d, OMEGA * c])
 
 
-def test_forced_oscillator_gives_the_closed_form_for_two_parameters():
-    k, amplitude = 2.0, 0.7
+def oscillator_exact(k, amplitude):
+    """The forced oscillator's <x^2> = A^2 / (2 ((k - omega^2)^2 + (2 zeta omega)^2)) and its
+    derivative with respect to (k, A), closed form."""
     den = (k - OMEGA**2) ** 2 + (2.0 * ZETA * OMEGA) ** 2
     mean = amplitude**2 / (2.0 * den)
-    exact = np.array([-(amplitude**2) * (k - OMEGA**2) / den**2, 2.0 * mean / amplitude])
+    return mean, np.array([-(amplitude**2) * (k - OMEGA**2) / den**2, 2.0 * mean / amplitude])
+
+
+def test_forced_oscillator_gives_the_closed_form_for_two_parameters():
+    k, amplitude = 2.0, 0.7
+    mean, exact = oscillator_exact(k, amplitude)
     result = nilss(forced_oscillator, jnp.array([0.0, 0.0, 1.0, 0.0]), jnp.array([k, amplitude]),
                    lambda u, s: u[0] ** 2, n_unstable=0, segment_time=1.0, segments=440, discard=40, members=2,
                    transient=60.0, rtol=1e-9, atol=1e-9, spread=1e-7)
