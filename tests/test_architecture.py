@@ -155,3 +155,18 @@ def test_the_check_catches_an_upward_import():
     got = imported_units(PACKAGE / "model" / "probe.py", units_on_disk(), {}, source)
     assert set(got) == {"integrate", "params", "fitting"}
     assert not set(got) & allowed("model", table())
+
+
+#: Modules that ``import jaxclear`` leaves to their first use (issue 41, time to first result):
+#: together they were about 1 s of a 3.4 s import on 2 cores (``python -X importtime``), the time
+#: every command and every notebook pays before its first result.
+LAZY = ("matplotlib", "scipy.stats", "scipy.interpolate")
+
+
+def test_import_jaxclear_leaves_figures_and_statistics_to_their_first_use():
+    import subprocess
+
+    code = f"import sys, jaxclear; print([m for m in {LAZY!r} if m in sys.modules])"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                         cwd=Path(__file__).parent)
+    assert out.stdout.strip() == "[]", out.stdout + out.stderr

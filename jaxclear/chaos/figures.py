@@ -3,13 +3,19 @@ densities, their Poincare sections (matplotlib's object interface, no global sta
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-from matplotlib.figure import Figure
+
+from ..plot import new_figure
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 
 def plot_running(result, path: str | None = None) -> Figure:
     """The running estimate of every exponent against time (convergence)."""
-    fig = Figure(figsize=(6.4, 4.0), layout="constrained")
+    fig = new_figure(figsize=(6.4, 4.0), layout="constrained")
     ax = fig.add_subplot()
     t, running = np.asarray(result.times), np.asarray(result.running)
     for i in range(running.shape[1]):
@@ -26,7 +32,7 @@ def plot_running(result, path: str | None = None) -> Figure:
 
 def plot_spectra(reports, path: str | None = None) -> Figure:
     """Welch power spectral density of each channel (log scale)."""
-    fig = Figure(figsize=(6.4, 2.6 * max(1, len(reports))), layout="constrained")
+    fig = new_figure(figsize=(6.4, 2.6 * max(1, len(reports))), layout="constrained")
     for i, c in enumerate(reports):
         ax = fig.add_subplot(len(reports), 1, i + 1)
         ax.semilogy(c.frequency[1:], c.density[1:])
@@ -42,7 +48,7 @@ def plot_spectra(reports, path: str | None = None) -> Figure:
 def plot_sections(reports, path: str | None = None) -> Figure:
     """Poincare section (once per revolution): the first channel against the second, or, with
     one channel, its value against the next revolution's (a return map)."""
-    fig = Figure(figsize=(5.0, 4.6), layout="constrained")
+    fig = new_figure(figsize=(5.0, 4.6), layout="constrained")
     ax = fig.add_subplot()
     a = reports[0]
     if len(reports) > 1:

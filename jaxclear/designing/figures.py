@@ -4,11 +4,15 @@ contact force, convergence)."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-from matplotlib.figure import Figure
 
 from ..analysis import channels
-from ..plot import COLORS, abscissa, angle_ticks, clearance_region, save_figure
+from ..plot import COLORS, abscissa, angle_ticks, clearance_region, new_figure, save_figure
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 
 def _signal_panel(ax, name: str, runs: dict):
@@ -83,7 +87,7 @@ def plot_comparison(path, channel: str, start: tuple, optimum: tuple, history: l
     objective per iteration from ``history``."""
     runs = {"start design": start, "optimum": optimum}
     contact = bool(start[0].clearance_joints)
-    fig = Figure(figsize=(13.0, 8.0))
+    fig = new_figure(figsize=(13.0, 8.0))
     axes = fig.subplots(2, 2)
     _signal_panel(axes[0, 0], channel, runs)
     if contact:

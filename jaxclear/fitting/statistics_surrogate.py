@@ -33,7 +33,6 @@ varies little over the posterior.
 from __future__ import annotations
 
 import numpy as np
-from scipy.interpolate import RegularGridInterpolator
 from scipy.special import logsumexp
 
 from .statistics import block_statistics, moments, quadratic_terms, statistic_weights, synthetic_loglik
@@ -78,6 +77,9 @@ class Surrogate:
         mu, cov = np.squeeze(mu, axis=squeeze), np.squeeze(cov, axis=squeeze)
         self.method = method
         if keep:
+            # imported here: scipy.interpolate is a sixth of `import jaxclear`'s own time (issue 41)
+            from scipy.interpolate import RegularGridInterpolator
+
             self.mu = RegularGridInterpolator(keep, mu, method=method, bounds_error=False, fill_value=np.nan)
             self.cov = RegularGridInterpolator(keep, cov, method="linear", bounds_error=False, fill_value=np.nan)
         else:  # one node: nothing to interpolate

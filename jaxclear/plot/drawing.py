@@ -22,16 +22,19 @@ from __future__ import annotations
 import os
 import shutil
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-from matplotlib import animation
-from matplotlib.figure import Figure
-from matplotlib.patches import Circle
 
 from .._errors import ParameterError
 from ..elements import TranslationalClearanceJoint
 from ..integrate import Solution
 from ..model import GROUND, AbstractConnector, Mechanism, Translational
 from ..model.joints import AbstractJoint
+from .figures import new_figure
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 DPI = 110
 #: drawn bearing radius as a fraction of the drawing's size
@@ -90,6 +93,8 @@ class _Artist:
         ax.plot(grounds[:, 0], grounds[:, 1] - 0.02 * size, "^", color="0.3", ms=9, zorder=1)
         self.radius = BEARING_SIZE * size
         self.clearances = []
+        from matplotlib.patches import Circle
+
         for k, j in enumerate(mech.clearance_joints):
             bearing = Circle((0, 0), self.radius, fill=False, ec="k", lw=1.2, zorder=5,
                              label=f"clearance joint (gap x{magnify:.3g})" if k == 0 else None)
@@ -169,7 +174,7 @@ def _axes(fig: Figure, mech: Mechanism, qs: np.ndarray, rect=(0.08, 0.08, 0.88, 
 def plot_mechanism(path, mech: Mechanism, q, magnify: float | None = None, title: str | None = None) -> Figure:
     """Draw ``mech`` in configuration ``q`` (n,) [m, rad]; save a PNG when ``path`` is given."""
     q = np.asarray(q, float)
-    fig = Figure(figsize=(7.0, 6.0), dpi=DPI)
+    fig = new_figure(figsize=(7.0, 6.0), dpi=DPI)
     ax, size = _axes(fig, mech, q)
     magnify = default_magnify(mech, size) if magnify is None else float(magnify)
     art = _Artist(ax, mech, size, magnify)
@@ -192,6 +197,8 @@ def animate(mech: Mechanism, sol: Solution, path, fps: int = 25, frames: int = 1
     Returns the path."""
     path = os.fspath(path)
     ext = os.path.splitext(path)[1].lower()
+    from matplotlib import animation
+
     if ext not in (".gif", ".mp4"):
         raise ParameterError(f"animation file {path!r}: the extension must be .gif or .mp4")
     if ext == ".mp4" and not animation.FFMpegWriter.isAvailable() and shutil.which("ffmpeg") is None:
@@ -201,7 +208,7 @@ def animate(mech: Mechanism, sol: Solution, path, fps: int = 25, frames: int = 1
         raise ParameterError(f"frames = {frames} and fps = {fps} must be >= 1")
     qs = np.asarray(sol.q, float)
     idx = np.unique(np.linspace(0, qs.shape[0] - 1, int(frames)).round().astype(int))
-    fig = Figure(figsize=(9.0, 6.0), dpi=DPI)
+    fig = new_figure(figsize=(9.0, 6.0), dpi=DPI)
     ax, size = _axes(fig, mech, qs[idx], rect=(0.08, 0.09, 0.60, 0.82))
     magnify = default_magnify(mech, size) if magnify is None else float(magnify)
     art = _Artist(ax, mech, size, magnify)

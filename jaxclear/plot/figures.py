@@ -12,14 +12,16 @@ the axis), for mechanisms with a ``crank`` role, and the time in ms otherwise.
 from __future__ import annotations
 
 import os
+from typing import TYPE_CHECKING
 
 import numpy as np
-from matplotlib.figure import Figure
-from matplotlib.ticker import MaxNLocator, MultipleLocator
 
 from ..model import Mechanism
 from ..integrate import Solution
 from ..integrate import jit
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 DPI = 130
 FIGSIZE = (9.0, 4.8)
@@ -30,6 +32,16 @@ COLORS = ("tab:blue", "tab:red", "tab:green", "tab:purple")
 def clearance_region(joint):
     """``joint.clearance_region()`` as one compiled program (op by op, several small ones)."""
     return joint.clearance_region()
+
+
+def new_figure(**kwargs) -> Figure:
+    """A :class:`matplotlib.figure.Figure` (``kwargs`` its own: ``figsize``, ``layout``, ``dpi``,
+    ...), the one way jaxclear makes a figure. matplotlib is imported here, at the first figure,
+    not with jaxclear: it was a fifth of the time ``import jaxclear`` spends outside JAX and diffrax
+    (issue 41)."""
+    from matplotlib.figure import Figure
+
+    return Figure(**kwargs)
 
 
 def save_figure(fig: Figure, path) -> Figure:
@@ -51,6 +63,8 @@ def angle_ticks(ax, x):
     """Crank-angle ticks [deg] on ``ax`` every 30, 90 or 360 degrees as the span ``x`` grows."""
     span = float(np.max(x) - np.min(x)) if x.size else 0.0
     step = 360.0 if span > 1440.5 else 90.0 if span > 270.5 else 30.0
+    from matplotlib.ticker import MultipleLocator
+
     ax.xaxis.set_major_locator(MultipleLocator(step))
     ax.set_xlim(float(np.min(x)), float(np.max(x)))
 
@@ -79,7 +93,7 @@ def plot_slider_acceleration(path, mech: Mechanism, sol: Solution, ideal_sol: So
     slider = mech.role("slider")
     if slider is None:
         raise ValueError(f"mechanism {mech.name!r} has no 'slider' role: nothing to plot")
-    fig = Figure(figsize=FIGSIZE)
+    fig = new_figure(figsize=FIGSIZE)
     ax = fig.add_subplot()
     x, xlabel, is_angle = abscissa(mech, sol)
     acc = np.asarray(sol.coordinate(mech, slider, "x", derivative=2), dtype=float)
@@ -105,7 +119,7 @@ def plot_slider_acceleration(path, mech: Mechanism, sol: Solution, ideal_sol: So
 def plot_channel(path, mech: Mechanism, sol: Solution, name: str, values, unit: str, ideal_values=None) -> Figure:
     """One named output channel (:mod:`jaxclear.analysis.channels`) against the crank angle (or
     time), with its ideal-joint counterpart ``ideal_values`` (same output grid) overlaid."""
-    fig = Figure(figsize=FIGSIZE)
+    fig = new_figure(figsize=FIGSIZE)
     ax = fig.add_subplot()
     x, xlabel, is_angle = abscissa(mech, sol)
     ax.plot(x, np.asarray(values, dtype=float), color=COLORS[0], lw=0.8,
@@ -132,7 +146,7 @@ def plot_orbit(path, mech: Mechanism, sol: Solution) -> Figure:
     k = len(mech.clearance_joints)
     if k == 0:
         raise ValueError(f"mechanism {mech.name!r} has no clearance joint: no orbit to plot")
-    fig = Figure(figsize=(5.2 * k, 6.0))
+    fig = new_figure(figsize=(5.2 * k, 6.0))
     ecc = 1e3 * np.asarray(sol.ecc, dtype=float)
     for j, joint in enumerate(mech.clearance_joints):
         ax = fig.add_subplot(1, k, j + 1)
@@ -162,7 +176,7 @@ def plot_contact_force(path, mech: Mechanism, sol: Solution) -> Figure:
     k = len(mech.clearance_joints)
     if k == 0:
         raise ValueError(f"mechanism {mech.name!r} has no clearance joint: no contact force to plot")
-    fig = Figure(figsize=FIGSIZE)
+    fig = new_figure(figsize=FIGSIZE)
     ax = fig.add_subplot()
     x, xlabel, is_angle = abscissa(mech, sol)
     fn = np.asarray(sol.normal_force, dtype=float)
@@ -233,7 +247,7 @@ def plot_heatmap(path, x, y, z, xlabel: str = "x", ylabel: str = "y", zlabel: st
     if log is None:
         pos = finite[finite > 0]
         log = bool(pos.size == finite.size and pos.size and pos.max() > 100 * pos.min())
-    fig = Figure(figsize=(7.2, 5.6))
+    fig = new_figure(figsize=(7.2, 5.6))
     ax = fig.add_subplot()
     ax.set_facecolor("0.85")
     xo, yo = np.argsort(x), np.argsort(y)
@@ -282,7 +296,7 @@ def plot_bifurcation(path, parameter, points, xlabel: str = "parameter", ylabel:
     ``points[i, :]`` (one per crank revolution after the transient) as dots above that value."""
     p = np.asarray(parameter, dtype=float)
     v = np.asarray(points, dtype=float).reshape(p.shape[0], -1)
-    fig = Figure(figsize=FIGSIZE)
+    fig = new_figure(figsize=FIGSIZE)
     ax = fig.add_subplot()
     xs = np.repeat(p, v.shape[1])
     ax.plot(xs, v.ravel(), ls="none", marker=".", ms=3.0, color="black", alpha=0.7)
@@ -310,7 +324,7 @@ def plot_poincare(path, points, colors=None, color_label: str = "", clearance=No
     if pts.ndim == 2:
         pts = pts[None]
     n = pts.shape[0]
-    fig = Figure(figsize=(12.0, 5.6), layout="constrained")
+    fig = new_figure(figsize=(12.0, 5.6), layout="constrained")
     ax1, ax2 = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)
     cmap = colormaps["viridis"]
     cvals = np.arange(n, dtype=float) if colors is None else np.asarray(colors, dtype=float)
@@ -339,6 +353,8 @@ def plot_poincare(path, points, colors=None, color_label: str = "", clearance=No
     ax2.set_xlabel("journal e$_x$ [mm]")
     ax2.set_ylabel("journal v$_x$ relative to bearing [m/s]")
     ax2.set_title("Poincare section (e$_x$, v$_x$)", fontsize=10)
+    from matplotlib.ticker import MaxNLocator
+
     for ax in (ax1, ax2):
         ax.grid(True, alpha=0.3)
         ax.xaxis.set_major_locator(MaxNLocator(5))
@@ -361,7 +377,7 @@ def plot_fit(path, result) -> Figure:
     t = 1e3 * np.asarray(result.t, dtype=float)
     meas = np.asarray(result.measured, dtype=float)
     fitted = np.asarray(result.fitted, dtype=float)
-    fig = Figure(figsize=(9.0, 6.4))
+    fig = new_figure(figsize=(9.0, 6.4))
     ax1 = fig.add_subplot(2, 1, 1)
     ax2 = fig.add_subplot(2, 1, 2, sharex=ax1)
     ax1.plot(t, meas, ".", color="0.55", ms=2.0, label="measured")
@@ -406,7 +422,7 @@ def plot_profiles(path, result) -> Figure:
     parabola ``((value - estimate) / std_GN)^2`` the Gauss-Newton std implies (where the two
     differ, the profile is the honest one). A point below 0 fits better than the estimate."""
     names = list(result.profiles)
-    fig = Figure(figsize=(4.6 * max(len(names), 1), 3.8))
+    fig = new_figure(figsize=(4.6 * max(len(names), 1), 3.8))
     for j, name in enumerate(names):
         p = result.profiles[name]
         ax = fig.add_subplot(1, max(len(names), 1), j + 1)

@@ -6,12 +6,17 @@ load with a profile its time factor [-], over a span that shows each profile who
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import jax
 import jax.numpy as jnp
 import numpy as np
-from matplotlib.figure import Figure
 
 from ..model import Mechanism, ProfileDriver
+from .figures import new_figure
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 
 def mechanism_profiles(mech: Mechanism) -> list[tuple[str, object, bool]]:
@@ -25,7 +30,7 @@ def plot_profiles(path, mech: Mechanism, n: int = 801) -> Figure | None:
     found = mechanism_profiles(mech)
     if not found:
         return None
-    fig = Figure(figsize=(11, 2.6 * len(found)), layout="constrained")
+    fig = new_figure(figsize=(11, 2.6 * len(found)), layout="constrained")
     axes = fig.subplots(len(found), 3, squeeze=False)
     for row, (label, prof, speed) in zip(axes, found):
         t = np.linspace(0.0, prof.end_time(), n)

@@ -41,7 +41,6 @@ import math
 import warnings
 
 import numpy as np
-from scipy import stats
 
 from .._errors import ParameterError
 from .distributions import Inputs
@@ -178,6 +177,8 @@ def linearised(f0: float, grad_scores, limit: float | None = None, metric: str |
     s = float(np.linalg.norm(g))
     out = {"mean": float(f0), "sd": s, "gradient_scores": g.tolist()}
     if limit is not None:
+        from scipy import stats  # where used: scipy.stats is a fifth of `import jaxclear`'s own time
+
         out["probability"] = float(stats.norm.sf((limit - f0) / s)) if s > 0 else float(f0 > limit)
     if metric is not None:
         low, high = (ranges if ranges is not None else METRIC_RANGES).get(metric, (-math.inf, math.inf))
@@ -214,6 +215,8 @@ def linearised_against_sample(metric: str, lin: dict, sample_sd: float, runs: in
 def score_gradient(inputs: Inputs, grad) -> np.ndarray:
     """The gradient over the independent scores ``z`` at ``z = 0`` from the one over the values:
     ``dx_i / dz'_i = phi(0) / pdf_i(x_i(0))`` (the copula's marginal step), times ``L``."""
+    from scipy import stats
+
     g = np.asarray(grad, dtype=float)
     dxdz = np.array([stats.norm.pdf(0.0) / m.frozen.pdf(m.ppf(0.5)) for m in inputs.marginals])
     lower = np.linalg.cholesky(inputs.correlation) if inputs.correlation is not None else np.eye(len(g))

@@ -4,9 +4,14 @@ against the bearing angle after each update."""
 from __future__ import annotations
 
 import os
+from typing import TYPE_CHECKING
 
 import numpy as np
-from matplotlib.figure import Figure
+
+from ..plot import new_figure
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 
 def _magnification(x: float) -> float:
@@ -25,7 +30,7 @@ def plot_wear(angles, depth, service_time, clearance: float, path: str | None = 
     [m] cumulative, ``service_time`` (U,) [s], ``clearance`` [m]. Saved as PNG if ``path``."""
     angles, depth = np.asarray(angles), np.atleast_2d(np.asarray(depth))
     closed = np.append(angles, angles[0] + 2 * np.pi)
-    fig = Figure(figsize=(11, 4.6), layout="constrained")
+    fig = new_figure(figsize=(11, 4.6), layout="constrained")
     ax = fig.add_subplot(1, 2, 1, projection="polar")
     um = 1e6
     magnify = _magnification(0.3 * clearance / depth[-1].max()) if depth[-1].max() > 0 else 1.0
