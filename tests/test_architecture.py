@@ -158,9 +158,9 @@ def test_the_check_catches_an_upward_import():
 
 
 #: Modules that ``import jaxclear`` leaves to their first use (issue 41, time to first result):
-#: together they were about 1 s of a 3.4 s import on 2 cores (``python -X importtime``), the time
+#: together they were about 1.3 s of a 3 s import on 2 cores (``python -X importtime``), the time
 #: every command and every notebook pays before its first result.
-LAZY = ("matplotlib", "scipy.stats", "scipy.interpolate")
+LAZY = ("matplotlib", "scipy.stats", "scipy.interpolate", "scipy.optimize", "scipy.special")
 
 
 def test_import_jaxclear_leaves_figures_and_statistics_to_their_first_use():

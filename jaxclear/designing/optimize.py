@@ -41,7 +41,6 @@ from typing import Callable
 
 import jax.numpy as jnp
 import numpy as np
-import scipy.optimize as so
 
 from .._errors import ParameterError
 from .journal import Journal
@@ -190,6 +189,8 @@ def choose_method(method: str, constrained: bool, equality: bool = False) -> str
 
 def minimize(ev: Evaluator, u0: np.ndarray, method: str, max_iter: int, ftol: float, gtol: float, callback):
     """Run SciPy's ``method`` from ``u0`` on the unit cube; ``callback(u)`` after every iteration."""
+    import scipy.optimize as so  # here: it is half a second of `import jaxclear` otherwise (issue 41)
+
     p = len(u0)
     # keep_feasible: trust-constr's interior-point method otherwise treats the bounds as constraints
     # that its iterates may violate, and the runs would leave the variables' ranges (a crank mass

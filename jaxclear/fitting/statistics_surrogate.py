@@ -33,7 +33,6 @@ varies little over the posterior.
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import logsumexp
 
 from .statistics import block_statistics, moments, quadratic_terms, statistic_weights, synthetic_loglik
 
@@ -94,6 +93,8 @@ class Surrogate:
 
 def _gain_marginal(surrogate, x, observed, weights, log_gains, log_gain_w, scale):
     """At points ``x`` ``(Q, dims)``: ``(log sum_g L pi(g) dg (Q,), loglik (Q, G), chi2 (Q, G))``."""
+    from scipy.special import logsumexp
+
     mu, cov = surrogate(x)
     ll, chi2 = synthetic_loglik(quadratic_terms(observed, mu, cov, weights), log_gains, scale)
     with np.errstate(invalid="ignore"):
