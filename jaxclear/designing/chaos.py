@@ -85,25 +85,34 @@ class RuggedObjectiveWarning(DerivativeHorizonWarning):
 
 @jit
 def _tangents(problem: DesignProblem, u):
-    """The first member's solution and its tangents (P, ...) along the unit vectors of ``u``
-    (each a full range of a variable)."""
+    """``(ts, q, qdot, tangent q (P, ...), tangent qdot (P, ...))``: the first member's solution
+    and its tangents along the unit vectors of ``u`` (each a full range of a variable), what the
+    horizon reads (a flat tuple of arrays: the store of traced programs keeps it, and no integer
+    output has a float0 tangent)."""
 
     def run(uu):
         m = problem.member_mechanism(problem.values(uu), 0)
-        return problem.run(m, problem.settings_of(m)).sol
+        sol = problem.run(m, problem.settings_of(m)).sol
+        return sol.q, sol.qdot, sol.ts
 
-    sol, lin = jax.linearize(run, u)
-    return sol, jax.vmap(lin)(jnp.eye(u.shape[0], dtype=u.dtype))
+    (q, qdot, ts), lin = jax.linearize(run, u)
+    dq, dqdot, _ = jax.vmap(lin)(jnp.eye(u.shape[0], dtype=u.dtype))
+    return ts, q, qdot, dq, dqdot
+
+
+_TANGENTS = jax.tree_util.tree_structure((0,) * 5)
 
 
 def horizon_report(problem: DesignProblem, u) -> dict:
     """``{"run_s", "amplification": {name: A}, "horizon_s": {name: t}, "past_horizon": [names]}``
     of the first member at unit coordinates ``u`` (``horizon_s`` None where it is never reached)."""
-    sol, tangents = _tangents(problem, jnp.asarray(u, dtype=float))
+    ts, q, qdot, dq, dqdot = _tangents.stored("design-tangents", lambda: _TANGENTS, problem,
+                                               jnp.asarray(u, dtype=float))
+    sol = SimpleNamespace(ts=ts, q=q, qdot=qdot)  # what the amplification and the horizon read
     run_s = float(np.asarray(sol.ts)[-1] - np.asarray(sol.ts)[0])
     amp, horizon, past = {}, {}, []
     for i, v in enumerate(problem.variables):
-        t_i = SimpleNamespace(q=tangents.q[i], qdot=tangents.qdot[i])  # what the horizon reads
+        t_i = SimpleNamespace(q=dq[i], qdot=dqdot[i])
         a = float(amplification(sol, t_i, 1.0))
         h = derivative_horizon(sol, t_i, problem.rtol, 1.0)
         amp[v.name] = a

@@ -44,7 +44,7 @@ import numpy as np
 
 from .._errors import ParameterError
 from .journal import Journal
-from .problem import DesignProblem, evaluate, evaluate_with_jacobian
+from .problem import DesignProblem, jacobian_at, values_at
 
 #: The methods offered (``auto``: L-BFGS-B without constraints, SLSQP with them).
 METHODS = ("auto", "L-BFGS-B", "SLSQP", "trust-constr", "differential-evolution")
@@ -115,7 +115,7 @@ class Evaluator:
                 self._record(found, found["kind"] == "gradient", True)
             return found
         t0 = time.perf_counter()
-        values, status = (self.values_of or partial(evaluate, self.problem))(jnp.asarray(u))
+        values, status = (self.values_of or partial(values_at, self.problem))(jnp.asarray(u))
         values, status = np.asarray(values), np.asarray(status)
         entry = self.journal.add(u, values, status, time.perf_counter() - t0)
         entry["_seen"] = True
@@ -132,7 +132,7 @@ class Evaluator:
                 self._record(found, True, True)
             return found
         t0 = time.perf_counter()
-        values, jac, status, *extra = (self.jacobian_of or partial(evaluate_with_jacobian, self.problem))(
+        values, jac, status, *extra = (self.jacobian_of or partial(jacobian_at, self.problem))(
             jnp.asarray(u))
         values, jac, status = np.asarray(values), np.asarray(jac), np.asarray(status)
         entry = self.journal.add(u, values, status, time.perf_counter() - t0, jacobian=jac,

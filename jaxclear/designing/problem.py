@@ -236,6 +236,23 @@ def evaluate_with_jacobian(problem: DesignProblem, u):
     return values, columns.T, status
 
 
+#: The output structures of :func:`evaluate` and :func:`evaluate_with_jacobian` (flat tuples of
+#: arrays), which the store of traced programs needs without tracing.
+_VALUES, _JACOBIAN = jax.tree_util.tree_structure((0, 0)), jax.tree_util.tree_structure((0, 0, 0))
+
+
+def values_at(problem: DesignProblem, u):
+    """:func:`evaluate` through the store of traced programs (a new process neither traces nor,
+    with JAX's cache, compiles it again; a problem holding a Python function of the user's is
+    traced as usual)."""
+    return evaluate.stored("design-values", lambda: _VALUES, problem, u)
+
+
+def jacobian_at(problem: DesignProblem, u):
+    """:func:`evaluate_with_jacobian` through the store of traced programs (as :func:`values_at`)."""
+    return evaluate_with_jacobian.stored("design-jacobian", lambda: _JACOBIAN, problem, u)
+
+
 def n_samples(revolutions: float, per_revolution: int) -> int:
     """Output samples of a run of ``revolutions``: ``per_revolution`` each, at least :data:`MIN_SAMPLES`."""
     return max(int(round(per_revolution * revolutions)), MIN_SAMPLES) + 1
