@@ -24,7 +24,7 @@ from .._errors import JaxclearError, ParameterError, is_concrete
 from .._results import deprecated
 from ..analysis.channels import channel
 from ..integrate import Settings, Solution, State, stored_solution
-from ..integrate import check_settings, default_settings
+from ..integrate import check_settings, default_settings, jit
 from ..integrate import raise_for_status as _raise_run_status
 from ..model import Mechanism, crank_driver, crank_period
 from ..sweep.devices import DEFAULT_RUNS_PER_DEVICE, make_mesh
@@ -99,10 +99,15 @@ def _default_interval(mech: Mechanism) -> float:
     return float(crank_period(mech))
 
 
-@eqx.filter_jit
+@jit
 def _compiled(mech, s, y0, transient, interval, scale, windows, discard, samples, count, max_growth, keep):
     return benettin(mech, s, y0, transient=transient, interval=interval, windows=windows, discard=discard,
                     samples=samples, count=count, scale=scale, max_growth=max_growth, keep=keep)
+
+
+#: :class:`LyapunovResult`'s pytree structure (every field an array), which the store of traced
+#: programs needs without tracing.
+_RESULT = jax.tree_util.tree_structure(LyapunovResult(**{f.name: 0 for f in dataclasses.fields(LyapunovResult)}))
 
 
 def lyapunov(mech: Mechanism, settings: Settings | None = None, interval: float | None = None, *,
@@ -170,8 +175,11 @@ def lyapunov(mech: Mechanism, settings: Settings | None = None, interval: float 
                  f"(now {float(interval):g} s) or transient")
     scale = manifold.time_scale(mech) if time_scale is None else jnp.asarray(float(time_scale))
     s_run = dataclasses.replace(s, throw=False)
-    result = _compiled(mech, s_run, y0, jnp.asarray(float(transient)), jnp.asarray(duration / windows), scale,
-                       int(windows), int(discard), int(samples), count, _max_growth(max_growth), bool(keep))
+    # through the store of traced programs: a new process neither traces nor (with JAX's cache)
+    # compiles the run again
+    result = _compiled.stored("lyapunov", lambda: _RESULT, mech, s_run, y0, jnp.asarray(float(transient)),
+                              jnp.asarray(duration / windows), scale, int(windows), int(discard), int(samples), count,
+                              _max_growth(max_growth), bool(keep))
     if s.throw:
         _raise_for_status(result, s, tol, mech)
     return result

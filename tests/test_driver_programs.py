@@ -1,8 +1,10 @@
-"""The design's compiled programs through the store of traced programs (issue 41, item 3, for
-`jc.design`): the objective and constraints (`designing.problem.values_at`), with their Jacobian
-(`jacobian_at`) and the derivative horizon's tangents (`designing.chaos._tangents`). A second
-process running the same design loads them instead of tracing them and ends on the same numbers
-bit for bit (docs/getting-started.md's design, one iteration)."""
+"""The drivers' compiled programs through the store of traced programs (issue 41, item 3): a
+second process running the same design or Lyapunov estimate loads them instead of tracing them
+and ends on the same numbers bit for bit. `jc.design`: the objective and constraints
+(`designing.problem.values_at`), with their Jacobian (`jacobian_at`) and the derivative horizon's
+tangents (`designing.chaos._tangents`), on docs/getting-started.md's design, one iteration;
+`jc.lyapunov`: Benettin's run (`chaos.lyapunov._compiled`), two revolutions of the benchmark.
+(The fit's: tests/test_fit_programs.py; `jc.simulate`'s: tests/test_programs.py.)"""
 
 import json
 import os
@@ -34,12 +36,30 @@ CHILD = textwrap.dedent("""
 #: The design's programs, as the on_trace listeners name them.
 DESIGN_PROGRAMS = {"evaluate", "evaluate_with_jacobian", "_tangents"}
 
+#: Two revolutions of the benchmark slider-crank, the largest exponent over quarter revolutions
+#: (bench_first_result.py's "chaos" entry).
+LYAPUNOV = textwrap.dedent("""
+    import json
+    import jaxclear as jc
+    from jaxclear.integrate import on_trace
+    from jaxclear.integrate import _programs as programs
 
-def _run(cache, out) -> dict:
+    mech = jc.preset("flores-slider-crank")
+    period = float(jc.model.crank_period(mech))
+    traced = []
+    with on_trace(traced.append):
+        r = jc.lyapunov(mech, jc.settings(2 * period, throw=False), interval=period / 4, count=1, samples=4,
+                        keep=False)
+    print(json.dumps(dict(result=[float(r.exponents[0]), r.running.tolist(), int(r.num_steps)],
+                          counts=programs.counts(), traced=traced)))
+""")
+
+
+def _run(cache, out, child=CHILD) -> dict:
     env = dict(os.environ, PYTHONPATH=ROOT + os.pathsep + os.environ.get("PYTHONPATH", ""),
                JAXCLEAR_CACHE_DIR=str(cache))
     env.pop("JAX_COMPILATION_CACHE_DIR", None)  # both stores in JAXCLEAR_CACHE_DIR, as for a user
-    proc = subprocess.run([sys.executable, "-c", CHILD, str(out)], env=env, capture_output=True, text=True,
+    proc = subprocess.run([sys.executable, "-c", child, str(out)], env=env, capture_output=True, text=True,
                           timeout=900)
     assert proc.returncode == 0, proc.stderr[-3000:]
     return json.loads(proc.stdout.strip().splitlines()[-1])
@@ -76,3 +96,15 @@ def test_a_second_process_loads_the_designs_programs(tmp_path):
                                                                                           warm["counts"])
     assert warm["counts"]["loaded"] == cold["counts"]["traced"], warm["counts"]
     assert _numbers(warm["result"]) == _numbers(cold["result"])
+
+
+@pytest.mark.extended
+def test_a_second_process_loads_the_lyapunov_program(tmp_path):
+    """Benettin's run: traced and stored by the first process, loaded by the second, which traces
+    nothing and finds the same exponent, running estimate and steps to the last bit."""
+    cache = tmp_path / "cache"
+    cold, warm = _run(cache, tmp_path, LYAPUNOV), _run(cache, tmp_path, LYAPUNOV)
+    assert "_compiled" in cold["traced"] and cold["counts"]["traced"] >= 1, cold
+    assert warm["traced"] == [] and warm["counts"]["traced"] == 0, warm
+    assert warm["counts"]["loaded"] == cold["counts"]["traced"] and warm["counts"]["unkeyable"] == 0, warm["counts"]
+    assert warm["result"] == cold["result"]
