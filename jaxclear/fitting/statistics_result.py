@@ -214,10 +214,10 @@ class StatisticsFitResult(AbstractResult):
     def plot(self, path=None):
         """The posterior's marginal of every fitted name on its grid (masses), the estimate and
         the 90 % interval marked: the figure, or ``path`` once saved there."""
-        from matplotlib.figure import Figure
+        from ..plot import new_figure
 
         names = [n for n in self.free if n in self.marginals] or list(self.marginals)
-        fig = Figure(figsize=(4.2 * max(1, len(names)), 3.4), layout="constrained")
+        fig = new_figure(figsize=(4.2 * max(1, len(names)), 3.4), layout="constrained")
         for i, n in enumerate(names):
             ax = fig.add_subplot(1, max(1, len(names)), i + 1)
             values = np.asarray(self.grid[n], dtype=float)
