@@ -202,14 +202,21 @@ def minimize(ev: Evaluator, u0: np.ndarray, method: str, max_iter: int, ftol: fl
     def cb(intermediate_result):
         callback(np.asarray(intermediate_result.x, dtype=float))
 
+    def nonlinear(gradients: bool):
+        """Every constraint as SciPy's ``NonlinearConstraint``, residual >= 0 (= 0 for an
+        equality), with its Jacobian where the method uses gradients."""
+        return [so.NonlinearConstraint(lambda u, i=i: ev.constraint(u, i), 0.0, 0.0 if c.equality else np.inf,
+                                       **({"jac": lambda u, i=i: ev.constraint_gradient(u, i)[None, :]}
+                                          if gradients else {}))
+                for i, c in enumerate(cons)]
+
     if method == "differential-evolution":
-        # inequalities only (choose_method refuses an equality)
-        specs = [so.NonlinearConstraint(lambda u, i=i: ev.constraint(u, i), 0.0, np.inf) for i in range(len(cons))]
-        # SciPy's maxiter counts the generations after the first: max_iter generations in all
+        # inequalities only (choose_method refuses an equality); SciPy's maxiter counts the
+        # generations after the first: max_iter generations in all
         return so.differential_evolution(ev.objective, list(zip(np.zeros(p), np.ones(p))), x0=u0,
                                          popsize=POPULATION_PER_VARIABLE, maxiter=max_iter - 1, tol=ftol,
                                          seed=SEED, polish=False, updating="immediate", workers=1,
-                                         constraints=specs or (), callback=cb)
+                                         constraints=nonlinear(False) or (), callback=cb)
     if method == "L-BFGS-B":
         return so.minimize(ev.objective_and_gradient, u0, jac=True, method=method, bounds=bounds, callback=cb,
                            options={"maxiter": max_iter, "ftol": ftol, "gtol": gtol})
@@ -218,11 +225,9 @@ def minimize(ev: Evaluator, u0: np.ndarray, method: str, max_iter: int, ftol: fl
                   "jac": (lambda u, i=i: ev.constraint_gradient(u, i))} for i, c in enumerate(cons)]
         return so.minimize(ev.objective, u0, jac=ev.objective_gradient, method=method, bounds=bounds,
                            constraints=specs, callback=cb, options={"maxiter": max_iter, "ftol": ftol})
-    specs = [so.NonlinearConstraint(lambda u, i=i: ev.constraint(u, i), 0.0, 0.0 if c.equality else np.inf,
-                                    jac=lambda u, i=i: ev.constraint_gradient(u, i)[None, :])
-             for i, c in enumerate(cons)]
-    return so.minimize(ev.objective_and_gradient, u0, jac=True, method=method, bounds=bounds, constraints=specs,
-                       callback=cb, options={"maxiter": max_iter, "gtol": gtol, "xtol": ftol})
+    return so.minimize(ev.objective_and_gradient, u0, jac=True, method=method, bounds=bounds,
+                       constraints=nonlinear(True), callback=cb, options={"maxiter": max_iter, "gtol": gtol,
+                                                                         "xtol": ftol})
 
 
 def projected_gradient_norm(u, g) -> float:
