@@ -42,13 +42,11 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
 from ..params.derivatives import DerivativeHorizonWarning, amplification, derivative_horizon
-from ..integrate import jit
-from .problem import DesignProblem
+from .problem import DesignProblem, tangents_at
 
 #: Steps of the roughness check, fractions of each variable's range: far below any design
 #: tolerance (the gradient's prediction g h is then negligible for a smooth objective), far above
@@ -83,31 +81,10 @@ class RuggedObjectiveWarning(DerivativeHorizonWarning):
     there, and a gradient-based search follows noise."""
 
 
-@jit
-def _tangents(problem: DesignProblem, u):
-    """``(ts, q, qdot, tangent q (P, ...), tangent qdot (P, ...))``: the first member's solution
-    and its tangents along the unit vectors of ``u`` (each a full range of a variable), what the
-    horizon reads (a flat tuple of arrays: the store of traced programs keeps it, and no integer
-    output has a float0 tangent)."""
-
-    def run(uu):
-        m = problem.member_mechanism(problem.values(uu), 0)
-        sol = problem.run(m, problem.settings_of(m)).sol
-        return sol.q, sol.qdot, sol.ts
-
-    (q, qdot, ts), lin = jax.linearize(run, u)
-    dq, dqdot, _ = jax.vmap(lin)(jnp.eye(u.shape[0], dtype=u.dtype))
-    return ts, q, qdot, dq, dqdot
-
-
-_TANGENTS = jax.tree_util.tree_structure((0,) * 5)
-
-
 def horizon_report(problem: DesignProblem, u) -> dict:
     """``{"run_s", "amplification": {name: A}, "horizon_s": {name: t}, "past_horizon": [names]}``
     of the first member at unit coordinates ``u`` (``horizon_s`` None where it is never reached)."""
-    ts, q, qdot, dq, dqdot = _tangents.stored("design-tangents", lambda: _TANGENTS, problem,
-                                               jnp.asarray(u, dtype=float))
+    ts, q, qdot, dq, dqdot = tangents_at(problem, jnp.asarray(u, dtype=float))
     sol = SimpleNamespace(ts=ts, q=q, qdot=qdot)  # what the amplification and the horizon read
     run_s = float(np.asarray(sol.ts)[-1] - np.asarray(sol.ts)[0])
     amp, horizon, past = {}, {}, []

@@ -215,10 +215,10 @@ def _design_locked(problem, variables, u0, start_mech, key, config, out, resume,
     # the checks of whether gradients mean anything: a steady design has its own (its gradients'
     # errors, at the end), a gradient-free method needs none
     if check_chaos and steady_eval is None and with_gradients:
-        chaos = horizon_report(problem, u0)
         # the plain run against the sensitivity solve at the start (the optimiser asks for this
         # gradient first anyway): within the tolerance of each other where the motion is predictable
         start_grad = ev.gradient(u0)
+        chaos = horizon_report(problem, u0)  # the same program's state tangents: nothing runs again
         tangent = float(start_grad["values"][0])
         chaos["objective_spread"] = abs(tangent - f0) / abs(f0) if f0 else abs(tangent)
         # the objective itself at u0 +- a tiny step of each range against the gradient's prediction

@@ -184,22 +184,26 @@ class DesignProblem(eqx.Module):
             ideal = kinematic_solution(ideal_mech, s) if is_kinematic(ideal_mech) else simulate(ideal_mech, s)
         return Run(sol, m, ideal, ideal_mech, jnp.asarray(self.revolutions, dtype=float))
 
-    def member_statistics(self, x, k):
+    def member_statistics(self, x, k, trajectory: bool = False):
         """``(statistics (1 + R,), status)`` of member ``k``: the objective's statistic, then each
-        run constraint's; status the run's (or, if that is ok, the ideal run's) code."""
+        run constraint's; status the run's (or, if that is ok, the ideal run's) code. With
+        ``trajectory``, also the run's ``(ts, q, qdot)`` (what the derivative horizon reads)."""
         m = self.member_mechanism(x, k)
         run = self.run(m, self.settings_of(m))
         stats = [self.objective.statistic(run)] + [c.statistic(run) for c in self.run_constraints]
         status = run.sol.status if run.ideal is None else jnp.where(run.sol.status != 0, run.sol.status,
                                                                      run.ideal.status)
-        return jnp.stack([jnp.asarray(v, dtype=float) for v in stats]), status
+        out = (jnp.stack([jnp.asarray(v, dtype=float) for v in stats]), status)
+        return out + ((run.sol.ts, run.sol.q, run.sol.qdot),) if trajectory else out
 
-    def outputs(self, u):
+    def outputs(self, u, trajectory: bool = False):
         """``(values (1 + C,), statuses (B,))``: the objective and the constraints' residuals at
-        unit coordinates ``u``; NaN where a member's run failed."""
+        unit coordinates ``u``; NaN where a member's run failed. With ``trajectory``, also the
+        first member's ``(ts, q, qdot)``."""
         x = self.values(u)
         ks = jnp.arange(self.members.count)
-        stats, status = over_lanes(lambda k: self.member_statistics(x, k), ks, one_by_one=self.one_by_one)
+        mapped = over_lanes(lambda k: self.member_statistics(x, k, trajectory), ks, one_by_one=self.one_by_one)
+        stats, status = mapped[:2]
         w = self.members.weight
         values = [self.objective.finish(jnp.sum(w * stats[:, 0]))]
         design = self.design_mechanism(x)
@@ -211,7 +215,8 @@ class DesignProblem(eqx.Module):
                 i += 1
             values.append(c.residual(design, pooled))
         out = jnp.stack([jnp.asarray(v, dtype=float) for v in values])
-        return jnp.where(jnp.all(status == 0), out, jnp.nan), status
+        result = (jnp.where(jnp.all(status == 0), out, jnp.nan), status)
+        return result + (jax.tree_util.tree_map(lambda a: a[0], mapped[2]),) if trajectory else result
 
 
 def _start(m: Mechanism, shift, offset, guess_q, guess_qd) -> Mechanism:
@@ -226,19 +231,36 @@ def evaluate(problem: DesignProblem, u):
     return problem.outputs(u)
 
 
+def _with_tangents(problem: DesignProblem, u):
+    """``(values (1 + C,), jacobian (1 + C, P), statuses (B,), ts, q, qdot, tangent q (P, ...),
+    tangent qdot (P, ...))`` at ``u``: one linearization (one sensitivity solve per member), the
+    Jacobian's columns and the first member's state tangents its linear map on the unit vectors
+    (each a full range of a variable). The values are those of the sensitivity solve (its steps are
+    sized for the tangents too). A flat tuple of arrays: the store of traced programs keeps it."""
+
+    def f(uu):
+        values, status, (ts, q, qdot) = problem.outputs(uu, trajectory=True)
+        return (values, q, qdot), (status, ts)
+
+    (values, q, qdot), lin, (status, ts) = jax.linearize(f, u, has_aux=True)
+    columns, dq, dqdot = jax.vmap(lin)(jnp.eye(u.shape[0], dtype=u.dtype))  # (P, 1 + C), (P, T, n) x 2
+    return values, columns.T, status, ts, q, qdot, dq, dqdot
+
+
+_evaluate_with_tangents = jit(_with_tangents)
+
+
 @jit
 def evaluate_with_jacobian(problem: DesignProblem, u):
     """``(values (1 + C,), jacobian (1 + C, P), statuses)`` at ``u``: one linearization (one
     sensitivity solve per member), the Jacobian's columns its linear map on the unit vectors.
     The values are those of the sensitivity solve (its steps are sized for the tangents too)."""
-    values, lin, status = jax.linearize(problem.outputs, u, has_aux=True)
-    columns = jax.vmap(lin)(jnp.eye(u.shape[0], dtype=u.dtype))  # (P, 1 + C)
-    return values, columns.T, status
+    return _with_tangents(problem, u)[:3]
 
 
-#: The output structures of :func:`evaluate` and :func:`evaluate_with_jacobian` (flat tuples of
-#: arrays), which the store of traced programs needs without tracing.
-_VALUES, _JACOBIAN = jax.tree_util.tree_structure((0, 0)), jax.tree_util.tree_structure((0, 0, 0))
+#: The output structures of :func:`evaluate` and of the Jacobian's program (flat tuples of arrays),
+#: which the store of traced programs needs without tracing.
+_VALUES, _WITH_TANGENTS = jax.tree_util.tree_structure((0, 0)), jax.tree_util.tree_structure((0,) * 8)
 
 
 def values_at(problem: DesignProblem, u):
@@ -248,9 +270,37 @@ def values_at(problem: DesignProblem, u):
     return evaluate.stored("design-values", lambda: _VALUES, problem, u)
 
 
+#: The last call of the Jacobian's program: ``(problem, u's bytes, outputs)``. The design's
+#: derivative horizon (:func:`tangents_at`) and its first gradient (:func:`jacobian_at`) ask at the
+#: same point one after the other: the second reads the first's outputs instead of running again.
+_LAST: list = [None]
+
+
+def _jacobian_program(problem: DesignProblem, u) -> tuple:
+    """:func:`_with_tangents` at ``u`` through the store of traced programs, the last call's
+    outputs again where the problem (the same object) and ``u`` are the same."""
+    u = jnp.asarray(u, dtype=float)
+    at = np.asarray(u).tobytes()
+    last = _LAST[0]
+    if last is not None and last[0] is problem and last[1] == at:
+        return last[2]
+    out = _evaluate_with_tangents.stored("design-jacobian", lambda: _WITH_TANGENTS, problem, u)
+    _LAST[0] = (problem, at, out)
+    return out
+
+
 def jacobian_at(problem: DesignProblem, u):
-    """:func:`evaluate_with_jacobian` through the store of traced programs (as :func:`values_at`)."""
-    return evaluate_with_jacobian.stored("design-jacobian", lambda: _JACOBIAN, problem, u)
+    """:func:`evaluate_with_jacobian`'s ``(values, jacobian, statuses)`` through the store of traced
+    programs (as :func:`values_at`), from the one program that also gives :func:`tangents_at`."""
+    return _jacobian_program(problem, u)[:3]
+
+
+def tangents_at(problem: DesignProblem, u):
+    """``(ts, q, qdot, tangent q (P, T, n), tangent qdot (P, T, n))``: the first member's run at
+    ``u`` and its tangents along each variable's full range (what the derivative horizon reads),
+    from the Jacobian's program (:func:`jacobian_at`): the design's first gradient, asked at the
+    same point, neither compiles nor runs anything more."""
+    return _jacobian_program(problem, u)[3:]
 
 
 def n_samples(revolutions: float, per_revolution: int) -> int:
