@@ -20,13 +20,15 @@ from ..params.derivatives import DerivativeHorizonWarning
 from ..chaos import ShadowingWarning
 from ..integrate import Settings
 from ..model import Mechanism, crank_driver
+from ..sweep.lanes import ahead
 from .chaos import (RuggedObjectiveWarning, horizon_report, roughness_report, rugged_message, scale_message,
                     scale_report)
 from .constraints import constraint as make_constraint
 from .journal import Journal
 from .objectives import objective as make_objective
 from .optimize import GRADIENT_FREE, Evaluator, choose_method, minimize, projected_gradient_norm
-from .problem import SAMPLES_PER_REVOLUTION, Ensemble, OperatingPoint, build_problem
+from .problem import (SAMPLES_PER_REVOLUTION, Ensemble, OperatingPoint, build_problem, jacobian_at,
+                      prepare_jacobian)
 from .report import (CONSTRAINT_TOL, comparison_runs, constraint_table, least_violation, sensitivity, status_of,
                      violation)
 from .result import DesignResult
@@ -205,13 +207,24 @@ def _design_locked(problem, variables, u0, start_mech, key, config, out, resume,
         tqdm.write(f"jaxclear design: resuming in {out}: {journal.loaded} evaluations in the journal")
     if progress and not journal.loaded:
         tqdm.write("jaxclear design: compiling the runs and their sensitivities (tens of seconds, once per structure)")
+    with_gradients = config["method"] not in GRADIENT_FREE
+    # the first gradient (asked at u0 next) is traced here and compiled on a thread of its own
+    # while the first values' program and the report's runs (the same structures as at the
+    # optimum) are traced and compiled beside it; its outputs are kept for ev.gradient(u0)
+    first_gradient = None
+    if with_gradients and steady_eval is None and not journal.loaded:
+        prepare_jacobian(problem, u0)
+        first_gradient = ahead(jacobian_at, problem, u0)
     first = ev.value(u0)
+    if first_gradient is not None:
+        if plots:
+            comparison_runs(problem, start_mech, start_mech, config["revolutions"], config["samples_per_revolution"])
+        first_gradient.exception()  # waits for it
     if not np.all(np.isfinite(first["values"])):
         raise _start_error(problem, first["values"], first["status"])
     f0 = float(first["values"][0])
     ev.scale = abs(f0) if f0 != 0 else 1.0
     chaos = None
-    with_gradients = config["method"] not in GRADIENT_FREE
     # the checks of whether gradients mean anything: a steady design has its own (its gradients'
     # errors, at the end), a gradient-free method needs none
     if check_chaos and steady_eval is None and with_gradients:

@@ -289,6 +289,13 @@ def _jacobian_program(problem: DesignProblem, u) -> tuple:
     return out
 
 
+def prepare_jacobian(problem: DesignProblem, u) -> None:
+    """Trace (or load from the store) the Jacobian's program of :func:`jacobian_at` at ``u`` without
+    compiling it: tracing holds Python's lock, so a caller that compiles it on another thread
+    traces it first, and its compilation then overlaps what the caller does next."""
+    _evaluate_with_tangents.prepare("design-jacobian", problem, jnp.asarray(u, dtype=float))
+
+
 def jacobian_at(problem: DesignProblem, u):
     """:func:`evaluate_with_jacobian`'s ``(values, jacobian, statuses)`` through the store of traced
     programs (as :func:`values_at`), from the one program that also gives :func:`tangents_at`."""
