@@ -31,6 +31,7 @@ from .run import evaluate_all, final_jacobian, fitted_mask, fresh_state, run_pla
 from .solver import make_optimizer
 from .state import Checkpoint, FitState
 from .uncertainty import AUTOCORRELATION_WARNING, Uncertainty, estimate_uncertainty
+from .window import evaluate_window_ahead
 
 
 #: What a fit says when its programs are not compiled yet (:func:`~jaxclear.integrate.on_trace`).
@@ -322,6 +323,8 @@ def _fit_locked(problem: FitProblem, opt, out, resume: bool, progress: bool, cal
 
     try:
         with stop_at_safe_points("the current iteration") as interrupt, on_trace(compiling):
+            # the windows' program compiles on a thread of its own while the way in's are traced
+            evaluate_window_ahead(problem.model, st.theta, st.states[0], problem.window_input(0, 1.0, False, st.guesses))
             st = run_plan(problem, opt, st, ckpt, report)
             after_plan = not (unless is not None and (profile or scan)
                               and unless(_result(problem, st, 0.0, False, quiet=True)))

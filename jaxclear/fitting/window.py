@@ -39,6 +39,7 @@ from ..model import Mechanism
 from ..analysis.channels import channel
 from ..analysis.sensor import Accelerometer
 from ..integrate import Settings, initial_state, jit, simulate
+from ..sweep.lanes import ahead
 from .parameters import SENSOR_PARAMETERS, from_z
 from .records import quiet_cut
 from .window_start import element_starts
@@ -164,6 +165,16 @@ def evaluate_window_jit(model: WindowModel, theta_z, state_z, win: WindowInput):
     plot), through the store of traced programs (:meth:`jaxclear.integrate.jit.stored`): a new
     process of the same structure loads the program instead of tracing it."""
     return _evaluate_window.stored("fit-window", lambda: _EVALUATE_STRUCTURE, model, theta_z, state_z, win)
+
+
+def evaluate_window_ahead(model: WindowModel, theta_z, state_z, win: WindowInput):
+    """The window's program (:func:`evaluate_window_jit`) traced (or loaded from the store) here,
+    then compiled and run once at these values on a thread of its own
+    (:func:`jaxclear.sweep.lanes.ahead`): the fit starts it before its way in, whose programs are
+    then traced and compiled beside it. Returns the future, or None (no thread to spare)."""
+    args = (model, jnp.asarray(theta_z), jnp.asarray(state_z), win)
+    _evaluate_window.prepare("fit-window", *args)
+    return ahead(evaluate_window_jit, *args)
 
 
 @dataclass(frozen=True)

@@ -340,12 +340,47 @@ def _forget(ident: int, _ref) -> None:
         _COPIES.pop(ident, None)
 
 
+class _Runner:
+    """The jitted caller of one stored program. Its first call (the compilation) is made by one
+    thread at a time: threads that ask for the same program together (a window's candidate starts
+    split over the host's threads, :func:`jaxclear.sweep.lanes.host_rows`) each compiled it, and
+    traced it, the same seconds twice."""
+
+    def __init__(self, jitted):
+        self.jitted = jitted
+        self.gate = threading.Lock()
+        self.ready = False
+
+    def __call__(self, leaves):
+        if self.ready:
+            return self.jitted(leaves)
+        with self.gate:
+            out = self.jitted(leaves)
+            self.ready = True
+        return out
+
+    def lower(self, leaves):
+        return self.jitted.lower(leaves)
+
+
+#: Per key, the lock of the thread that is loading or tracing that program (:func:`_runner`).
+_PENDING: dict[str, threading.Lock] = {}
+
+
 def _runner(key: str, fun: Callable, args, options: dict, out_structure: Callable | None = None) -> Callable | None:
-    """The jitted caller of the stored program ``key`` (one per program and process, so its
-    compiled executable is reused by later calls); None when it cannot be stored."""
+    """The caller (:class:`_Runner`) of the stored program ``key`` (one per program and process,
+    so its compiled executable is reused by later calls); None when it cannot be stored. One
+    thread loads or traces a program; another asking for it meanwhile waits and gets the same."""
     with _LOCK:
         run = _RUNNERS.get(key)
-    if run is None:
+        gate = _PENDING.setdefault(key, threading.Lock()) if run is None else None
+    if run is not None:
+        return run
+    with gate:
+        with _LOCK:
+            run = _RUNNERS.get(key)
+        if run is not None:
+            return run
         exp = _load(key, fun, args, out_structure)
         if exp is None:
             return None
@@ -354,9 +389,10 @@ def _runner(key: str, fun: Callable, args, options: dict, out_structure: Callabl
         def stored_program(xs):  # the name JAX's logs and the compilation cache show
             return exp.call(*xs)
 
-        run = jax.jit(stored_program, **kwargs)
+        run = _Runner(jax.jit(stored_program, **kwargs))
         with _LOCK:
             _RUNNERS[key] = run
+            _PENDING.pop(key, None)
     return run
 
 
