@@ -286,3 +286,22 @@ def test_host_rows_splits_over_threads_and_keeps_the_order(monkeypatch):
     monkeypatch.setenv("JAXCLEAR_HOST_THREADS", "0")
     with pytest.raises(ValueError, match="JAXCLEAR_HOST_THREADS = '0' must be an integer >= 1"):
         host_threads()
+
+
+def test_ahead_runs_on_a_thread_of_its_own_and_keeps_an_error(monkeypatch):
+    """:func:`~jaxclear.sweep.lanes.ahead`: the call runs on another thread (a daemon, so an
+    interrupted caller does not wait for it), its result or its exception kept in the future it
+    returns; with one host thread nothing runs ahead (None)."""
+    import threading
+
+    from jaxclear.sweep.lanes import ahead
+
+    monkeypatch.setenv("JAXCLEAR_HOST_THREADS", "2")
+    where = []
+    done = ahead(lambda x: where.append(threading.current_thread()) or x + 1, 41)
+    assert done.result(timeout=60) == 42
+    assert where[0] is not threading.main_thread() and where[0].daemon
+    failed = ahead(lambda: 1 / 0)
+    assert isinstance(failed.exception(timeout=60), ZeroDivisionError)
+    monkeypatch.setenv("JAXCLEAR_HOST_THREADS", "1")
+    assert ahead(lambda: where.append("ran")) is None and where[-1] != "ran"

@@ -349,3 +349,45 @@ def test_on_trace_hears_a_miss_of_the_store_and_not_a_load(store):
         triple.stored("triple", lambda: jax.tree_util.tree_structure(0), np.zeros(3))  # the same program
     assert heard == ["triple"] and len(_files(store)) == 1
     np.testing.assert_array_equal(out, 3.0 * np.ones(3))
+
+
+_SLOW_TRACES: list = []
+
+
+def _slow_square(x):
+    """A program whose trace takes 0.5 s (and is counted): two threads ask for it together."""
+    import time
+
+    _SLOW_TRACES.append(1)
+    time.sleep(0.5)
+    return x * x + 1.0
+
+
+def test_two_threads_asking_for_one_program_trace_and_compile_it_once(store):
+    """The store's one-thread rule (jaxclear/integrate/_programs.py, ``_runner``, ``_Runner``):
+    two threads that ask for the same program at once (the fit's way in splits its candidates
+    over the host's threads) trace it once and compile it once; the second waits for the first
+    and both get the program's result."""
+    import threading
+
+    from jax import monitoring
+
+    compiled = []
+    monitoring.register_event_duration_secs_listener(
+        lambda event, d, **kw: compiled.append(kw.get("fun_name")) if event.endswith("backend_compile_duration") else None)
+    before = programs.counts()["traced"]
+    start, out = threading.Barrier(2), [None, None]
+
+    def ask(i):
+        start.wait()
+        out[i] = programs.call("two-threads", _slow_square, (np.arange(3.0) + 0.25,),
+                               lambda: jax.tree_util.tree_structure(0))
+
+    threads = [threading.Thread(target=ask, args=(i,)) for i in range(2)]
+    [t.start() for t in threads]
+    [t.join(timeout=120) for t in threads]
+    expected = (np.arange(3.0) + 0.25) ** 2 + 1.0
+    for o in out:
+        np.testing.assert_array_equal(np.asarray(o), expected)
+    assert len(_SLOW_TRACES) == 1 and programs.counts()["traced"] == before + 1
+    assert compiled.count("jit(stored_program)") == 1, compiled
