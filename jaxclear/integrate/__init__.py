@@ -20,7 +20,7 @@ from ._dynamics import Baumgarte, accelerations, energy, flat_vector_field, spd_
 from ._kinematics import is_kinematic, kinematic_solution, kinematics_at
 from ._runs import (SAMPLES_PER_REVOLUTION, RunWithIdeal, revolution_settings, revolutions_of, simulate_with_ideal,
                     timed_simulate)
-from ._sensitivity import tangent_system
+from ._sensitivity import along_run, tangent_system
 from ._settings import (MAX_OUT_SAMPLES, OPTION_KEYS, Settings, check_settings, default_settings, deprecated_keywords,
                         option_values, settings, settings_from_options, settings_or_default)
 from ._strategies import (ADJOINTS, ONSETS, OUTPUTS, SOLVERS, ExactOnsets, SampleBlock, SampleLoop, Sensitivity,
@@ -48,8 +48,9 @@ __all__ = [
     "minimum_norm_correction", "Baumgarte", "accelerations", "energy", "vector_field", "flat_vector_field", "spd_solve",
     # solver wrappers
     "ImpactMemorySolver", "OnsetController", "UnrolledExplicitRK",
-    # runs of a system from a start (the Lyapunov exponents' tangents, chaos/)
-    "start_run", "mechanism_system", "tangent_system", "integrate_system", "stored_solution",
+    # runs of a system from a start (the Lyapunov exponents' tangents, chaos/); a run's sensitivity
+    # solve along given directions of its parameters (params.sensitivities)
+    "start_run", "mechanism_system", "tangent_system", "integrate_system", "stored_solution", "along_run",
     # compilation
     "jit", "on_trace", "compiler_options",
     # the caches of compiled and traced programs (a module)

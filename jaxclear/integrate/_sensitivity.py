@@ -199,20 +199,23 @@ def tangent_system(mech: Mechanism, s: Settings, *, size: int, count: int, span,
     :math:`\dot S_j = f_y S_j + f_\theta\,\theta'_j` (a row of zeros: a free tangent), as the
     inhomogeneous tangents of least-squares shadowing do (:mod:`jaxclear.chaos.shadowing`)."""
     leaves, treedef = jax.tree_util.tree_flatten((mech, s, None))
-    if along is None:
-        perturbed, point, dirs = (), (), ()
-    else:
-        # along's leaves (None where a leaf is not differentiated) line up with the mechanism's
-        slots = jax.tree_util.tree_leaves(along, is_leaf=lambda x: x is None)
-        if len(slots) != len(jax.tree_util.tree_leaves(mech)):
-            raise ValueError(f"along has {len(slots)} leaves where the mechanism has "
-                             f"{len(jax.tree_util.tree_leaves(mech))}: give eqx.filter(mech, eqx.is_inexact_array)'s "
-                             "structure")
-        perturbed = tuple(i for i, d in enumerate(slots) if d is not None)
-        point = tuple(jnp.asarray(leaves[i]) for i in perturbed)
-        dirs = tuple(slots[i] for i in perturbed)
+    perturbed, dirs = ((), ()) if along is None else _aligned(mech, along)
+    point = tuple(jnp.asarray(leaves[i]) for i in perturbed)
     return TangentSystem(mech, s.baumgarte, Rebuild(leaves, treedef, perturbed), point, dirs, DTMIN_FRACTION * span,
                          size, count, reference)
+
+
+def _aligned(mech: Mechanism, along) -> tuple[tuple, tuple]:
+    """``(perturbed, dirs)``: the indices of the leaves of ``(mech, s, None)`` that ``along`` (of
+    ``eqx.filter(mech, eqx.is_inexact_array)``'s structure, None where a leaf is not
+    differentiated) moves, and its leaves there (the mechanism's leaves come first)."""
+    try:  # one slot per leaf of the mechanism (a field that is None has none, in along too)
+        slots = jax.tree_util.tree_structure(mech).flatten_up_to(along)
+    except (ValueError, TypeError) as err:
+        raise ValueError(f"along does not have the mechanism's structure ({err}): give "
+                         "eqx.filter(mech, eqx.is_inexact_array)'s structure") from None
+    perturbed = tuple(i for i, d in enumerate(slots) if d is not None)
+    return perturbed, tuple(slots[i] for i in perturbed)
 
 
 def directions(point) -> tuple[tuple, Float[Array, " P"]]:
@@ -237,26 +240,23 @@ def _is_float(x) -> bool:
     return jnp.issubdtype(jnp.result_type(x), jnp.inexact)
 
 
-def tangent_run(primals, tangents):
-    """The JVP rule of :func:`~jaxclear.simulate` (``Settings(derivatives=Sensitivity())``):
-    ``primals = (mech, settings, y0)``, ``tangents`` the same with ``None`` for the inputs that
-    are not perturbed. Returns the solution (of the sensitivity solve: its steps are controlled
-    on the values and the tangents, at ``Sensitivity.tolerance`` times the tolerances)
-    and its tangent."""
+def sensitivity_solve(primals, perturbed: tuple, dirs: tuple, begin=None):
+    """The sensitivity solve of the run of ``primals = (mech, settings, y0)`` along ``dirs``
+    (one entry per perturbed leaf of ``primals``, whose indices ``perturbed`` gives: that leaf's
+    change along each of the ``P`` directions, shaped ``(P, *leaf)``): ``(solution, basis)``,
+    ``basis`` the solution's derivative along each direction (every leaf with a leading axis P;
+    zero-size ``float0`` for the integer leaves). One solve of ``P`` tangents, its steps sized
+    for the values and every tangent (:class:`TangentSystem`, held to ``Sensitivity.tolerance``
+    times the tolerances); ``begin``: the run's start (:func:`~jaxclear.integrate._solve.start_run`),
+    if the caller has it."""
     leaves, treedef = jax.tree_util.tree_flatten(primals)
-    tleaves = treedef.flatten_up_to(tangents)
-    perturbed = tuple(i for i, (x, t) in enumerate(zip(leaves, tleaves))
-                      if t is not None and eqx.is_inexact_array(x))
     mech, s, y0 = primals
-    begin = solve.start_run(mech, s, y0)
-    if not perturbed:
-        return solve.run(mech, s, begin)[0], None
+    begin = solve.start_run(mech, s, y0) if begin is None else begin
     rebuild = Rebuild(leaves, treedef, perturbed)
     point = tuple(leaves[i] for i in perturbed)
-    dirs, scale = directions(point)
     dtype = begin.packed.dtype
     size = begin.packed.shape[0]
-    count = scale.shape[0]
+    count = dirs[0].shape[0]
 
     v0, start_tangent = jax.linearize(lambda p: solve.start_run(*rebuild(p)).packed, point)
     t0, t1, ts = solve.grid(s, begin, dtype)
@@ -282,7 +282,48 @@ def tangent_run(primals, tangents):
         return solve.solution(m, ss, grid_of(p), packed, run, begin)
 
     (sol, _), lin = jax.linearize(solution_of, point, samples)
-    basis = jax.vmap(lambda d, v: lin(d, v)[0])(dirs, tangent_samples)
+    return sol, jax.vmap(lambda d, v: lin(d, v)[0])(dirs, tangent_samples)
+
+
+def tangent_run(primals, tangents):
+    """The JVP rule of :func:`~jaxclear.simulate` (``Settings(derivatives=Sensitivity())``):
+    ``primals = (mech, settings, y0)``, ``tangents`` the same with ``None`` for the inputs that
+    are not perturbed. Returns the solution (of the sensitivity solve: its steps are controlled
+    on the values and the tangents, at ``Sensitivity.tolerance`` times the tolerances)
+    and its tangent: one tangent a perturbed scalar (:func:`directions`), combined with the
+    input tangents at the end."""
+    leaves, treedef = jax.tree_util.tree_flatten(primals)
+    tleaves = treedef.flatten_up_to(tangents)
+    perturbed = tuple(i for i, (x, t) in enumerate(zip(leaves, tleaves))
+                      if t is not None and eqx.is_inexact_array(x))
+    mech, s, y0 = primals
+    begin = solve.start_run(mech, s, y0)
+    if not perturbed:
+        return solve.run(mech, s, begin)[0], None
+    dirs, scale = directions(tuple(leaves[i] for i in perturbed))
+    sol, basis = sensitivity_solve(primals, perturbed, dirs, begin)
     coeff = jnp.concatenate([jnp.ravel(tleaves[i]) for i in perturbed]) / scale
     tangent = jax.tree_util.tree_map(lambda b: jnp.tensordot(coeff, b, axes=1) if _is_float(b) else None, basis)
     return sol, tangent
+
+
+def along_run(mech: Mechanism, s: Settings, along, scale):
+    r"""``(solution, derivatives)`` of the run of ``mech`` along ``k`` directions of its
+    parameters in one sensitivity solve of ``k`` tangents: ``along`` has
+    ``eqx.filter(mech, eqx.is_inexact_array)``'s structure, each leaf ``(k, *leaf)`` (a leaf's
+    change per unit change of direction ``j``: :func:`jaxclear.params.directions`; None where a
+    leaf is not moved), ``scale`` ``(k,)`` each direction's size (the named number's magnitude),
+    by which its tangent is multiplied in the solve so that it is of the order of the state and
+    measured with the state's tolerances (as :func:`directions` does for :func:`tangent_run`).
+    ``derivatives`` has the solution's structure, every leaf with a leading axis ``k`` (``float0``
+    for the integer leaves). Where ``jax.linearize`` of :func:`~jaxclear.simulate` over every
+    floating-point leaf followed by the directions integrates one tangent per scalar of the
+    mechanism (63 for the benchmark slider-crank), this integrates ``k``."""
+    perturbed, dirs = _aligned(mech, along)
+    scale = jnp.asarray(scale)
+
+    def scaled(x, power):
+        return x * scale.reshape((-1,) + (1,) * (x.ndim - 1)) ** power
+
+    sol, basis = sensitivity_solve((mech, s, None), perturbed, tuple(scaled(jnp.asarray(d), 1) for d in dirs))
+    return sol, jax.tree_util.tree_map(lambda b: scaled(b, -1) if _is_float(b) else b, basis)

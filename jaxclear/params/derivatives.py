@@ -32,7 +32,7 @@ import numpy as np
 from . import registry as params
 from .._errors import ParameterError
 from .._results import deprecated
-from ..integrate import Settings, Solution, jit, simulate, solution_structure
+from ..integrate import Sensitivity, Settings, Solution, along_run, jit, simulate, solution_structure
 from ..integrate import check_settings, check_status
 from ..model import Mechanism
 
@@ -86,15 +86,32 @@ def directions(mech: Mechanism, names: Sequence[str]):
 
 
 @jit
-def _linearized(mech, s, along, output):
+def _linearized(mech, s, along, scale, output):
     """``(value, tangents, status)`` of the run of ``mech`` and its derivatives along the stacked
-    directions ``along`` of its floating-point leaves (:func:`directions`): tangent directions are
-    arguments, so one program serves every set of as many names. The run's status is returned,
-    not raised here (``s`` without ``throw``), so that the program holds no host callback and
-    JAX's persistent compilation cache keeps it; :func:`sensitivities` raises for it after the
-    program returns. Without ``output`` it goes through the store of traced programs
-    (:func:`_linearized_run`): a new process loads it instead of tracing it."""
+    directions ``along`` of its floating-point leaves (:func:`directions`; ``scale`` ``(k,)`` the
+    named numbers' magnitudes): tangent directions are arguments, so one program serves every set
+    of as many names. Under the default :class:`~jaxclear.integrate.Sensitivity` one sensitivity
+    solve of ``k`` tangents (:func:`~jaxclear.integrate.along_run`; ``output`` then differentiated
+    along the run's tangents and the directions by ``jax.jvp``); under another strategy
+    ``jax.linearize`` of the run. The run's status is returned, not raised here (``s`` without
+    ``throw``), so that the program holds no host callback and JAX's persistent compilation cache
+    keeps it; :func:`sensitivities` raises for it after the program returns. Without ``output`` it
+    goes through the store of traced programs (:func:`_linearized_run`): a new process loads it
+    instead of tracing it."""
     quiet = dataclasses.replace(s, throw=False)
+    if isinstance(s.derivatives, Sensitivity):
+        sol, basis = along_run(mech, quiet, along, scale)
+        if output is None:
+            return sol, basis, sol.status
+        floats = jax.tree_util.tree_map(eqx.is_inexact_array, sol)
+        sd, ss = eqx.partition(sol, floats)
+        md, ms = eqx.partition(mech, eqx.is_inexact_array)
+
+        def g(a, b):
+            return output(eqx.combine(a, ss), eqx.combine(b, ms))
+
+        tangents = jax.vmap(lambda ta, tb: jax.jvp(g, (sd, md), (ta, tb))[1])(eqx.filter(basis, floats), along)
+        return g(sd, md), tangents, sol.status
     dynamic, static = eqx.partition(mech, eqx.is_inexact_array)
 
     def f(d):
@@ -106,17 +123,17 @@ def _linearized(mech, s, along, output):
     return value, jax.vmap(lin)(along), status
 
 
-def _linearized_run(mech, s, along, output):
+def _linearized_run(mech, s, along, scale, output):
     """:func:`_linearized`, through the store of traced programs where its output's structure is
     known without tracing (the whole solution: ``output`` None), else as a plain call."""
     if output is not None:
-        return _linearized(mech, s, along, output)
+        return _linearized(mech, s, along, scale, output)
 
     def structure():  # found once per program (an eval_shape of the state's layout)
         sol = solution_structure(mech)
         return jax.tree_util.treedef_tuple([sol, sol, jax.tree_util.tree_structure(0)])
 
-    return _linearized.stored("sensitivities", structure, mech, s, along, None)
+    return _linearized.stored("sensitivities", structure, mech, s, along, scale, None)
 
 
 @functools.partial(jax.jit, static_argnums=1)
@@ -173,7 +190,9 @@ def sensitivities(mech: Mechanism, names: Sequence[str], s: Settings, output: Ca
     check_settings("sensitivities", s, required=True, name="s")
     names = check_names(mech, names)
     at, along = directions(mech, names)
-    value, tangents, status = _linearized_run(at, s, along, output)
+    x = jnp.asarray([params.get(at, n) for n in names], dtype=float)
+    scale = jnp.where(x != 0, jnp.abs(x), 1.0)  # each tangent of the order of the state (CVODES's pbar)
+    value, tangents, status = _linearized_run(at, s, along, scale, output)
     # a failed run (or sensitivity solve) raises here, after the program (or, inside a user's
     # jit or vmap, through equinox.error_if in the user's program): never a silent NaN
     value, tangents = check_status((value, tangents), status, s, " (the run of jaxclear.sensitivities)", mech)
