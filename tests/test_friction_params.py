@@ -62,7 +62,11 @@ def test_friction_viscous_batch_and_gradient_through_the_simulation():
     batch over ``friction_viscous`` (as a sweep runs it) equals single runs (1e-9 relative);
     d(tangential velocity after the impact)/d mu_v (forward mode through diffrax) against central
     differences of the simulation (relative step 1e-4, tolerance 1e-4: rtol 1e-10 integration,
-    the friction law smooth in mu_v)."""
+    the friction law smooth in mu_v). The value of the sensitivity solve against the plain run:
+    two error-controlled solutions at rtol 1e-10 (the solve's steps sized for its tangent too, at
+    a tenth of the tolerance), so within 1e-9 relative (measured 1.2e-10 with one tangent; with
+    the 63 of every scalar of the mechanism, before jc.sensitivities integrated one per name,
+    below 1e-12 by the many more steps)."""
     mech = free_journal(restitution=0.8, offset=(-0.2e-3, 0.25e-3), friction=jc.Friction(0.0, "viscous", viscous=0.2))
     s = jc.settings(1.0e-3, n_out=3, rtol=1e-10, atol=1e-14)
 
@@ -77,5 +81,5 @@ def test_friction_viscous_batch_and_gradient_through_the_simulation():
     value, grads = jc.parameter_grad(loss, mech, ["friction_viscous"], s, mode="forward")
     h = 1e-4 * 0.2
     fd = (float(run(0.2 + h)) - float(run(0.2 - h))) / (2 * h)
-    assert float(value) == pytest.approx(float(run(0.2)), rel=1e-12)
+    assert float(value) == pytest.approx(float(run(0.2)), rel=1e-9)
     assert float(grads["friction_viscous"]) == pytest.approx(fd, rel=1e-4)
