@@ -37,7 +37,9 @@ def parameter_grad(loss: Callable, mech: Mechanism, names: Sequence[str], s: Set
     respect to every floating-point leaf of the mechanism, projected on the directions after the
     program (any set of names), in forward mode :func:`jaxclear.sensitivities`' own program with
     ``loss`` as its output (one tangent per name; any set of as many names, shared with
-    ``jc.sensitivities(mech, names, settings, output=loss)``).
+    ``jc.sensitivities(mech, names, settings, output=loss)``). Under the default sensitivities
+    reverse mode integrates one tangent per scalar of the mechanism (63 on the benchmark
+    slider-crank) and forward mode one per name: with few names forward mode is the cheaper.
     """
     names = tuple(names)
     for n in names:
