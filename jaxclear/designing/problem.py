@@ -261,6 +261,9 @@ def evaluate_with_jacobian(problem: DesignProblem, u):
 #: The output structures of :func:`evaluate` and of the Jacobian's program (flat tuples of arrays),
 #: which the store of traced programs needs without tracing.
 _VALUES, _WITH_TANGENTS = jax.tree_util.tree_structure((0, 0)), jax.tree_util.tree_structure((0,) * 8)
+#: The Jacobian's program's name in the store (:func:`prepare_jacobian` traces what
+#: :func:`jacobian_at` runs).
+_JACOBIAN = "design-jacobian"
 
 
 def values_at(problem: DesignProblem, u):
@@ -284,7 +287,7 @@ def _jacobian_program(problem: DesignProblem, u) -> tuple:
     last = _LAST[0]
     if last is not None and last[0] is problem and last[1] == at:
         return last[2]
-    out = _evaluate_with_tangents.stored("design-jacobian", lambda: _WITH_TANGENTS, problem, u)
+    out = _evaluate_with_tangents.stored(_JACOBIAN, lambda: _WITH_TANGENTS, problem, u)
     _LAST[0] = (problem, at, out)
     return out
 
@@ -293,7 +296,7 @@ def prepare_jacobian(problem: DesignProblem, u) -> None:
     """Trace (or load from the store) the Jacobian's program of :func:`jacobian_at` at ``u`` without
     compiling it: tracing holds Python's lock, so a caller that compiles it on another thread
     traces it first, and its compilation then overlaps what the caller does next."""
-    _evaluate_with_tangents.prepare("design-jacobian", problem, jnp.asarray(u, dtype=float))
+    _evaluate_with_tangents.prepare(_JACOBIAN, problem, jnp.asarray(u, dtype=float))
 
 
 def jacobian_at(problem: DesignProblem, u):

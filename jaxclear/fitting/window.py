@@ -158,13 +158,16 @@ _evaluate_window = jit(evaluate_window)
 #: The structure of :func:`evaluate_window`'s output: ``r``, the two Jacobians, ``y`` and the end
 #: ``(q, qdot, start states, status, onsets)``, arrays all (the store of traced programs rebuilds it).
 _EVALUATE_STRUCTURE = jax.tree_util.tree_structure((0, 0, 0, 0, (0, 0, 0, 0, 0)))
+#: The window's program's name in the store (:func:`evaluate_window_ahead` traces what
+#: :func:`evaluate_window_jit` runs).
+_WINDOW = "fit-window"
 
 
 def evaluate_window_jit(model: WindowModel, theta_z, state_z, win: WindowInput):
     """:func:`evaluate_window` compiled (outside the solver's step: start states, uncertainty,
     plot), through the store of traced programs (:meth:`jaxclear.integrate.jit.stored`): a new
     process of the same structure loads the program instead of tracing it."""
-    return _evaluate_window.stored("fit-window", lambda: _EVALUATE_STRUCTURE, model, theta_z, state_z, win)
+    return _evaluate_window.stored(_WINDOW, lambda: _EVALUATE_STRUCTURE, model, theta_z, state_z, win)
 
 
 def evaluate_window_ahead(model: WindowModel, theta_z, state_z, win: WindowInput):
@@ -173,7 +176,7 @@ def evaluate_window_ahead(model: WindowModel, theta_z, state_z, win: WindowInput
     (:func:`jaxclear.sweep.lanes.ahead`): the fit starts it before its way in, whose programs are
     then traced and compiled beside it. Returns the future, or None (no thread to spare)."""
     args = (model, jnp.asarray(theta_z), jnp.asarray(state_z), win)
-    _evaluate_window.prepare("fit-window", *args)
+    _evaluate_window.prepare(_WINDOW, *args)
     return ahead(evaluate_window_jit, *args)
 
 

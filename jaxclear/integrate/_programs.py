@@ -381,18 +381,21 @@ def _runner(key: str, fun: Callable, args, options: dict, out_structure: Callabl
             run = _RUNNERS.get(key)
         if run is not None:
             return run
-        exp = _load(key, fun, args, out_structure)
-        if exp is None:
-            return None
-        kwargs = {"compiler_options": dict(options)} if options else {}
+        try:
+            exp = _load(key, fun, args, out_structure)
+            if exp is None:
+                return None
+            kwargs = {"compiler_options": dict(options)} if options else {}
 
-        def stored_program(xs):  # the name JAX's logs and the compilation cache show
-            return exp.call(*xs)
+            def stored_program(xs):  # the name JAX's logs and the compilation cache show
+                return exp.call(*xs)
 
-        run = _Runner(jax.jit(stored_program, **kwargs))
-        with _LOCK:
-            _RUNNERS[key] = run
-            _PENDING.pop(key, None)
+            run = _Runner(jax.jit(stored_program, **kwargs))
+            with _LOCK:
+                _RUNNERS[key] = run
+        finally:
+            with _LOCK:
+                _PENDING.pop(key, None)
     return run
 
 

@@ -218,13 +218,20 @@ def _aligned(mech: Mechanism, along) -> tuple[tuple, tuple]:
     return perturbed, tuple(slots[i] for i in perturbed)
 
 
+def tangent_scale(values):
+    r""":math:`\bar\theta = |\theta|`, or 1 where :math:`\theta = 0` (CVODES's ``pbar``): the size
+    by which the tangent along a parameter of value :math:`\theta` is multiplied in the solve, so
+    that it is of the order of the state and measured with the state's tolerances."""
+    return jnp.where(values != 0, jnp.abs(values), 1.0)
+
+
 def directions(point) -> tuple[tuple, Float[Array, " P"]]:
     r"""One direction per scalar entry of the perturbed leaves ``point``: ``(tangents, scale)``
     with ``tangents`` per leaf ``(P, *shape)`` (the scale :math:`\bar\theta` at that entry's row,
     zero elsewhere) and ``scale`` ``(P,)``: :math:`|\theta|`, or 1 where :math:`\theta = 0`."""
     flat = [jnp.ravel(jnp.asarray(x)) for x in point]
     values = jnp.concatenate(flat)
-    scale = jnp.where(values != 0, jnp.abs(values), 1.0)
+    scale = tangent_scale(values)
     count = values.shape[0]
     out, start = [], 0
     for x, f in zip(point, flat):
@@ -307,20 +314,20 @@ def tangent_run(primals, tangents):
     return sol, tangent
 
 
-def along_run(mech: Mechanism, s: Settings, along, scale):
+def along_run(mech: Mechanism, s: Settings, along, values):
     r"""``(solution, derivatives)`` of the run of ``mech`` along ``k`` directions of its
     parameters in one sensitivity solve of ``k`` tangents: ``along`` has
     ``eqx.filter(mech, eqx.is_inexact_array)``'s structure, each leaf ``(k, *leaf)`` (a leaf's
     change per unit change of direction ``j``: :func:`jaxclear.params.directions`; None where a
-    leaf is not moved), ``scale`` ``(k,)`` each direction's size (the named number's magnitude),
-    by which its tangent is multiplied in the solve so that it is of the order of the state and
-    measured with the state's tolerances (as :func:`directions` does for :func:`tangent_run`).
+    leaf is not moved), ``values`` ``(k,)`` the named numbers' values: each tangent is multiplied
+    in the solve by :func:`tangent_scale` of its value (as :func:`directions` does for
+    :func:`tangent_run`).
     ``derivatives`` has the solution's structure, every leaf with a leading axis ``k`` (``float0``
     for the integer leaves). Where ``jax.linearize`` of :func:`~jaxclear.simulate` over every
     floating-point leaf followed by the directions integrates one tangent per scalar of the
     mechanism (63 for the benchmark slider-crank), this integrates ``k``."""
     perturbed, dirs = _aligned(mech, along)
-    scale = jnp.asarray(scale)
+    scale = tangent_scale(jnp.asarray(values))
 
     def scaled(x, power):
         return x * scale.reshape((-1,) + (1,) * (x.ndim - 1)) ** power

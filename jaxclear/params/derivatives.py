@@ -86,10 +86,10 @@ def directions(mech: Mechanism, names: Sequence[str]):
 
 
 @jit
-def _linearized(mech, s, along, scale, output):
+def _linearized(mech, s, along, values, output):
     """``(value, tangents, status)`` of the run of ``mech`` and its derivatives along the stacked
-    directions ``along`` of its floating-point leaves (:func:`directions`; ``scale`` ``(k,)`` the
-    named numbers' magnitudes): tangent directions are arguments, so one program serves every set
+    directions ``along`` of its floating-point leaves (:func:`directions`; ``values`` ``(k,)`` the
+    named numbers' values): tangent directions are arguments, so one program serves every set
     of as many names. Under the default :class:`~jaxclear.integrate.Sensitivity` one sensitivity
     solve of ``k`` tangents (:func:`~jaxclear.integrate.along_run`; ``output`` then differentiated
     along the run's tangents and the directions by ``jax.jvp``); under another strategy
@@ -100,7 +100,7 @@ def _linearized(mech, s, along, scale, output):
     instead of tracing it."""
     quiet = dataclasses.replace(s, throw=False)
     if isinstance(s.derivatives, Sensitivity):
-        sol, basis = along_run(mech, quiet, along, scale)
+        sol, basis = along_run(mech, quiet, along, values)
         if output is None:
             return sol, basis, sol.status
         floats = jax.tree_util.tree_map(eqx.is_inexact_array, sol)
@@ -123,17 +123,17 @@ def _linearized(mech, s, along, scale, output):
     return value, jax.vmap(lin)(along), status
 
 
-def _linearized_run(mech, s, along, scale, output):
+def _linearized_run(mech, s, along, values, output):
     """:func:`_linearized`, through the store of traced programs where its output's structure is
     known without tracing (the whole solution: ``output`` None), else as a plain call."""
     if output is not None:
-        return _linearized(mech, s, along, scale, output)
+        return _linearized(mech, s, along, values, output)
 
     def structure():  # found once per program (an eval_shape of the state's layout)
         sol = solution_structure(mech)
         return jax.tree_util.treedef_tuple([sol, sol, jax.tree_util.tree_structure(0)])
 
-    return _linearized.stored("sensitivities", structure, mech, s, along, scale, None)
+    return _linearized.stored("sensitivities", structure, mech, s, along, values, None)
 
 
 @functools.partial(jax.jit, static_argnums=1)
@@ -190,9 +190,8 @@ def sensitivities(mech: Mechanism, names: Sequence[str], s: Settings, output: Ca
     check_settings("sensitivities", s, required=True, name="s")
     names = check_names(mech, names)
     at, along = directions(mech, names)
-    x = jnp.asarray([params.get(at, n) for n in names], dtype=float)
-    scale = jnp.where(x != 0, jnp.abs(x), 1.0)  # each tangent of the order of the state (CVODES's pbar)
-    value, tangents, status = _linearized_run(at, s, along, scale, output)
+    values = jnp.asarray([params.get(at, n) for n in names], dtype=float)
+    value, tangents, status = _linearized_run(at, s, along, values, output)
     # a failed run (or sensitivity solve) raises here, after the program (or, inside a user's
     # jit or vmap, through equinox.error_if in the user's program): never a silent NaN
     value, tangents = check_status((value, tangents), status, s, " (the run of jaxclear.sensitivities)", mech)
